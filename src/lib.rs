@@ -1,0 +1,8 @@
+//! Terrain roughness estimation (TRENet): geometry, roughness annotation, models and service.
+//!
+//! Layers depend downward only: [`geometry`] and [`roughness`] are pure and synchronous;
+//! [`io`] reads and writes the on-disk formats; [`model`] owns ONNX Runtime; the CLI sits on top.
+pub mod geometry;
+pub mod io;
+pub mod model;
+pub mod roughness;

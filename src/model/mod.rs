@@ -1,0 +1,2 @@
+//! Learned stages: ONNX Runtime provisioning and sessions.
+pub mod runtime;

@@ -1,0 +1,1 @@
+//! ONNX Runtime location and start-up.
