@@ -1,1 +1,72 @@
-//! Geometry.
+//! Geometry core: pinhole camera, gravity frame, least-squares planes and normals, Eq. 1, and the
+//! DSAC hypothesis sampler. Pure and synchronous (rayon for row-parallel kernels only).
+
+pub mod camera;
+pub mod dsac;
+pub mod gravity;
+pub mod grid;
+pub mod hash;
+pub mod normals;
+pub mod plane;
+pub mod raycast;
+
+pub use camera::{is_valid_point, Intrinsics, PointMap, INVALID_POINT};
+pub use dsac::{dsac_normals, DsacConfig};
+pub use gravity::Mounting;
+pub use grid::Grid;
+pub use normals::{local_planes, ls_normals, window_centroids, LocalPlanes, Neighbourhood};
+pub use plane::{Moments, Plane};
+
+/// A 3-D vector or point in metres (f64: geometry where precision matters).
+pub type Vec3 = nalgebra::Vector3<f64>;
+
+/// Errors of the geometry layer.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GeometryError {
+    /// A buffer's length does not match the grid it should fill.
+    #[error("buffer of {len} values cannot be a {width}×{height} grid")]
+    BufferSize {
+        /// Requested width.
+        width: usize,
+        /// Requested height.
+        height: usize,
+        /// Values supplied.
+        len: usize,
+    },
+    /// A focal length that is not a positive finite number.
+    #[error("focal length {name} must be positive and finite, got {value}")]
+    BadFocalLength {
+        /// `fx` or `fy`.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// A principal point that is not finite.
+    #[error("principal point {name} must be finite, got {value}")]
+    BadPrincipalPoint {
+        /// `cx` or `cy`.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// A pitch outside [−90°, 90°].
+    #[error("camera pitch must be within [-90°, 90°], got {:.3}°", pitch_rad.to_degrees())]
+    BadPitch {
+        /// The value given, radians.
+        pitch_rad: f64,
+    },
+    /// A negative or non-finite camera height.
+    #[error("camera height must be finite and non-negative, got {height_m} m")]
+    BadHeight {
+        /// The value given, metres.
+        height_m: f64,
+    },
+    /// Neighbour logits of the wrong size for the point map.
+    #[error("neighbour logits hold {got} values, expected 49 × H × W = {expected}")]
+    LogitsSize {
+        /// 49 × H × W.
+        expected: usize,
+        /// Values supplied.
+        got: usize,
+    },
+}

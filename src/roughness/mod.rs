@@ -1,1 +1,31 @@
-//! Roughness.
+//! Roughness: the ground-truth annotator (spec v1) and the evaluation metrics. Pure and
+//! synchronous, like `geometry`.
+
+pub mod annotate;
+pub mod metrics;
+
+pub use annotate::{annotate, AnnotateConfig, AnnotateInput, Annotation};
+pub use metrics::{DepthAccumulator, NormalAccumulator, RoughnessAccumulator};
+
+/// Errors of the roughness layer.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RoughnessError {
+    /// An input map whose size differs from the depth map's.
+    #[error("{what} is {}×{} but the depth map is {}×{}", other.0, other.1, depth.0, depth.1)]
+    SizeMismatch {
+        /// Which input.
+        what: &'static str,
+        /// Depth size (w, h).
+        depth: (usize, usize),
+        /// The other input's size (w, h).
+        other: (usize, usize),
+    },
+    /// A depth map with no valid pixel.
+    #[error("the {width}×{height} depth map has no valid pixel (all zero, negative or not finite)")]
+    NoValidDepth {
+        /// Width.
+        width: usize,
+        /// Height.
+        height: usize,
+    },
+}

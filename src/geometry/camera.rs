@@ -1,0 +1,119 @@
+//! Pinhole camera (OpenCV convention: x right, y down, z forward, metres): projection and the
+//! back-projection of organised depth maps into point maps.
+
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::{GeometryError, Grid, Vec3};
+
+/// Per-pixel 3-D points in the camera frame (metres); invalid pixels hold NaN.
+pub type PointMap = Grid<Vec3>;
+
+/// The point that marks a pixel without data.
+pub const INVALID_POINT: Vec3 = Vector3::new(f64::NAN, f64::NAN, f64::NAN);
+
+/// True when `p` is a real point in front of the camera.
+pub fn is_valid_point(p: &Vec3) -> bool {
+    p.z > 0.0 && p.z.is_finite() && p.x.is_finite() && p.y.is_finite()
+}
+
+/// Pinhole intrinsics in pixels of the frame they describe.
+///
+/// ```
+/// use tre::geometry::Intrinsics;
+/// let k = Intrinsics::new(500.0, 500.0, 320.0, 240.0).unwrap();
+/// let p = k.back_project(420.0, 240.0, 2.0);
+/// assert!((p.x - 0.4).abs() < 1e-12);
+/// let (u, v) = k.project(&p).unwrap();
+/// assert!((u - 420.0).abs() < 1e-9 && (v - 240.0).abs() < 1e-9);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Intrinsics {
+    /// Focal length along x, pixels.
+    pub fx_px: f64,
+    /// Focal length along y, pixels.
+    pub fy_px: f64,
+    /// Principal point x, pixels.
+    pub cx_px: f64,
+    /// Principal point y, pixels.
+    pub cy_px: f64,
+}
+
+impl Intrinsics {
+    /// Checked intrinsics: focal lengths must be finite and positive, the principal point finite.
+    pub fn new(fx_px: f64, fy_px: f64, cx_px: f64, cy_px: f64) -> Result<Self, GeometryError> {
+        let k = Self { fx_px, fy_px, cx_px, cy_px };
+        k.validate()?;
+        Ok(k)
+    }
+
+    /// Re-checks the invariants of [`Intrinsics::new`] (useful after deserialising).
+    pub fn validate(&self) -> Result<(), GeometryError> {
+        for (name, f) in [("fx", self.fx_px), ("fy", self.fy_px)] {
+            if !(f.is_finite() && f > 0.0) {
+                return Err(GeometryError::BadFocalLength { name, value: f });
+            }
+        }
+        for (name, c) in [("cx", self.cx_px), ("cy", self.cy_px)] {
+            if !c.is_finite() {
+                return Err(GeometryError::BadPrincipalPoint { name, value: c });
+            }
+        }
+        Ok(())
+    }
+
+    /// A camera with a horizontal field of view `hfov_deg`, square pixels and a centred
+    /// principal point, for a `width × height` image.
+    pub fn from_hfov(width: usize, height: usize, hfov_deg: f64) -> Result<Self, GeometryError> {
+        let f = width as f64 / 2.0 / (hfov_deg.to_radians() / 2.0).tan();
+        Self::new(f, f, width as f64 / 2.0 - 0.5, height as f64 / 2.0 - 0.5)
+    }
+
+    /// The same camera for an image resized by `sx` horizontally and `sy` vertically
+    /// (pixel centres at integer coordinates).
+    pub fn scaled(&self, sx: f64, sy: f64) -> Result<Self, GeometryError> {
+        Self::new(
+            self.fx_px * sx,
+            self.fy_px * sy,
+            (self.cx_px + 0.5) * sx - 0.5,
+            (self.cy_px + 0.5) * sy - 0.5,
+        )
+    }
+
+    /// The 3-D point seen at pixel `(u, v)` at depth `depth_m` (z, not range).
+    pub fn back_project(&self, u: f64, v: f64, depth_m: f64) -> Vec3 {
+        Vector3::new(
+            (u - self.cx_px) / self.fx_px * depth_m,
+            (v - self.cy_px) / self.fy_px * depth_m,
+            depth_m,
+        )
+    }
+
+    /// The pixel where `p` appears, or `None` for points not in front of the camera.
+    pub fn project(&self, p: &Vec3) -> Option<(f64, f64)> {
+        (p.z > 0.0 && p.z.is_finite())
+            .then(|| (self.fx_px * p.x / p.z + self.cx_px, self.fy_px * p.y / p.z + self.cy_px))
+    }
+
+    /// Back-projects an organised depth map (metres; 0, negative or non-finite = no data)
+    /// into a point map of the same size. Invalid pixels stay invalid.
+    pub fn back_project_map(&self, depth_m: &Grid<f64>) -> PointMap {
+        let (w, h) = depth_m.size();
+        let mut out = Grid::new(w, h, INVALID_POINT);
+        out.as_mut_slice().par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
+            for (x, p) in row.iter_mut().enumerate() {
+                let z = depth_m[(x, y)];
+                if z > 0.0 && z.is_finite() {
+                    *p = self.back_project(x as f64, y as f64, z);
+                }
+            }
+        });
+        out
+    }
+}
+
+/// The depth (z) of every point; invalid points give 0.
+pub fn depth_of(points: &PointMap) -> Grid<f64> {
+    points.map(|p| if is_valid_point(p) { p.z } else { 0.0 })
+}

@@ -1,0 +1,105 @@
+//! `Grid<T>`: a row-major 2-D buffer of per-pixel values, the common currency of the geometry kernels.
+
+use super::GeometryError;
+
+/// A row-major `width × height` buffer of per-pixel values.
+///
+/// ```
+/// use tre::geometry::Grid;
+/// let mut g = Grid::new(3, 2, 0u8);
+/// g[(2, 1)] = 7;
+/// assert_eq!(g.get(2, 1), Some(&7));
+/// assert_eq!(g.row(1), &[0, 0, 7]);
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grid<T> {
+    width: usize,
+    height: usize,
+    data: Vec<T>,
+}
+
+impl<T: Clone> Grid<T> {
+    /// A grid filled with `value`.
+    pub fn new(width: usize, height: usize, value: T) -> Self {
+        Self { width, height, data: vec![value; width * height] }
+    }
+}
+
+impl<T> Grid<T> {
+    /// Wraps `data` (row-major) as a `width × height` grid; its length must match.
+    pub fn from_vec(width: usize, height: usize, data: Vec<T>) -> Result<Self, GeometryError> {
+        if data.len() != width * height {
+            return Err(GeometryError::BufferSize { width, height, len: data.len() });
+        }
+        Ok(Self { width, height, data })
+    }
+
+    /// Builds a grid by calling `f(x, y)` for every pixel.
+    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> T) -> Self {
+        let mut data = Vec::with_capacity(width * height);
+        for y in 0..height {
+            for x in 0..width {
+                data.push(f(x, y));
+            }
+        }
+        Self { width, height, data }
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// `(width, height)`.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// The value at `(x, y)`, or `None` outside the grid.
+    pub fn get(&self, x: usize, y: usize) -> Option<&T> {
+        (x < self.width && y < self.height).then(|| &self.data[y * self.width + x])
+    }
+
+    /// Row `y` as a slice.
+    pub fn row(&self, y: usize) -> &[T] {
+        &self.data[y * self.width..(y + 1) * self.width]
+    }
+
+    /// All values, row-major.
+    pub fn as_slice(&self) -> &[T] {
+        &self.data
+    }
+
+    /// All values, row-major, mutable.
+    pub fn as_mut_slice(&mut self) -> &mut [T] {
+        &mut self.data
+    }
+
+    /// Consumes the grid and returns its row-major buffer.
+    pub fn into_vec(self) -> Vec<T> {
+        self.data
+    }
+
+    /// Applies `f` to every value, keeping the shape.
+    pub fn map<U>(&self, f: impl Fn(&T) -> U) -> Grid<U> {
+        Grid { width: self.width, height: self.height, data: self.data.iter().map(f).collect() }
+    }
+}
+
+impl<T> std::ops::Index<(usize, usize)> for Grid<T> {
+    type Output = T;
+    fn index(&self, (x, y): (usize, usize)) -> &T {
+        &self.data[y * self.width + x]
+    }
+}
+
+impl<T> std::ops::IndexMut<(usize, usize)> for Grid<T> {
+    fn index_mut(&mut self, (x, y): (usize, usize)) -> &mut T {
+        &mut self.data[y * self.width + x]
+    }
+}

@@ -1,0 +1,32 @@
+//! Counter-based random numbers: SplitMix64 of (seed, pixel, hypothesis, draw). Written
+//! bit-identically in `models/training` (Python) so that training and serving draw the same
+//! hypotheses on any number of threads.
+
+/// One SplitMix64 step (Steele, Lea and Flood 2014) as a mixing function.
+///
+/// ```
+/// // The reference sequence of SplitMix64 seeded with 0 starts with 0xE220A8397B1DCDAF.
+/// assert_eq!(tre::geometry::hash::splitmix64(0), 0xE220_A839_7B1D_CDAF);
+/// ```
+pub fn splitmix64(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// The uniform number in [0, 1) for one draw:
+/// `splitmix64(splitmix64(splitmix64(seed) ^ pixel) ^ (hypothesis << 8 | draw)) >> 11` scaled by 2⁻⁵³.
+///
+/// ```
+/// use tre::geometry::hash::uniform;
+/// let u = uniform(7, 1234, 3, 2);
+/// assert!((0.0..1.0).contains(&u));
+/// assert_eq!(u, uniform(7, 1234, 3, 2));
+/// assert_ne!(u, uniform(7, 1234, 3, 1));
+/// ```
+pub fn uniform(seed: u64, pixel: u64, hypothesis: u32, draw: u32) -> f64 {
+    let key = (u64::from(hypothesis) << 8) | u64::from(draw);
+    let h = splitmix64(splitmix64(splitmix64(seed) ^ pixel) ^ key);
+    (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}

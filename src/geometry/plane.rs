@@ -1,0 +1,212 @@
+//! Planes: least-squares fits from point moments, planes through three points, and Eq. 1 of the
+//! paper (point-to-plane distance).
+
+use nalgebra::Matrix3;
+
+use super::Vec3;
+
+/// A plane through `centroid` with unit `normal`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Plane {
+    /// A point on the plane (for LS fits, the mean of the fitted points), metres.
+    pub centroid: Vec3,
+    /// Unit normal.
+    pub normal: Vec3,
+}
+
+impl Plane {
+    /// The plane through three points, or `None` when they are (nearly) collinear.
+    ///
+    /// ```
+    /// use nalgebra::Vector3;
+    /// use tre::geometry::Plane;
+    /// let p = Plane::through(&Vector3::zeros(), &Vector3::x(), &Vector3::y()).unwrap();
+    /// assert!((p.normal.z.abs() - 1.0).abs() < 1e-12);
+    /// assert!(Plane::through(&Vector3::zeros(), &Vector3::x(), &(2.0 * Vector3::x())).is_none());
+    /// ```
+    pub fn through(a: &Vec3, b: &Vec3, c: &Vec3) -> Option<Self> {
+        let (ab, ac) = (b - a, c - a);
+        let n = ab.cross(&ac);
+        let len = n.norm();
+        // Relative test: the sine of the angle between ab and ac must not vanish.
+        if !(len > 1e-9 * ab.norm() * ac.norm()) || !len.is_finite() {
+            return None;
+        }
+        Some(Self { centroid: *a, normal: n / len })
+    }
+
+    /// Eq. 1: the distance from `p` to the plane, metres.
+    ///
+    /// ```
+    /// use nalgebra::Vector3;
+    /// use tre::geometry::Plane;
+    /// let ground = Plane { centroid: Vector3::zeros(), normal: Vector3::z() };
+    /// assert!((ground.distance(&Vector3::new(3.0, -1.0, 0.25)) - 0.25).abs() < 1e-15);
+    /// ```
+    pub fn distance(&self, p: &Vec3) -> f64 {
+        self.normal.dot(&(p - self.centroid)).abs()
+    }
+
+    /// The same plane with its normal flipped, if needed, to face a camera at the origin
+    /// (`n · (0 − centroid) ≥ 0`).
+    pub fn oriented_towards_camera(mut self) -> Self {
+        self.normal = orient_towards_camera(&self.normal, &self.centroid);
+        self
+    }
+}
+
+/// Flips `normal` if needed so that it faces a camera at the origin from `point`.
+pub fn orient_towards_camera(normal: &Vec3, point: &Vec3) -> Vec3 {
+    if normal.dot(point) > 0.0 {
+        -normal
+    } else {
+        *normal
+    }
+}
+
+/// First and second moments of a point set, taken relative to an origin for precision.
+///
+/// ```
+/// use nalgebra::Vector3;
+/// use tre::geometry::Moments;
+/// let mut m = Moments::default();
+/// for (x, y) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+///     m.add(&Vector3::new(x, y, 2.0 * x - y));
+/// }
+/// let plane = m.fit(&Vector3::zeros()).unwrap();
+/// let expected = Vector3::new(2.0, -1.0, -1.0).normalize();
+/// assert!(plane.normal.dot(&expected).abs() > 1.0 - 1e-12);
+/// ```
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Moments {
+    /// Number of points.
+    pub count: u32,
+    /// Σ d.
+    pub sum: Vec3,
+    /// Σ d dᵀ, upper triangle: xx, xy, xz, yy, yz, zz.
+    pub sum_sq: [f64; 6],
+}
+
+impl Moments {
+    /// Adds a point given relative to the origin the moments are taken about.
+    #[inline]
+    pub fn add(&mut self, d: &Vec3) {
+        self.count += 1;
+        self.sum += d;
+        let s = &mut self.sum_sq;
+        s[0] += d.x * d.x;
+        s[1] += d.x * d.y;
+        s[2] += d.x * d.z;
+        s[3] += d.y * d.y;
+        s[4] += d.y * d.z;
+        s[5] += d.z * d.z;
+    }
+
+    /// The mean point, given the origin the moments were taken about.
+    pub fn mean(&self, origin: &Vec3) -> Option<Vec3> {
+        (self.count > 0).then(|| origin + self.sum / self.count as f64)
+    }
+
+    /// The covariance matrix of the points.
+    pub fn covariance(&self) -> Matrix3<f64> {
+        let n = self.count.max(1) as f64;
+        let m = self.sum / n;
+        let s = &self.sum_sq;
+        Matrix3::new(
+            s[0] / n - m.x * m.x,
+            s[1] / n - m.x * m.y,
+            s[2] / n - m.x * m.z,
+            s[1] / n - m.x * m.y,
+            s[3] / n - m.y * m.y,
+            s[4] / n - m.y * m.z,
+            s[2] / n - m.x * m.z,
+            s[4] / n - m.y * m.z,
+            s[5] / n - m.z * m.z,
+        )
+    }
+
+    /// The least-squares plane (normal = smallest eigenvector of the covariance), or `None` for
+    /// fewer than 3 points or a degenerate (collinear) set.
+    pub fn fit(&self, origin: &Vec3) -> Option<Plane> {
+        if self.count < 3 {
+            return None;
+        }
+        let normal = smallest_eigenvector(&self.covariance())?;
+        Some(Plane { centroid: self.mean(origin)?, normal })
+    }
+}
+
+/// The unit eigenvector of the smallest eigenvalue of a symmetric 3×3 matrix, in closed form
+/// (trigonometric eigenvalues, then the largest cross product of the rows of `A − λI`).
+/// `None` when the two smallest eigenvalues are not separated (no unique plane).
+pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
+    let scale = a.abs().max();
+    if !(scale > 0.0) || !scale.is_finite() {
+        return None;
+    }
+    let a = a / scale;
+    let (l_min, l_mid) = smallest_two_eigenvalues(&a);
+    // The trigonometric eigenvalues carry errors of order √ε where the two smallest meet, so
+    // the gap must clear that comfortably.
+    if !(l_mid - l_min > 1e-6) {
+        return None;
+    }
+    let m = a - Matrix3::identity() * l_min;
+    let (r0, r1, r2) = (m.row(0).transpose(), m.row(1).transpose(), m.row(2).transpose());
+    let candidates = [r0.cross(&r1), r0.cross(&r2), r1.cross(&r2)];
+    let best = candidates
+        .iter()
+        .max_by(|p, q| p.norm_squared().total_cmp(&q.norm_squared()))
+        .expect("three candidates; this is a bug");
+    let len = best.norm();
+    (len > 0.0 && len.is_finite()).then(|| best / len)
+}
+
+/// The two smallest eigenvalues (ascending) of a symmetric 3×3 matrix.
+fn smallest_two_eigenvalues(a: &Matrix3<f64>) -> (f64, f64) {
+    let p1 = a[(0, 1)].powi(2) + a[(0, 2)].powi(2) + a[(1, 2)].powi(2);
+    let q = a.trace() / 3.0;
+    let p2 = (a[(0, 0)] - q).powi(2) + (a[(1, 1)] - q).powi(2) + (a[(2, 2)] - q).powi(2) + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    if p == 0.0 {
+        return (q, q);
+    }
+    let b = (a - Matrix3::identity() * q) / p;
+    let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
+    let phi = r.acos() / 3.0;
+    let l_max = q + 2.0 * p * phi.cos();
+    let l_min = q + 2.0 * p * (phi + 2.0 * std::f64::consts::FRAC_PI_3).cos();
+    (l_min, 3.0 * q - l_max - l_min)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn eigenvector_of_diagonal() {
+        let a = Matrix3::from_diagonal(&Vector3::new(3.0, 0.5, 2.0));
+        let v = smallest_eigenvector(&a).unwrap();
+        assert_relative_eq!(v.y.abs(), 1.0, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn eigenvector_of_rotated_matrix() {
+        let r = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 0.7);
+        let a = r.matrix() * Matrix3::from_diagonal(&Vector3::new(1.0, 4.0, 1e-6)) * r.matrix().transpose();
+        let v = smallest_eigenvector(&a).unwrap();
+        let expected = r.matrix().column(2).into_owned();
+        assert_relative_eq!(v.dot(&expected).abs(), 1.0, epsilon = 1e-10);
+    }
+
+    #[test]
+    fn collinear_points_have_no_plane() {
+        let mut m = Moments::default();
+        for t in 0..10 {
+            m.add(&(Vector3::new(1.0, 2.0, 3.0) * t as f64));
+        }
+        assert!(m.fit(&Vector3::zeros()).is_none());
+    }
+}
