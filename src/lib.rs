@@ -2,6 +2,7 @@
 //!
 //! Layers depend downward only: [`geometry`] and [`roughness`] are pure and synchronous;
 //! [`io`] reads and writes the on-disk formats; [`model`] owns ONNX Runtime; the CLI sits on top.
+pub mod cli;
 pub mod geometry;
 pub mod io;
 pub mod model;

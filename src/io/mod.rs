@@ -1,1 +1,213 @@
-//! On-disk formats.
+//! On-disk formats: depth PNG (16-bit, configurable scale) and `.npy`, camera JSON, label maps,
+//! and the annotator's outputs (16-bit roughness PNG with mask, float `.npy`, previews).
+
+pub mod colormap;
+pub mod npy;
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter};
+use std::path::{Path, PathBuf};
+
+use image::{DynamicImage, ImageBuffer, ImageReader, LumaA};
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::{GeometryError, Grid, Intrinsics, Vec3};
+
+/// Roughness on the wire: metres per unit of the 16-bit PNG (0.1 mm).
+pub const ROUGHNESS_PNG_SCALE_M: f64 = 1e-4;
+
+/// Errors of reading and writing files.
+#[derive(Debug, thiserror::Error)]
+pub enum IoError {
+    /// An OS-level read or write failure.
+    #[error("{0}")]
+    Os(#[from] std::io::Error),
+    /// A file that cannot be read as the image it should be (unreadable, truncated, …).
+    #[error("{path}: not a readable image: {reason}")]
+    Image {
+        /// The file.
+        path: PathBuf,
+        /// What the decoder said.
+        reason: String,
+    },
+    /// An image of the wrong kind (e.g. an 8-bit colour file given as depth).
+    #[error("{path}: {reason}")]
+    ImageKind {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A malformed `.npy` file.
+    #[error(".npy: {0}")]
+    Npy(String),
+    /// A malformed camera JSON file.
+    #[error("{path}: bad camera JSON: {reason}")]
+    Camera {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// Bad intrinsics values.
+    #[error("{path}: {source}")]
+    Intrinsics {
+        /// The file.
+        path: PathBuf,
+        /// The check that failed.
+        source: GeometryError,
+    },
+}
+
+/// A camera JSON file: intrinsics plus optional size and depth scale, as in `shared/data`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CameraFile {
+    /// Focal length x, pixels.
+    pub fx: f64,
+    /// Focal length y, pixels.
+    pub fy: f64,
+    /// Principal point x, pixels.
+    pub cx: f64,
+    /// Principal point y, pixels.
+    pub cy: f64,
+    /// Image width the intrinsics refer to, if stated.
+    #[serde(default)]
+    pub width: Option<usize>,
+    /// Image height the intrinsics refer to, if stated.
+    #[serde(default)]
+    pub height: Option<usize>,
+    /// Depth PNG units per metre (1000 for mm, 5000 for TUM), if stated.
+    #[serde(default)]
+    pub depth_scale: Option<f64>,
+}
+
+impl CameraFile {
+    /// The checked intrinsics.
+    pub fn intrinsics(&self) -> Result<Intrinsics, GeometryError> {
+        Intrinsics::new(self.fx, self.fy, self.cx, self.cy)
+    }
+}
+
+/// Reads and checks a camera JSON file.
+pub fn read_camera(path: &Path) -> Result<(CameraFile, Intrinsics), IoError> {
+    let text = std::fs::read_to_string(path)?;
+    let cam: CameraFile = serde_json::from_str(&text)
+        .map_err(|e| IoError::Camera { path: path.to_owned(), reason: e.to_string() })?;
+    let k = cam.intrinsics().map_err(|source| IoError::Intrinsics { path: path.to_owned(), source })?;
+    Ok((cam, k))
+}
+
+/// Decodes an image file, naming the file in errors.
+pub fn read_image(path: &Path) -> Result<DynamicImage, IoError> {
+    let reader = ImageReader::open(path)?
+        .with_guessed_format()
+        .map_err(|e| IoError::Image { path: path.to_owned(), reason: e.to_string() })?;
+    reader.decode().map_err(|e| IoError::Image { path: path.to_owned(), reason: e.to_string() })
+}
+
+/// Reads depth in metres: a 16-bit grey PNG divided by `units_per_m` (0 = no data), or a float
+/// `.npy` already in metres (0 or NaN = no data).
+pub fn read_depth(path: &Path, units_per_m: f64) -> Result<Grid<f64>, IoError> {
+    if is_npy(path) {
+        return read_npy_grid(path);
+    }
+    match read_image(path)? {
+        DynamicImage::ImageLuma16(img) => {
+            let (w, h) = (img.width() as usize, img.height() as usize);
+            let data = img.into_raw().into_iter().map(|v| f64::from(v) / units_per_m).collect();
+            Ok(Grid::from_vec(w, h, data).expect("decoder sizes agree; this is a bug"))
+        }
+        other => Err(IoError::ImageKind {
+            path: path.to_owned(),
+            reason: format!("depth must be a 16-bit grey PNG or a float .npy, got {:?}", other.color()),
+        }),
+    }
+}
+
+/// Reads labels: an 8- or 16-bit grey PNG or an integer `.npy` (0 = void).
+pub fn read_labels(path: &Path) -> Result<Grid<u32>, IoError> {
+    if is_npy(path) {
+        return Ok(read_npy_grid(path)?.map(|&v| v.max(0.0) as u32));
+    }
+    let img = read_image(path)?;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let data: Vec<u32> = match img {
+        DynamicImage::ImageLuma8(i) => i.into_raw().into_iter().map(u32::from).collect(),
+        DynamicImage::ImageLuma16(i) => i.into_raw().into_iter().map(u32::from).collect(),
+        other => {
+            return Err(IoError::ImageKind {
+                path: path.to_owned(),
+                reason: format!("labels must be a grey PNG or .npy, got {:?}", other.color()),
+            })
+        }
+    };
+    Ok(Grid::from_vec(w, h, data).expect("decoder sizes agree; this is a bug"))
+}
+
+/// Reads normals from an `H × W × 3` float `.npy` (camera frame).
+pub fn read_normals(path: &Path) -> Result<Grid<Vec3>, IoError> {
+    let a = npy::read_npy(BufReader::new(File::open(path)?))?;
+    let [h, w, 3] = a.shape[..] else {
+        return Err(IoError::Npy(format!("{}: normals must have shape (H, W, 3), got {:?}", path.display(), a.shape)));
+    };
+    let data = a.data.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+    Ok(Grid::from_vec(w, h, data).expect("shape checked; this is a bug"))
+}
+
+fn is_npy(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"))
+}
+
+fn read_npy_grid(path: &Path) -> Result<Grid<f64>, IoError> {
+    let a = npy::read_npy(BufReader::new(File::open(path)?))?;
+    let [h, w] = a.shape[..] else {
+        return Err(IoError::Npy(format!("{}: expected a 2-D array (H, W), got shape {:?}", path.display(), a.shape)));
+    };
+    Ok(Grid::from_vec(w, h, a.data).expect("shape checked; this is a bug"))
+}
+
+/// Writes a float map as an `(H, W)` float32 `.npy` (NaN: no data).
+pub fn write_npy_f32(path: &Path, grid: &Grid<f64>) -> Result<(), IoError> {
+    let data: Vec<f32> = grid.as_slice().iter().map(|&v| v as f32).collect();
+    npy::write_npy(BufWriter::new(File::create(path)?), &[grid.height(), grid.width()], &data)
+}
+
+/// Writes an id map as an `(H, W)` uint32 `.npy`.
+pub fn write_npy_u32(path: &Path, grid: &Grid<u32>) -> Result<(), IoError> {
+    npy::write_npy(BufWriter::new(File::create(path)?), &[grid.height(), grid.width()], grid.as_slice())
+}
+
+/// Encodes roughness as 16-bit grey + alpha: grey = round(r / 0.1 mm) saturated at 65535
+/// (6.5535 m), alpha = 65535 where valid and 0 (with grey 0) where there is no data.
+pub fn roughness_png16(roughness_m: &Grid<f64>) -> ImageBuffer<LumaA<u16>, Vec<u16>> {
+    let (w, h) = (roughness_m.width() as u32, roughness_m.height() as u32);
+    ImageBuffer::from_fn(w, h, |x, y| {
+        let r = roughness_m[(x as usize, y as usize)];
+        if r.is_finite() {
+            LumaA([(r / ROUGHNESS_PNG_SCALE_M).round().clamp(0.0, 65535.0) as u16, u16::MAX])
+        } else {
+            LumaA([0, 0])
+        }
+    })
+}
+
+/// Decodes a roughness PNG written by [`roughness_png16`] back to metres (NaN: no data).
+pub fn decode_roughness_png16(img: &DynamicImage) -> Grid<f64> {
+    let la = img.to_luma_alpha16();
+    let (w, h) = (la.width() as usize, la.height() as usize);
+    let data = la.pixels().map(|p| if p[1] == 0 { f64::NAN } else { f64::from(p[0]) * ROUGHNESS_PNG_SCALE_M }).collect();
+    Grid::from_vec(w, h, data).expect("decoder sizes agree; this is a bug")
+}
+
+/// Writes a boolean mask as an 8-bit PNG (255 = true).
+pub fn write_mask_png(path: &Path, mask: &Grid<bool>) -> Result<(), IoError> {
+    let img = image::GrayImage::from_fn(mask.width() as u32, mask.height() as u32, |x, y| {
+        image::Luma([if mask[(x as usize, y as usize)] { 255 } else { 0 }])
+    });
+    save(path, &DynamicImage::ImageLuma8(img))
+}
+
+/// Saves an image, choosing the format from the extension.
+pub fn save(path: &Path, img: &DynamicImage) -> Result<(), IoError> {
+    img.save(path).map_err(|e| IoError::Image { path: path.to_owned(), reason: e.to_string() })
+}

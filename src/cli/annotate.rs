@@ -1,0 +1,119 @@
+//! `tre annotate`: roughness ground truth for one depth frame (annotation spec v1), written as
+//! a 16-bit PNG, float `.npy`, boundary mask, edge weights, segment ids and a preview.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use clap::Args;
+
+use crate::geometry::Neighbourhood;
+use crate::io;
+use crate::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation};
+
+/// Annotate a depth frame with roughness.
+#[derive(Debug, Args)]
+pub struct Annotate {
+    /// Depth: 16-bit grey PNG (see --depth-scale) or float .npy in metres; 0 = no data.
+    #[arg(long)]
+    pub depth: PathBuf,
+    /// Camera JSON with fx, fy, cx, cy (pixels) and optionally width, height, depth_scale.
+    #[arg(long)]
+    pub camera: PathBuf,
+    /// Depth PNG units per metre (1000: millimetres, 5000: TUM); default: the camera JSON's
+    /// depth_scale, else 1000.
+    #[arg(long, env = "TRE_DEPTH_SCALE")]
+    pub depth_scale: Option<f64>,
+    /// Optional normals, (H, W, 3) float .npy in the camera frame; LS normals otherwise.
+    #[arg(long)]
+    pub normals: Option<PathBuf>,
+    /// Optional semantic labels (grey PNG or .npy; 0 = void); one label for all otherwise.
+    #[arg(long)]
+    pub labels: Option<PathBuf>,
+    /// Output folder (created if missing).
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Geometric resolution ε, metres.
+    #[arg(long, default_value_t = 0.015)]
+    pub epsilon_m: f64,
+    /// Neighbourhood radius R, metres.
+    #[arg(long, default_value_t = 0.05)]
+    pub radius_m: f64,
+    /// Cap on the window half-width, pixels.
+    #[arg(long, default_value_t = 7)]
+    pub max_half_width: usize,
+    /// Top of the preview's colour scale, centimetres.
+    #[arg(long, default_value_t = 5.0)]
+    pub preview_max_cm: f64,
+}
+
+impl Annotate {
+    /// Reads the inputs, annotates and writes every output.
+    pub fn run(self) -> anyhow::Result<()> {
+        let cfg = self.config()?;
+        let (cam, k) = io::read_camera(&self.camera)?;
+        let scale = self.depth_scale.or(cam.depth_scale).unwrap_or(1000.0);
+        if !(scale.is_finite() && scale > 0.0) {
+            bail!("--depth-scale must be positive, got {scale}");
+        }
+        let depth = io::read_depth(&self.depth, scale)?;
+        if let (Some(w), Some(h)) = (cam.width, cam.height) {
+            if (w, h) != depth.size() {
+                bail!(
+                    "depth {} is {}×{} but the camera JSON {} describes a {w}×{h} image",
+                    self.depth.display(),
+                    depth.width(),
+                    depth.height(),
+                    self.camera.display()
+                );
+            }
+        }
+        let normals = self.normals.as_deref().map(io::read_normals).transpose()?;
+        let labels = self.labels.as_deref().map(io::read_labels).transpose()?;
+        let input = AnnotateInput { depth_m: &depth, intrinsics: &k, normals: normals.as_ref(), labels: labels.as_ref() };
+        let ann = annotate(&input, &cfg).with_context(|| format!("annotating {}", self.depth.display()))?;
+        self.write(&ann)?;
+        print_summary(&ann);
+        Ok(())
+    }
+
+    fn config(&self) -> anyhow::Result<AnnotateConfig> {
+        for (name, v) in [("--epsilon-m", self.epsilon_m), ("--radius-m", self.radius_m), ("--preview-max-cm", self.preview_max_cm)] {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("{name} must be positive, got {v}");
+            }
+        }
+        let hood = Neighbourhood { radius_m: self.radius_m, max_half_width: self.max_half_width.max(1) };
+        Ok(AnnotateConfig { epsilon_m: self.epsilon_m, hood, ..AnnotateConfig::default() })
+    }
+
+    fn write(&self, ann: &Annotation) -> anyhow::Result<()> {
+        let out = &self.out;
+        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+        let p = |name: &str| -> PathBuf { Path::new(out).join(name) };
+        io::save(&p("roughness.png"), &image::DynamicImage::ImageLumaA16(io::roughness_png16(&ann.roughness_m)))?;
+        io::write_npy_f32(&p("roughness.npy"), &ann.roughness_m)?;
+        io::write_mask_png(&p("boundary.png"), &ann.boundary)?;
+        io::write_npy_f32(&p("edge_weight.npy"), &ann.edge_weight_m)?;
+        io::write_npy_u32(&p("segments.npy"), &ann.segments)?;
+        let preview = io::colormap::roughness_preview(&ann.roughness_m, self.preview_max_cm / 100.0);
+        io::save(&p("preview.png"), &image::DynamicImage::ImageRgb8(preview))?;
+        Ok(())
+    }
+}
+
+/// Prints pixel counts and roughness quantiles.
+fn print_summary(ann: &Annotation) {
+    let mut r: Vec<f64> = ann.roughness_m.as_slice().iter().copied().filter(|v| v.is_finite()).collect();
+    r.sort_by(f64::total_cmp);
+    let q = |f: f64| r.get(((r.len() as f64 - 1.0) * f).round() as usize).copied().unwrap_or(f64::NAN) * 100.0;
+    let boundary = ann.boundary.as_slice().iter().filter(|b| **b).count();
+    let segments = ann.segments.as_slice().iter().max().copied().unwrap_or(0);
+    println!(
+        "valid {} px, boundary {boundary} px, segments {segments}; roughness cm: median {:.3}, p90 {:.3}, p99 {:.3}, max {:.3}",
+        r.len(),
+        q(0.5),
+        q(0.9),
+        q(0.99),
+        q(1.0)
+    );
+}

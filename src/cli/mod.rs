@@ -1,0 +1,33 @@
+//! Command-line subcommands, one file each; `main.rs` only parses and dispatches.
+
+pub mod annotate;
+
+use clap::{Parser, Subcommand};
+
+/// Terrain roughness estimation for robots (TRENet).
+#[derive(Debug, Parser)]
+#[command(name = "tre", version, about)]
+pub struct Cli {
+    /// Log filter (tracing's env-filter syntax), e.g. `info` or `tre=debug`.
+    #[arg(long, env = "TRE_LOG", default_value = "info", global = true)]
+    pub log: String,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Annotate a depth frame with ground-truth roughness (annotation spec v1).
+    Annotate(annotate::Annotate),
+}
+
+impl Command {
+    /// Runs the chosen subcommand.
+    pub fn run(self) -> anyhow::Result<()> {
+        match self {
+            Command::Annotate(cmd) => cmd.run(),
+        }
+    }
+}

@@ -1,0 +1,100 @@
+//! Colour-mapped roughness previews for people: the Turbo colour map and a legend strip with
+//! the scale written on it (a built-in 3×5 pixel font, so no font files are needed).
+
+use image::{Rgb, RgbImage};
+
+use crate::geometry::Grid;
+
+/// The Turbo colour map (Mikhailov 2019, polynomial fit) at `t` in [0, 1].
+///
+/// ```
+/// let blue = tre::io::colormap::turbo(0.0);
+/// let red = tre::io::colormap::turbo(1.0);
+/// assert!(blue[2] > blue[0] && red[0] > red[2]);
+/// ```
+pub fn turbo(t: f64) -> [u8; 3] {
+    let t = t.clamp(0.0, 1.0);
+    let poly = |c: [f64; 6]| c[0] + t * (c[1] + t * (c[2] + t * (c[3] + t * (c[4] + t * c[5]))));
+    let r = poly([0.13572138, 4.61539260, -42.66032258, 132.13108234, -152.94239396, 59.28637943]);
+    let g = poly([0.09140261, 2.19418839, 4.84296658, -14.18503333, 4.27729857, 2.82956604]);
+    let b = poly([0.10667330, 12.64194608, -60.58204836, 110.36276771, -89.90310912, 27.34824973]);
+    [r, g, b].map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)
+}
+
+/// Colour of pixels without data.
+const NO_DATA: [u8; 3] = [40, 40, 40];
+/// Height of the legend strip, pixels.
+const LEGEND_H: u32 = 22;
+
+/// Renders roughness (metres, NaN: none) with Turbo over `[0, max_m]` and a legend strip below
+/// that shows the colour bar with its scale in centimetres.
+pub fn roughness_preview(roughness_m: &Grid<f64>, max_m: f64) -> RgbImage {
+    let (w, h) = (roughness_m.width() as u32, roughness_m.height() as u32);
+    let width = w.max(60);
+    let mut img = RgbImage::from_pixel(width, h + LEGEND_H, Rgb([255, 255, 255]));
+    for (x, y, px) in img.enumerate_pixels_mut().filter(|(x, y, _)| *x < w && *y < h) {
+        let r = roughness_m[(x as usize, y as usize)];
+        *px = Rgb(if r.is_finite() { turbo(r / max_m) } else { NO_DATA });
+    }
+    draw_legend(&mut img, h, max_m);
+    img
+}
+
+fn draw_legend(img: &mut RgbImage, top: u32, max_m: f64) {
+    let width = img.width();
+    let (bar_x0, bar_x1) = (4, width.saturating_sub(5));
+    for x in bar_x0..=bar_x1 {
+        let t = f64::from(x - bar_x0) / f64::from((bar_x1 - bar_x0).max(1));
+        for y in top + 2..top + 9 {
+            img.put_pixel(x, y, Rgb(turbo(t)));
+        }
+    }
+    let max_cm = max_m * 100.0;
+    draw_text(img, bar_x0, top + 12, "0");
+    let mid = format!("{}", trim(max_cm / 2.0));
+    draw_text(img, (bar_x0 + bar_x1) / 2 - text_width(&mid) / 2, top + 12, &mid);
+    let end = format!("{}cm", trim(max_cm));
+    draw_text(img, bar_x1 + 1 - text_width(&end).min(bar_x1), top + 12, &end);
+}
+
+fn trim(v: f64) -> String {
+    let s = format!("{v:.2}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+fn text_width(s: &str) -> u32 {
+    s.chars().count() as u32 * 4
+}
+
+/// 3×5 glyphs, one row per 3 bits (MSB left).
+fn glyph(c: char) -> [u8; 5] {
+    match c {
+        '0' => [7, 5, 5, 5, 7],
+        '1' => [2, 6, 2, 2, 7],
+        '2' => [7, 1, 7, 4, 7],
+        '3' => [7, 1, 7, 1, 7],
+        '4' => [5, 5, 7, 1, 1],
+        '5' => [7, 4, 7, 1, 7],
+        '6' => [7, 4, 7, 5, 7],
+        '7' => [7, 1, 1, 1, 1],
+        '8' => [7, 5, 7, 5, 7],
+        '9' => [7, 5, 7, 1, 7],
+        '.' => [0, 0, 0, 0, 2],
+        'c' => [0, 7, 4, 4, 7],
+        'm' => [0, 7, 7, 5, 5],
+        _ => [0; 5],
+    }
+}
+
+fn draw_text(img: &mut RgbImage, x0: u32, y0: u32, s: &str) {
+    for (i, c) in s.chars().enumerate() {
+        for (row, bits) in glyph(c).iter().enumerate() {
+            for col in 0..3u32 {
+                let (x, y) = (x0 + i as u32 * 4 + col, y0 + row as u32);
+                if bits & (4 >> col) != 0 && x < img.width() && y < img.height() {
+                    img.put_pixel(x, y, Rgb([0, 0, 0]));
+                }
+            }
+        }
+    }
+}
