@@ -16,12 +16,19 @@ fn plane_depth(k: &Intrinsics, (w, h): (usize, usize), n: &Vec3, d: f64) -> Grid
     Grid::from_fn(w, h, |u, v| {
         let ray = k.back_project(u as f64, v as f64, 1.0);
         let z = d / n.dot(&ray);
-        if z > 0.0 && z < 5.0 { z } else { 0.0 }
+        if z > 0.0 && z < 5.0 {
+            z
+        } else {
+            0.0
+        }
     })
 }
 
 fn angle_deg(a: &Vec3, b: &Vec3) -> f64 {
-    (a.dot(b) / (a.norm() * b.norm())).clamp(-1.0, 1.0).acos().to_degrees()
+    (a.dot(b) / (a.norm() * b.norm()))
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees()
 }
 
 proptest! {
@@ -58,17 +65,49 @@ proptest! {
 #[test]
 fn invalid_pixels_stay_invalid() {
     let k = camera(4, 3);
-    let depth = Grid::from_vec(4, 3, vec![1.0, 0.0, f64::NAN, -1.0, 2.0, 2.0, f64::INFINITY, 1.0, 1.0, 1.0, 1.0, 0.0]).unwrap();
+    let depth = Grid::from_vec(
+        4,
+        3,
+        vec![
+            1.0,
+            0.0,
+            f64::NAN,
+            -1.0,
+            2.0,
+            2.0,
+            f64::INFINITY,
+            1.0,
+            1.0,
+            1.0,
+            1.0,
+            0.0,
+        ],
+    )
+    .unwrap();
     let pts = k.back_project_map(&depth);
-    let valid: Vec<bool> = pts.as_slice().iter().map(tre::geometry::is_valid_point).collect();
-    assert_eq!(valid, [true, false, false, false, true, true, false, true, true, true, true, false]);
+    let valid: Vec<bool> = pts
+        .as_slice()
+        .iter()
+        .map(tre::geometry::is_valid_point)
+        .collect();
+    assert_eq!(
+        valid,
+        [true, false, false, false, true, true, false, true, true, true, true, false]
+    );
 }
 
 #[test]
 fn ls_normals_of_tilted_planes_within_a_tenth_of_a_degree() {
     let (w, h) = (320, 240);
     let k = camera(w, h);
-    for (i, n) in [Vector3::new(0.0, -1.0, -1.0), Vector3::new(0.3, -0.8, -0.2), Vector3::new(-0.5, 0.2, -1.0)].iter().enumerate() {
+    for (i, n) in [
+        Vector3::new(0.0, -1.0, -1.0),
+        Vector3::new(0.3, -0.8, -0.2),
+        Vector3::new(-0.5, 0.2, -1.0),
+    ]
+    .iter()
+    .enumerate()
+    {
         let n = n.normalize();
         let depth = plane_depth(&k, (w, h), &n, -1.2 - i as f64 * 0.3);
         let pts = k.back_project_map(&depth);
@@ -84,7 +123,10 @@ fn ls_normals_of_tilted_planes_within_a_tenth_of_a_degree() {
                 checked += 1;
             }
         }
-        assert!(checked > 1000 && checked * 10 > valid * 9, "{checked} of {valid}");
+        assert!(
+            checked > 1000 && checked * 10 > valid * 9,
+            "{checked} of {valid}"
+        );
     }
 }
 
@@ -101,7 +143,11 @@ fn ls_normals_of_a_sphere_within_a_tenth_of_a_degree() {
         let d = k.back_project(u as f64, v as f64, 1.0).normalize();
         let b = d.dot(&centre);
         let disc = b * b - centre.norm_squared() + radius * radius;
-        if disc > 0.0 { (b - disc.sqrt()) * d.z } else { 0.0 }
+        if disc > 0.0 {
+            (b - disc.sqrt()) * d.z
+        } else {
+            0.0
+        }
     });
     let pts = k.back_project_map(&depth);
     let normals = ls_normals(&pts, k.fx_px, &Neighbourhood::default());
@@ -109,7 +155,9 @@ fn ls_normals_of_a_sphere_within_a_tenth_of_a_degree() {
     for (p, m) in pts.as_slice().iter().zip(normals.as_slice()) {
         let truth = (p - centre).normalize();
         // Away from the silhouette, where the neighbourhood is a full cap.
-        if tre::geometry::is_valid_point(p) && truth.dot(&(-p.normalize())) > std::f64::consts::FRAC_1_SQRT_2 {
+        if tre::geometry::is_valid_point(p)
+            && truth.dot(&(-p.normalize())) > std::f64::consts::FRAC_1_SQRT_2
+        {
             assert!(angle_deg(m, &truth) < 0.1, "{m:?} vs {truth:?}");
             checked += 1;
         }
@@ -122,10 +170,20 @@ fn gravity_frame_puts_rendered_ground_at_zero() {
     let (w, h) = (64, 48);
     let k = camera(w, h);
     let m = Mounting::new(50f64.to_radians(), 0.8).unwrap();
-    let depth = render_depth(&|_x: f64, _y: f64| 0.0, &k, &m, (w, h), &MarchConfig::default());
+    let depth = render_depth(
+        &|_x: f64, _y: f64| 0.0,
+        &k,
+        &m,
+        (w, h),
+        &MarchConfig::default(),
+    );
     let pts = k.back_project_map(&depth);
     let mut n = 0;
-    for p in pts.as_slice().iter().filter(|p| tre::geometry::is_valid_point(p)) {
+    for p in pts
+        .as_slice()
+        .iter()
+        .filter(|p| tre::geometry::is_valid_point(p))
+    {
         assert!(m.gravity_from_cam_point(p).z.abs() < 1e-9);
         n += 1;
     }
@@ -172,7 +230,15 @@ fn dsac_with_probability_on_coplanar_neighbours_returns_that_plane() {
     let (w, h) = (40, 30);
     let (pts, n) = plane_with_outliers(w, h);
     let logits = coplanar_logits(w, h);
-    let normals = dsac::dsac_normals(&pts, &logits, &DsacConfig { seed: 9, ..Default::default() }).unwrap();
+    let normals = dsac::dsac_normals(
+        &pts,
+        &logits,
+        &DsacConfig {
+            seed: 9,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     for (i, (p, m)) in pts.as_slice().iter().zip(normals.as_slice()).enumerate() {
         if i % 5 != 0 && tre::geometry::is_valid_point(p) {
             assert!(angle_deg(m, &n) < 1e-4, "pixel {i}: {m:?}");
@@ -186,14 +252,27 @@ fn dsac_is_identical_on_one_and_two_threads() {
     let (w, h) = (48, 36);
     let (pts, _) = plane_with_outliers(w, h);
     // Varied logits so that the draws matter.
-    let logits: Vec<f32> = (0..CANDIDATES * w * h).map(|i| ((i * 2654435761usize) % 1000) as f32 / 250.0).collect();
-    let cfg = DsacConfig { seed: 42, ..Default::default() };
+    let logits: Vec<f32> = (0..CANDIDATES * w * h)
+        .map(|i| ((i * 2654435761usize) % 1000) as f32 / 250.0)
+        .collect();
+    let cfg = DsacConfig {
+        seed: 42,
+        ..Default::default()
+    };
     let run = |threads| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         pool.install(|| dsac::dsac_normals(&pts, &logits, &cfg).unwrap())
     };
     let (a, b) = (run(1), run(2));
-    let bits = |g: &Grid<Vec3>| g.as_slice().iter().flat_map(|v| v.iter().map(|c| c.to_bits()).collect::<Vec<_>>()).collect::<Vec<_>>();
+    let bits = |g: &Grid<Vec3>| {
+        g.as_slice()
+            .iter()
+            .flat_map(|v| v.iter().map(|c| c.to_bits()).collect::<Vec<_>>())
+            .collect::<Vec<_>>()
+    };
     assert_eq!(bits(&a), bits(&b));
     // A different seed draws differently somewhere.
     let c = dsac::dsac_normals(&pts, &logits, &DsacConfig { seed: 43, ..cfg }).unwrap();
@@ -218,8 +297,14 @@ fn sampler_draws_distinct_candidates_with_probability() {
 
 #[test]
 fn bad_intrinsics_are_refused() {
-    assert!(Intrinsics::new(0.0, 500.0, 1.0, 1.0).unwrap_err().to_string().contains("fx"));
-    assert!(Intrinsics::new(500.0, -3.0, 1.0, 1.0).unwrap_err().to_string().contains("fy"));
+    assert!(Intrinsics::new(0.0, 500.0, 1.0, 1.0)
+        .unwrap_err()
+        .to_string()
+        .contains("fx"));
+    assert!(Intrinsics::new(500.0, -3.0, 1.0, 1.0)
+        .unwrap_err()
+        .to_string()
+        .contains("fy"));
     assert!(Intrinsics::new(500.0, 500.0, f64::NAN, 1.0).is_err());
     assert!(Mounting::new(2.0, 1.0).is_err());
     assert!(Mounting::new(0.5, -1.0).is_err());

@@ -69,33 +69,54 @@ impl Annotate {
         }
         let normals = self.normals.as_deref().map(io::read_normals).transpose()?;
         let labels = self.labels.as_deref().map(io::read_labels).transpose()?;
-        let input = AnnotateInput { depth_m: &depth, intrinsics: &k, normals: normals.as_ref(), labels: labels.as_ref() };
-        let ann = annotate(&input, &cfg).with_context(|| format!("annotating {}", self.depth.display()))?;
+        let input = AnnotateInput {
+            depth_m: &depth,
+            intrinsics: &k,
+            normals: normals.as_ref(),
+            labels: labels.as_ref(),
+        };
+        let ann = annotate(&input, &cfg)
+            .with_context(|| format!("annotating {}", self.depth.display()))?;
         self.write(&ann)?;
         print_summary(&ann);
         Ok(())
     }
 
     fn config(&self) -> anyhow::Result<AnnotateConfig> {
-        for (name, v) in [("--epsilon-m", self.epsilon_m), ("--radius-m", self.radius_m), ("--preview-max-cm", self.preview_max_cm)] {
+        for (name, v) in [
+            ("--epsilon-m", self.epsilon_m),
+            ("--radius-m", self.radius_m),
+            ("--preview-max-cm", self.preview_max_cm),
+        ] {
             if !(v.is_finite() && v > 0.0) {
                 bail!("{name} must be positive, got {v}");
             }
         }
-        let hood = Neighbourhood { radius_m: self.radius_m, max_half_width: self.max_half_width.max(1) };
-        Ok(AnnotateConfig { epsilon_m: self.epsilon_m, hood, ..AnnotateConfig::default() })
+        let hood = Neighbourhood {
+            radius_m: self.radius_m,
+            max_half_width: self.max_half_width.max(1),
+        };
+        Ok(AnnotateConfig {
+            epsilon_m: self.epsilon_m,
+            hood,
+            ..AnnotateConfig::default()
+        })
     }
 
     fn write(&self, ann: &Annotation) -> anyhow::Result<()> {
         let out = &self.out;
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
         let p = |name: &str| -> PathBuf { Path::new(out).join(name) };
-        io::save(&p("roughness.png"), &image::DynamicImage::ImageLumaA16(io::roughness_png16(&ann.roughness_m)))?;
+        io::save(
+            &p("roughness.png"),
+            &image::DynamicImage::ImageLumaA16(io::roughness_png16(&ann.roughness_m)),
+        )?;
         io::write_npy_f32(&p("roughness.npy"), &ann.roughness_m)?;
         io::write_mask_png(&p("boundary.png"), &ann.boundary)?;
         io::write_npy_f32(&p("edge_weight.npy"), &ann.edge_weight_m)?;
         io::write_npy_u32(&p("segments.npy"), &ann.segments)?;
-        let preview = io::colormap::roughness_preview(&ann.roughness_m, self.preview_max_cm / 100.0);
+        let preview =
+            io::colormap::roughness_preview(&ann.roughness_m, self.preview_max_cm / 100.0);
         io::save(&p("preview.png"), &image::DynamicImage::ImageRgb8(preview))?;
         Ok(())
     }
@@ -103,9 +124,20 @@ impl Annotate {
 
 /// Prints pixel counts and roughness quantiles.
 fn print_summary(ann: &Annotation) {
-    let mut r: Vec<f64> = ann.roughness_m.as_slice().iter().copied().filter(|v| v.is_finite()).collect();
+    let mut r: Vec<f64> = ann
+        .roughness_m
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .collect();
     r.sort_by(f64::total_cmp);
-    let q = |f: f64| r.get(((r.len() as f64 - 1.0) * f).round() as usize).copied().unwrap_or(f64::NAN) * 100.0;
+    let q = |f: f64| {
+        r.get(((r.len() as f64 - 1.0) * f).round() as usize)
+            .copied()
+            .unwrap_or(f64::NAN)
+            * 100.0
+    };
     let boundary = ann.boundary.as_slice().iter().filter(|b| **b).count();
     let segments = ann.segments.as_slice().iter().max().copied().unwrap_or(0);
     println!(

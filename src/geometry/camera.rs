@@ -43,7 +43,12 @@ pub struct Intrinsics {
 impl Intrinsics {
     /// Checked intrinsics: focal lengths must be finite and positive, the principal point finite.
     pub fn new(fx_px: f64, fy_px: f64, cx_px: f64, cy_px: f64) -> Result<Self, GeometryError> {
-        let k = Self { fx_px, fy_px, cx_px, cy_px };
+        let k = Self {
+            fx_px,
+            fy_px,
+            cx_px,
+            cy_px,
+        };
         k.validate()?;
         Ok(k)
     }
@@ -92,8 +97,12 @@ impl Intrinsics {
 
     /// The pixel where `p` appears, or `None` for points not in front of the camera.
     pub fn project(&self, p: &Vec3) -> Option<(f64, f64)> {
-        (p.z > 0.0 && p.z.is_finite())
-            .then(|| (self.fx_px * p.x / p.z + self.cx_px, self.fy_px * p.y / p.z + self.cy_px))
+        (p.z > 0.0 && p.z.is_finite()).then(|| {
+            (
+                self.fx_px * p.x / p.z + self.cx_px,
+                self.fy_px * p.y / p.z + self.cy_px,
+            )
+        })
     }
 
     /// Back-projects an organised depth map (metres; 0, negative or non-finite = no data)
@@ -101,14 +110,17 @@ impl Intrinsics {
     pub fn back_project_map(&self, depth_m: &Grid<f64>) -> PointMap {
         let (w, h) = depth_m.size();
         let mut out = Grid::new(w, h, INVALID_POINT);
-        out.as_mut_slice().par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-            for (x, p) in row.iter_mut().enumerate() {
-                let z = depth_m[(x, y)];
-                if z > 0.0 && z.is_finite() {
-                    *p = self.back_project(x as f64, y as f64, z);
+        out.as_mut_slice()
+            .par_chunks_mut(w.max(1))
+            .enumerate()
+            .for_each(|(y, row)| {
+                for (x, p) in row.iter_mut().enumerate() {
+                    let z = depth_m[(x, y)];
+                    if z > 0.0 && z.is_finite() {
+                        *p = self.back_project(x as f64, y as f64, z);
+                    }
                 }
-            }
-        });
+            });
         out
     }
 }

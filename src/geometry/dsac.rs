@@ -41,7 +41,12 @@ pub struct DsacConfig {
 
 impl Default for DsacConfig {
     fn default() -> Self {
-        Self { hypotheses: 12, inlier_threshold_m: 0.01, softness: 5.0, seed: 0 }
+        Self {
+            hypotheses: 12,
+            inlier_threshold_m: 0.01,
+            softness: 5.0,
+            seed: 0,
+        }
     }
 }
 
@@ -69,10 +74,16 @@ pub fn candidates(points: &PointMap, x: usize, y: usize) -> [Vec3; CANDIDATES] {
 }
 
 /// ρ: the softmax of the 49 logits over the valid candidates (0 for invalid ones), in f64.
-pub fn candidate_probabilities(logits: &[f32; CANDIDATES], cands: &[Vec3; CANDIDATES]) -> [f64; CANDIDATES] {
+pub fn candidate_probabilities(
+    logits: &[f32; CANDIDATES],
+    cands: &[Vec3; CANDIDATES],
+) -> [f64; CANDIDATES] {
     let mut rho = [0.0; CANDIDATES];
     let valid = |k: usize| is_valid_point(&cands[k]) && logits[k].is_finite();
-    let max = (0..CANDIDATES).filter(|&k| valid(k)).map(|k| f64::from(logits[k])).fold(f64::NEG_INFINITY, f64::max);
+    let max = (0..CANDIDATES)
+        .filter(|&k| valid(k))
+        .map(|k| f64::from(logits[k]))
+        .fold(f64::NEG_INFINITY, f64::max);
     if max == f64::NEG_INFINITY {
         return rho;
     }
@@ -90,7 +101,12 @@ pub fn candidate_probabilities(logits: &[f32; CANDIDATES], cands: &[Vec3; CANDID
 /// Draws 3 distinct candidates for hypothesis `hypothesis` of pixel `pixel`: each draw inverts
 /// the CDF of ρ renormalised without the candidates already drawn. `None` when fewer than 3
 /// candidates carry probability.
-pub fn sample_triple(rho: &[f64; CANDIDATES], seed: u64, pixel: u64, hypothesis: u32) -> Option<[usize; 3]> {
+pub fn sample_triple(
+    rho: &[f64; CANDIDATES],
+    seed: u64,
+    pixel: u64,
+    hypothesis: u32,
+) -> Option<[usize; 3]> {
     let mut drawn = [usize::MAX; 3];
     for d in 0..3 {
         let taken = |k: usize| drawn[..d].contains(&k);
@@ -140,10 +156,17 @@ pub fn pixel_hypotheses(
     pixel: u64,
     cfg: &DsacConfig,
 ) -> PixelHypotheses {
-    let triples: Vec<_> = (0..cfg.hypotheses).map(|j| sample_triple(rho, cfg.seed, pixel, j)).collect();
-    let planes: Vec<_> =
-        triples.iter().map(|t| t.and_then(|[a, b, c]| Plane::through(&cands[a], &cands[b], &cands[c]))).collect();
-    let scores: Vec<f64> = planes.iter().map(|p| p.map_or(f64::NEG_INFINITY, |p| score(&p, cands, cfg))).collect();
+    let triples: Vec<_> = (0..cfg.hypotheses)
+        .map(|j| sample_triple(rho, cfg.seed, pixel, j))
+        .collect();
+    let planes: Vec<_> = triples
+        .iter()
+        .map(|t| t.and_then(|[a, b, c]| Plane::through(&cands[a], &cands[b], &cands[c])))
+        .collect();
+    let scores: Vec<f64> = planes
+        .iter()
+        .map(|p| p.map_or(f64::NEG_INFINITY, |p| score(&p, cands, cfg)))
+        .collect();
     let mut best = None;
     for (j, s) in scores.iter().enumerate() {
         if *s > f64::NEG_INFINITY && best.is_none_or(|b: usize| *s > scores[b]) {
@@ -151,12 +174,21 @@ pub fn pixel_hypotheses(
         }
     }
     let normal = best.and_then(|b| planes[b]).map(|p| refit(&p, cands, cfg));
-    PixelHypotheses { triples, scores, best, normal }
+    PixelHypotheses {
+        triples,
+        scores,
+        best,
+        normal,
+    }
 }
 
 /// Soft inlier count of `plane` over the valid candidates.
 fn score(plane: &Plane, cands: &[Vec3; CANDIDATES], cfg: &DsacConfig) -> f64 {
-    cands.iter().filter(|q| is_valid_point(q)).map(|q| cfg.soft_inlier(plane.distance(q))).sum()
+    cands
+        .iter()
+        .filter(|q| is_valid_point(q))
+        .map(|q| cfg.soft_inlier(plane.distance(q)))
+        .sum()
 }
 
 /// LS refit on the inliers (distance < τ) of `plane`, oriented towards the camera; the
@@ -164,7 +196,10 @@ fn score(plane: &Plane, cands: &[Vec3; CANDIDATES], cfg: &DsacConfig) -> f64 {
 fn refit(plane: &Plane, cands: &[Vec3; CANDIDATES], cfg: &DsacConfig) -> Vec3 {
     let origin = cands[CANDIDATES / 2];
     let mut m = Moments::default();
-    for q in cands.iter().filter(|q| is_valid_point(q) && plane.distance(q) < cfg.inlier_threshold_m) {
+    for q in cands
+        .iter()
+        .filter(|q| is_valid_point(q) && plane.distance(q) < cfg.inlier_threshold_m)
+    {
         m.add(&(q - origin));
     }
     let n = m.fit(&origin).map_or(plane.normal, |p| p.normal);
@@ -174,25 +209,36 @@ fn refit(plane: &Plane, cands: &[Vec3; CANDIDATES], cfg: &DsacConfig) -> Vec3 {
 /// DSAC initial normals for a whole frame. `logits` holds the neighbour net's output for one
 /// image in channel-major order (49 × H × W, as NCHW with N = 1). Row-parallel and seeded per
 /// pixel, so the answer does not depend on the number of threads.
-pub fn dsac_normals(points: &PointMap, logits: &[f32], cfg: &DsacConfig) -> Result<Grid<Vec3>, GeometryError> {
+pub fn dsac_normals(
+    points: &PointMap,
+    logits: &[f32],
+    cfg: &DsacConfig,
+) -> Result<Grid<Vec3>, GeometryError> {
     let (w, h) = points.size();
     if logits.len() != CANDIDATES * w * h {
-        return Err(GeometryError::LogitsSize { expected: CANDIDATES * w * h, got: logits.len() });
+        return Err(GeometryError::LogitsSize {
+            expected: CANDIDATES * w * h,
+            got: logits.len(),
+        });
     }
     let mut out = Grid::new(w, h, INVALID_POINT);
-    out.as_mut_slice().par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-        for (x, n) in row.iter_mut().enumerate() {
-            if !is_valid_point(&points[(x, y)]) {
-                continue;
+    out.as_mut_slice()
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, n) in row.iter_mut().enumerate() {
+                if !is_valid_point(&points[(x, y)]) {
+                    continue;
+                }
+                let i = y * w + x;
+                let pixel_logits: [f32; CANDIDATES] =
+                    std::array::from_fn(|k| logits[k * w * h + i]);
+                let cands = candidates(points, x, y);
+                let rho = candidate_probabilities(&pixel_logits, &cands);
+                if let Some(normal) = pixel_hypotheses(&cands, &rho, i as u64, cfg).normal {
+                    *n = normal;
+                }
             }
-            let i = y * w + x;
-            let pixel_logits: [f32; CANDIDATES] = std::array::from_fn(|k| logits[k * w * h + i]);
-            let cands = candidates(points, x, y);
-            let rho = candidate_probabilities(&pixel_logits, &cands);
-            if let Some(normal) = pixel_hypotheses(&cands, &rho, i as u64, cfg).normal {
-                *n = normal;
-            }
-        }
-    });
+        });
     Ok(out)
 }

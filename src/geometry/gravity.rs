@@ -26,7 +26,10 @@ pub struct Mounting {
 
 impl Default for Mounting {
     fn default() -> Self {
-        Self { pitch_rad: 60f64.to_radians(), height_m: 1.0 }
+        Self {
+            pitch_rad: 60f64.to_radians(),
+            height_m: 1.0,
+        }
     }
 }
 
@@ -40,7 +43,10 @@ impl Mounting {
         if !(height_m.is_finite() && height_m >= 0.0) {
             return Err(GeometryError::BadHeight { height_m });
         }
-        Ok(Self { pitch_rad, height_m })
+        Ok(Self {
+            pitch_rad,
+            height_m,
+        })
     }
 
     /// Rotation taking camera-frame vectors into the gravity frame.

@@ -21,7 +21,11 @@ pub struct Grid<T> {
 impl<T: Clone> Grid<T> {
     /// A grid filled with `value`.
     pub fn new(width: usize, height: usize, value: T) -> Self {
-        Self { width, height, data: vec![value; width * height] }
+        Self {
+            width,
+            height,
+            data: vec![value; width * height],
+        }
     }
 }
 
@@ -29,9 +33,17 @@ impl<T> Grid<T> {
     /// Wraps `data` (row-major) as a `width × height` grid; its length must match.
     pub fn from_vec(width: usize, height: usize, data: Vec<T>) -> Result<Self, GeometryError> {
         if data.len() != width * height {
-            return Err(GeometryError::BufferSize { width, height, len: data.len() });
+            return Err(GeometryError::BufferSize {
+                width,
+                height,
+                len: data.len(),
+            });
         }
-        Ok(Self { width, height, data })
+        Ok(Self {
+            width,
+            height,
+            data,
+        })
     }
 
     /// Builds a grid by calling `f(x, y)` for every pixel.
@@ -42,7 +54,11 @@ impl<T> Grid<T> {
                 data.push(f(x, y));
             }
         }
-        Self { width, height, data }
+        Self {
+            width,
+            height,
+            data,
+        }
     }
 
     /// Width in pixels.
@@ -87,7 +103,11 @@ impl<T> Grid<T> {
 
     /// Applies `f` to every value, keeping the shape.
     pub fn map<U>(&self, f: impl Fn(&T) -> U) -> Grid<U> {
-        Grid { width: self.width, height: self.height, data: self.data.iter().map(f).collect() }
+        Grid {
+            width: self.width,
+            height: self.height,
+            data: self.data.iter().map(f).collect(),
+        }
     }
 }
 

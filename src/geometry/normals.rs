@@ -20,7 +20,10 @@ pub struct Neighbourhood {
 
 impl Default for Neighbourhood {
     fn default() -> Self {
-        Self { radius_m: 0.05, max_half_width: 7 }
+        Self {
+            radius_m: 0.05,
+            max_half_width: 7,
+        }
     }
 }
 
@@ -45,13 +48,40 @@ impl Neighbourhood {
 
     /// Moments (about `points[(x, y)]`) of the neighbourhood of pixel `(x, y)`.
     pub fn moments(&self, points: &PointMap, fx_px: f64, x: usize, y: usize) -> Moments {
-        let mut m = Moments::default();
         let p = points[(x, y)];
         if !is_valid_point(&p) {
-            return m;
+            return Moments::default();
         }
         let h = self.half_width(fx_px, p.z);
-        let r2 = self.radius_m * self.radius_m;
+        window_moments(points, x, y, h, self.radius_m * self.radius_m)
+    }
+
+    /// The LS normal at `(x, y)` (oriented towards the camera) with the neighbourhood's moments.
+    /// Where the neighbourhood is too sparse for a plane (fewer than 3 points within R, or
+    /// collinear ones, as at grazing angles), the valid points of the 3×3 window, then the
+    /// 5×5 window, stand in without the radius limit.
+    pub fn normal(
+        &self,
+        points: &PointMap,
+        fx_px: f64,
+        x: usize,
+        y: usize,
+    ) -> (Moments, Option<Vec3>) {
+        let p = points[(x, y)];
+        let m = self.moments(points, fx_px, x, y);
+        let fit = m.fit(&p).or_else(|| {
+            (1..=2).find_map(|h| window_moments(points, x, y, h, f64::INFINITY).fit(&p))
+        });
+        (m, fit.map(|plane| orient_towards_camera(&plane.normal, &p)))
+    }
+}
+
+/// Moments about `points[(x, y)]` of the valid points within `sqrt(r2)` of it in the window of
+/// half-width `h`.
+fn window_moments(points: &PointMap, x: usize, y: usize, h: usize, r2: f64) -> Moments {
+    let mut m = Moments::default();
+    let p = points[(x, y)];
+    {
         let (w, ht) = points.size();
         for yy in y.saturating_sub(h)..(y + h + 1).min(ht) {
             let row = &points.row(yy)[x.saturating_sub(h)..(x + h + 1).min(w)];
@@ -63,8 +93,8 @@ impl Neighbourhood {
                 }
             }
         }
-        m
     }
+    m
 }
 
 /// Per-pixel local planes: the neighbourhood's mean point and its LS normal.
@@ -72,7 +102,8 @@ impl Neighbourhood {
 pub struct LocalPlanes {
     /// Mean of the neighbourhood's points (invalid where the pixel is invalid).
     pub centroid: PointMap,
-    /// Unit LS normal oriented towards the camera (NaN where fewer than 3 points or degenerate).
+    /// Unit LS normal oriented towards the camera (NaN where none can be fitted, see
+    /// [`Neighbourhood::normal`]).
     pub normal: Grid<Vec3>,
 }
 
@@ -88,13 +119,12 @@ pub fn local_planes(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> Loca
         .enumerate()
         .for_each(|(y, (c_row, n_row))| {
             for x in 0..w {
-                let p = points[(x, y)];
-                let m = hood.moments(points, fx_px, x, y);
-                if let Some(c) = m.mean(&p) {
+                let (m, normal) = hood.normal(points, fx_px, x, y);
+                if let Some(c) = m.mean(&points[(x, y)]) {
                     c_row[x] = c;
                 }
-                if let Some(plane) = m.fit(&p) {
-                    n_row[x] = orient_towards_camera(&plane.normal, &p);
+                if let Some(n) = normal {
+                    n_row[x] = n;
                 }
             }
         });
@@ -110,12 +140,16 @@ pub fn ls_normals(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> Grid<V
 pub fn window_centroids(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> PointMap {
     let (w, h) = points.size();
     let mut centroid = Grid::new(w, h, INVALID_POINT);
-    centroid.as_mut_slice().par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-        for (x, c) in row.iter_mut().enumerate() {
-            if let Some(m) = hood.moments(points, fx_px, x, y).mean(&points[(x, y)]) {
-                *c = m;
+    centroid
+        .as_mut_slice()
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, c) in row.iter_mut().enumerate() {
+                if let Some(m) = hood.moments(points, fx_px, x, y).mean(&points[(x, y)]) {
+                    *c = m;
+                }
             }
-        }
-    });
+        });
     centroid
 }

@@ -32,7 +32,10 @@ impl Plane {
         if !(len > 1e-9 * ab.norm() * ac.norm()) || !len.is_finite() {
             return None;
         }
-        Some(Self { centroid: *a, normal: n / len })
+        Some(Self {
+            centroid: *a,
+            normal: n / len,
+        })
     }
 
     /// Eq. 1: the distance from `p` to the plane, metres.
@@ -132,7 +135,10 @@ impl Moments {
             return None;
         }
         let normal = smallest_eigenvector(&self.covariance())?;
-        Some(Plane { centroid: self.mean(origin)?, normal })
+        Some(Plane {
+            centroid: self.mean(origin)?,
+            normal,
+        })
     }
 }
 
@@ -152,7 +158,11 @@ pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
         return None;
     }
     let m = a - Matrix3::identity() * l_min;
-    let (r0, r1, r2) = (m.row(0).transpose(), m.row(1).transpose(), m.row(2).transpose());
+    let (r0, r1, r2) = (
+        m.row(0).transpose(),
+        m.row(1).transpose(),
+        m.row(2).transpose(),
+    );
     let candidates = [r0.cross(&r1), r0.cross(&r2), r1.cross(&r2)];
     let best = candidates
         .iter()
@@ -195,7 +205,9 @@ mod tests {
     #[test]
     fn eigenvector_of_rotated_matrix() {
         let r = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 0.7);
-        let a = r.matrix() * Matrix3::from_diagonal(&Vector3::new(1.0, 4.0, 1e-6)) * r.matrix().transpose();
+        let a = r.matrix()
+            * Matrix3::from_diagonal(&Vector3::new(1.0, 4.0, 1e-6))
+            * r.matrix().transpose();
         let v = smallest_eigenvector(&a).unwrap();
         let expected = r.matrix().column(2).into_owned();
         assert_relative_eq!(v.dot(&expected).abs(), 1.0, epsilon = 1e-10);

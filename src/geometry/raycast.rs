@@ -33,12 +33,22 @@ pub struct MarchConfig {
 
 impl Default for MarchConfig {
     fn default() -> Self {
-        Self { step_fraction: 0.5, min_step_m: 5e-4, max_step_m: 0.02, max_range_m: 20.0 }
+        Self {
+            step_fraction: 0.5,
+            min_step_m: 5e-4,
+            max_step_m: 0.02,
+            max_range_m: 20.0,
+        }
     }
 }
 
 /// The distance along the unit ray `origin + t·dir` (gravity frame) to the terrain, if any.
-pub fn cast_ray(field: &dyn HeightField, origin: &Vec3, dir: &Vec3, cfg: &MarchConfig) -> Option<f64> {
+pub fn cast_ray(
+    field: &dyn HeightField,
+    origin: &Vec3,
+    dir: &Vec3,
+    cfg: &MarchConfig,
+) -> Option<f64> {
     let gap = |t: f64| {
         let p = origin + dir * t;
         p.z - field.height(p.x, p.y)
@@ -85,14 +95,18 @@ pub fn render_depth(
     let rot = mounting.gravity_from_cam();
     let origin = Vec3::new(0.0, 0.0, mounting.height_m);
     let mut depth = Grid::new(width, height, 0.0);
-    depth.as_mut_slice().par_chunks_mut(width.max(1)).enumerate().for_each(|(v, row)| {
-        for (u, d) in row.iter_mut().enumerate() {
-            let ray_cam = intrinsics.back_project(u as f64, v as f64, 1.0);
-            let dir = rot * ray_cam.normalize();
-            if let Some(t) = cast_ray(field, &origin, &dir, cfg) {
-                *d = t / ray_cam.norm();
+    depth
+        .as_mut_slice()
+        .par_chunks_mut(width.max(1))
+        .enumerate()
+        .for_each(|(v, row)| {
+            for (u, d) in row.iter_mut().enumerate() {
+                let ray_cam = intrinsics.back_project(u as f64, v as f64, 1.0);
+                let dir = rot * ray_cam.normalize();
+                if let Some(t) = cast_ray(field, &origin, &dir, cfg) {
+                    *d = t / ray_cam.norm();
+                }
             }
-        }
-    });
+        });
     depth
 }

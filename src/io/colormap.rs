@@ -15,9 +15,30 @@ use crate::geometry::Grid;
 pub fn turbo(t: f64) -> [u8; 3] {
     let t = t.clamp(0.0, 1.0);
     let poly = |c: [f64; 6]| c[0] + t * (c[1] + t * (c[2] + t * (c[3] + t * (c[4] + t * c[5]))));
-    let r = poly([0.13572138, 4.61539260, -42.66032258, 132.13108234, -152.94239396, 59.28637943]);
-    let g = poly([0.09140261, 2.19418839, 4.84296658, -14.18503333, 4.27729857, 2.82956604]);
-    let b = poly([0.10667330, 12.64194608, -60.58204836, 110.36276771, -89.90310912, 27.34824973]);
+    let r = poly([
+        0.13572138,
+        4.61539260,
+        -42.66032258,
+        132.13108234,
+        -152.94239396,
+        59.28637943,
+    ]);
+    let g = poly([
+        0.09140261,
+        2.19418839,
+        4.84296658,
+        -14.18503333,
+        4.27729857,
+        2.82956604,
+    ]);
+    let b = poly([
+        0.10667330,
+        12.64194608,
+        -60.58204836,
+        110.36276771,
+        -89.90310912,
+        27.34824973,
+    ]);
     [r, g, b].map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)
 }
 
@@ -32,9 +53,16 @@ pub fn roughness_preview(roughness_m: &Grid<f64>, max_m: f64) -> RgbImage {
     let (w, h) = (roughness_m.width() as u32, roughness_m.height() as u32);
     let width = w.max(60);
     let mut img = RgbImage::from_pixel(width, h + LEGEND_H, Rgb([255, 255, 255]));
-    for (x, y, px) in img.enumerate_pixels_mut().filter(|(x, y, _)| *x < w && *y < h) {
+    for (x, y, px) in img
+        .enumerate_pixels_mut()
+        .filter(|(x, y, _)| *x < w && *y < h)
+    {
         let r = roughness_m[(x as usize, y as usize)];
-        *px = Rgb(if r.is_finite() { turbo(r / max_m) } else { NO_DATA });
+        *px = Rgb(if r.is_finite() {
+            turbo(r / max_m)
+        } else {
+            NO_DATA
+        });
     }
     draw_legend(&mut img, h, max_m);
     img
@@ -52,9 +80,19 @@ fn draw_legend(img: &mut RgbImage, top: u32, max_m: f64) {
     let max_cm = max_m * 100.0;
     draw_text(img, bar_x0, top + 12, "0");
     let mid = format!("{}", trim(max_cm / 2.0));
-    draw_text(img, (bar_x0 + bar_x1) / 2 - text_width(&mid) / 2, top + 12, &mid);
+    draw_text(
+        img,
+        (bar_x0 + bar_x1) / 2 - text_width(&mid) / 2,
+        top + 12,
+        &mid,
+    );
     let end = format!("{}cm", trim(max_cm));
-    draw_text(img, bar_x1 + 1 - text_width(&end).min(bar_x1), top + 12, &end);
+    draw_text(
+        img,
+        bar_x1 + 1 - text_width(&end).min(bar_x1),
+        top + 12,
+        &end,
+    );
 }
 
 fn trim(v: f64) -> String {

@@ -91,9 +91,14 @@ impl CameraFile {
 /// Reads and checks a camera JSON file.
 pub fn read_camera(path: &Path) -> Result<(CameraFile, Intrinsics), IoError> {
     let text = std::fs::read_to_string(path)?;
-    let cam: CameraFile = serde_json::from_str(&text)
-        .map_err(|e| IoError::Camera { path: path.to_owned(), reason: e.to_string() })?;
-    let k = cam.intrinsics().map_err(|source| IoError::Intrinsics { path: path.to_owned(), source })?;
+    let cam: CameraFile = serde_json::from_str(&text).map_err(|e| IoError::Camera {
+        path: path.to_owned(),
+        reason: e.to_string(),
+    })?;
+    let k = cam.intrinsics().map_err(|source| IoError::Intrinsics {
+        path: path.to_owned(),
+        source,
+    })?;
     Ok((cam, k))
 }
 
@@ -101,8 +106,14 @@ pub fn read_camera(path: &Path) -> Result<(CameraFile, Intrinsics), IoError> {
 pub fn read_image(path: &Path) -> Result<DynamicImage, IoError> {
     let reader = ImageReader::open(path)?
         .with_guessed_format()
-        .map_err(|e| IoError::Image { path: path.to_owned(), reason: e.to_string() })?;
-    reader.decode().map_err(|e| IoError::Image { path: path.to_owned(), reason: e.to_string() })
+        .map_err(|e| IoError::Image {
+            path: path.to_owned(),
+            reason: e.to_string(),
+        })?;
+    reader.decode().map_err(|e| IoError::Image {
+        path: path.to_owned(),
+        reason: e.to_string(),
+    })
 }
 
 /// Reads depth in metres: a 16-bit grey PNG divided by `units_per_m` (0 = no data), or a float
@@ -114,12 +125,19 @@ pub fn read_depth(path: &Path, units_per_m: f64) -> Result<Grid<f64>, IoError> {
     match read_image(path)? {
         DynamicImage::ImageLuma16(img) => {
             let (w, h) = (img.width() as usize, img.height() as usize);
-            let data = img.into_raw().into_iter().map(|v| f64::from(v) / units_per_m).collect();
+            let data = img
+                .into_raw()
+                .into_iter()
+                .map(|v| f64::from(v) / units_per_m)
+                .collect();
             Ok(Grid::from_vec(w, h, data).expect("decoder sizes agree; this is a bug"))
         }
         other => Err(IoError::ImageKind {
             path: path.to_owned(),
-            reason: format!("depth must be a 16-bit grey PNG or a float .npy, got {:?}", other.color()),
+            reason: format!(
+                "depth must be a 16-bit grey PNG or a float .npy, got {:?}",
+                other.color()
+            ),
         }),
     }
 }
@@ -148,20 +166,33 @@ pub fn read_labels(path: &Path) -> Result<Grid<u32>, IoError> {
 pub fn read_normals(path: &Path) -> Result<Grid<Vec3>, IoError> {
     let a = npy::read_npy(BufReader::new(File::open(path)?))?;
     let [h, w, 3] = a.shape[..] else {
-        return Err(IoError::Npy(format!("{}: normals must have shape (H, W, 3), got {:?}", path.display(), a.shape)));
+        return Err(IoError::Npy(format!(
+            "{}: normals must have shape (H, W, 3), got {:?}",
+            path.display(),
+            a.shape
+        )));
     };
-    let data = a.data.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+    let data = a
+        .data
+        .chunks_exact(3)
+        .map(|c| Vec3::new(c[0], c[1], c[2]))
+        .collect();
     Ok(Grid::from_vec(w, h, data).expect("shape checked; this is a bug"))
 }
 
 fn is_npy(path: &Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"))
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("npy"))
 }
 
 fn read_npy_grid(path: &Path) -> Result<Grid<f64>, IoError> {
     let a = npy::read_npy(BufReader::new(File::open(path)?))?;
     let [h, w] = a.shape[..] else {
-        return Err(IoError::Npy(format!("{}: expected a 2-D array (H, W), got shape {:?}", path.display(), a.shape)));
+        return Err(IoError::Npy(format!(
+            "{}: expected a 2-D array (H, W), got shape {:?}",
+            path.display(),
+            a.shape
+        )));
     };
     Ok(Grid::from_vec(w, h, a.data).expect("shape checked; this is a bug"))
 }
@@ -169,12 +200,20 @@ fn read_npy_grid(path: &Path) -> Result<Grid<f64>, IoError> {
 /// Writes a float map as an `(H, W)` float32 `.npy` (NaN: no data).
 pub fn write_npy_f32(path: &Path, grid: &Grid<f64>) -> Result<(), IoError> {
     let data: Vec<f32> = grid.as_slice().iter().map(|&v| v as f32).collect();
-    npy::write_npy(BufWriter::new(File::create(path)?), &[grid.height(), grid.width()], &data)
+    npy::write_npy(
+        BufWriter::new(File::create(path)?),
+        &[grid.height(), grid.width()],
+        &data,
+    )
 }
 
 /// Writes an id map as an `(H, W)` uint32 `.npy`.
 pub fn write_npy_u32(path: &Path, grid: &Grid<u32>) -> Result<(), IoError> {
-    npy::write_npy(BufWriter::new(File::create(path)?), &[grid.height(), grid.width()], grid.as_slice())
+    npy::write_npy(
+        BufWriter::new(File::create(path)?),
+        &[grid.height(), grid.width()],
+        grid.as_slice(),
+    )
 }
 
 /// Encodes roughness as 16-bit grey + alpha: grey = round(r / 0.1 mm) saturated at 65535
@@ -184,7 +223,10 @@ pub fn roughness_png16(roughness_m: &Grid<f64>) -> ImageBuffer<LumaA<u16>, Vec<u
     ImageBuffer::from_fn(w, h, |x, y| {
         let r = roughness_m[(x as usize, y as usize)];
         if r.is_finite() {
-            LumaA([(r / ROUGHNESS_PNG_SCALE_M).round().clamp(0.0, 65535.0) as u16, u16::MAX])
+            LumaA([
+                (r / ROUGHNESS_PNG_SCALE_M).round().clamp(0.0, 65535.0) as u16,
+                u16::MAX,
+            ])
         } else {
             LumaA([0, 0])
         }
@@ -195,19 +237,35 @@ pub fn roughness_png16(roughness_m: &Grid<f64>) -> ImageBuffer<LumaA<u16>, Vec<u
 pub fn decode_roughness_png16(img: &DynamicImage) -> Grid<f64> {
     let la = img.to_luma_alpha16();
     let (w, h) = (la.width() as usize, la.height() as usize);
-    let data = la.pixels().map(|p| if p[1] == 0 { f64::NAN } else { f64::from(p[0]) * ROUGHNESS_PNG_SCALE_M }).collect();
+    let data = la
+        .pixels()
+        .map(|p| {
+            if p[1] == 0 {
+                f64::NAN
+            } else {
+                f64::from(p[0]) * ROUGHNESS_PNG_SCALE_M
+            }
+        })
+        .collect();
     Grid::from_vec(w, h, data).expect("decoder sizes agree; this is a bug")
 }
 
 /// Writes a boolean mask as an 8-bit PNG (255 = true).
 pub fn write_mask_png(path: &Path, mask: &Grid<bool>) -> Result<(), IoError> {
     let img = image::GrayImage::from_fn(mask.width() as u32, mask.height() as u32, |x, y| {
-        image::Luma([if mask[(x as usize, y as usize)] { 255 } else { 0 }])
+        image::Luma([if mask[(x as usize, y as usize)] {
+            255
+        } else {
+            0
+        }])
     });
     save(path, &DynamicImage::ImageLuma8(img))
 }
 
 /// Saves an image, choosing the format from the extension.
 pub fn save(path: &Path, img: &DynamicImage) -> Result<(), IoError> {
-    img.save(path).map_err(|e| IoError::Image { path: path.to_owned(), reason: e.to_string() })
+    img.save(path).map_err(|e| IoError::Image {
+        path: path.to_owned(),
+        reason: e.to_string(),
+    })
 }

@@ -30,10 +30,22 @@ npy_element!(u16, "<u2");
 npy_element!(u32, "<u4");
 
 /// Writes `data` with `shape` as a `.npy` file.
-pub fn write_npy<T: NpyElement>(mut w: impl Write, shape: &[usize], data: &[T]) -> Result<(), IoError> {
+pub fn write_npy<T: NpyElement>(
+    mut w: impl Write,
+    shape: &[usize],
+    data: &[T],
+) -> Result<(), IoError> {
     let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
-    let shape_txt = if dims.len() == 1 { format!("({},)", dims[0]) } else { format!("({})", dims.join(", ")) };
-    let mut header = format!("{{'descr': '{}', 'fortran_order': False, 'shape': {}, }}", T::DESCR, shape_txt);
+    let shape_txt = if dims.len() == 1 {
+        format!("({},)", dims[0])
+    } else {
+        format!("({})", dims.join(", "))
+    };
+    let mut header = format!(
+        "{{'descr': '{}', 'fortran_order': False, 'shape': {}, }}",
+        T::DESCR,
+        shape_txt
+    );
     // Magic (6) + version (2) + header length (2) + header + '\n' is a multiple of 64.
     while (10 + header.len() + 1) % 64 != 0 {
         header.push(' ');
@@ -68,13 +80,20 @@ pub fn read_npy(mut r: impl Read) -> Result<NpyArray, IoError> {
     }
     let (header_len, start) = match bytes[6] {
         1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
-        2 | 3 if bytes.len() >= 12 => (u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize, 12),
+        2 | 3 if bytes.len() >= 12 => (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        ),
         v => return Err(bad(&format!("unsupported .npy version {v}"))),
     };
-    let header = bytes.get(start..start + header_len).ok_or_else(|| bad("truncated header"))?;
+    let header = bytes
+        .get(start..start + header_len)
+        .ok_or_else(|| bad("truncated header"))?;
     let header = std::str::from_utf8(header).map_err(|_| bad("header is not text"))?;
     if header.contains("'fortran_order': True") {
-        return Err(bad("Fortran-order arrays are not supported; save with np.ascontiguousarray"));
+        return Err(bad(
+            "Fortran-order arrays are not supported; save with np.ascontiguousarray",
+        ));
     }
     let descr = field(header, "descr").ok_or_else(|| bad("header has no descr"))?;
     let shape = parse_shape(header).ok_or_else(|| bad("header has no readable shape"))?;
@@ -86,7 +105,10 @@ pub fn read_npy(mut r: impl Read) -> Result<NpyArray, IoError> {
 
 fn field<'a>(header: &'a str, name: &str) -> Option<&'a str> {
     let at = header.find(&format!("'{name}'"))?;
-    let rest = header[at + name.len() + 2..].trim_start().strip_prefix(':')?.trim_start();
+    let rest = header[at + name.len() + 2..]
+        .trim_start()
+        .strip_prefix(':')?
+        .trim_start();
     let end = rest.find(',')?;
     Some(rest[..end].trim())
 }
@@ -95,7 +117,12 @@ fn parse_shape(header: &str) -> Option<Vec<usize>> {
     let at = header.find("'shape'")?;
     let open = at + header[at..].find('(')?;
     let close = open + header[open..].find(')')?;
-    header[open + 1..close].split(',').map(str::trim).filter(|s| !s.is_empty()).map(|s| s.parse().ok()).collect()
+    header[open + 1..close]
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().ok())
+        .collect()
 }
 
 fn decode(descr: &str, body: &[u8], count: usize) -> Result<Vec<f64>, IoError> {
@@ -104,21 +131,44 @@ fn decode(descr: &str, body: &[u8], count: usize) -> Result<Vec<f64>, IoError> {
         "<f8" | "<i8" | "<u8" => 8,
         "<u2" | "<i2" => 2,
         "|u1" | "|i1" | "|b1" => 1,
-        other => return Err(IoError::Npy(format!("unsupported dtype {other}: use float32/float64 or unsigned ints"))),
+        other => {
+            return Err(IoError::Npy(format!(
+                "unsupported dtype {other}: use float32/float64 or unsigned ints"
+            )))
+        }
     };
     if body.len() < count * size {
-        return Err(IoError::Npy(format!("truncated data: {} bytes for {count} values of {size} bytes", body.len())));
+        return Err(IoError::Npy(format!(
+            "truncated data: {} bytes for {count} values of {size} bytes",
+            body.len()
+        )));
     }
     let c = body[..count * size].chunks_exact(size);
     Ok(match descr {
-        "<f4" => c.map(|b| f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]]))).collect(),
-        "<f8" => c.map(|b| f64::from_le_bytes(b.try_into().expect("8-byte chunk; this is a bug"))).collect(),
-        "<u4" => c.map(|b| f64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))).collect(),
-        "<i4" => c.map(|b| f64::from(i32::from_le_bytes([b[0], b[1], b[2], b[3]]))).collect(),
-        "<i8" => c.map(|b| i64::from_le_bytes(b.try_into().expect("8-byte chunk; this is a bug")) as f64).collect(),
-        "<u8" => c.map(|b| u64::from_le_bytes(b.try_into().expect("8-byte chunk; this is a bug")) as f64).collect(),
-        "<u2" => c.map(|b| f64::from(u16::from_le_bytes([b[0], b[1]]))).collect(),
-        "<i2" => c.map(|b| f64::from(i16::from_le_bytes([b[0], b[1]]))).collect(),
+        "<f4" => c
+            .map(|b| f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+            .collect(),
+        "<f8" => c
+            .map(|b| f64::from_le_bytes(b.try_into().expect("8-byte chunk; this is a bug")))
+            .collect(),
+        "<u4" => c
+            .map(|b| f64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+            .collect(),
+        "<i4" => c
+            .map(|b| f64::from(i32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+            .collect(),
+        "<i8" => c
+            .map(|b| i64::from_le_bytes(b.try_into().expect("8-byte chunk; this is a bug")) as f64)
+            .collect(),
+        "<u8" => c
+            .map(|b| u64::from_le_bytes(b.try_into().expect("8-byte chunk; this is a bug")) as f64)
+            .collect(),
+        "<u2" => c
+            .map(|b| f64::from(u16::from_le_bytes([b[0], b[1]])))
+            .collect(),
+        "<i2" => c
+            .map(|b| f64::from(i16::from_le_bytes([b[0], b[1]])))
+            .collect(),
         "|i1" => c.map(|b| f64::from(b[0] as i8)).collect(),
         _ => c.map(|b| f64::from(b[0])).collect(),
     })
@@ -144,7 +194,10 @@ mod tests {
         let mut buf = Vec::new();
         write_npy(&mut buf, &[4], &[1u16, 2, 3, 4]).unwrap();
         buf.truncate(buf.len() - 1);
-        assert!(read_npy(&buf[..]).unwrap_err().to_string().contains("truncated"));
+        assert!(read_npy(&buf[..])
+            .unwrap_err()
+            .to_string()
+            .contains("truncated"));
         assert!(read_npy(&b"hello"[..]).is_err());
     }
 }

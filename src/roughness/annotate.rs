@@ -25,7 +25,12 @@ pub struct AnnotateConfig {
 
 impl Default for AnnotateConfig {
     fn default() -> Self {
-        Self { epsilon_m: 0.015, hood: Neighbourhood::default(), segment_angle_deg: 10.0, edge_sigma_px: 1.5 }
+        Self {
+            epsilon_m: 0.015,
+            hood: Neighbourhood::default(),
+            segment_angle_deg: 10.0,
+            edge_sigma_px: 1.5,
+        }
     }
 }
 
@@ -62,11 +67,17 @@ pub struct Annotation {
 }
 
 /// Runs annotation spec v1 on one frame.
-pub fn annotate(input: &AnnotateInput<'_>, cfg: &AnnotateConfig) -> Result<Annotation, RoughnessError> {
+pub fn annotate(
+    input: &AnnotateInput<'_>,
+    cfg: &AnnotateConfig,
+) -> Result<Annotation, RoughnessError> {
     let points = checked_points(input)?;
     let fx = input.intrinsics.fx_px;
     let (normals, centroids) = match input.normals {
-        Some(n) => (oriented_normals(n, &points), window_centroids(&points, fx, &cfg.hood)),
+        Some(n) => (
+            oriented_normals(n, &points),
+            window_centroids(&points, fx, &cfg.hood),
+        ),
         None => {
             let planes = local_planes(&points, fx, &cfg.hood);
             (planes.normal, planes.centroid)
@@ -85,16 +96,31 @@ pub fn annotate(input: &AnnotateInput<'_>, cfg: &AnnotateConfig) -> Result<Annot
             f64::NAN
         }
     });
-    Ok(Annotation { roughness_m, boundary, edge_weight_m, segments, normals, surface_m, edge_m })
+    Ok(Annotation {
+        roughness_m,
+        boundary,
+        edge_weight_m,
+        segments,
+        normals,
+        surface_m,
+        edge_m,
+    })
 }
 
 /// Back-projects the depth after checking sizes and that some data is there; void labels
 /// become no data.
 fn checked_points(input: &AnnotateInput<'_>) -> Result<PointMap, RoughnessError> {
     let size = input.depth_m.size();
-    for (what, other) in [("normals", input.normals.map(Grid::size)), ("labels", input.labels.map(Grid::size))] {
+    for (what, other) in [
+        ("normals", input.normals.map(Grid::size)),
+        ("labels", input.labels.map(Grid::size)),
+    ] {
         if let Some(other) = other.filter(|o| *o != size) {
-            return Err(RoughnessError::SizeMismatch { what, depth: size, other });
+            return Err(RoughnessError::SizeMismatch {
+                what,
+                depth: size,
+                other,
+            });
         }
     }
     let mut points = input.intrinsics.back_project_map(input.depth_m);
@@ -106,7 +132,10 @@ fn checked_points(input: &AnnotateInput<'_>) -> Result<PointMap, RoughnessError>
         }
     }
     if !points.as_slice().iter().any(is_valid_point) {
-        return Err(RoughnessError::NoValidDepth { width: size.0, height: size.1 });
+        return Err(RoughnessError::NoValidDepth {
+            width: size.0,
+            height: size.1,
+        });
     }
     Ok(points)
 }
@@ -126,7 +155,12 @@ fn oriented_normals(normals: &Grid<Vec3>, points: &PointMap) -> Grid<Vec3> {
 
 /// Step 2: 4-connected components of valid pixels with the same label, normals within the
 /// segment angle and point-to-tangent-plane distance under ε (both ways).
-pub fn segment(points: &PointMap, normals: &Grid<Vec3>, labels: Option<&Grid<u32>>, cfg: &AnnotateConfig) -> Grid<u32> {
+pub fn segment(
+    points: &PointMap,
+    normals: &Grid<Vec3>,
+    labels: Option<&Grid<u32>>,
+    cfg: &AnnotateConfig,
+) -> Grid<u32> {
     let (w, h) = points.size();
     let cos_max = cfg.segment_angle_deg.to_radians().cos();
     let label = |i: usize| labels.map_or(1, |l| l.as_slice()[i]);
@@ -183,7 +217,10 @@ struct DisjointSets {
 
 impl DisjointSets {
     fn new(n: usize) -> Self {
-        Self { parent: (0..n).collect(), size: vec![1; n] }
+        Self {
+            parent: (0..n).collect(),
+            size: vec![1; n],
+        }
     }
 
     fn find(&mut self, mut i: usize) -> usize {
@@ -209,11 +246,14 @@ impl DisjointSets {
 
 /// The valid 8-neighbours of `(x, y)`, as flat indices.
 fn neighbours8(w: usize, h: usize, x: usize, y: usize) -> impl Iterator<Item = usize> {
-    (-1isize..=1).flat_map(move |dy| (-1isize..=1).map(move |dx| (dx, dy))).filter_map(move |(dx, dy)| {
-        let (nx, ny) = (x as isize + dx, y as isize + dy);
-        let inside = (dx, dy) != (0, 0) && nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h;
-        inside.then(|| ny as usize * w + nx as usize)
-    })
+    (-1isize..=1)
+        .flat_map(move |dy| (-1isize..=1).map(move |dx| (dx, dy)))
+        .filter_map(move |(dx, dy)| {
+            let (nx, ny) = (x as isize + dx, y as isize + dy);
+            let inside =
+                (dx, dy) != (0, 0) && nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h;
+            inside.then(|| ny as usize * w + nx as usize)
+        })
 }
 
 /// Step 3: valid pixels with a valid 8-neighbour in another segment.
@@ -235,7 +275,10 @@ pub fn edge_weights(points: &PointMap, boundary: &Grid<bool>) -> Grid<f64> {
         if !boundary.as_slice()[i] {
             return 0.0;
         }
-        neighbours8(w, h, x, y).filter(|&j| is_valid_point(&p[j])).map(|j| (p[j] - p[i]).norm()).fold(0.0, f64::max)
+        neighbours8(w, h, x, y)
+            .filter(|&j| is_valid_point(&p[j]))
+            .map(|j| (p[j] - p[i]).norm())
+            .fold(0.0, f64::max)
     })
 }
 
@@ -275,14 +318,17 @@ pub fn edge_transient(edge: &Grid<f64>, points: &PointMap, sigma_px: f64) -> Gri
     let (w, h) = edge.size();
     let reach = (3.0 * sigma_px).floor() as isize;
     let mut out = Grid::new(w, h, 0.0);
-    out.as_mut_slice().par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-        for (x, o) in row.iter_mut().enumerate() {
-            if !is_valid_point(&points[(x, y)]) {
-                continue;
+    out.as_mut_slice()
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, o) in row.iter_mut().enumerate() {
+                if !is_valid_point(&points[(x, y)]) {
+                    continue;
+                }
+                *o = transient_at(edge, x, y, reach, sigma_px);
             }
-            *o = transient_at(edge, x, y, reach, sigma_px);
-        }
-    });
+        });
     out
 }
 
@@ -293,7 +339,12 @@ fn transient_at(edge: &Grid<f64>, x: usize, y: usize, reach: isize, sigma_px: f6
         for dx in -reach..=reach {
             let d2 = (dx * dx + dy * dy) as f64;
             let (nx, ny) = (x as isize + dx, y as isize + dy);
-            if d2 > 9.0 * sigma_px * sigma_px || nx < 0 || ny < 0 || nx as usize >= w || ny as usize >= h {
+            if d2 > 9.0 * sigma_px * sigma_px
+                || nx < 0
+                || ny < 0
+                || nx as usize >= w
+                || ny as usize >= h
+            {
                 continue;
             }
             let e = edge[(nx as usize, ny as usize)];

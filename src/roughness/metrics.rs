@@ -7,11 +7,19 @@ use serde::Serialize;
 use super::RoughnessError;
 use crate::geometry::{Grid, Vec3};
 
-fn check_size(what: &'static str, a: (usize, usize), b: (usize, usize)) -> Result<(), RoughnessError> {
+fn check_size(
+    what: &'static str,
+    a: (usize, usize),
+    b: (usize, usize),
+) -> Result<(), RoughnessError> {
     if a == b {
         Ok(())
     } else {
-        Err(RoughnessError::SizeMismatch { what, depth: a, other: b })
+        Err(RoughnessError::SizeMismatch {
+            what,
+            depth: a,
+            other: b,
+        })
     }
 }
 
@@ -40,10 +48,20 @@ pub struct RoughnessMetrics {
 
 impl RoughnessAccumulator {
     /// Adds one frame: prediction and ground truth in metres (NaN: none), boundary mask.
-    pub fn add(&mut self, pred_m: &Grid<f64>, gt_m: &Grid<f64>, boundary: &Grid<bool>) -> Result<(), RoughnessError> {
+    pub fn add(
+        &mut self,
+        pred_m: &Grid<f64>,
+        gt_m: &Grid<f64>,
+        boundary: &Grid<bool>,
+    ) -> Result<(), RoughnessError> {
         check_size("prediction", gt_m.size(), pred_m.size())?;
         check_size("boundary mask", gt_m.size(), boundary.size())?;
-        for ((p, g), b) in pred_m.as_slice().iter().zip(gt_m.as_slice()).zip(boundary.as_slice()) {
+        for ((p, g), b) in pred_m
+            .as_slice()
+            .iter()
+            .zip(gt_m.as_slice())
+            .zip(boundary.as_slice())
+        {
             if !g.is_finite() {
                 continue;
             }
@@ -60,7 +78,13 @@ impl RoughnessAccumulator {
 
     /// The metrics so far (NaN for an empty set).
     pub fn finish(&self) -> RoughnessMetrics {
-        let rmse_cm = |sse: f64, n: u64| if n == 0 { f64::NAN } else { 100.0 * (sse / n as f64).sqrt() };
+        let rmse_cm = |sse: f64, n: u64| {
+            if n == 0 {
+                f64::NAN
+            } else {
+                100.0 * (sse / n as f64).sqrt()
+            }
+        };
         RoughnessMetrics {
             rmse_cm: rmse_cm(self.sse[0] + self.sse[1], self.count[0] + self.count[1]),
             b_rmse_cm: rmse_cm(self.sse[1], self.count[1]),
@@ -101,7 +125,8 @@ impl NormalAccumulator {
         for (p, g) in pred.as_slice().iter().zip(gt.as_slice()) {
             let cos = p.dot(g) / (p.norm() * g.norm());
             if cos.is_finite() {
-                self.angles_deg.push(cos.clamp(-1.0, 1.0).acos().to_degrees() as f32);
+                self.angles_deg
+                    .push(cos.clamp(-1.0, 1.0).acos().to_degrees() as f32);
             }
         }
         Ok(())

@@ -21,7 +21,9 @@ pub enum RoughnessError {
         other: (usize, usize),
     },
     /// A depth map with no valid pixel.
-    #[error("the {width}×{height} depth map has no valid pixel (all zero, negative or not finite)")]
+    #[error(
+        "the {width}×{height} depth map has no valid pixel (all zero, negative or not finite)"
+    )]
     NoValidDepth {
         /// Width.
         width: usize,
