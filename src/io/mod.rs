@@ -22,6 +22,14 @@ pub enum IoError {
     /// An OS-level read or write failure.
     #[error("{0}")]
     Os(#[from] std::io::Error),
+    /// A file that cannot be opened or read.
+    #[error("{}: {source}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What the OS said.
+        source: std::io::Error,
+    },
     /// A file that cannot be read as the image it should be (unreadable, truncated, …).
     #[error("{path}: not a readable image: {reason}")]
     Image {
@@ -90,7 +98,7 @@ impl CameraFile {
 
 /// Reads and checks a camera JSON file.
 pub fn read_camera(path: &Path) -> Result<(CameraFile, Intrinsics), IoError> {
-    let text = std::fs::read_to_string(path)?;
+    let text = std::fs::read_to_string(path).map_err(|source| IoError::Read { path: path.to_owned(), source })?;
     let cam: CameraFile = serde_json::from_str(&text).map_err(|e| IoError::Camera {
         path: path.to_owned(),
         reason: e.to_string(),
@@ -104,7 +112,7 @@ pub fn read_camera(path: &Path) -> Result<(CameraFile, Intrinsics), IoError> {
 
 /// Decodes an image file, naming the file in errors.
 pub fn read_image(path: &Path) -> Result<DynamicImage, IoError> {
-    let reader = ImageReader::open(path)?
+    let reader = ImageReader::new(BufReader::new(open(path)?))
         .with_guessed_format()
         .map_err(|e| IoError::Image {
             path: path.to_owned(),
@@ -164,7 +172,7 @@ pub fn read_labels(path: &Path) -> Result<Grid<u32>, IoError> {
 
 /// Reads normals from an `H × W × 3` float `.npy` (camera frame).
 pub fn read_normals(path: &Path) -> Result<Grid<Vec3>, IoError> {
-    let a = npy::read_npy(BufReader::new(File::open(path)?))?;
+    let a = npy::read_npy(BufReader::new(open(path)?))?;
     let [h, w, 3] = a.shape[..] else {
         return Err(IoError::Npy(format!(
             "{}: normals must have shape (H, W, 3), got {:?}",
@@ -180,13 +188,18 @@ pub fn read_normals(path: &Path) -> Result<Grid<Vec3>, IoError> {
     Ok(Grid::from_vec(w, h, data).expect("shape checked; this is a bug"))
 }
 
+/// Opens a file for reading, naming it in the error.
+fn open(path: &Path) -> Result<File, IoError> {
+    File::open(path).map_err(|source| IoError::Read { path: path.to_owned(), source })
+}
+
 fn is_npy(path: &Path) -> bool {
     path.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("npy"))
 }
 
 fn read_npy_grid(path: &Path) -> Result<Grid<f64>, IoError> {
-    let a = npy::read_npy(BufReader::new(File::open(path)?))?;
+    let a = npy::read_npy(BufReader::new(open(path)?))?;
     let [h, w] = a.shape[..] else {
         return Err(IoError::Npy(format!(
             "{}: expected a 2-D array (H, W), got shape {:?}",
