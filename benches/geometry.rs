@@ -1,6 +1,8 @@
 //! Criterion benches of the geometry kernels: LS normals on a real 640×480 Kinect frame, DSAC
 //! normals (K = 12) at 256×256 and 512×512, and the whole annotator.
 
+#![allow(missing_docs)] // criterion_group! generates undocumented items.
+
 use std::path::Path;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
@@ -12,33 +14,53 @@ use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 fn kinect_frame() -> (Grid<f64>, Intrinsics) {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd/metric3d_nyu");
     let (cam, k) = tre::io::read_camera(&dir.join("intrinsics.json")).expect("camera");
-    let depth = tre::io::read_depth(&dir.join("depth/sync_depth_00000.png"), cam.depth_scale.unwrap_or(1000.0)).expect("depth");
+    let depth = tre::io::read_depth(
+        &dir.join("depth/sync_depth_00000.png"),
+        cam.depth_scale.unwrap_or(1000.0),
+    )
+    .expect("depth");
     (depth, k)
 }
 
 /// Gravel-like terrain seen by the paper's robot camera (1 m, 60° down).
 fn terrain_points(size: usize) -> PointMap {
     let k = Intrinsics::from_hfov(size, size, 60.0).expect("camera");
-    let field = |x: f64, y: f64| 0.01 * ((x * 37.0).sin() * (y * 41.0).cos()) + 0.05 * (y * 3.0).sin();
-    let depth = render_depth(&field, &k, &Mounting::default(), (size, size), &MarchConfig::default());
+    let field =
+        |x: f64, y: f64| 0.01 * ((x * 37.0).sin() * (y * 41.0).cos()) + 0.05 * (y * 3.0).sin();
+    let depth = render_depth(
+        &field,
+        &k,
+        &Mounting::default(),
+        (size, size),
+        &MarchConfig::default(),
+    );
     k.back_project_map(&depth)
 }
 
 fn ls(c: &mut Criterion) {
     let (depth, k) = kinect_frame();
     let pts = k.back_project_map(&depth);
-    c.bench_function("ls_normals/640x480_kinect", |b| b.iter(|| ls_normals(&pts, k.fx_px, &Neighbourhood::default())));
+    c.bench_function("ls_normals/640x480_kinect", |b| {
+        b.iter(|| ls_normals(&pts, k.fx_px, &Neighbourhood::default()))
+    });
 }
 
 fn dsac(c: &mut Criterion) {
     let mut g = c.benchmark_group("dsac_normals_k12");
     for size in [256usize, 512] {
         let pts = terrain_points(size);
-        let logits: Vec<f32> = (0..CANDIDATES * size * size).map(|i| ((i * 2654435761usize) % 997) as f32 / 300.0).collect();
-        let cfg = DsacConfig { seed: 1, ..Default::default() };
-        g.bench_with_input(BenchmarkId::from_parameter(format!("{size}x{size}")), &size, |b, _| {
-            b.iter(|| dsac_normals(&pts, &logits, &cfg).expect("sizes match"))
-        });
+        let logits: Vec<f32> = (0..CANDIDATES * size * size)
+            .map(|i| ((i * 2654435761usize) % 997) as f32 / 300.0)
+            .collect();
+        let cfg = DsacConfig {
+            seed: 1,
+            ..Default::default()
+        };
+        g.bench_with_input(
+            BenchmarkId::from_parameter(format!("{size}x{size}")),
+            &size,
+            |b, _| b.iter(|| dsac_normals(&pts, &logits, &cfg).expect("sizes match")),
+        );
     }
     g.finish();
 }
@@ -47,7 +69,12 @@ fn annotator(c: &mut Criterion) {
     let (depth, k) = kinect_frame();
     c.bench_function("annotate/640x480_kinect", |b| {
         b.iter(|| {
-            let input = AnnotateInput { depth_m: &depth, intrinsics: &k, normals: None, labels: None };
+            let input = AnnotateInput {
+                depth_m: &depth,
+                intrinsics: &k,
+                normals: None,
+                labels: None,
+            };
             annotate(&input, &AnnotateConfig::default()).expect("valid frame")
         })
     });

@@ -1,5 +1,6 @@
 //! Roughness annotator (spec v1) on synthetic scenes with known answers, on real RGB-D frames,
 //! and on bad input.
+#![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use std::path::{Path, PathBuf};
 

@@ -1,11 +1,15 @@
 //! `tre annotate` end to end: outputs on a real frame, and a clear error (never a panic) for
 //! each kind of bad input.
+#![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn tre(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tre")).args(args).output().expect("runs tre")
+    Command::new(env!("CARGO_BIN_EXE_tre"))
+        .args(args)
+        .output()
+        .expect("runs tre")
 }
 
 fn stderr(o: &Output) -> String {
@@ -13,7 +17,9 @@ fn stderr(o: &Output) -> String {
 }
 
 fn real(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd").join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/real-rgbd")
+        .join(rel)
 }
 
 fn s(p: &Path) -> &str {
@@ -26,7 +32,10 @@ fn expect_error(args: &[&str], needle: &str) {
     let err = stderr(&out);
     assert!(!out.status.success(), "expected failure for {args:?}");
     assert!(!err.contains("panicked"), "panic for {args:?}: {err}");
-    assert!(err.contains(needle), "{args:?}: expected {needle:?} in {err:?}");
+    assert!(
+        err.contains(needle),
+        "{args:?}: expected {needle:?} in {err:?}"
+    );
 }
 
 #[test]
@@ -42,13 +51,22 @@ fn annotates_a_real_frame_with_every_output() {
         s(dir.path()),
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
-    for f in ["roughness.png", "roughness.npy", "boundary.png", "edge_weight.npy", "segments.npy", "preview.png"] {
+    for f in [
+        "roughness.png",
+        "roughness.npy",
+        "boundary.png",
+        "edge_weight.npy",
+        "segments.npy",
+        "preview.png",
+    ] {
         assert!(dir.path().join(f).is_file(), "{f} missing");
     }
     // The 16-bit PNG decodes back to the float map within half a unit (0.05 mm).
     let png = image::open(dir.path().join("roughness.png")).unwrap();
     let from_png = tre::io::decode_roughness_png16(&png);
-    let npy = tre::io::npy::read_npy(std::fs::File::open(dir.path().join("roughness.npy")).unwrap()).unwrap();
+    let npy =
+        tre::io::npy::read_npy(std::fs::File::open(dir.path().join("roughness.npy")).unwrap())
+            .unwrap();
     assert_eq!(npy.shape, vec![480, 640]);
     for (a, b) in from_png.as_slice().iter().zip(&npy.data) {
         assert_eq!(a.is_nan(), b.is_nan());
@@ -69,40 +87,126 @@ fn bad_inputs_give_clear_errors() {
 
     // Not an image at all.
     std::fs::write(d.join("junk.png"), b"this is not a png").unwrap();
-    expect_error(&["annotate", "--depth", s(&d.join("junk.png")), "--camera", s(&cam), "-o", s(&out)], "not a readable image");
+    expect_error(
+        &[
+            "annotate",
+            "--depth",
+            s(&d.join("junk.png")),
+            "--camera",
+            s(&cam),
+            "-o",
+            s(&out),
+        ],
+        "not a readable image",
+    );
 
     // A truncated PNG.
     let bytes = std::fs::read(&depth).unwrap();
     std::fs::write(d.join("cut.png"), &bytes[..bytes.len() / 3]).unwrap();
-    expect_error(&["annotate", "--depth", s(&d.join("cut.png")), "--camera", s(&cam), "-o", s(&out)], "cut.png");
+    expect_error(
+        &[
+            "annotate",
+            "--depth",
+            s(&d.join("cut.png")),
+            "--camera",
+            s(&cam),
+            "-o",
+            s(&out),
+        ],
+        "cut.png",
+    );
 
     // A colour image given as depth.
     expect_error(
-        &["annotate", "--depth", s(&real("slambook2_ch7/1.png")), "--camera", s(&cam), "-o", s(&out)],
+        &[
+            "annotate",
+            "--depth",
+            s(&real("slambook2_ch7/1.png")),
+            "--camera",
+            s(&cam),
+            "-o",
+            s(&out),
+        ],
         "depth must be a 16-bit grey PNG",
     );
 
     // Intrinsics for another image size.
-    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&cam).unwrap()).unwrap();
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cam).unwrap()).unwrap();
     json["width"] = 320.into();
     std::fs::write(d.join("small.json"), json.to_string()).unwrap();
-    expect_error(&["annotate", "--depth", s(&depth), "--camera", s(&d.join("small.json")), "-o", s(&out)], "describes a 320×480 image");
+    expect_error(
+        &[
+            "annotate",
+            "--depth",
+            s(&depth),
+            "--camera",
+            s(&d.join("small.json")),
+            "-o",
+            s(&out),
+        ],
+        "describes a 320×480 image",
+    );
 
     // A non-positive focal length.
     json["width"] = 640.into();
     json["fx"] = (-5.0).into();
     std::fs::write(d.join("neg.json"), json.to_string()).unwrap();
-    expect_error(&["annotate", "--depth", s(&depth), "--camera", s(&d.join("neg.json")), "-o", s(&out)], "focal length fx must be positive");
+    expect_error(
+        &[
+            "annotate",
+            "--depth",
+            s(&depth),
+            "--camera",
+            s(&d.join("neg.json")),
+            "-o",
+            s(&out),
+        ],
+        "focal length fx must be positive",
+    );
 
     // Camera JSON that is not JSON.
     std::fs::write(d.join("bad.json"), "{fx: ").unwrap();
-    expect_error(&["annotate", "--depth", s(&depth), "--camera", s(&d.join("bad.json")), "-o", s(&out)], "bad camera JSON");
+    expect_error(
+        &[
+            "annotate",
+            "--depth",
+            s(&depth),
+            "--camera",
+            s(&d.join("bad.json")),
+            "-o",
+            s(&out),
+        ],
+        "bad camera JSON",
+    );
 
     // All-invalid depth.
     let zeros = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(640, 480);
     zeros.save(d.join("zeros.png")).unwrap();
-    expect_error(&["annotate", "--depth", s(&d.join("zeros.png")), "--camera", s(&cam), "-o", s(&out)], "has no valid pixel");
+    expect_error(
+        &[
+            "annotate",
+            "--depth",
+            s(&d.join("zeros.png")),
+            "--camera",
+            s(&cam),
+            "-o",
+            s(&out),
+        ],
+        "has no valid pixel",
+    );
 
     // A missing file.
-    expect_error(&["annotate", "--depth", s(&d.join("nope.png")), "--camera", s(&cam), "-o", s(&out)], "nope.png: No such file");
+    expect_error(
+        &[
+            "annotate",
+            "--depth",
+            s(&d.join("nope.png")),
+            "--camera",
+            s(&cam),
+            "-o",
+            s(&out),
+        ],
+        "nope.png: No such file",
+    );
 }

@@ -1,4 +1,5 @@
 //! Geometry core: camera round trips, LS normals, gravity frame and the DSAC sampler.
+#![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use approx::assert_relative_eq;
 use nalgebra::{Rotation3, Vector3};
@@ -216,7 +217,7 @@ fn coplanar_logits(w: usize, h: usize) -> Vec<f32> {
                 let (dx, dy) = dsac::candidate_offset(k);
                 let (cx, cy) = (x as isize + dx, y as isize + dy);
                 let inside = cx >= 0 && cy >= 0 && (cx as usize) < w && (cy as usize) < h;
-                if inside && (cy as usize * w + cx as usize) % 5 != 0 {
+                if inside && !(cy as usize * w + cx as usize).is_multiple_of(5) {
                     logits[k * w * h + y * w + x] = 0.0;
                 }
             }

@@ -8,7 +8,7 @@ use crate::geometry::Grid;
 /// The Turbo colour map (Mikhailov 2019, polynomial fit) at `t` in [0, 1].
 ///
 /// ```
-/// let blue = tre::io::colormap::turbo(0.0);
+/// let blue = tre::io::colormap::turbo(0.15);
 /// let red = tre::io::colormap::turbo(1.0);
 /// assert!(blue[2] > blue[0] && red[0] > red[2]);
 /// ```
@@ -79,7 +79,7 @@ fn draw_legend(img: &mut RgbImage, top: u32, max_m: f64) {
     }
     let max_cm = max_m * 100.0;
     draw_text(img, bar_x0, top + 12, "0");
-    let mid = format!("{}", trim(max_cm / 2.0));
+    let mid = trim(max_cm / 2.0);
     draw_text(
         img,
         (bar_x0 + bar_x1) / 2 - text_width(&mid) / 2,

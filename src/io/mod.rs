@@ -98,7 +98,10 @@ impl CameraFile {
 
 /// Reads and checks a camera JSON file.
 pub fn read_camera(path: &Path) -> Result<(CameraFile, Intrinsics), IoError> {
-    let text = std::fs::read_to_string(path).map_err(|source| IoError::Read { path: path.to_owned(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|source| IoError::Read {
+        path: path.to_owned(),
+        source,
+    })?;
     let cam: CameraFile = serde_json::from_str(&text).map_err(|e| IoError::Camera {
         path: path.to_owned(),
         reason: e.to_string(),
@@ -190,7 +193,10 @@ pub fn read_normals(path: &Path) -> Result<Grid<Vec3>, IoError> {
 
 /// Opens a file for reading, naming it in the error.
 fn open(path: &Path) -> Result<File, IoError> {
-    File::open(path).map_err(|source| IoError::Read { path: path.to_owned(), source })
+    File::open(path).map_err(|source| IoError::Read {
+        path: path.to_owned(),
+        source,
+    })
 }
 
 fn is_npy(path: &Path) -> bool {
