@@ -46,7 +46,8 @@ impl Neighbourhood {
         }
     }
 
-    /// Moments (about `points[(x, y)]`) of the neighbourhood of pixel `(x, y)`.
+    /// Moments (about `points[(x, y)]`) of the neighbourhood of pixel `(x, y)`: the f64
+    /// reference of what the frame kernels compute in f32 lanes.
     pub fn moments(&self, points: &PointMap, fx_px: f64, x: usize, y: usize) -> Moments {
         let p = points[(x, y)];
         if !is_valid_point(&p) {
@@ -56,45 +57,139 @@ impl Neighbourhood {
         window_moments(points, x, y, h, self.radius_m * self.radius_m)
     }
 
-    /// The LS normal at `(x, y)` (oriented towards the camera) with the neighbourhood's moments.
-    /// Where the neighbourhood is too sparse for a plane (fewer than 3 points within R, or
-    /// collinear ones, as at grazing angles), the valid points of the 3×3 window, then the
-    /// 5×5 window, stand in without the radius limit.
-    pub fn normal(
-        &self,
-        points: &PointMap,
-        fx_px: f64,
-        x: usize,
-        y: usize,
-    ) -> (Moments, Option<Vec3>) {
+    /// Moments of the neighbourhood of `(x, y)` from packed points (windows up to 7 px; wider
+    /// ones take the f64 path).
+    fn moments_packed(&self, packed: &PackedPoints, points: &PointMap, fx_px: f64, x: usize, y: usize) -> Moments {
         let p = points[(x, y)];
-        let m = self.moments(points, fx_px, x, y);
-        let fit = m.fit(&p).or_else(|| {
-            (1..=2).find_map(|h| window_moments(points, x, y, h, f64::INFINITY).fit(&p))
-        });
-        (m, fit.map(|plane| orient_towards_camera(&plane.normal, &p)))
+        if !is_valid_point(&p) {
+            return Moments::default();
+        }
+        match self.half_width(fx_px, p.z) {
+            h if h <= 7 => packed.window_moments(x, y, h, self.radius_m),
+            h => window_moments(points, x, y, h, self.radius_m * self.radius_m),
+        }
     }
 }
 
+/// The LS normal at `(x, y)` from the neighbourhood's moments `m`, oriented towards the camera.
+/// Where the neighbourhood is too sparse for a plane (fewer than 3 points within R, or collinear
+/// ones, as at grazing angles), the valid points of the 3×3, then the 5×5, window stand in
+/// without the radius limit.
+pub fn normal_from_moments(points: &PointMap, m: &Moments, x: usize, y: usize) -> Option<Vec3> {
+    let p = points[(x, y)];
+    let fit = m
+        .fit(&p)
+        .or_else(|| (1..=2).find_map(|h| window_moments(points, x, y, h, f64::INFINITY).fit(&p)));
+    fit.map(|plane| orient_towards_camera(&plane.normal, &p))
+}
+
 /// Moments about `points[(x, y)]` of the valid points within `sqrt(r2)` of it in the window of
-/// half-width `h`.
+/// half-width `h` (reference implementation, f64).
 fn window_moments(points: &PointMap, x: usize, y: usize, h: usize, r2: f64) -> Moments {
     let mut m = Moments::default();
     let p = points[(x, y)];
-    {
-        let (w, ht) = points.size();
-        for yy in y.saturating_sub(h)..(y + h + 1).min(ht) {
-            let row = &points.row(yy)[x.saturating_sub(h)..(x + h + 1).min(w)];
-            for q in row {
-                let d = q - p;
-                // NaN (invalid) points fail this comparison.
-                if d.norm_squared() <= r2 {
-                    m.add(&d);
-                }
+    let (w, ht) = points.size();
+    for yy in y.saturating_sub(h)..(y + h + 1).min(ht) {
+        for q in &points.row(yy)[x.saturating_sub(h)..(x + h + 1).min(w)] {
+            let d = q - p;
+            // NaN (invalid) points fail this comparison.
+            if d.norm_squared() <= r2 {
+                m.add(&d);
             }
         }
     }
     m
+}
+
+/// Lanes per chunk of the vectorised window kernel.
+const LANES: usize = 8;
+/// Columns of padding (invalid points) on each side of a row of [`PackedPoints`].
+const PAD: usize = 8;
+
+/// Points as f32 structure-of-arrays rows padded with invalid (NaN) columns, so that the window
+/// kernel reads fixed 8-lane chunks that LLVM vectorises, with no bounds special cases.
+#[derive(Debug, Clone, Default)]
+pub struct PackedPoints {
+    width: usize,
+    height: usize,
+    stride: usize,
+    xyz: [Vec<f32>; 3],
+}
+
+impl PackedPoints {
+    /// Packs `points` (reusing this buffer's allocations).
+    pub fn pack(&mut self, points: &PointMap) {
+        let (w, h) = points.size();
+        (self.width, self.height, self.stride) = (w, h, w + 2 * PAD);
+        for (c, buf) in self.xyz.iter_mut().enumerate() {
+            buf.clear();
+            buf.resize(self.stride * h, f32::NAN);
+            for y in 0..h {
+                let row = &mut buf[y * self.stride + PAD..y * self.stride + PAD + w];
+                for (dst, p) in row.iter_mut().zip(points.row(y)) {
+                    *dst = if is_valid_point(p) { p[c] as f32 } else { f32::NAN };
+                }
+            }
+        }
+    }
+
+    /// Moments about point `(x, y)` of the valid points within `radius_m` of it in the window
+    /// of half-width `h` (at most 7), accumulated in f32 lanes and returned in f64.
+    pub fn window_moments(&self, x: usize, y: usize, h: usize, radius_m: f64) -> Moments {
+        let h = h.min(7);
+        let centre = self.stride * y + PAD + x;
+        let p = [0, 1, 2].map(|c| self.xyz[c][centre]);
+        let r2 = (radius_m * radius_m) as f32;
+        // Columns x − 3 … x + 4 (one chunk) or x − 7 … x + 8 (two chunks).
+        let (first_dx, chunks) = if h <= 3 { (-3isize, 1) } else { (-7isize, 2) };
+        let mut acc = [[0f32; LANES]; 10];
+        for yy in y.saturating_sub(h)..(y + h + 1).min(self.height) {
+            for c in 0..chunks {
+                let dx0 = first_dx + (c * LANES) as isize;
+                let start = (self.stride * yy + PAD + x) as isize + dx0;
+                accumulate_chunk(&mut acc, self.chunk(start as usize), p, r2, dx0, h as isize);
+            }
+        }
+        reduce(&acc)
+    }
+
+    fn chunk(&self, start: usize) -> [&[f32; LANES]; 3] {
+        [0, 1, 2].map(|c| {
+            self.xyz[c][start..start + LANES].try_into().expect("padded rows hold whole chunks; this is a bug")
+        })
+    }
+}
+
+/// Adds one 8-lane chunk of a window row to the lane accumulators (count, Σd, Σddᵀ).
+#[inline(always)]
+fn accumulate_chunk(acc: &mut [[f32; LANES]; 10], q: [&[f32; LANES]; 3], p: [f32; 3], r2: f32, dx0: isize, h: isize) {
+    for l in 0..LANES {
+        let (dx, dy, dz) = (q[0][l] - p[0], q[1][l] - p[1], q[2][l] - p[2]);
+        let d2 = dx * dx + dy * dy + dz * dz;
+        let in_window = (dx0 + l as isize).abs() <= h;
+        // NaN (invalid) points fail the comparison; rejected lanes add zeros.
+        let keep = in_window && d2 <= r2;
+        let (dx, dy, dz, one) = if keep { (dx, dy, dz, 1.0) } else { (0.0, 0.0, 0.0, 0.0) };
+        acc[0][l] += one;
+        acc[1][l] += dx;
+        acc[2][l] += dy;
+        acc[3][l] += dz;
+        acc[4][l] += dx * dx;
+        acc[5][l] += dx * dy;
+        acc[6][l] += dx * dz;
+        acc[7][l] += dy * dy;
+        acc[8][l] += dy * dz;
+        acc[9][l] += dz * dz;
+    }
+}
+
+fn reduce(acc: &[[f32; LANES]; 10]) -> Moments {
+    let sum = |i: usize| acc[i].iter().map(|&v| f64::from(v)).sum::<f64>();
+    Moments {
+        count: sum(0) as u32,
+        sum: Vec3::new(sum(1), sum(2), sum(3)),
+        sum_sq: [sum(4), sum(5), sum(6), sum(7), sum(8), sum(9)],
+    }
 }
 
 /// Per-pixel local planes: the neighbourhood's mean point and its LS normal.
@@ -110,6 +205,8 @@ pub struct LocalPlanes {
 /// Fits a local plane at every valid pixel (row-parallel).
 pub fn local_planes(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> LocalPlanes {
     let (w, h) = points.size();
+    let mut packed = PackedPoints::default();
+    packed.pack(points);
     let mut centroid = Grid::new(w, h, INVALID_POINT);
     let mut normal = Grid::new(w, h, INVALID_POINT);
     centroid
@@ -119,12 +216,10 @@ pub fn local_planes(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> Loca
         .enumerate()
         .for_each(|(y, (c_row, n_row))| {
             for x in 0..w {
-                let (m, normal) = hood.normal(points, fx_px, x, y);
+                let m = hood.moments_packed(&packed, points, fx_px, x, y);
                 if let Some(c) = m.mean(&points[(x, y)]) {
                     c_row[x] = c;
-                }
-                if let Some(n) = normal {
-                    n_row[x] = n;
+                    n_row[x] = normal_from_moments(points, &m, x, y).unwrap_or(INVALID_POINT);
                 }
             }
         });
@@ -139,17 +234,52 @@ pub fn ls_normals(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> Grid<V
 /// Window centroids only (cheaper than [`local_planes`] when normals come from elsewhere).
 pub fn window_centroids(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> PointMap {
     let (w, h) = points.size();
+    let mut packed = PackedPoints::default();
+    packed.pack(points);
     let mut centroid = Grid::new(w, h, INVALID_POINT);
+    centroid.as_mut_slice().par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
+        for (x, c) in row.iter_mut().enumerate() {
+            if let Some(m) = hood.moments_packed(&packed, points, fx_px, x, y).mean(&points[(x, y)]) {
+                *c = m;
+            }
+        }
+    });
     centroid
-        .as_mut_slice()
-        .par_chunks_mut(w.max(1))
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (x, c) in row.iter_mut().enumerate() {
-                if let Some(m) = hood.moments(points, fx_px, x, y).mean(&points[(x, y)]) {
-                    *c = m;
-                }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn packed_kernel_matches_the_f64_reference() {
+        // A bumpy surface with holes, every half-width from 1 to 7.
+        let (w, h) = (40, 30);
+        let pts = Grid::from_fn(w, h, |x, y| {
+            if (x * 7 + y * 3) % 11 == 0 {
+                INVALID_POINT
+            } else {
+                let (u, v) = (x as f64 * 0.01, y as f64 * 0.012);
+                Vec3::new(u, v, 2.0 + 0.02 * (u * 40.0).sin() + 0.3 * v)
             }
         });
-    centroid
+        let mut packed = PackedPoints::default();
+        packed.pack(&pts);
+        for half in 1..=7 {
+            for (x, y) in [(0, 0), (5, 5), (20, 15), (39, 29), (38, 1), (7, 28)] {
+                if !is_valid_point(&pts[(x, y)]) {
+                    continue;
+                }
+                let a = packed.window_moments(x, y, half, 0.05);
+                let b = window_moments(&pts, x, y, half, 0.05 * 0.05);
+                assert_eq!(a.count, b.count, "({x}, {y}) h {half}");
+                // f32 coordinates carry ~1e-7 m of rounding; means agree to well under 1e-6 m.
+                let n = f64::from(a.count);
+                assert!((a.sum - b.sum).norm() / n < 5e-7, "({x}, {y}) h {half}");
+                for (p, q) in a.sum_sq.iter().zip(b.sum_sq) {
+                    assert!((p - q).abs() / n < 1e-8);
+                }
+            }
+        }
+    }
 }

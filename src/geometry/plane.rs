@@ -142,9 +142,12 @@ impl Moments {
     }
 }
 
-/// The unit eigenvector of the smallest eigenvalue of a symmetric 3×3 matrix, in closed form
-/// (trigonometric eigenvalues, then the largest cross product of the rows of `A − λI`).
-/// `None` when the two smallest eigenvalues are not separated (no unique plane).
+/// The unit eigenvector of the smallest eigenvalue of a symmetric positive semi-definite 3×3
+/// matrix (a covariance). The smallest eigenvalue is the smallest root of the characteristic
+/// cubic, found by Newton's method from 0 (monotone and quadratic there, since the cubic is
+/// positive, decreasing and convex below its smallest root); the eigenvector is the largest cross
+/// product of two rows of `A − λI`. `None` when the two smallest eigenvalues are not separated
+/// by 1e-6 of the largest entry (no unique plane: collinear or isotropic points).
 pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
     let scale = a.abs().max();
     if !(scale > 0.0) || !scale.is_finite() {
@@ -152,17 +155,11 @@ pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
     }
     let a = a / scale;
     let (l_min, l_mid) = smallest_two_eigenvalues(&a);
-    // The trigonometric eigenvalues carry errors of order √ε where the two smallest meet, so
-    // the gap must clear that comfortably.
     if !(l_mid - l_min > 1e-6) {
         return None;
     }
     let m = a - Matrix3::identity() * l_min;
-    let (r0, r1, r2) = (
-        m.row(0).transpose(),
-        m.row(1).transpose(),
-        m.row(2).transpose(),
-    );
+    let (r0, r1, r2) = (m.row(0).transpose(), m.row(1).transpose(), m.row(2).transpose());
     let candidates = [r0.cross(&r1), r0.cross(&r2), r1.cross(&r2)];
     let best = candidates
         .iter()
@@ -172,21 +169,32 @@ pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
     (len > 0.0 && len.is_finite()).then(|| best / len)
 }
 
-/// The two smallest eigenvalues (ascending) of a symmetric 3×3 matrix.
+/// The two smallest eigenvalues (ascending) of a symmetric PSD 3×3 matrix.
 fn smallest_two_eigenvalues(a: &Matrix3<f64>) -> (f64, f64) {
-    let p1 = a[(0, 1)].powi(2) + a[(0, 2)].powi(2) + a[(1, 2)].powi(2);
-    let q = a.trace() / 3.0;
-    let p2 = (a[(0, 0)] - q).powi(2) + (a[(1, 1)] - q).powi(2) + (a[(2, 2)] - q).powi(2) + 2.0 * p1;
-    let p = (p2 / 6.0).sqrt();
-    if p == 0.0 {
-        return (q, q);
+    // det(A − λI) = −λ³ + c2·λ² − c1·λ + c0.
+    let c2 = a.trace();
+    let c1 = a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)] + a[(0, 0)] * a[(2, 2)] - a[(0, 2)] * a[(2, 0)]
+        + a[(1, 1)] * a[(2, 2)]
+        - a[(1, 2)] * a[(2, 1)];
+    let c0 = a.determinant();
+    let mut l = 0.0f64;
+    for _ in 0..100 {
+        let f = ((-l + c2) * l - c1) * l + c0;
+        let df = (-3.0 * l + 2.0 * c2) * l - c1;
+        if df == 0.0 {
+            break;
+        }
+        let step = f / df;
+        l -= step;
+        if step.abs() <= 1e-15 * (1.0 + l.abs()) {
+            break;
+        }
     }
-    let b = (a - Matrix3::identity() * q) / p;
-    let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
-    let phi = r.acos() / 3.0;
-    let l_max = q + 2.0 * p * phi.cos();
-    let l_min = q + 2.0 * p * (phi + 2.0 * std::f64::consts::FRAC_PI_3).cos();
-    (l_min, 3.0 * q - l_max - l_min)
+    // The other two roots: sum s = c2 − λ, product q = c1 − λ·s.
+    let s = c2 - l;
+    let q = c1 - l * s;
+    let mid = 0.5 * (s - (s * s - 4.0 * q).max(0.0).sqrt());
+    (l, mid)
 }
 
 #[cfg(test)]
