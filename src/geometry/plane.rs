@@ -144,8 +144,8 @@ impl Moments {
 
 /// The unit eigenvector of the smallest eigenvalue of a symmetric positive semi-definite 3×3
 /// matrix (a covariance). The smallest eigenvalue is the smallest root of the characteristic
-/// cubic, found by Newton's method from 0 (monotone and quadratic there, since the cubic is
-/// positive, decreasing and convex below its smallest root); the eigenvector is the largest cross
+/// cubic, found by Halley's method from 0 (the cubic is positive, decreasing and convex below its
+/// smallest root, so the iteration climbs to it); the eigenvector is the largest cross
 /// product of two rows of `A − λI`. `None` when the two smallest eigenvalues are not separated
 /// by 1e-6 of the largest entry (no unique plane: collinear or isotropic points).
 pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
@@ -153,18 +153,19 @@ pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
     if !(scale > 0.0) || !scale.is_finite() {
         return None;
     }
-    let a = a / scale;
+    let a = a * (1.0 / scale);
     let (l_min, l_mid) = smallest_two_eigenvalues(&a);
     if !(l_mid - l_min > 1e-6) {
         return None;
     }
-    let m = a - Matrix3::identity() * l_min;
-    let (r0, r1, r2) = (m.row(0).transpose(), m.row(1).transpose(), m.row(2).transpose());
-    let candidates = [r0.cross(&r1), r0.cross(&r2), r1.cross(&r2)];
-    let best = candidates
-        .iter()
-        .max_by(|p, q| p.norm_squared().total_cmp(&q.norm_squared()))
-        .expect("three candidates; this is a bug");
+    let row = |i: usize| Vec3::new(a[(i, 0)], a[(i, 1)], a[(i, 2)]) - Vec3::ith(i, l_min);
+    let (r0, r1, r2) = (row(0), row(1), row(2));
+    let mut best = r0.cross(&r1);
+    for c in [r0.cross(&r2), r1.cross(&r2)] {
+        if c.norm_squared() > best.norm_squared() {
+            best = c;
+        }
+    }
     let len = best.norm();
     (len > 0.0 && len.is_finite()).then(|| best / len)
 }
@@ -177,14 +178,18 @@ fn smallest_two_eigenvalues(a: &Matrix3<f64>) -> (f64, f64) {
         + a[(1, 1)] * a[(2, 2)]
         - a[(1, 2)] * a[(2, 1)];
     let c0 = a.determinant();
+    // Halley's method from 0: cubic convergence, and monotone like Newton's on this side of
+    // the smallest root (f > 0, f' < 0, f'' > 0 there).
     let mut l = 0.0f64;
     for _ in 0..100 {
         let f = ((-l + c2) * l - c1) * l + c0;
         let df = (-3.0 * l + 2.0 * c2) * l - c1;
-        if df == 0.0 {
+        let ddf = -6.0 * l + 2.0 * c2;
+        let denom = 2.0 * df * df - f * ddf;
+        if denom == 0.0 {
             break;
         }
-        let step = f / df;
+        let step = 2.0 * f * df / denom;
         l -= step;
         if step.abs() <= 1e-15 * (1.0 + l.abs()) {
             break;
