@@ -5,7 +5,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::camera::{is_valid_point, PointMap, INVALID_POINT};
-use super::plane::{orient_towards_camera, Moments};
+use super::plane::{orient_towards_camera, smallest_eigenvectors, Moments, EIGEN_LANES};
 use super::{Grid, Vec3};
 
 /// The neighbourhood of a pixel: the valid points within `radius_m` of it, searched in a pixel
@@ -59,7 +59,14 @@ impl Neighbourhood {
 
     /// Moments of the neighbourhood of `(x, y)` from packed points (windows up to 7 px; wider
     /// ones take the f64 path).
-    fn moments_packed(&self, packed: &PackedPoints, points: &PointMap, fx_px: f64, x: usize, y: usize) -> Moments {
+    fn moments_packed(
+        &self,
+        packed: &PackedPoints,
+        points: &PointMap,
+        fx_px: f64,
+        x: usize,
+        y: usize,
+    ) -> Moments {
         let p = points[(x, y)];
         if !is_valid_point(&p) {
             return Moments::default();
@@ -127,7 +134,11 @@ impl PackedPoints {
             for y in 0..h {
                 let row = &mut buf[y * self.stride + PAD..y * self.stride + PAD + w];
                 for (dst, p) in row.iter_mut().zip(points.row(y)) {
-                    *dst = if is_valid_point(p) { p[c] as f32 } else { f32::NAN };
+                    *dst = if is_valid_point(p) {
+                        p[c] as f32
+                    } else {
+                        f32::NAN
+                    };
                 }
             }
         }
@@ -143,33 +154,48 @@ impl PackedPoints {
         // Columns x − 3 … x + 4 (one chunk) or x − 7 … x + 8 (two chunks).
         let (first_dx, chunks) = if h <= 3 { (-3isize, 1) } else { (-7isize, 2) };
         let mut acc = [[0f32; LANES]; 10];
+        // Lanes inside the window (|dx| ≤ h), per chunk.
+        let inside: [[bool; LANES]; 2] = std::array::from_fn(|c| {
+            std::array::from_fn(|l| (first_dx + (c * LANES + l) as isize).abs() <= h as isize)
+        });
         for yy in y.saturating_sub(h)..(y + h + 1).min(self.height) {
-            for c in 0..chunks {
-                let dx0 = first_dx + (c * LANES) as isize;
-                let start = (self.stride * yy + PAD + x) as isize + dx0;
-                accumulate_chunk(&mut acc, self.chunk(start as usize), p, r2, dx0, h as isize);
+            let row_start = self.stride * yy + PAD + x;
+            for (c, inside) in inside.iter().enumerate().take(chunks) {
+                let start = (row_start as isize + first_dx) as usize + c * LANES;
+                accumulate_chunk(&mut acc, self.chunk(start), p, r2, inside);
             }
         }
         reduce(&acc)
     }
 
     fn chunk(&self, start: usize) -> [&[f32; LANES]; 3] {
-        [0, 1, 2].map(|c| {
-            self.xyz[c][start..start + LANES].try_into().expect("padded rows hold whole chunks; this is a bug")
-        })
+        let lanes = |c: usize| {
+            self.xyz[c][start..]
+                .first_chunk::<LANES>()
+                .expect("padded rows hold whole chunks; this is a bug")
+        };
+        [lanes(0), lanes(1), lanes(2)]
     }
 }
 
 /// Adds one 8-lane chunk of a window row to the lane accumulators (count, Σd, Σddᵀ).
 #[inline(always)]
-fn accumulate_chunk(acc: &mut [[f32; LANES]; 10], q: [&[f32; LANES]; 3], p: [f32; 3], r2: f32, dx0: isize, h: isize) {
+fn accumulate_chunk(
+    acc: &mut [[f32; LANES]; 10],
+    q: [&[f32; LANES]; 3],
+    p: [f32; 3],
+    r2: f32,
+    inside: &[bool; LANES],
+) {
     for l in 0..LANES {
         let (dx, dy, dz) = (q[0][l] - p[0], q[1][l] - p[1], q[2][l] - p[2]);
-        let d2 = dx * dx + dy * dy + dz * dz;
-        let in_window = (dx0 + l as isize).abs() <= h;
         // NaN (invalid) points fail the comparison; rejected lanes add zeros.
-        let keep = in_window && d2 <= r2;
-        let (dx, dy, dz, one) = if keep { (dx, dy, dz, 1.0) } else { (0.0, 0.0, 0.0, 0.0) };
+        let keep = inside[l] & (dx * dx + dy * dy + dz * dz <= r2);
+        let (dx, dy, dz, one) = if keep {
+            (dx, dy, dz, 1.0)
+        } else {
+            (0.0, 0.0, 0.0, 0.0)
+        };
         acc[0][l] += one;
         acc[1][l] += dx;
         acc[2][l] += dy;
@@ -202,7 +228,8 @@ pub struct LocalPlanes {
     pub normal: Grid<Vec3>,
 }
 
-/// Fits a local plane at every valid pixel (row-parallel).
+/// Fits a local plane at every valid pixel (row-parallel; the eigen-solves of a row run four
+/// pixels at a time).
 pub fn local_planes(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> LocalPlanes {
     let (w, h) = points.size();
     let mut packed = PackedPoints::default();
@@ -215,11 +242,25 @@ pub fn local_planes(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> Loca
         .zip(normal.as_mut_slice().par_chunks_mut(w.max(1)))
         .enumerate()
         .for_each(|(y, (c_row, n_row))| {
-            for x in 0..w {
-                let m = hood.moments_packed(&packed, points, fx_px, x, y);
-                if let Some(c) = m.mean(&points[(x, y)]) {
+            for x0 in (0..w).step_by(EIGEN_LANES) {
+                let m: [Moments; EIGEN_LANES] = std::array::from_fn(|l| {
+                    let x = x0 + l;
+                    if x < w {
+                        hood.moments_packed(&packed, points, fx_px, x, y)
+                    } else {
+                        Moments::default()
+                    }
+                });
+                let fits = smallest_eigenvectors(&m.map(|m| m.covariance()));
+                for l in 0..EIGEN_LANES.min(w - x0) {
+                    let (x, p) = (x0 + l, points[(x0 + l, y)]);
+                    let Some(c) = m[l].mean(&p) else { continue };
                     c_row[x] = c;
-                    n_row[x] = normal_from_moments(points, &m, x, y).unwrap_or(INVALID_POINT);
+                    let n = match fits[l] {
+                        Some(n) if m[l].count >= 3 => Some(orient_towards_camera(&n, &p)),
+                        _ => normal_from_moments(points, &m[l], x, y),
+                    };
+                    n_row[x] = n.unwrap_or(INVALID_POINT);
                 }
             }
         });
@@ -237,13 +278,20 @@ pub fn window_centroids(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> 
     let mut packed = PackedPoints::default();
     packed.pack(points);
     let mut centroid = Grid::new(w, h, INVALID_POINT);
-    centroid.as_mut_slice().par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-        for (x, c) in row.iter_mut().enumerate() {
-            if let Some(m) = hood.moments_packed(&packed, points, fx_px, x, y).mean(&points[(x, y)]) {
-                *c = m;
+    centroid
+        .as_mut_slice()
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, c) in row.iter_mut().enumerate() {
+                if let Some(m) = hood
+                    .moments_packed(&packed, points, fx_px, x, y)
+                    .mean(&points[(x, y)])
+                {
+                    *c = m;
+                }
             }
-        }
-    });
+        });
     centroid
 }
 

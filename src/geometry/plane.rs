@@ -170,11 +170,77 @@ pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
     (len > 0.0 && len.is_finite()).then(|| best / len)
 }
 
+/// Lanes of [`smallest_eigenvectors`].
+pub const EIGEN_LANES: usize = 4;
+
+/// [`smallest_eigenvector`] for four matrices at once: the Halley iterations run a fixed
+/// number of times over lane arrays (so they vectorise and overlap); a lane that has not
+/// converged by then is finished by the scalar solver. Same results up to rounding.
+pub fn smallest_eigenvectors(covs: &[Matrix3<f64>; EIGEN_LANES]) -> [Option<Vec3>; EIGEN_LANES] {
+    let scale = covs.map(|a| a.abs().max());
+    let a: [Matrix3<f64>; EIGEN_LANES] = std::array::from_fn(|l| covs[l] * (1.0 / scale[l]));
+    let c2 = a.map(|a| a.trace());
+    let c1 = a.map(|a| {
+        a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)] + a[(0, 0)] * a[(2, 2)]
+            - a[(0, 2)] * a[(2, 0)]
+            + a[(1, 1)] * a[(2, 2)]
+            - a[(1, 2)] * a[(2, 1)]
+    });
+    let c0 = a.map(|a| a.determinant());
+    let (mut l, mut step) = ([0.0f64; EIGEN_LANES], [0.0f64; EIGEN_LANES]);
+    for _ in 0..6 {
+        for i in 0..EIGEN_LANES {
+            let f = ((-l[i] + c2[i]) * l[i] - c1[i]) * l[i] + c0[i];
+            let df = (-3.0 * l[i] + 2.0 * c2[i]) * l[i] - c1[i];
+            let ddf = -6.0 * l[i] + 2.0 * c2[i];
+            let denom = 2.0 * df * df - f * ddf;
+            step[i] = if denom != 0.0 {
+                2.0 * f * df / denom
+            } else {
+                0.0
+            };
+            l[i] -= step[i];
+        }
+    }
+    std::array::from_fn(|i| {
+        let converged = step[i].abs() <= 1e-13 * (1.0 + l[i].abs());
+        if !(scale[i] > 0.0) || !scale[i].is_finite() {
+            None
+        } else if converged {
+            let s = c2[i] - l[i];
+            let q = c1[i] - l[i] * s;
+            let mid = 0.5 * (s - (s * s - 4.0 * q).max(0.0).sqrt());
+            eigenvector_for(&a[i], l[i], mid)
+        } else {
+            smallest_eigenvector(&covs[i])
+        }
+    })
+}
+
+/// The unit eigenvector of eigenvalue `l_min` of the normalised matrix `a`, given the next
+/// eigenvalue `l_mid` (`None` unless they are separated by 1e-6).
+fn eigenvector_for(a: &Matrix3<f64>, l_min: f64, l_mid: f64) -> Option<Vec3> {
+    if !(l_mid - l_min > 1e-6) {
+        return None;
+    }
+    let row = |i: usize| Vec3::new(a[(i, 0)], a[(i, 1)], a[(i, 2)]) - Vec3::ith(i, l_min);
+    let (r0, r1, r2) = (row(0), row(1), row(2));
+    let mut best = r0.cross(&r1);
+    for c in [r0.cross(&r2), r1.cross(&r2)] {
+        if c.norm_squared() > best.norm_squared() {
+            best = c;
+        }
+    }
+    let len = best.norm();
+    (len > 0.0 && len.is_finite()).then(|| best / len)
+}
+
 /// The two smallest eigenvalues (ascending) of a symmetric PSD 3×3 matrix.
 fn smallest_two_eigenvalues(a: &Matrix3<f64>) -> (f64, f64) {
     // det(A − λI) = −λ³ + c2·λ² − c1·λ + c0.
     let c2 = a.trace();
-    let c1 = a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)] + a[(0, 0)] * a[(2, 2)] - a[(0, 2)] * a[(2, 0)]
+    let c1 = a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)] + a[(0, 0)] * a[(2, 2)]
+        - a[(0, 2)] * a[(2, 0)]
         + a[(1, 1)] * a[(2, 2)]
         - a[(1, 2)] * a[(2, 1)];
     let c0 = a.determinant();
@@ -224,6 +290,30 @@ mod tests {
         let v = smallest_eigenvector(&a).unwrap();
         let expected = r.matrix().column(2).into_owned();
         assert_relative_eq!(v.dot(&expected).abs(), 1.0, epsilon = 1e-10);
+    }
+
+    #[test]
+    fn four_lane_solver_matches_the_scalar_one() {
+        let r = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 0.7);
+        let covs = [
+            r.matrix()
+                * Matrix3::from_diagonal(&Vector3::new(1.0, 4.0, 1e-6))
+                * r.matrix().transpose(),
+            Matrix3::from_diagonal(&Vector3::new(3.0, 0.5, 2.0)),
+            Matrix3::from_diagonal(&Vector3::new(1.0, 0.0, 0.0)),
+            r.matrix()
+                * Matrix3::from_diagonal(&Vector3::new(1.0, 0.9, 0.6))
+                * r.matrix().transpose()
+                * 1e-4,
+        ];
+        let batch = smallest_eigenvectors(&covs);
+        for (c, b) in covs.iter().zip(batch) {
+            match (smallest_eigenvector(c), b) {
+                (Some(s), Some(b)) => assert_relative_eq!(s.dot(&b).abs(), 1.0, epsilon = 1e-12),
+                (s, b) => assert_eq!(s, b),
+            }
+        }
+        assert!(batch[2].is_none());
     }
 
     #[test]
