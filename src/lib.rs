@@ -7,3 +7,4 @@ pub mod geometry;
 pub mod io;
 pub mod model;
 pub mod roughness;
+pub mod synth;

@@ -1,6 +1,7 @@
 //! Command-line subcommands, one file each; `main.rs` only parses and dispatches.
 
 pub mod annotate;
+pub mod synth;
 
 use clap::{Parser, Subcommand};
 
@@ -21,6 +22,8 @@ pub struct Cli {
 pub enum Command {
     /// Annotate a depth frame with ground-truth roughness (annotation spec v1).
     Annotate(annotate::Annotate),
+    /// Generate a synthetic terrain dataset with exact ground truth.
+    Synth(synth::Synth),
 }
 
 impl Command {
@@ -28,6 +31,7 @@ impl Command {
     pub fn run(self) -> anyhow::Result<()> {
         match self {
             Command::Annotate(cmd) => cmd.run(),
+            Command::Synth(cmd) => cmd.run(),
         }
     }
 }

@@ -136,3 +136,33 @@ fn draw_text(img: &mut RgbImage, x0: u32, y0: u32, s: &str) {
         }
     }
 }
+
+/// Turbo colours of a float map over `[lo, hi]` (non-finite or ≤ 0 where `lo` is 0: no-data grey).
+pub fn colourise(map: &Grid<f64>, lo: f64, hi: f64) -> RgbImage {
+    RgbImage::from_fn(map.width() as u32, map.height() as u32, |x, y| {
+        let v = map[(x as usize, y as usize)];
+        let missing = !v.is_finite() || (lo == 0.0 && v <= 0.0 && hi > 1.0);
+        Rgb(if missing {
+            NO_DATA
+        } else {
+            turbo((v - lo) / (hi - lo))
+        })
+    })
+}
+
+/// A distinct colour per label (0: black).
+pub fn labels(map: &Grid<u32>) -> RgbImage {
+    const PALETTE: [[u8; 3]; 8] = [
+        [0, 0, 0],
+        [160, 160, 160],
+        [60, 170, 60],
+        [150, 120, 90],
+        [110, 90, 160],
+        [230, 200, 120],
+        [220, 80, 60],
+        [80, 160, 220],
+    ];
+    RgbImage::from_fn(map.width() as u32, map.height() as u32, |x, y| {
+        Rgb(PALETTE[map[(x as usize, y as usize)] as usize % 8])
+    })
+}

@@ -288,3 +288,67 @@ pub fn save(path: &Path, img: &DynamicImage) -> Result<(), IoError> {
         reason: e.to_string(),
     })
 }
+
+/// Encodes depth (metres) as a 16-bit grey PNG in millimetres (0: no data; saturates at
+/// 65.535 m).
+pub fn depth_png16(depth_m: &Grid<f64>) -> image::ImageBuffer<image::Luma<u16>, Vec<u16>> {
+    image::ImageBuffer::from_fn(depth_m.width() as u32, depth_m.height() as u32, |x, y| {
+        let d = depth_m[(x as usize, y as usize)];
+        image::Luma([if d > 0.0 && d.is_finite() {
+            (d * 1000.0).round().clamp(1.0, 65535.0) as u16
+        } else {
+            0
+        }])
+    })
+}
+
+/// An 8-bit grey image of a byte map.
+pub fn gray8(map: &Grid<u8>) -> image::GrayImage {
+    image::GrayImage::from_fn(map.width() as u32, map.height() as u32, |x, y| {
+        image::Luma([map[(x as usize, y as usize)]])
+    })
+}
+
+/// Writes normals as an `(H, W, 3)` float32 `.npy` (NaN: none).
+pub fn write_normals_npy(path: &Path, normals: &Grid<Vec3>) -> Result<(), IoError> {
+    let data: Vec<f32> = normals
+        .as_slice()
+        .iter()
+        .flat_map(|n| [n.x as f32, n.y as f32, n.z as f32])
+        .collect();
+    npy::write_npy(
+        BufWriter::new(File::create(path)?),
+        &[normals.height(), normals.width(), 3],
+        &data,
+    )
+}
+
+/// Writes the valid points of a point map with their colours as a binary little-endian PLY
+/// (x, y, z float32 metres in the camera frame; red, green, blue uchar).
+pub fn write_ply(
+    path: &Path,
+    points: &crate::geometry::PointMap,
+    rgb: &image::RgbImage,
+) -> Result<(), IoError> {
+    use std::io::Write;
+    let valid: Vec<(usize, usize)> = (0..points.height())
+        .flat_map(|y| (0..points.width()).map(move |x| (x, y)))
+        .filter(|&(x, y)| crate::geometry::is_valid_point(&points[(x, y)]))
+        .collect();
+    let mut out = BufWriter::new(File::create(path)?);
+    write!(
+        out,
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
+         property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
+        valid.len()
+    )?;
+    for (x, y) in valid {
+        let p = points[(x, y)];
+        for c in [p.x, p.y, p.z] {
+            out.write_all(&(c as f32).to_le_bytes())?;
+        }
+        out.write_all(&rgb.get_pixel(x as u32, y as u32).0)?;
+    }
+    out.flush()?;
+    Ok(())
+}

@@ -1,0 +1,438 @@
+//! `tre synth`: scenes → views → frames on disk, with a manifest split by scene and a contact
+//! sheet. Deterministic by seed: the same seed gives the same bytes.
+
+use std::path::{Path, PathBuf};
+
+use image::{DynamicImage, RgbImage};
+use serde::{Deserialize, Serialize};
+
+use super::appearance::{Conditions, Lighting, Weather};
+use super::heightgrid::HeightGrid;
+use super::render::{render, RenderedFrame, Scene, View};
+use super::terrain::{Category, Terrain};
+use crate::geometry::hash::splitmix64;
+use crate::geometry::{Grid, Intrinsics, Mounting, Vec3};
+use crate::io::{self, IoError};
+use crate::roughness::{annotate, AnnotateConfig, AnnotateInput, RoughnessError};
+
+/// Dataset settings, with the paper's camera by default.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SynthConfig {
+    /// Output folder.
+    pub out: PathBuf,
+    /// Number of scenes.
+    pub scenes: u32,
+    /// Dataset seed.
+    pub seed: u64,
+    /// Image width and height, pixels.
+    pub size: (usize, usize),
+    /// Horizontal field of view, degrees.
+    pub hfov_deg: f64,
+    /// Views per scene, spread evenly over `[-yaw_span, +yaw_span]` (9 over ±60°: 15° steps).
+    pub views: u32,
+    /// Half the yaw span, degrees.
+    pub yaw_span_deg: f64,
+    /// Draw camera height (0.4–1.2 m) and pitch (40–75°) per scene instead of 1 m and 60°.
+    pub random_mounting: bool,
+    /// Share of scenes in the test split.
+    pub test_fraction: f64,
+    /// Grid spacing of the rendered surface, metres.
+    pub cell_m: f64,
+    /// Write a PLY point cloud per frame.
+    pub ply: bool,
+}
+
+impl Default for SynthConfig {
+    fn default() -> Self {
+        Self {
+            out: PathBuf::from("data/synth"),
+            scenes: 4,
+            seed: 0,
+            size: (512, 512),
+            hfov_deg: 60.0,
+            views: 9,
+            yaw_span_deg: 60.0,
+            random_mounting: false,
+            test_fraction: 0.2,
+            cell_m: 0.004,
+            ply: true,
+        }
+    }
+}
+
+/// Errors of dataset generation.
+#[derive(Debug, thiserror::Error)]
+pub enum SynthError {
+    /// Writing failed.
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// Annotation failed (a frame saw no ground).
+    #[error("scene {scene} view {view}: {source}")]
+    Annotate {
+        /// Scene index.
+        scene: u32,
+        /// View index.
+        view: u32,
+        /// Why.
+        source: RoughnessError,
+    },
+    /// A bad setting.
+    #[error("{0}")]
+    Config(String),
+}
+
+/// One frame's entry in the manifest.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct FrameEntry {
+    /// Folder of the frame, relative to the dataset root.
+    pub dir: String,
+    /// View index within the scene.
+    pub view: u32,
+    /// Heading, degrees.
+    pub yaw_deg: f64,
+    /// Light.
+    pub lighting: Lighting,
+    /// Weather.
+    pub weather: Weather,
+}
+
+/// One scene's entry in the manifest.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SceneEntry {
+    /// Scene index.
+    pub scene: u32,
+    /// `train` or `test`.
+    pub split: String,
+    /// Camera height, metres.
+    pub height_m: f64,
+    /// Camera pitch, degrees below the horizon.
+    pub pitch_deg: f64,
+    /// Categories of the scene's regions.
+    pub categories: Vec<Category>,
+    /// Frames.
+    pub frames: Vec<FrameEntry>,
+}
+
+/// The dataset manifest (`dataset.json`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Manifest {
+    /// Settings used.
+    pub config: SynthConfig,
+    /// Label values and names.
+    pub labels: Vec<(u8, String)>,
+    /// Scenes with their split and frames.
+    pub scenes: Vec<SceneEntry>,
+    /// Frames in the train and test splits.
+    pub counts: (usize, usize),
+}
+
+/// Generates the dataset described by `cfg`; returns its manifest (also written to disk).
+pub fn generate(cfg: &SynthConfig) -> Result<Manifest, SynthError> {
+    check(cfg)?;
+    std::fs::create_dir_all(&cfg.out).map_err(IoError::from)?;
+    let mut scenes = Vec::new();
+    let mut sheet = Vec::new();
+    for s in 0..cfg.scenes {
+        let (entry, preview) = generate_scene(cfg, s)?;
+        sheet.extend(preview);
+        scenes.push(entry);
+    }
+    let count = |split: &str| {
+        scenes
+            .iter()
+            .filter(|e| e.split == split)
+            .map(|e| e.frames.len())
+            .sum()
+    };
+    let labels = Category::ALL
+        .iter()
+        .map(|c| (c.label(), c.name().to_string()))
+        .collect();
+    let manifest = Manifest {
+        config: cfg.clone(),
+        labels,
+        counts: (count("train"), count("test")),
+        scenes,
+    };
+    let json =
+        serde_json::to_string_pretty(&manifest).map_err(|e| SynthError::Config(e.to_string()))?;
+    std::fs::write(cfg.out.join("dataset.json"), json).map_err(IoError::from)?;
+    io::save(
+        &cfg.out.join("contact_sheet.png"),
+        &DynamicImage::ImageRgb8(contact_sheet(&sheet)),
+    )?;
+    Ok(manifest)
+}
+
+fn check(cfg: &SynthConfig) -> Result<(), SynthError> {
+    let (w, h) = cfg.size;
+    if w == 0 || h == 0 || w * h > 4096 * 4096 {
+        return Err(SynthError::Config(format!(
+            "image size {w}×{h} must be between 1×1 and 4096×4096"
+        )));
+    }
+    if !(cfg.hfov_deg > 1.0 && cfg.hfov_deg < 170.0) || cfg.views == 0 || !(cfg.cell_m > 0.0005) {
+        return Err(SynthError::Config(
+            "need 1° < hfov < 170°, at least one view, cell ≥ 0.5 mm".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Deterministic uniform number for (seed, scene, what).
+fn draw(seed: u64, scene: u32, what: u64) -> f64 {
+    let h = splitmix64(splitmix64(seed ^ 0xDA7A) ^ (u64::from(scene) << 16) ^ what);
+    (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// The scene's camera mounting.
+pub fn scene_mounting(cfg: &SynthConfig, scene: u32) -> Mounting {
+    if !cfg.random_mounting {
+        return Mounting::default();
+    }
+    let height = 0.4 + 0.8 * draw(cfg.seed, scene, 1);
+    let pitch = (40.0 + 35.0 * draw(cfg.seed, scene, 2)).to_radians();
+    Mounting::new(pitch, height).expect("pitch and height drawn in range; this is a bug")
+}
+
+/// The views of a scene.
+pub fn scene_views(cfg: &SynthConfig, scene: u32) -> Vec<View> {
+    let (w, h) = cfg.size;
+    let k = Intrinsics::from_hfov(w, h, cfg.hfov_deg).expect("hfov checked; this is a bug");
+    let mounting = scene_mounting(cfg, scene);
+    (0..cfg.views)
+        .map(|v| {
+            let f = if cfg.views == 1 {
+                0.5
+            } else {
+                f64::from(v) / f64::from(cfg.views - 1)
+            };
+            let yaw = (-cfg.yaw_span_deg + 2.0 * cfg.yaw_span_deg * f).to_radians();
+            View {
+                mounting,
+                yaw_rad: yaw,
+                intrinsics: k,
+                width: w,
+                height: h,
+            }
+        })
+        .collect()
+}
+
+/// How far ahead a view can see ground, metres (capped at 12 m).
+fn reach(view: &View) -> f64 {
+    let vfov_half = (view.height as f64 / 2.0 / view.intrinsics.fy_px).atan();
+    let lowest = (view.mounting.pitch_rad - vfov_half).max(5f64.to_radians());
+    (view.mounting.height_m / lowest.tan()).min(12.0)
+}
+
+/// Builds scene `s`: terrain and its sampled grid, covering what its views can see.
+pub fn build_scene(cfg: &SynthConfig, s: u32, views: &[View]) -> Scene {
+    let r = views.iter().map(reach).fold(1.0f64, f64::max) + 0.5;
+    let terrain = Terrain::random(cfg.seed, u64::from(s), r.min(4.0));
+    let grid = HeightGrid::sample(&terrain, (-r, -0.8), (r, r), cfg.cell_m);
+    Scene { terrain, grid }
+}
+
+/// Conditions of view `v` of scene `s`: lightings and weathers cycle so that every combination
+/// appears, with the sun's azimuth drawn per scene.
+pub fn view_conditions(cfg: &SynthConfig, s: u32, v: u32) -> Conditions {
+    let k = (u64::from(s) * u64::from(cfg.views) + u64::from(v)) as usize;
+    Conditions {
+        lighting: Lighting::ALL[k % 4],
+        weather: Weather::ALL[(k / 4 + k) % 5],
+        sun_azimuth_rad: draw(cfg.seed, s, 3) * std::f64::consts::TAU,
+    }
+}
+
+fn generate_scene(cfg: &SynthConfig, s: u32) -> Result<(SceneEntry, Vec<RgbImage>), SynthError> {
+    let views = scene_views(cfg, s);
+    let scene = build_scene(cfg, s, &views);
+    let split = if draw(cfg.seed, s, 4) < cfg.test_fraction {
+        "test"
+    } else {
+        "train"
+    };
+    let mut frames = Vec::new();
+    let mut previews = Vec::new();
+    for (v, view) in views.iter().enumerate() {
+        let v = v as u32;
+        let cond = view_conditions(cfg, s, v);
+        let dir = format!("scene_{s:05}/view_{v}");
+        let frame = render(&scene, view, &cond);
+        let tiles = write_frame(&cfg.out.join(&dir), &frame, view, &cond, cfg.ply).map_err(
+            |e| match e {
+                FrameError::Io(e) => SynthError::Io(e),
+                FrameError::Annotate(source) => SynthError::Annotate {
+                    scene: s,
+                    view: v,
+                    source,
+                },
+            },
+        )?;
+        if s < 2 && v % 4 == 0 {
+            previews.push(tiles);
+        }
+        frames.push(FrameEntry {
+            dir,
+            view: v,
+            yaw_deg: view.yaw_rad.to_degrees(),
+            lighting: cond.lighting,
+            weather: cond.weather,
+        });
+    }
+    let categories = scene.terrain.regions.iter().map(|r| r.category).collect();
+    let m = views[0].mounting;
+    let entry = SceneEntry {
+        scene: s,
+        split: split.into(),
+        height_m: m.height_m,
+        pitch_deg: m.pitch_rad.to_degrees(),
+        categories,
+        frames,
+    };
+    Ok((entry, previews))
+}
+
+enum FrameError {
+    Io(IoError),
+    Annotate(RoughnessError),
+}
+
+impl From<IoError> for FrameError {
+    fn from(e: IoError) -> Self {
+        FrameError::Io(e)
+    }
+}
+
+/// Camera description written with each frame.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct FrameCamera {
+    /// fx, pixels.
+    pub fx: f64,
+    /// fy, pixels.
+    pub fy: f64,
+    /// cx, pixels.
+    pub cx: f64,
+    /// cy, pixels.
+    pub cy: f64,
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// Depth PNG units per metre.
+    pub depth_scale: f64,
+    /// Pitch below the horizon, degrees.
+    pub pitch_deg: f64,
+    /// Height above the ground, metres.
+    pub height_m: f64,
+    /// Heading, degrees.
+    pub yaw_deg: f64,
+    /// Lighting and weather.
+    pub conditions: Conditions,
+}
+
+/// Writes every file of one frame; returns the contact-sheet tiles (rgb, depth, normals,
+/// labels, roughness).
+fn write_frame(
+    dir: &Path,
+    f: &RenderedFrame,
+    view: &View,
+    cond: &Conditions,
+    ply: bool,
+) -> Result<RgbImage, FrameError> {
+    std::fs::create_dir_all(dir).map_err(IoError::from)?;
+    let k = &view.intrinsics;
+    let cam = FrameCamera {
+        fx: k.fx_px,
+        fy: k.fy_px,
+        cx: k.cx_px,
+        cy: k.cy_px,
+        width: view.width,
+        height: view.height,
+        depth_scale: 1000.0,
+        pitch_deg: view.mounting.pitch_rad.to_degrees(),
+        height_m: view.mounting.height_m,
+        yaw_deg: view.yaw_rad.to_degrees(),
+        conditions: *cond,
+    };
+    let json = serde_json::to_string_pretty(&cam).map_err(|e| IoError::Npy(e.to_string()))?;
+    std::fs::write(dir.join("camera.json"), json).map_err(IoError::from)?;
+    io::save(
+        &dir.join("rgb.png"),
+        &DynamicImage::ImageRgb8(f.rgb.clone()),
+    )?;
+    io::save(
+        &dir.join("depth.png"),
+        &DynamicImage::ImageLuma16(io::depth_png16(&f.depth_m)),
+    )?;
+    io::write_normals_npy(&dir.join("normals.npy"), &f.normals_cam)?;
+    let labels = f.labels.map(|&l| l as u8);
+    io::save(
+        &dir.join("labels.png"),
+        &DynamicImage::ImageLuma8(io::gray8(&labels)),
+    )?;
+    let input = AnnotateInput {
+        depth_m: &f.depth_m,
+        intrinsics: k,
+        normals: Some(&f.normals_cam),
+        labels: Some(&f.labels),
+    };
+    let ann = annotate(&input, &AnnotateConfig::default()).map_err(FrameError::Annotate)?;
+    io::save(
+        &dir.join("roughness.png"),
+        &DynamicImage::ImageLumaA16(io::roughness_png16(&ann.roughness_m)),
+    )?;
+    io::write_npy_f32(&dir.join("roughness.npy"), &ann.roughness_m)?;
+    io::write_mask_png(&dir.join("boundary.png"), &ann.boundary)?;
+    io::write_npy_f32(&dir.join("edge_weight.npy"), &ann.edge_weight_m)?;
+    if ply {
+        io::write_ply(
+            &dir.join("points.ply"),
+            &k.back_project_map(&f.depth_m),
+            &f.rgb,
+        )?;
+    }
+    Ok(tiles(f, &ann.roughness_m))
+}
+
+/// One contact-sheet row: rgb | depth | normals | labels | roughness (0–5 cm).
+fn tiles(f: &RenderedFrame, roughness_m: &Grid<f64>) -> RgbImage {
+    let (w, h) = (f.rgb.width(), f.rgb.height());
+    let depth = io::colormap::colourise(&f.depth_m, 0.0, 3.0);
+    let normals = RgbImage::from_fn(w, h, |u, v| {
+        let n: Vec3 = f.normals_cam[(u as usize, v as usize)];
+        image::Rgb(if n.x.is_finite() {
+            [0, 1, 2].map(|c| ((0.5 - 0.5 * n[c]) * 255.0) as u8)
+        } else {
+            [0; 3]
+        })
+    });
+    let labels = io::colormap::labels(&f.labels);
+    let rough = io::colormap::colourise(roughness_m, 0.0, 0.05);
+    let mut row = RgbImage::new(w * 5, h);
+    for (i, t) in [&f.rgb, &depth, &normals, &labels, &rough]
+        .into_iter()
+        .enumerate()
+    {
+        image::imageops::replace(&mut row, t, i64::from(w) * i as i64, 0);
+    }
+    row
+}
+
+/// Stacks contact-sheet rows, each scaled to 160 px high.
+fn contact_sheet(rows: &[RgbImage]) -> RgbImage {
+    let scaled: Vec<RgbImage> = rows
+        .iter()
+        .map(|r| {
+            let w = (r.width() as f64 * 160.0 / r.height() as f64) as u32;
+            image::imageops::resize(r, w.max(1), 160, image::imageops::FilterType::Triangle)
+        })
+        .collect();
+    let width = scaled.iter().map(RgbImage::width).max().unwrap_or(1);
+    let mut sheet = RgbImage::new(width, 160 * scaled.len().max(1) as u32);
+    for (i, r) in scaled.iter().enumerate() {
+        image::imageops::replace(&mut sheet, r, 0, 160 * i as i64);
+    }
+    sheet
+}
