@@ -18,7 +18,9 @@ use crate::roughness::{annotate, AnnotateConfig, AnnotateInput, RoughnessError};
 /// Dataset settings, with the paper's camera by default.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SynthConfig {
-    /// Output folder.
+    /// Output folder (not written to the manifest, so that a dataset is the same wherever it
+    /// is written).
+    #[serde(skip)]
     pub out: PathBuf,
     /// Number of scenes.
     pub scenes: u32,
