@@ -7,10 +7,20 @@ use std::path::Path;
 use tre::geometry::{is_valid_point, Grid, Intrinsics, Mounting, Vec3};
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation};
 use tre::synth::terrain::{Region, Steps};
-use tre::synth::{render, Category, Conditions, HeightGrid, Lighting, RenderedFrame, Scene, SynthConfig, Terrain, View, Weather};
+use tre::synth::{
+    render, Category, Conditions, HeightGrid, Lighting, RenderedFrame, Scene, SynthConfig, Terrain,
+    View, Weather,
+};
 
 fn small_config(out: &Path, seed: u64) -> SynthConfig {
-    SynthConfig { out: out.to_owned(), scenes: 2, seed, size: (64, 48), views: 3, ..SynthConfig::default() }
+    SynthConfig {
+        out: out.to_owned(),
+        scenes: 2,
+        seed,
+        size: (64, 48),
+        views: 3,
+        ..SynthConfig::default()
+    }
 }
 
 /// Every file under `dir`, relative path → bytes.
@@ -23,7 +33,10 @@ fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
             if p.is_dir() {
                 stack.push(p);
             } else {
-                out.push((p.strip_prefix(dir).unwrap().display().to_string(), std::fs::read(&p).unwrap()));
+                out.push((
+                    p.strip_prefix(dir).unwrap().display().to_string(),
+                    std::fs::read(&p).unwrap(),
+                ));
             }
         }
     }
@@ -33,17 +46,32 @@ fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
 
 #[test]
 fn same_seed_same_bytes() {
-    let (a, b, c) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let (a, b, c) = (
+        tempfile::tempdir().unwrap(),
+        tempfile::tempdir().unwrap(),
+        tempfile::tempdir().unwrap(),
+    );
     tre::synth::generate(&small_config(a.path(), 5)).unwrap();
     tre::synth::generate(&small_config(b.path(), 5)).unwrap();
     tre::synth::generate(&small_config(c.path(), 6)).unwrap();
     let (fa, fb, fc) = (files(a.path()), files(b.path()), files(c.path()));
-    assert_eq!(fa.len(), 2 + 2 * 3 * 10, "{:?}", fa.iter().map(|f| &f.0).collect::<Vec<_>>());
+    assert_eq!(
+        fa.len(),
+        2 + 2 * 3 * 10,
+        "{:?}",
+        fa.iter().map(|f| &f.0).collect::<Vec<_>>()
+    );
     for ((na, ba), (nb, bb)) in fa.iter().zip(&fb) {
         assert_eq!(na, nb);
         assert!(ba == bb, "{na} differs between two runs with the same seed");
     }
-    let rgb = |f: &[(String, Vec<u8>)]| f.iter().find(|(n, _)| n.ends_with("view_0/rgb.png")).unwrap().1.clone();
+    let rgb = |f: &[(String, Vec<u8>)]| {
+        f.iter()
+            .find(|(n, _)| n.ends_with("view_0/rgb.png"))
+            .unwrap()
+            .1
+            .clone()
+    };
     assert_ne!(rgb(&fa), rgb(&fc), "another seed must give another scene");
 }
 
@@ -63,17 +91,29 @@ fn scene_of(terrain: Terrain) -> Scene {
 }
 
 fn clear_noon() -> Conditions {
-    Conditions { lighting: Lighting::HighSun, weather: Weather::Clear, sun_azimuth_rad: 0.5 }
+    Conditions {
+        lighting: Lighting::HighSun,
+        weather: Weather::Clear,
+        sun_azimuth_rad: 0.5,
+    }
 }
 
 fn annotate_frame(f: &RenderedFrame, view: &View) -> Annotation {
-    let input = AnnotateInput { depth_m: &f.depth_m, intrinsics: &view.intrinsics, normals: Some(&f.normals_cam), labels: Some(&f.labels) };
+    let input = AnnotateInput {
+        depth_m: &f.depth_m,
+        intrinsics: &view.intrinsics,
+        normals: Some(&f.normals_cam),
+        labels: Some(&f.labels),
+    };
     annotate(&input, &AnnotateConfig::default()).unwrap()
 }
 
 #[test]
 fn depth_and_normals_agree_with_the_rendered_surface() {
-    let cfg = SynthConfig { size: (160, 160), ..SynthConfig::default() };
+    let cfg = SynthConfig {
+        size: (160, 160),
+        ..SynthConfig::default()
+    };
     let views = tre::synth::dataset::scene_views(&cfg, 3);
     let scene = tre::synth::dataset::build_scene(&cfg, 3, &views);
     let (mut checked, mut worst_png_mm) = (0, 0.0f64);
@@ -91,14 +131,21 @@ fn depth_and_normals_agree_with_the_rendered_surface() {
                 let n = scene.grid.normal(p.x, p.y).unwrap();
                 // On the surface: distance to the patch's tangent plane at (x, y).
                 let dz = p.z - scene.grid.height(p.x, p.y).unwrap();
-                assert!((dz * n.z).abs() < 1e-6, "({u}, {v}): {dz} m off the surface");
+                assert!(
+                    (dz * n.z).abs() < 1e-6,
+                    "({u}, {v}): {dz} m off the surface"
+                );
                 let n_cam = f.normals_cam[(u, v)];
                 let angle = (rot * n_cam).dot(&n).clamp(-1.0, 1.0).acos().to_degrees();
                 assert!(angle < 1.0, "({u}, {v}): normal off by {angle}°");
-                assert!(n_cam.dot(&view.intrinsics.back_project(u as f64, v as f64, d)) < 0.0, "faces the camera");
+                assert!(
+                    n_cam.dot(&view.intrinsics.back_project(u as f64, v as f64, d)) < 0.0,
+                    "faces the camera"
+                );
                 // The 16-bit millimetre PNG keeps points within 1 mm along the ray.
                 let ray_m = view.intrinsics.back_project(u as f64, v as f64, 1.0).norm();
-                let png_mm = (f64::from(png.get_pixel(u as u32, v as u32)[0]) - d * 1000.0).abs() * ray_m;
+                let png_mm =
+                    (f64::from(png.get_pixel(u as u32, v as u32)[0]) - d * 1000.0).abs() * ray_m;
                 worst_png_mm = worst_png_mm.max(png_mm);
                 checked += 1;
             }
@@ -111,21 +158,48 @@ fn depth_and_normals_agree_with_the_rendered_surface() {
 #[test]
 fn flat_pavement_annotates_to_near_zero() {
     let view = robot_view(192);
-    let f = render(&scene_of(Terrain::uniform(Category::Pavement, 1)), &view, &clear_noon());
+    let f = render(
+        &scene_of(Terrain::uniform(Category::Pavement, 1)),
+        &view,
+        &clear_noon(),
+    );
     let ann = annotate_frame(&f, &view);
-    let r: Vec<f64> = ann.roughness_m.as_slice().iter().copied().filter(|r| r.is_finite()).collect();
+    let r: Vec<f64> = ann
+        .roughness_m
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|r| r.is_finite())
+        .collect();
     assert!(r.len() > 192 * 192 * 9 / 10);
     let max = r.iter().copied().fold(0.0, f64::max);
     assert!(max < 1e-4, "pavement roughness up to {max} m");
-    assert!(f.labels.as_slice().iter().all(|&l| l == u32::from(Category::Pavement.label())));
+    assert!(f
+        .labels
+        .as_slice()
+        .iter()
+        .all(|&l| l == u32::from(Category::Pavement.label())));
 }
 
 #[test]
 fn stairs_show_their_step_heights_on_the_boundaries() {
     // Three 10 cm steps descending away from the robot: each lip hides the tread beyond it, so
     // the 3-D gap across the boundary is at least the riser.
-    let steps = Steps { dir: (0.0, -1.0), start_m: -1.6, tread_m: 0.35, riser_m: 0.10, steps: 3 };
-    let terrain = Terrain { regions: vec![Region { centre: (0.0, 0.0), category: Category::Stairs, seed: 3, steps: Some(steps) }] };
+    let steps = Steps {
+        dir: (0.0, -1.0),
+        start_m: -1.6,
+        tread_m: 0.35,
+        riser_m: 0.10,
+        steps: 3,
+    };
+    let terrain = Terrain {
+        regions: vec![Region {
+            centre: (0.0, 0.0),
+            category: Category::Stairs,
+            seed: 3,
+            steps: Some(steps),
+        }],
+    };
     let view = robot_view(256);
     let f = render(&scene_of(terrain), &view, &clear_noon());
     let ann = annotate_frame(&f, &view);
@@ -137,16 +211,27 @@ fn stairs_show_their_step_heights_on_the_boundaries() {
             if !ann.boundary[(u, v)] {
                 continue;
             }
-            let p = rot * view.intrinsics.back_project(u as f64, v as f64, f.depth_m[(u, v)]) + view.centre();
+            let p = rot
+                * view
+                    .intrinsics
+                    .back_project(u as f64, v as f64, f.depth_m[(u, v)])
+                + view.centre();
             for (k, (lip_y, top)) in [(0.9, 0.3), (1.25, 0.2)].into_iter().enumerate() {
                 if (p.y - lip_y).abs() < 0.02 && (p.z - top).abs() < 0.005 {
-                    assert!(ann.roughness_m[(u, v)] >= 0.10, "lip {k} at ({u}, {v}): {}", ann.roughness_m[(u, v)]);
+                    assert!(
+                        ann.roughness_m[(u, v)] >= 0.10,
+                        "lip {k} at ({u}, {v}): {}",
+                        ann.roughness_m[(u, v)]
+                    );
                     lips[k] += 1;
                 }
             }
         }
     }
-    assert!(lips.iter().all(|&n| n > 50), "boundary pixels on the lips: {lips:?}");
+    assert!(
+        lips.iter().all(|&n| n > 50),
+        "boundary pixels on the lips: {lips:?}"
+    );
     assert!(ann.segments.as_slice().iter().max().copied().unwrap_or(0) >= 3);
     let _ = (is_valid_point(&Vec3::zeros()), Grid::new(1, 1, 0u8));
 }

@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use image::{DynamicImage, RgbImage};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::appearance::{Conditions, Lighting, Weather};
@@ -255,34 +256,41 @@ fn generate_scene(cfg: &SynthConfig, s: u32) -> Result<(SceneEntry, Vec<RgbImage
     } else {
         "train"
     };
-    let mut frames = Vec::new();
-    let mut previews = Vec::new();
-    for (v, view) in views.iter().enumerate() {
-        let v = v as u32;
-        let cond = view_conditions(cfg, s, v);
-        let dir = format!("scene_{s:05}/view_{v}");
-        let frame = render(&scene, view, &cond);
-        let tiles = write_frame(&cfg.out.join(&dir), &frame, view, &cond, cfg.ply).map_err(
-            |e| match e {
-                FrameError::Io(e) => SynthError::Io(e),
-                FrameError::Annotate(source) => SynthError::Annotate {
-                    scene: s,
-                    view: v,
-                    source,
+    // Views render, annotate and encode in parallel (each also parallel inside).
+    let done: Vec<(FrameEntry, RgbImage)> = views
+        .par_iter()
+        .enumerate()
+        .map(|(v, view)| {
+            let v = v as u32;
+            let cond = view_conditions(cfg, s, v);
+            let dir = format!("scene_{s:05}/view_{v}");
+            let frame = render(&scene, view, &cond);
+            let tiles = write_frame(&cfg.out.join(&dir), &frame, view, &cond, cfg.ply).map_err(
+                |e| match e {
+                    FrameError::Io(e) => SynthError::Io(e),
+                    FrameError::Annotate(source) => SynthError::Annotate {
+                        scene: s,
+                        view: v,
+                        source,
+                    },
                 },
-            },
-        )?;
-        if s < 2 && v % 4 == 0 {
-            previews.push(tiles);
-        }
-        frames.push(FrameEntry {
-            dir,
-            view: v,
-            yaw_deg: view.yaw_rad.to_degrees(),
-            lighting: cond.lighting,
-            weather: cond.weather,
-        });
-    }
+            )?;
+            let entry = FrameEntry {
+                dir,
+                view: v,
+                yaw_deg: view.yaw_rad.to_degrees(),
+                lighting: cond.lighting,
+                weather: cond.weather,
+            };
+            Ok((entry, tiles))
+        })
+        .collect::<Result<_, SynthError>>()?;
+    let previews = done
+        .iter()
+        .filter(|(e, _)| s < 2 && e.view % 4 == 0)
+        .map(|(_, t)| t.clone())
+        .collect();
+    let frames = done.into_iter().map(|(e, _)| e).collect();
     let categories = scene.terrain.regions.iter().map(|r| r.category).collect();
     let m = views[0].mounting;
     let entry = SceneEntry {
