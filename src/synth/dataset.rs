@@ -237,13 +237,15 @@ pub fn build_scene(cfg: &SynthConfig, s: u32, views: &[View]) -> Scene {
     Scene { terrain, grid }
 }
 
-/// Conditions of view `v` of scene `s`: lightings and weathers cycle so that every combination
-/// appears, with the sun's azimuth drawn per scene.
+/// Conditions of view `v` of scene `s`: the 4 lightings × 5 weathers cycle so that every 20
+/// consecutive frames hold each combination once; the sun's azimuth is drawn per scene.
 pub fn view_conditions(cfg: &SynthConfig, s: u32, v: u32) -> Conditions {
+    // Frame k takes combination 7k mod 20 (7 is prime to 20): every 20 frames hold all 20.
     let k = (u64::from(s) * u64::from(cfg.views) + u64::from(v)) as usize;
+    let combo = (7 * k) % 20;
     Conditions {
-        lighting: Lighting::ALL[k % 4],
-        weather: Weather::ALL[(k / 4 + k) % 5],
+        lighting: Lighting::ALL[combo % 4],
+        weather: Weather::ALL[combo / 4],
         sun_azimuth_rad: draw(cfg.seed, s, 3) * std::f64::consts::TAU,
     }
 }
