@@ -57,7 +57,7 @@ fn same_seed_same_bytes() {
     let (fa, fb, fc) = (files(a.path()), files(b.path()), files(c.path()));
     assert_eq!(
         fa.len(),
-        2 + 2 * 3 * 10,
+        2 + 2 * 3 * 9,
         "{:?}",
         fa.iter().map(|f| &f.0).collect::<Vec<_>>()
     );

@@ -252,6 +252,19 @@ pub fn roughness_png16(roughness_m: &Grid<f64>) -> ImageBuffer<LumaA<u16>, Vec<u
     })
 }
 
+/// Encodes a non-negative map in metres as 16-bit grey at 0.1 mm per unit (saturating at
+/// 6.5535 m; non-finite: 0).
+pub fn metres_png16(map_m: &Grid<f64>) -> image::ImageBuffer<image::Luma<u16>, Vec<u16>> {
+    image::ImageBuffer::from_fn(map_m.width() as u32, map_m.height() as u32, |x, y| {
+        let v = map_m[(x as usize, y as usize)];
+        image::Luma([if v.is_finite() {
+            (v / ROUGHNESS_PNG_SCALE_M).round().clamp(0.0, 65535.0) as u16
+        } else {
+            0
+        }])
+    })
+}
+
 /// Decodes a roughness PNG written by [`roughness_png16`] back to metres (NaN: no data).
 pub fn decode_roughness_png16(img: &DynamicImage) -> Grid<f64> {
     let la = img.to_luma_alpha16();

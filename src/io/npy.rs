@@ -24,6 +24,66 @@ macro_rules! npy_element {
     };
 }
 npy_element!(f32, "<f4");
+
+/// An IEEE half-precision value stored as its bits (for compact `.npy` files).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct F16(pub u16);
+
+impl F16 {
+    /// Rounds an f32 to the nearest half (ties to even); overflow gives ±∞, NaN stays NaN.
+    pub fn from_f32(v: f32) -> Self {
+        let x = v.to_bits();
+        let sign = ((x >> 16) & 0x8000) as u16;
+        let exp = ((x >> 23) & 0xFF) as i32;
+        let man = x & 0x007F_FFFF;
+        if exp == 0xFF {
+            return F16(sign | 0x7C00 | if man != 0 { 0x200 } else { 0 });
+        }
+        let e = exp - 127 + 15;
+        if e >= 0x1F {
+            return F16(sign | 0x7C00);
+        }
+        if e <= 0 {
+            if e < -10 {
+                return F16(sign);
+            }
+            let m = man | 0x0080_0000;
+            let shift = (14 - e) as u32;
+            let half = 1u32 << (shift - 1);
+            let rest = m & ((1u32 << shift) - 1);
+            let mut h = m >> shift;
+            if rest > half || (rest == half && h & 1 == 1) {
+                h += 1;
+            }
+            return F16(sign | h as u16);
+        }
+        let mut h = ((e as u32) << 10) | (man >> 13);
+        let rest = man & 0x1FFF;
+        if rest > 0x1000 || (rest == 0x1000 && h & 1 == 1) {
+            h += 1;
+        }
+        F16(sign | h as u16)
+    }
+
+    /// The value as f64.
+    pub fn to_f64(self) -> f64 {
+        let (sign, exp, man) = ((self.0 >> 15) & 1, (self.0 >> 10) & 0x1F, self.0 & 0x3FF);
+        let s = if sign == 1 { -1.0 } else { 1.0 };
+        match exp {
+            0 => s * f64::from(man) * 2f64.powi(-24),
+            0x1F if man == 0 => s * f64::INFINITY,
+            0x1F => f64::NAN,
+            e => s * (1.0 + f64::from(man) / 1024.0) * 2f64.powi(i32::from(e) - 15),
+        }
+    }
+}
+
+impl NpyElement for F16 {
+    const DESCR: &'static str = "<f2";
+    fn write_le(self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.0.to_le_bytes());
+    }
+}
 npy_element!(f64, "<f8");
 npy_element!(u8, "|u1");
 npy_element!(u16, "<u2");
@@ -129,7 +189,7 @@ fn decode(descr: &str, body: &[u8], count: usize) -> Result<Vec<f64>, IoError> {
     let size = match descr {
         "<f4" | "<u4" | "<i4" => 4,
         "<f8" | "<i8" | "<u8" => 8,
-        "<u2" | "<i2" => 2,
+        "<u2" | "<i2" | "<f2" => 2,
         "|u1" | "|i1" | "|b1" => 1,
         other => {
             return Err(IoError::Npy(format!(
@@ -169,6 +229,9 @@ fn decode(descr: &str, body: &[u8], count: usize) -> Result<Vec<f64>, IoError> {
         "<i2" => c
             .map(|b| f64::from(i16::from_le_bytes([b[0], b[1]])))
             .collect(),
+        "<f2" => c
+            .map(|b| F16(u16::from_le_bytes([b[0], b[1]])).to_f64())
+            .collect(),
         "|i1" => c.map(|b| f64::from(b[0] as i8)).collect(),
         _ => c.map(|b| f64::from(b[0])).collect(),
     })
@@ -187,6 +250,22 @@ mod tests {
         assert_eq!(a.shape, vec![2, 3]);
         assert_eq!(a.data[2], 3.5);
         assert!(a.data[4].is_nan());
+    }
+
+    #[test]
+    fn half_precision_round_trips() {
+        for v in [0.0f32, 1.0, -0.5, 0.3333, 65504.0, 1e-5, -2.5e-7, 0.999_99] {
+            let h = F16::from_f32(v).to_f64();
+            assert!(
+                (h - f64::from(v)).abs() <= f64::from(v).abs() * 1e-3 + 6e-8,
+                "{v} → {h}"
+            );
+        }
+        assert!(F16::from_f32(f32::NAN).to_f64().is_nan());
+        assert_eq!(F16::from_f32(1e6).to_f64(), f64::INFINITY);
+        let mut buf = Vec::new();
+        write_npy(&mut buf, &[2], &[F16::from_f32(0.5), F16::from_f32(-1.0)]).unwrap();
+        assert_eq!(read_npy(&buf[..]).unwrap().data, vec![0.5, -1.0]);
     }
 
     #[test]

@@ -395,9 +395,11 @@ fn write_frame(
         &dir.join("roughness.png"),
         &DynamicImage::ImageLumaA16(io::roughness_png16(&ann.roughness_m)),
     )?;
-    io::write_npy_f32(&dir.join("roughness.npy"), &ann.roughness_m)?;
     io::write_mask_png(&dir.join("boundary.png"), &ann.boundary)?;
-    io::write_npy_f32(&dir.join("edge_weight.npy"), &ann.edge_weight_m)?;
+    io::save(
+        &dir.join("edge_weight.png"),
+        &DynamicImage::ImageLuma16(io::metres_png16(&ann.edge_weight_m)),
+    )?;
     if ply {
         io::write_ply(
             &dir.join("points.ply"),
