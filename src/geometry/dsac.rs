@@ -1,12 +1,84 @@
 //! DSAC plane hypotheses for initial normals (DESIGN.md, "DSAC normals"): per pixel, K triples of
 //! 7×7 neighbours drawn from the neighbour net's probabilities ρ, scored by soft inlier counts;
 //! serving keeps the best hypothesis and refits it by least squares on its inliers.
+//!
+//! # Exact definition
+//!
+//! The training code mirrors the steps below. Every floating-point operation is one correctly
+//! rounded IEEE-754 operation in the type and order written (no FMA; `f32(x)` rounds a float64 to
+//! float32), so numpy elementwise float32/float64 arithmetic reproduces each step bit for bit.
+//! For pixel `(x, y)` of a `W × H` point map, `i = y·W + x`, whose point `p` is valid
+//! ([`is_valid_point`]; other pixels get no normal):
+//!
+//! 1. **Candidates.** `k = (dy + 3)·7 + (dx + 3)` for `dx, dy ∈ −3..=3`; candidate `k` is valid
+//!    when `(x + dx, y + dy)` lies inside the image and its point `q_k` is valid.
+//! 2. **ρ** ([`candidate_probabilities`], float32). Candidate `k` is *usable* when it is valid and
+//!    its logit `l_k` is finite. `m` = the largest usable logit; `e_k = fastmath::exp(l_k − m)`
+//!    for usable `k`, else 0; `S` = the lane sum of `e`; `ρ_k = e_k / S`, then widened exactly
+//!    to float64. With no usable candidate, ρ = 0 and the pixel gets no normal.
+//!    [`fastmath::exp`] has a relative error below 2e-7, so ρ is within 4e-7 (relative) of the
+//!    float64 softmax.
+//! 3. **Sampler** ([`sample_triple`], float64), hypothesis `j`, draws `d = 0, 1, 2`.
+//!    `P_k` = sequential float64 prefix sums of ρ (`P_k = P_{k−1} + ρ_k`, `P_{−1} = 0`). With
+//!    the candidates already drawn `e1` (, `e2`) in draw order: `T_0 = P_48`;
+//!    `T_1 = T_0 − ρ_{e1}`; `T_2 = T_1 − ρ_{e2}`; if `!(T_d > 0)` there is no triple.
+//!    `t = uniform(seed, i, j, d) · T_d` ([`super::hash::uniform`]). `F_d(k) = P_k`, then minus
+//!    `ρ_{e1}` if `k ≥ e1`, then minus `ρ_{e2}` if `k ≥ e2` (the subtractions done in that
+//!    order, each rounded in float64; subtracting 0.0 when the condition is false). The draw is
+//!    the smallest `k` not already drawn with `ρ_k > 0` and `t < F_d(k)`; if no `k` qualifies,
+//!    the largest `k` not already drawn with `ρ_k > 0` (no triple if none).
+//! 4. **Scores** (float32). The hypothesis plane is [`Plane::through`]`(q_a, q_b, q_c)` for the
+//!    triple `[a, b, c]` in draw order (float64: point `q_a`, unit normal `n`); a missing triple
+//!    or a degenerate plane scores −∞. Otherwise, with `τ` = `inlier_threshold_m` and
+//!    `g = softness / τ · log₂e` (float64, `log₂e` rounded to float64): `m = g·n` and
+//!    `u = q_a − p` per coordinate (float64); `n″ = f32(m)` per coordinate;
+//!    `o″ = f32((m_x·u_x + m_y·u_y) + m_z·u_z)`; `τ″ = f32(min(g·τ, 120))`;
+//!    `r_k = f32(q_k − p)` per coordinate (float64 difference, then rounded; 0 for invalid `k`);
+//!    `s_k = ((n″_x·r_kx + n″_y·r_ky) + n″_z·r_kz) − o″`; `y_k = |s_k| − τ″`;
+//!    `v_k = fastmath::recip_one_plus_exp2(y_k)`, which is `sigmoid(β(τ − dist_k))` with
+//!    `β = softness / τ`; the score is the lane sum of `v_k`, invalid candidates contributing
+//!    exactly 0. Against the same sum in float64, the float32 score differs by about 1e-5 for
+//!    windows spanning a few centimetres (relative coordinates rounded to float32, the
+//!    sigmoid's relative error below 7e-7), growing with the window's extent; hypotheses whose
+//!    scores differ by less than that may rank differently in a float64 reference.
+//! 5. **Best and refit** (float64). The best hypothesis is the first one with the largest score
+//!    (−∞ never wins). The inliers of its plane are the valid `k` with
+//!    `plane.distance(q_k) < τ` ([`Plane::distance`], Eq. 1); their [`Moments`] of `q_k − p`,
+//!    added in `k` order, give the LS plane `Moments::fit(p)`, or, if that is degenerate, the
+//!    hypothesis plane is kept. Its normal is flipped if `n · p > 0` (towards the camera).
+//!
+//! *Lane sums* (float32) add 56 lanes, the candidates `0..49` then seven zeros, as seven blocks of
+//! eight: accumulator `a_l = ((0 + v_l) + v_{8+l}) + … + v_{48+l}` for `l = 0..8`, then
+//! [`fastmath::sum_block`]`(a) = ((a₀ + a₄) + (a₂ + a₆)) + ((a₁ + a₅) + (a₃ + a₇))`.
+//!
+//! # Implementation
+//!
+//! [`dsac_normals`] reads every window from a copy of the point map padded by three invalid
+//! pixels (no bounds checks), keeps ρ and the scores in f32 lane arrays that auto-vectorise
+//! (SSE2 and up), allocates nothing per pixel, and runs rows in parallel with rayon; every
+//! pixel's draws depend only on `(seed, i)`, so the result does not depend on the thread count.
+//!
+//! The sampler draws by binary search instead of a scan. Within a run of undrawn candidates
+//! between drawn ones, `F_d` subtracts the same constants from `P_k`; `P` is monotone and
+//! `x ↦ fl(x − c)` is monotone, so `F_d` is monotone there, and `F_d(k) = F_d(k − 1)` wherever
+//! `ρ_k = 0`. Hence, in the first run whose last candidate with `ρ > 0` satisfies `t < F_d`,
+//! the first `k` with `t < F_d(k)` followed by a step forward to the next `k` with `ρ_k > 0` is
+//! exactly the scan's answer; if no run has one, the answer is the last candidate with `ρ > 0`.
+//! The hypotheses' searches run in lockstep. ρ that is negative or not finite (possible only
+//! through [`sample_triple`]) falls back to the scan itself.
+//!
+//! Scoring stops early for a hypothesis that provably cannot beat the best one so far (its
+//! partial sum plus one per candidate still to come, with a margin for rounding, is not above
+//! the best score), so the chosen hypothesis, and the result, are those of the full computation.
+
+use std::hint::select_unpredictable;
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::camera::{is_valid_point, PointMap, INVALID_POINT};
-use super::hash::uniform;
+use super::fastmath::{self, recip_one_plus_exp2, sum_block, BLOCK};
+use super::hash::splitmix64;
 use super::plane::{orient_towards_camera, Moments, Plane};
 use super::{GeometryError, Grid, Vec3};
 
@@ -14,6 +86,20 @@ use super::{GeometryError, Grid, Vec3};
 pub const WINDOW: usize = 7;
 /// Candidates per pixel (7 × 7), index `k = (dy + 3)·7 + (dx + 3)`.
 pub const CANDIDATES: usize = WINDOW * WINDOW;
+
+/// Lanes of the per-pixel lane arrays: the candidates padded to whole blocks.
+const LANES: usize = 56;
+/// Blocks of [`BLOCK`] lanes.
+const BLOCKS: usize = LANES / BLOCK;
+/// Entries of the prefix-sum table (a power of two above [`CANDIDATES`], for the search).
+const TABLE: usize = 64;
+/// Half-window: pixels of padding on every side of [`PaddedPoints`].
+const RADIUS: usize = WINDOW / 2;
+/// Hypotheses sampled together, stage by stage.
+const BATCH: usize = 12;
+/// Slack for the f32 rounding in the pruning bound of [`Window::score_above`] (the bound needs
+/// 2e-4 for scores up to 49).
+const PRUNE_MARGIN: f32 = 1e-3;
 
 /// The pixel offset `(dx, dy)` of candidate `k`.
 ///
@@ -51,7 +137,13 @@ impl Default for DsacConfig {
 }
 
 impl DsacConfig {
-    /// Soft inlier score of one candidate at distance `dist_m` from a hypothesis plane.
+    /// Soft inlier score of one candidate at distance `dist_m` from a hypothesis plane, in f64:
+    /// the reference for the f32 scorer (module docs, step 4).
+    ///
+    /// ```
+    /// let cfg = tre::geometry::DsacConfig::default();
+    /// assert_eq!(cfg.soft_inlier(0.01), 0.5);
+    /// ```
     #[inline]
     pub fn soft_inlier(&self, dist_m: f64) -> f64 {
         let beta = self.softness / self.inlier_threshold_m;
@@ -60,6 +152,13 @@ impl DsacConfig {
 }
 
 /// The 49 candidate points of pixel `(x, y)` (invalid or outside the image: NaN).
+///
+/// ```
+/// use tre::geometry::{dsac, Grid, Vec3};
+/// let points = Grid::new(4, 4, Vec3::new(0.0, 0.0, 1.0));
+/// let c = dsac::candidates(&points, 0, 0);
+/// assert!(c[0].x.is_nan() && c[dsac::CANDIDATES / 2].z == 1.0);
+/// ```
 pub fn candidates(points: &PointMap, x: usize, y: usize) -> [Vec3; CANDIDATES] {
     let mut out = [INVALID_POINT; CANDIDATES];
     let (w, h) = points.size();
@@ -73,67 +172,47 @@ pub fn candidates(points: &PointMap, x: usize, y: usize) -> [Vec3; CANDIDATES] {
     out
 }
 
-/// ρ: the softmax of the 49 logits over the valid candidates (0 for invalid ones), in f64.
+/// ρ: the softmax of the 49 logits over the usable candidates (valid, finite logit; 0 for the
+/// others), computed in f32 with [`fastmath::exp`] and widened to f64 (module docs, step 2):
+/// within about 4e-7 (relative) of the f64 softmax, and bit-identical to what
+/// [`dsac_normals`] samples from.
+///
+/// ```
+/// use tre::geometry::{dsac, Grid, Vec3};
+/// let points = Grid::new(9, 9, Vec3::new(0.0, 0.0, 1.0));
+/// let rho = dsac::candidate_probabilities(&[0.0; 49], &dsac::candidates(&points, 4, 4));
+/// assert!(rho.iter().all(|&r| (r - 1.0 / 49.0).abs() < 1e-8));
+/// ```
 pub fn candidate_probabilities(
     logits: &[f32; CANDIDATES],
     cands: &[Vec3; CANDIDATES],
 ) -> [f64; CANDIDATES] {
-    let mut rho = [0.0; CANDIDATES];
-    let valid = |k: usize| is_valid_point(&cands[k]) && logits[k].is_finite();
-    let max = (0..CANDIDATES)
-        .filter(|&k| valid(k))
-        .map(|k| f64::from(logits[k]))
-        .fold(f64::NEG_INFINITY, f64::max);
-    if max == f64::NEG_INFINITY {
-        return rho;
-    }
-    let mut total = 0.0;
-    for k in (0..CANDIDATES).filter(|&k| valid(k)) {
-        rho[k] = (f64::from(logits[k]) - max).exp();
-        total += rho[k];
-    }
-    for r in rho.iter_mut() {
-        *r /= total;
-    }
-    rho
+    let mut lanes = [0.0; LANES];
+    lanes[..CANDIDATES].copy_from_slice(logits);
+    let points = PaddedPoints::of_candidates(cands);
+    let rho = softmax(&lanes, &Window::new(&points, RADIUS, RADIUS).valid);
+    std::array::from_fn(|k| f64::from(rho[k]))
 }
 
-/// Draws 3 distinct candidates for hypothesis `hypothesis` of pixel `pixel`: each draw inverts
-/// the CDF of ρ renormalised without the candidates already drawn. `None` when fewer than 3
-/// candidates carry probability.
+/// Draws 3 distinct candidates for hypothesis `hypothesis` of pixel `pixel`, inverting the CDF of
+/// ρ renormalised without the candidates already drawn, exactly as defined in the module docs
+/// (step 3). `None` when fewer than 3 candidates carry probability.
+///
+/// ```
+/// let mut rho = [0.0; 49];
+/// for k in [3, 10, 24, 40] {
+///     rho[k] = 0.25;
+/// }
+/// let t = tre::geometry::dsac::sample_triple(&rho, 1, 77, 0).unwrap();
+/// assert!(t.iter().all(|&k| rho[k] > 0.0) && t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
+/// ```
 pub fn sample_triple(
     rho: &[f64; CANDIDATES],
     seed: u64,
     pixel: u64,
     hypothesis: u32,
 ) -> Option<[usize; 3]> {
-    let mut drawn = [usize::MAX; 3];
-    for d in 0..3 {
-        let taken = |k: usize| drawn[..d].contains(&k);
-        let mut total = 0.0;
-        for (k, r) in rho.iter().enumerate() {
-            if !taken(k) {
-                total += r;
-            }
-        }
-        if !(total > 0.0) {
-            return None;
-        }
-        let t = uniform(seed, pixel, hypothesis, d as u32) * total;
-        let (mut acc, mut pick) = (0.0, None);
-        for (k, &r) in rho.iter().enumerate() {
-            if taken(k) || r <= 0.0 {
-                continue;
-            }
-            acc += r;
-            pick = Some(k);
-            if t < acc {
-                break;
-            }
-        }
-        drawn[d] = pick?;
-    }
-    Some(drawn)
+    Cdf::new(rho).triple(pixel_stream(splitmix64(seed), pixel), hypothesis)
 }
 
 /// One pixel's DSAC outcome, with what is needed to compare against the training code.
@@ -141,7 +220,7 @@ pub fn sample_triple(
 pub struct PixelHypotheses {
     /// Sampled candidate triples (`None`: fewer than 3 candidates with probability).
     pub triples: Vec<Option<[usize; 3]>>,
-    /// Soft inlier score of each hypothesis (−∞ for degenerate ones).
+    /// Soft inlier score of each hypothesis, computed in f32 (−∞ for degenerate ones).
     pub scores: Vec<f64>,
     /// Index of the best hypothesis (first of equal scores), if any is non-degenerate.
     pub best: Option<usize>,
@@ -149,66 +228,54 @@ pub struct PixelHypotheses {
     pub normal: Option<Vec3>,
 }
 
-/// Runs the sampler and scorer for one pixel given its candidates and ρ.
+/// Runs the sampler and scorer for one pixel given its candidates and ρ, as [`dsac_normals`]
+/// does (bit-identical normal), recording every hypothesis. Meant for tests and debugging: it
+/// allocates. The centre candidate should be valid; if it is not, coordinates are taken about
+/// the camera origin.
+///
+/// ```
+/// use tre::geometry::{dsac, DsacConfig, Grid, Vec3};
+/// let points = Grid::from_fn(9, 9, |x, y| Vec3::new(0.01 * x as f64, 0.01 * y as f64, 1.0));
+/// let cands = dsac::candidates(&points, 4, 4);
+/// let rho = dsac::candidate_probabilities(&[0.0; 49], &cands);
+/// let h = dsac::pixel_hypotheses(&cands, &rho, 40, &DsacConfig::default());
+/// assert_eq!(h.triples.len(), 12);
+/// assert!((h.normal.unwrap().z + 1.0).abs() < 1e-9);
+/// ```
 pub fn pixel_hypotheses(
     cands: &[Vec3; CANDIDATES],
     rho: &[f64; CANDIDATES],
     pixel: u64,
     cfg: &DsacConfig,
 ) -> PixelHypotheses {
-    let triples: Vec<_> = (0..cfg.hypotheses)
-        .map(|j| sample_triple(rho, cfg.seed, pixel, j))
-        .collect();
-    let planes: Vec<_> = triples
-        .iter()
-        .map(|t| t.and_then(|[a, b, c]| Plane::through(&cands[a], &cands[b], &cands[c])))
-        .collect();
-    let scores: Vec<f64> = planes
-        .iter()
-        .map(|p| p.map_or(f64::NEG_INFINITY, |p| score(&p, cands, cfg)))
-        .collect();
-    let mut best = None;
-    for (j, s) in scores.iter().enumerate() {
-        if *s > f64::NEG_INFINITY && best.is_none_or(|b: usize| *s > scores[b]) {
-            best = Some(j);
-        }
-    }
-    let normal = best.and_then(|b| planes[b]).map(|p| refit(&p, cands, cfg));
+    let points = PaddedPoints::of_candidates(cands);
+    let window = Window::new(&points, RADIUS, RADIUS);
+    let stream = pixel_stream(splitmix64(cfg.seed), pixel);
+    let mut triples = Vec::with_capacity(cfg.hypotheses as usize);
+    let mut scores = Vec::with_capacity(cfg.hypotheses as usize);
+    let mut record = |triple, score| {
+        triples.push(triple);
+        scores.push(f64::from(score));
+    };
+    let best = best_hypothesis(&window, &Cdf::new(rho), stream, cfg, Some(&mut record));
     PixelHypotheses {
         triples,
         scores,
-        best,
-        normal,
+        best: best.map(|(j, _)| j),
+        normal: best.map(|(_, plane)| window.refit(&plane, cfg.inlier_threshold_m)),
     }
-}
-
-/// Soft inlier count of `plane` over the valid candidates.
-fn score(plane: &Plane, cands: &[Vec3; CANDIDATES], cfg: &DsacConfig) -> f64 {
-    cands
-        .iter()
-        .filter(|q| is_valid_point(q))
-        .map(|q| cfg.soft_inlier(plane.distance(q)))
-        .sum()
-}
-
-/// LS refit on the inliers (distance < τ) of `plane`, oriented towards the camera; the
-/// hypothesis' own normal if the refit is degenerate.
-fn refit(plane: &Plane, cands: &[Vec3; CANDIDATES], cfg: &DsacConfig) -> Vec3 {
-    let origin = cands[CANDIDATES / 2];
-    let mut m = Moments::default();
-    for q in cands
-        .iter()
-        .filter(|q| is_valid_point(q) && plane.distance(q) < cfg.inlier_threshold_m)
-    {
-        m.add(&(q - origin));
-    }
-    let n = m.fit(&origin).map_or(plane.normal, |p| p.normal);
-    orient_towards_camera(&n, &origin)
 }
 
 /// DSAC initial normals for a whole frame. `logits` holds the neighbour net's output for one
 /// image in channel-major order (49 × H × W, as NCHW with N = 1). Row-parallel and seeded per
 /// pixel, so the answer does not depend on the number of threads.
+///
+/// ```
+/// use tre::geometry::{dsac, DsacConfig, Grid, Vec3};
+/// let points = Grid::from_fn(9, 9, |x, y| Vec3::new(0.01 * x as f64, 0.01 * y as f64, 1.0));
+/// let normals = dsac::dsac_normals(&points, &vec![0.0; 49 * 81], &DsacConfig::default()).unwrap();
+/// assert!((normals[(4, 4)].z + 1.0).abs() < 1e-9);
+/// ```
 pub fn dsac_normals(
     points: &PointMap,
     logits: &[f32],
@@ -221,24 +288,855 @@ pub fn dsac_normals(
             got: logits.len(),
         });
     }
+    let frame = Frame {
+        points: PaddedPoints::new(points),
+        logits,
+        width: w,
+        seed_key: splitmix64(cfg.seed),
+        cfg,
+    };
     let mut out = Grid::new(w, h, INVALID_POINT);
     out.as_mut_slice()
         .par_chunks_mut(w.max(1))
         .enumerate()
         .for_each(|(y, row)| {
             for (x, n) in row.iter_mut().enumerate() {
-                if !is_valid_point(&points[(x, y)]) {
-                    continue;
-                }
-                let i = y * w + x;
-                let pixel_logits: [f32; CANDIDATES] =
-                    std::array::from_fn(|k| logits[k * w * h + i]);
-                let cands = candidates(points, x, y);
-                let rho = candidate_probabilities(&pixel_logits, &cands);
-                if let Some(normal) = pixel_hypotheses(&cands, &rho, i as u64, cfg).normal {
+                if let Some(normal) = frame.pixel_normal(x, y) {
                     *n = normal;
                 }
             }
         });
     Ok(out)
+}
+
+/// The per-pixel random stream: `splitmix64(seed_key ^ pixel)` with `seed_key =
+/// splitmix64(seed)`, so that `uniform(seed, pixel, j, d)` is [`stream_uniform`]`(stream, j, d)`.
+#[inline]
+fn pixel_stream(seed_key: u64, pixel: u64) -> u64 {
+    splitmix64(seed_key ^ pixel)
+}
+
+/// [`super::hash::uniform`] from the pixel's stream.
+#[inline]
+fn stream_uniform(stream: u64, hypothesis: u32, draw: u32) -> f64 {
+    let key = (u64::from(hypothesis) << 8) | u64::from(draw);
+    (splitmix64(stream ^ key) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// Everything the per-pixel kernel reads, shared by all rows.
+struct Frame<'a> {
+    points: PaddedPoints,
+    logits: &'a [f32],
+    width: usize,
+    seed_key: u64,
+    cfg: &'a DsacConfig,
+}
+
+impl Frame<'_> {
+    /// The DSAC normal of pixel `(x, y)`, or `None` (invalid pixel, or no usable hypothesis).
+    fn pixel_normal(&self, x: usize, y: usize) -> Option<Vec3> {
+        if !self.points.is_valid(x, y) {
+            return None;
+        }
+        let window = Window::new(&self.points, x, y);
+        let i = y * self.width + x;
+        let plane_len = self.logits.len() / CANDIDATES;
+        let mut lanes = [0.0; LANES];
+        for (k, l) in lanes[..CANDIDATES].iter_mut().enumerate() {
+            *l = self.logits[k * plane_len + i];
+        }
+        let cdf = Cdf::from_softmax(&softmax(&lanes, &window.valid));
+        let stream = pixel_stream(self.seed_key, i as u64);
+        let (_, plane) = best_hypothesis(&window, &cdf, stream, self.cfg, None)?;
+        Some(window.refit(&plane, self.cfg.inlier_threshold_m))
+    }
+}
+
+/// A hypothesis' triple and score, as [`pixel_hypotheses`] records them.
+type Record<'r> = &'r mut dyn FnMut(Option<[usize; 3]>, f32);
+
+/// Samples and scores `cfg.hypotheses` hypotheses in batches; returns the index and plane of
+/// the best one (first of the largest scores). With `record`, every triple and score is passed
+/// to it; without, a hypothesis that provably cannot beat the best so far is not scored in full
+/// ([`Window::score_above`]), which leaves the answer unchanged.
+fn best_hypothesis(
+    window: &Window<'_>,
+    cdf: &Cdf,
+    stream: u64,
+    cfg: &DsacConfig,
+    mut record: Option<Record<'_>>,
+) -> Option<(usize, Plane)> {
+    let scorer = Scorer::new(cfg);
+    let mut best: Option<(usize, f32, Plane)> = None;
+    let mut first = 0;
+    while first < cfg.hypotheses {
+        let count = (cfg.hypotheses - first).min(BATCH as u32) as usize;
+        let triples = cdf.triples(stream, first, count);
+        for (j, &triple) in (first as usize..).zip(&triples[..count]) {
+            let plane = triple.and_then(|[a, b, c]| {
+                Plane::through(&window.point(a), &window.point(b), &window.point(c))
+            });
+            let floor = match (&record, best) {
+                (None, Some((_, s, _))) => s,
+                _ => f32::NEG_INFINITY,
+            };
+            let score = plane.and_then(|p| window.score_above(&p, &scorer, floor));
+            if let Some(r) = record.as_mut() {
+                r(triple, score.unwrap_or(f32::NEG_INFINITY));
+            }
+            if let (Some(p), Some(s)) = (plane, score) {
+                if best.is_none_or(|(_, b, _)| s > b) {
+                    best = Some((j, s, p));
+                }
+            }
+        }
+        first += count as u32;
+    }
+    best.map(|(j, _, p)| (j, p))
+}
+
+/// The constants of the f32 soft inlier score (module docs, step 4).
+struct Scorer {
+    /// β · log₂e, f64.
+    gain: f64,
+    /// `f32(min(β · log₂e · τ, 120))`.
+    tau: f32,
+}
+
+impl Scorer {
+    fn new(cfg: &DsacConfig) -> Self {
+        let gain = cfg.softness / cfg.inlier_threshold_m * std::f64::consts::LOG2_E;
+        Self {
+            gain,
+            tau: (gain * cfg.inlier_threshold_m).min(120.0) as f32,
+        }
+    }
+}
+
+/// ρ (f32 lanes) from the logits and the validity mask: module docs, step 2.
+fn softmax(logits: &[f32; LANES], valid: &[u32; LANES]) -> [f32; LANES] {
+    let mut usable = [0; LANES];
+    for ((u, &v), &l) in usable.iter_mut().zip(valid).zip(logits) {
+        *u = if l.abs() < f32::INFINITY { v } else { 0 };
+    }
+    let mut lane_max = [f32::NEG_INFINITY; BLOCK];
+    for b in 0..BLOCKS {
+        for (l, m) in lane_max.iter_mut().enumerate() {
+            let k = b * BLOCK + l;
+            let v = if usable[k] != 0 { logits[k] } else { *m };
+            *m = if v > *m { v } else { *m };
+        }
+    }
+    let max = lane_max.into_iter().fold(f32::NEG_INFINITY, f32::max);
+    let mut e = [0.0; LANES];
+    if max == f32::NEG_INFINITY {
+        return e;
+    }
+    for ((e, &l), &u) in e.iter_mut().zip(logits).zip(&usable) {
+        *e = f32::from_bits(fastmath::exp(l - max).to_bits() & u);
+    }
+    let total = lane_sum(&e);
+    for v in &mut e {
+        *v /= total;
+    }
+    e
+}
+
+/// The lane sum of the module docs: per-lane accumulation over the blocks, then
+/// [`sum_block`].
+#[inline]
+fn lane_sum(v: &[f32; LANES]) -> f32 {
+    let mut acc = [0.0; BLOCK];
+    for b in 0..BLOCKS {
+        for (l, a) in acc.iter_mut().enumerate() {
+            *a += v[b * BLOCK + l];
+        }
+    }
+    sum_block(acc)
+}
+
+/// The point map as three coordinate planes padded by [`RADIUS`] invalid pixels on every side,
+/// so that every window is read without bounds checks; invalid points are NaN, so that a point
+/// is valid exactly when its z is positive.
+struct PaddedPoints {
+    stride: usize,
+    planes: [Vec<f64>; 3],
+}
+
+impl PaddedPoints {
+    fn new(points: &PointMap) -> Self {
+        let (w, h) = points.size();
+        let stride = w + 2 * RADIUS;
+        let planes = [0, 1, 2].map(|a| {
+            let mut plane = vec![f64::NAN; stride * (h + 2 * RADIUS)];
+            plane
+                .par_chunks_mut(stride)
+                .skip(RADIUS)
+                .take(h)
+                .enumerate()
+                .for_each(|(y, row)| {
+                    for (dst, p) in row[RADIUS..].iter_mut().zip(points.row(y)) {
+                        *dst = if is_valid_point(p) { p[a] } else { f64::NAN };
+                    }
+                });
+            plane
+        });
+        Self { stride, planes }
+    }
+
+    /// A 7 × 7 map holding `cands`, whose window at `(RADIUS, RADIUS)` is theirs.
+    fn of_candidates(cands: &[Vec3; CANDIDATES]) -> Self {
+        Self::new(&Grid::from_fn(WINDOW, WINDOW, |x, y| cands[y * WINDOW + x]))
+    }
+
+    /// Whether pixel `(x, y)` holds a valid point.
+    fn is_valid(&self, x: usize, y: usize) -> bool {
+        self.planes[2][(y + RADIUS) * self.stride + x + RADIUS] > 0.0
+    }
+}
+
+/// One pixel's candidates: f32 lane arrays (candidate `k` in lane `k`; the lanes after the 49th
+/// are padding and invalid) and the way back to their f64 points.
+struct Window<'a> {
+    points: &'a PaddedPoints,
+    /// Index of candidate 0 in the padded planes.
+    base: usize,
+    /// Coordinates relative to `origin`, rounded to f32; 0 for invalid candidates.
+    rel: [[f32; LANES]; 3],
+    /// All bits set for valid candidates, 0 otherwise.
+    valid: [u32; LANES],
+    /// After block `b`: the valid candidates in later blocks plus [`PRUNE_MARGIN`].
+    to_come: [f32; BLOCKS],
+    /// The centre point (the camera origin if the centre is invalid).
+    origin: Vec3,
+}
+
+impl<'a> Window<'a> {
+    /// The window centred on pixel `(x, y)`.
+    fn new(points: &'a PaddedPoints, x: usize, y: usize) -> Self {
+        let base = y * points.stride + x;
+        let centre = base + RADIUS * points.stride + RADIUS;
+        let c = points.planes.each_ref().map(|p| p[centre]);
+        let origin = if c[2] > 0.0 {
+            Vec3::from(c)
+        } else {
+            Vec3::zeros()
+        };
+        let mut valid = [0; LANES];
+        let mut rel = [[0.0; LANES]; 3];
+        for r in 0..WINDOW {
+            let src = base + r * points.stride..base + r * points.stride + WINDOW;
+            let lanes = r * WINDOW..(r + 1) * WINDOW;
+            for (v, &z) in valid[lanes.clone()]
+                .iter_mut()
+                .zip(&points.planes[2][src.clone()])
+            {
+                *v = if z > 0.0 { u32::MAX } else { 0 };
+            }
+            for (a, plane) in points.planes.iter().enumerate() {
+                let dst = rel[a][lanes.clone()].iter_mut().zip(&valid[lanes.clone()]);
+                for ((d, &m), &q) in dst.zip(&plane[src.clone()]) {
+                    *d = f32::from_bits(((q - origin[a]) as f32).to_bits() & m);
+                }
+            }
+        }
+        let mut to_come = [PRUNE_MARGIN; BLOCKS];
+        for b in (0..BLOCKS - 1).rev() {
+            let next = &valid[(b + 1) * BLOCK..(b + 2) * BLOCK];
+            to_come[b] = to_come[b + 1] + next.iter().filter(|&&v| v != 0).count() as f32;
+        }
+        Self {
+            points,
+            base,
+            rel,
+            valid,
+            to_come,
+            origin,
+        }
+    }
+
+    /// Candidate `k`'s point.
+    #[inline]
+    fn point(&self, k: usize) -> Vec3 {
+        let i = self.base + (k / WINDOW) * self.points.stride + k % WINDOW;
+        Vec3::from(self.points.planes.each_ref().map(|p| p[i]))
+    }
+
+    /// The f32 soft inlier count of `plane` over the valid candidates (module docs, step 4), or
+    /// `None` once it provably cannot exceed `floor`: after blocks 1 to 4, the partial sum plus
+    /// one per valid candidate still to come, plus [`PRUNE_MARGIN`] for the f32 rounding of both
+    /// sums (at most 56 · 10 · 2⁻²⁴ relative), bounds the score from above.
+    fn score_above(&self, plane: &Plane, scorer: &Scorer, floor: f32) -> Option<f32> {
+        let m = plane.normal * scorer.gain;
+        let d = plane.centroid - self.origin;
+        let o = ((m.x * d.x + m.y * d.y) + m.z * d.z) as f32;
+        let (nx, ny, nz) = (m.x as f32, m.y as f32, m.z as f32);
+        let [rx, ry, rz] = &self.rel;
+        let mut acc = [0.0; BLOCK];
+        for b in 0..BLOCKS {
+            for (l, a) in acc.iter_mut().enumerate() {
+                let k = b * BLOCK + l;
+                let s = (nx * rx[k] + ny * ry[k]) + nz * rz[k] - o;
+                let v = recip_one_plus_exp2(s.abs() - scorer.tau);
+                *a += f32::from_bits(v.to_bits() & self.valid[k]);
+            }
+            if (1..=4).contains(&b) && sum_block(acc) + self.to_come[b] <= floor {
+                return None;
+            }
+        }
+        Some(sum_block(acc))
+    }
+
+    /// LS refit on the inliers (distance < `tau_m`) of `plane`, oriented towards the camera;
+    /// the hypothesis' own normal if the refit is degenerate.
+    fn refit(&self, plane: &Plane, tau_m: f64) -> Vec3 {
+        let mut m = Moments::default();
+        let [xs, ys, zs] = &self.points.planes;
+        for r in 0..WINDOW {
+            let row =
+                self.base + r * self.points.stride..self.base + r * self.points.stride + WINDOW;
+            for ((&x, &y), &z) in xs[row.clone()].iter().zip(&ys[row.clone()]).zip(&zs[row]) {
+                let q = Vec3::new(x, y, z);
+                if plane.distance(&q) < tau_m {
+                    m.add(&(q - self.origin));
+                }
+            }
+        }
+        let n = m.fit(&self.origin).map_or(plane.normal, |p| p.normal);
+        orient_towards_camera(&n, &self.origin)
+    }
+}
+
+/// Bits `0..k` of a candidate mask.
+#[inline]
+fn below(k: usize) -> u64 {
+    (1u64 << k) - 1
+}
+
+/// The highest candidate in a mask, 0 for an empty one.
+#[inline]
+fn highest_or_zero(mask: u64) -> usize {
+    63 - (mask | 1).leading_zeros() as usize
+}
+
+/// The highest candidate in a mask.
+#[inline]
+fn highest(mask: u64) -> Option<usize> {
+    (mask != 0).then(|| highest_or_zero(mask))
+}
+
+/// A run of undrawn candidates from `start`: its candidates with probability (`inside`) and the
+/// subtrahends of `F_d = (P − c1) − c2` there.
+#[derive(Clone, Copy)]
+struct Run {
+    start: usize,
+    inside: u64,
+    c1: f64,
+    c2: f64,
+}
+
+impl Run {
+    #[inline]
+    fn new(start: usize, inside: u64, c1: f64, c2: f64) -> Self {
+        Self {
+            start,
+            inside,
+            c1,
+            c2,
+        }
+    }
+
+    /// `F_d` of a prefix sum in this run.
+    #[inline]
+    fn f(&self, prefix: f64) -> f64 {
+        (prefix - self.c1) - self.c2
+    }
+}
+
+/// ρ prepared for sampling: module docs, step 3.
+struct Cdf {
+    /// ρ_k (0 past the 49th).
+    rho: [f64; TABLE],
+    /// P_k (P_48 past the 49th).
+    prefix: [f64; TABLE],
+    /// Bit k set when ρ_k > 0.
+    nonzero: u64,
+    /// ρ finite and non-negative, so that the prefix sums are monotone and the search applies.
+    monotone: bool,
+}
+
+impl Cdf {
+    /// The sampler's view of any ρ.
+    fn new(rho: &[f64; CANDIDATES]) -> Self {
+        let mut table = [0.0; TABLE];
+        table[..CANDIDATES].copy_from_slice(rho);
+        let monotone = rho.iter().all(|&r| r >= 0.0 && r.is_finite());
+        let nonzero = (0..CANDIDATES).fold(0, |m, k| m | (u64::from(rho[k] > 0.0) << k));
+        Self::with_prefix(table, nonzero, monotone)
+    }
+
+    /// The sampler's view of ρ as [`softmax`] returns it: finite and non-negative.
+    fn from_softmax(rho32: &[f32; LANES]) -> Self {
+        let mut rho = [0.0; TABLE];
+        for (r, &r32) in rho.iter_mut().zip(rho32) {
+            *r = f64::from(r32);
+        }
+        let mut nonzero = 0;
+        for (b, block) in rho32.chunks_exact(BLOCK).enumerate() {
+            let bits = (0..BLOCK).fold(0u64, |m, l| m | (u64::from(block[l] > 0.0) << l));
+            nonzero |= bits << (b * BLOCK);
+        }
+        Self::with_prefix(rho, nonzero, true)
+    }
+
+    /// The prefix sums of `rho`.
+    fn with_prefix(rho: [f64; TABLE], nonzero: u64, monotone: bool) -> Self {
+        let mut prefix = [0.0; TABLE];
+        let mut acc = 0.0;
+        for (p, &r) in prefix[..CANDIDATES].iter_mut().zip(&rho) {
+            acc += r;
+            *p = acc;
+        }
+        prefix[CANDIDATES..].fill(acc);
+        Self {
+            rho,
+            prefix,
+            nonzero,
+            monotone,
+        }
+    }
+
+    /// The triple of hypothesis `hypothesis` of the pixel whose stream is `stream`.
+    fn triple(&self, stream: u64, hypothesis: u32) -> Option<[usize; 3]> {
+        self.triples(stream, hypothesis, 1)[0]
+    }
+
+    /// The triples of hypotheses `first..first + count` (`count ≤ BATCH`), drawn stage by stage
+    /// (every first draw, then every second one, …) and with their binary searches in
+    /// lockstep, so that the hypotheses' independent searches overlap in the processor.
+    fn triples(&self, stream: u64, first: u32, count: usize) -> [Option<[usize; 3]>; BATCH] {
+        let mut drawn = [[0; 3]; BATCH];
+        let mut total = [self.prefix[CANDIDATES - 1]; BATCH];
+        let mut alive = [false; BATCH];
+        alive[..count].fill(true);
+        let mut draws = [Draw::settled(None); BATCH];
+        for d in 0..3 {
+            for j in 0..count {
+                if d > 0 {
+                    total[j] -= self.rho[drawn[j][d - 1]];
+                }
+                alive[j] &= total[j] > 0.0;
+                draws[j] = if alive[j] {
+                    let t = stream_uniform(stream, first + j as u32, d as u32) * total[j];
+                    self.plan(t, &drawn[j][..d])
+                } else {
+                    Draw::settled(None)
+                };
+            }
+            for _ in 0..SEARCH_STEPS {
+                for draw in &mut draws[..count] {
+                    draw.step(&self.prefix);
+                }
+            }
+            for j in 0..count {
+                match draws[j].finish(&self.prefix) {
+                    Some(e) => drawn[j][d] = e,
+                    None => alive[j] = false,
+                }
+            }
+        }
+        std::array::from_fn(|j| alive[j].then_some(drawn[j]))
+    }
+
+    /// The draw for `t`, given the candidates already drawn: settled, or a search to run.
+    #[inline]
+    fn plan(&self, t: f64, drawn: &[usize]) -> Draw {
+        if !self.monotone {
+            return Draw::settled(self.pick_by_scan(t, drawn));
+        }
+        match *drawn {
+            [] => self.plan_in_runs(t, [Run::new(0, self.nonzero, 0.0, 0.0)]),
+            [e1] => self.plan_in_runs(
+                t,
+                [
+                    Run::new(0, self.nonzero & below(e1), 0.0, 0.0),
+                    Run::new(e1 + 1, self.nonzero & !below(e1 + 1), self.rho[e1], 0.0),
+                ],
+            ),
+            [e1, e2, ..] => {
+                let (lo, hi) = (e1.min(e2), e1.max(e2));
+                let between = self.nonzero & below(hi) & !below(lo + 1);
+                self.plan_in_runs(
+                    t,
+                    [
+                        Run::new(0, self.nonzero & below(lo), 0.0, 0.0),
+                        Run::new(lo + 1, between, self.rho[lo], 0.0),
+                        Run::new(
+                            hi + 1,
+                            self.nonzero & !below(hi + 1),
+                            self.rho[e1],
+                            self.rho[e2],
+                        ),
+                    ],
+                )
+            }
+        }
+    }
+
+    /// The draw among `runs` (in candidate order): a search in the first run where some
+    /// candidate with probability qualifies (`t < F` at its last one); else, settled, the last
+    /// candidate with probability. Branch-free up to that rare fallback.
+    #[inline(always)]
+    fn plan_in_runs<const N: usize>(&self, t: f64, runs: [Run; N]) -> Draw {
+        let lasts = runs.map(|r| highest_or_zero(r.inside));
+        let mut chosen = N;
+        for (r, run) in runs.iter().enumerate().rev() {
+            let here = (run.inside != 0) & (t < run.f(self.prefix[lasts[r] % TABLE]));
+            chosen = select_unpredictable(here, r, chosen);
+        }
+        match runs.get(chosen) {
+            Some(&run) => Draw::search(t, run, lasts[chosen]),
+            None => Draw::settled(highest(runs.iter().fold(0, |m, r| m | r.inside))),
+        }
+    }
+
+    /// One draw by the linear scan of the definition (for ρ that is not monotone-safe).
+    fn pick_by_scan(&self, t: f64, drawn: &[usize]) -> Option<usize> {
+        let f = |k: usize| {
+            drawn.iter().fold(self.prefix[k], |v, &e| {
+                v - if k >= e { self.rho[e] } else { 0.0 }
+            })
+        };
+        let eligible = |k: &usize| self.rho[*k] > 0.0 && !drawn.contains(k);
+        (0..CANDIDATES)
+            .filter(eligible)
+            .find(|&k| t < f(k))
+            .or_else(|| (0..CANDIDATES).rev().find(eligible))
+    }
+}
+
+/// Binary-search steps: enough for runs of up to 64 candidates.
+const SEARCH_STEPS: usize = 6;
+
+/// One draw in progress: settled, or a branch-free binary search (a lower bound after Khuong
+/// and Morin) for the first `k` in `base..base + n` of a run with `t < F(k)` (which exists),
+/// followed by a step to the run's next candidate with probability.
+#[derive(Clone, Copy)]
+struct Draw {
+    t: f64,
+    run: Run,
+    base: usize,
+    n: usize,
+    /// `Some(answer)` when known without a search.
+    settled: Option<Option<usize>>,
+}
+
+impl Draw {
+    fn settled(answer: Option<usize>) -> Self {
+        Self {
+            t: 0.0,
+            run: Run::new(0, 0, 0.0, 0.0),
+            base: 0,
+            n: 1,
+            settled: Some(answer),
+        }
+    }
+
+    /// A search of `run.start..=last`, given `t < F(last)`.
+    fn search(t: f64, run: Run, last: usize) -> Self {
+        Self {
+            t,
+            run,
+            base: run.start,
+            n: last + 1 - run.start,
+            settled: None,
+        }
+    }
+
+    /// Whether candidate `k` fails: `F(k) ≤ t` (or NaN).
+    #[inline(always)]
+    fn fails(&self, prefix: &[f64; TABLE], k: usize) -> bool {
+        !(self.t < self.run.f(prefix[k % TABLE]))
+    }
+
+    /// One halving of the search range (a no-op once it holds one candidate).
+    #[inline(always)]
+    fn step(&mut self, prefix: &[f64; TABLE]) {
+        let half = self.n / 2;
+        let probe = self.base + half;
+        self.base = select_unpredictable(self.fails(prefix, probe), probe, self.base);
+        self.n -= half;
+    }
+
+    /// The drawn candidate, after [`SEARCH_STEPS`] steps.
+    #[inline(always)]
+    fn finish(&self, prefix: &[f64; TABLE]) -> Option<usize> {
+        if let Some(answer) = self.settled {
+            return answer;
+        }
+        let k = self.base + usize::from(self.fails(prefix, self.base));
+        Some(k + (self.run.inside >> k).trailing_zeros() as usize)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::hash::uniform;
+    use proptest::prelude::*;
+
+    /// The sampler exactly as the module docs define it, by linear scans.
+    fn reference_triple(
+        rho: &[f64; CANDIDATES],
+        seed: u64,
+        pixel: u64,
+        hyp: u32,
+    ) -> Option<[usize; 3]> {
+        let mut prefix = [0.0; CANDIDATES];
+        let mut acc = 0.0;
+        for k in 0..CANDIDATES {
+            acc += rho[k];
+            prefix[k] = acc;
+        }
+        let mut drawn: Vec<usize> = Vec::new();
+        let mut total = prefix[CANDIDATES - 1];
+        for d in 0..3u32 {
+            if let Some(&e) = drawn.last() {
+                total -= rho[e];
+            }
+            if !(total > 0.0) {
+                return None;
+            }
+            let t = uniform(seed, pixel, hyp, d) * total;
+            let f = |k: usize| {
+                let mut v = prefix[k];
+                for &e in &drawn {
+                    v -= if k >= e { rho[e] } else { 0.0 };
+                }
+                v
+            };
+            let ok = |k: usize| !drawn.contains(&k) && rho[k] > 0.0;
+            let pick = (0..CANDIDATES)
+                .find(|&k| ok(k) && t < f(k))
+                .or_else(|| (0..CANDIDATES).rev().find(|&k| ok(k)))?;
+            drawn.push(pick);
+        }
+        Some([drawn[0], drawn[1], drawn[2]])
+    }
+
+    /// One ρ entry: mostly zeros, tiny values, exact ties or random magnitudes.
+    fn rho_entry() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            4 => Just(0.0),
+            1 => Just(f64::from_bits(1)),
+            1 => Just(1e-300),
+            1 => Just(1e-17),
+            2 => Just(0.25),
+            2 => Just(1.0 / 3.0),
+            1 => Just(7.0),
+            3 => 0.0..1.0f64,
+            1 => (-40.0..0.0f64).prop_map(f64::exp2),
+        ]
+    }
+
+    /// One ρ entry of a sparse ρ: mostly zeros and tiny values, and a few large ones, so that
+    /// the remaining mass after large draws is made of rounding errors.
+    fn sparse_rho_entry() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            14 => Just(0.0),
+            2 => Just(f64::from_bits(1)),
+            2 => Just(0.3 * f64::EPSILON),
+            2 => Just(1e-17),
+            2 => (-70.0..-40.0f64).prop_map(f64::exp2),
+            1 => Just(1.0),
+            1 => Just(0.75),
+            1 => 0.5..4.0f64,
+        ]
+    }
+
+    fn rho_vec() -> impl Strategy<Value = [f64; CANDIDATES]> {
+        let entries = prop_oneof![
+            prop::collection::vec(rho_entry(), CANDIDATES),
+            prop::collection::vec(sparse_rho_entry(), CANDIDATES),
+        ];
+        entries.prop_map(|v| {
+            let mut rho = [0.0; CANDIDATES];
+            rho.copy_from_slice(&v);
+            rho
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+        #[test]
+        fn fast_sampler_equals_linear_scan(rho in rho_vec(), seed in any::<u64>(), pixel in any::<u64>()) {
+            for hyp in 0..48 {
+                let p = pixel.wrapping_add(u64::from(hyp / 8));
+                prop_assert_eq!(sample_triple(&rho, seed, p, hyp), reference_triple(&rho, seed, p, hyp));
+            }
+        }
+
+        #[test]
+        fn fast_sampler_equals_linear_scan_on_softmax(logits in prop::array::uniform32(-30.0..30.0f32), seed in any::<u64>()) {
+            let points = Grid::new(7, 7, Vec3::new(0.0, 0.0, 1.0));
+            let mut all = [0.0; CANDIDATES];
+            all[..32].copy_from_slice(&logits);
+            all[32..].copy_from_slice(&logits[..17]);
+            let rho = candidate_probabilities(&all, &candidates(&points, 3, 3));
+            for hyp in 0..24 {
+                prop_assert_eq!(sample_triple(&rho, seed, 5, hyp), reference_triple(&rho, seed, 5, hyp));
+            }
+        }
+    }
+
+    #[test]
+    fn sampler_handles_unsafe_rho_by_scanning() {
+        let mut rho = [0.1; CANDIDATES];
+        rho[5] = -0.3;
+        rho[9] = f64::NAN;
+        rho[30] = f64::INFINITY;
+        for hyp in 0..50 {
+            assert_eq!(
+                sample_triple(&rho, 3, 8, hyp),
+                reference_triple(&rho, 3, 8, hyp)
+            );
+        }
+    }
+
+    #[test]
+    fn stream_uniform_is_hash_uniform() {
+        for (seed, pixel, hyp, d) in [(0, 0, 0, 0), (7, 1234, 3, 2), (u64::MAX, 99, 11, 1)] {
+            let stream = pixel_stream(splitmix64(seed), pixel);
+            assert_eq!(
+                stream_uniform(stream, hyp, d).to_bits(),
+                uniform(seed, pixel, hyp, d).to_bits()
+            );
+        }
+    }
+
+    #[test]
+    fn probabilities_match_the_f64_softmax() {
+        let points = Grid::from_fn(7, 7, |x, _| {
+            if x == 2 {
+                INVALID_POINT
+            } else {
+                Vec3::new(0.0, 0.0, 1.0)
+            }
+        });
+        let cands = candidates(&points, 3, 3);
+        let logits: [f32; CANDIDATES] = std::array::from_fn(|k| ((k * 37) % 23) as f32 - 11.5);
+        let rho = candidate_probabilities(&logits, &cands);
+        let valid = |k: usize| k % WINDOW != 2;
+        let e: Vec<f64> = (0..CANDIDATES)
+            .map(|k| {
+                if valid(k) {
+                    (f64::from(logits[k]) - 11.5).exp()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let total: f64 = e.iter().sum();
+        for k in 0..CANDIDATES {
+            approx::assert_relative_eq!(rho[k], e[k] / total, max_relative = 4e-7);
+        }
+    }
+
+    #[test]
+    fn non_finite_logits_get_no_probability() {
+        let points = Grid::new(7, 7, Vec3::new(0.0, 0.0, 1.0));
+        let mut logits = [1.0; CANDIDATES];
+        logits[3] = f32::NAN;
+        logits[4] = f32::INFINITY;
+        let rho = candidate_probabilities(&logits, &candidates(&points, 3, 3));
+        assert_eq!((rho[3], rho[4]), (0.0, 0.0));
+        approx::assert_relative_eq!(rho[0], 1.0 / 47.0, max_relative = 1e-6);
+        let none = candidate_probabilities(&[f32::NAN; CANDIDATES], &candidates(&points, 3, 3));
+        assert!(none.iter().all(|&r| r == 0.0));
+    }
+
+    /// A bumpy surface seen from 1.5 m.
+    fn bumpy(w: usize, h: usize) -> PointMap {
+        Grid::from_fn(w, h, |x, y| {
+            let (u, v) = (x as f64 * 0.004, y as f64 * 0.004);
+            let z = 1.5 + 0.3 * u + 0.006 * (x as f64 * 1.7).sin() * (y as f64 * 2.3).cos();
+            if (x * 7 + y * 3) % 17 == 0 {
+                INVALID_POINT
+            } else {
+                Vec3::new(u - 0.1, v - 0.1, z)
+            }
+        })
+    }
+
+    #[test]
+    fn f32_scores_match_the_f64_formula() {
+        let points = bumpy(20, 20);
+        let cfg = DsacConfig::default();
+        let scorer = Scorer::new(&cfg);
+        let cands = candidates(&points, 9, 11);
+        let padded = PaddedPoints::of_candidates(&cands);
+        let window = Window::new(&padded, RADIUS, RADIUS);
+        for [a, b, c] in [[0, 24, 48], [3, 20, 40], [10, 11, 30], [6, 42, 24]] {
+            let plane = Plane::through(&cands[a], &cands[b], &cands[c]).unwrap();
+            let reference: f64 = cands
+                .iter()
+                .filter(|q| is_valid_point(q))
+                .map(|q| cfg.soft_inlier(plane.distance(q)))
+                .sum();
+            let fast = f64::from(
+                window
+                    .score_above(&plane, &scorer, f32::NEG_INFINITY)
+                    .unwrap(),
+            );
+            assert!((fast - reference).abs() < 2e-5, "{fast} vs {reference}");
+        }
+    }
+
+    #[test]
+    fn pixel_hypotheses_agree_with_dsac_normals() {
+        let (w, h) = (16, 12);
+        let points = bumpy(w, h);
+        let logits: Vec<f32> = (0..CANDIDATES * w * h)
+            .map(|i| ((i * 2_654_435_761usize) % 1000) as f32 / 250.0)
+            .collect();
+        let cfg = DsacConfig {
+            seed: 5,
+            ..Default::default()
+        };
+        let normals = dsac_normals(&points, &logits, &cfg).unwrap();
+        for (x, y) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))) {
+            let i = y * w + x;
+            let cands = candidates(&points, x, y);
+            let px_logits: [f32; CANDIDATES] = std::array::from_fn(|k| logits[k * w * h + i]);
+            let rho = candidate_probabilities(&px_logits, &cands);
+            let hyp = pixel_hypotheses(&cands, &rho, i as u64, &cfg);
+            let expected = match is_valid_point(&points[(x, y)]) {
+                true => hyp.normal.unwrap_or(INVALID_POINT),
+                false => INVALID_POINT,
+            };
+            let got = normals[(x, y)];
+            let bits = |v: &Vec3| v.map(f64::to_bits);
+            assert_eq!(bits(&got), bits(&expected), "pixel ({x}, {y})");
+            for (t, s) in hyp.triples.iter().zip(&hyp.scores) {
+                assert_eq!(
+                    t.is_some_and(|[a, b, c]| {
+                        Plane::through(&cands[a], &cands[b], &cands[c]).is_some()
+                    }),
+                    *s > f64::NEG_INFINITY
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn best_is_the_first_largest_score() {
+        let points = bumpy(12, 12);
+        let cands = candidates(&points, 6, 6);
+        let rho = candidate_probabilities(&[0.0; CANDIDATES], &cands);
+        let hyp = pixel_hypotheses(&cands, &rho, 3, &DsacConfig::default());
+        let best = hyp.best.unwrap();
+        let max = hyp.scores.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        assert_eq!(hyp.scores[best], max);
+        assert!(hyp.scores[..best].iter().all(|&s| s < max));
+    }
 }

@@ -3,6 +3,7 @@
 
 pub mod camera;
 pub mod dsac;
+pub mod fastmath;
 pub mod gravity;
 pub mod grid;
 pub mod hash;
