@@ -69,7 +69,9 @@
 //!
 //! Scoring stops early for a hypothesis that provably cannot beat the best one so far (its
 //! partial sum plus one per candidate still to come, with a margin for rounding, is not above
-//! the best score), so the chosen hypothesis, and the result, are those of the full computation.
+//! the best score); each batch of hypotheses finishes first the one leading after two blocks,
+//! to raise that bar early. The chosen hypothesis, and so the result, are those of the full
+//! computation, which [`pixel_hypotheses`] performs.
 
 use std::hint::select_unpredictable;
 
@@ -97,7 +99,7 @@ const TABLE: usize = 64;
 const RADIUS: usize = WINDOW / 2;
 /// Hypotheses sampled together, stage by stage.
 const BATCH: usize = 12;
-/// Slack for the f32 rounding in the pruning bound of [`Window::score_above`] (the bound needs
+/// Slack for the f32 rounding in the pruning bound of [`Window::finish_above`] (the bound needs
 /// 2e-4 for scores up to 49).
 const PRUNE_MARGIN: f32 = 1e-3;
 
@@ -357,8 +359,9 @@ type Record<'r> = &'r mut dyn FnMut(Option<[usize; 3]>, f32);
 
 /// Samples and scores `cfg.hypotheses` hypotheses in batches; returns the index and plane of
 /// the best one (first of the largest scores). With `record`, every triple and score is passed
-/// to it; without, a hypothesis that provably cannot beat the best so far is not scored in full
-/// ([`Window::score_above`]), which leaves the answer unchanged.
+/// to it; without, each batch scores first the hypothesis that leads after
+/// [`LEAD_BLOCKS`] blocks, then the others only as long as they might still beat the best
+/// ([`Window::finish_above`]), which leaves the answer unchanged.
 fn best_hypothesis(
     window: &Window<'_>,
     cdf: &Cdf,
@@ -367,33 +370,98 @@ fn best_hypothesis(
     mut record: Option<Record<'_>>,
 ) -> Option<(usize, Plane)> {
     let scorer = Scorer::new(cfg);
-    let mut best: Option<(usize, f32, Plane)> = None;
+    let mut best = Best::default();
     let mut first = 0;
     while first < cfg.hypotheses {
         let count = (cfg.hypotheses - first).min(BATCH as u32) as usize;
         let triples = cdf.triples(stream, first, count);
-        for (j, &triple) in (first as usize..).zip(&triples[..count]) {
-            let plane = triple.and_then(|[a, b, c]| {
-                Plane::through(&window.point(a), &window.point(b), &window.point(c))
-            });
-            let floor = match (&record, best) {
-                (None, Some((_, s, _))) => s,
-                _ => f32::NEG_INFINITY,
-            };
-            let score = plane.and_then(|p| window.score_above(&p, &scorer, floor));
-            if let Some(r) = record.as_mut() {
-                r(triple, score.unwrap_or(f32::NEG_INFINITY));
-            }
-            if let (Some(p), Some(s)) = (plane, score) {
-                if best.is_none_or(|(_, b, _)| s > b) {
-                    best = Some((j, s, p));
+        let hyps: [Option<(Plane, Hyp32)>; BATCH] = std::array::from_fn(|j| {
+            let [a, b, c] = triples[j]?;
+            let plane = Plane::through(&window.point(a), &window.point(b), &window.point(c))?;
+            Some((plane, window.hyp32(&plane, &scorer)))
+        });
+        let base = first as usize;
+        match record.as_mut() {
+            Some(r) => {
+                for (j, (&triple, hyp)) in triples.iter().zip(&hyps).enumerate().take(count) {
+                    let score = hyp.map(|(p, h)| (p, window.full_score(&h)));
+                    r(triple, score.map_or(f32::NEG_INFINITY, |(_, s)| s));
+                    if let Some((p, s)) = score {
+                        best.offer(base + j, s, p);
+                    }
                 }
             }
+            None => best_of_batch(window, &hyps[..count], base, &mut best),
         }
         first += count as u32;
     }
-    best.map(|(j, _, p)| (j, p))
+    best.found.map(|(j, _, p)| (j, p))
 }
+
+/// Offers the hypotheses of a batch (indices from `base`) to `best`, the one leading after
+/// [`LEAD_BLOCKS`] blocks first, the others with pruning.
+fn best_of_batch(
+    window: &Window<'_>,
+    hyps: &[Option<(Plane, Hyp32)>],
+    base: usize,
+    best: &mut Best,
+) {
+    let mut leads = [[0.0; BLOCK]; BATCH];
+    let mut lead: Option<(usize, f32)> = None;
+    for (j, hyp) in hyps.iter().enumerate() {
+        if let Some((_, h)) = hyp {
+            window.add_blocks(h, &mut leads[j], 0..LEAD_BLOCKS);
+            let partial = sum_block(leads[j]);
+            if lead.is_none_or(|(_, p)| partial > p) {
+                lead = Some((j, partial));
+            }
+        }
+    }
+    let order = lead.map(|(j, _)| j).into_iter();
+    let rest = (0..hyps.len()).filter(|&j| lead.is_none_or(|(l, _)| l != j));
+    for j in order.chain(rest) {
+        if let Some((plane, h)) = hyps[j] {
+            if let Some(score) = window.finish_above(&h, leads[j], best.score()) {
+                best.offer(base + j, score, plane);
+            }
+        }
+    }
+}
+
+/// The best hypothesis so far: the largest score, and the first of equal ones.
+#[derive(Default)]
+struct Best {
+    found: Option<(usize, f32, Plane)>,
+}
+
+impl Best {
+    /// Its score (−∞ before any).
+    fn score(&self) -> f32 {
+        self.found.map_or(f32::NEG_INFINITY, |(_, s, _)| s)
+    }
+
+    /// Keeps hypothesis `j` if it scores more, or as much with a smaller index.
+    fn offer(&mut self, j: usize, score: f32, plane: Plane) {
+        let better = match self.found {
+            None => true,
+            Some((i, s, _)) => score > s || (score == s && j < i),
+        };
+        if better {
+            self.found = Some((j, score, plane));
+        }
+    }
+}
+
+/// A hypothesis plane in the f32 form the scorer uses (module docs, step 4): `n″` and `o″`.
+#[derive(Clone, Copy)]
+struct Hyp32 {
+    n: [f32; 3],
+    o: f32,
+    tau: f32,
+}
+
+/// Blocks scored for every hypothesis of a batch before the leading one is finished.
+const LEAD_BLOCKS: usize = 2;
 
 /// The constants of the f32 soft inlier score (module docs, step 4).
 struct Scorer {
@@ -562,27 +630,50 @@ impl<'a> Window<'a> {
         Vec3::from(self.points.planes.each_ref().map(|p| p[i]))
     }
 
-    /// The f32 soft inlier count of `plane` over the valid candidates (module docs, step 4), or
-    /// `None` once it provably cannot exceed `floor`: after blocks 1 to 4, the partial sum plus
-    /// one per valid candidate still to come, plus [`PRUNE_MARGIN`] for the f32 rounding of both
-    /// sums (at most 56 · 10 · 2⁻²⁴ relative), bounds the score from above.
-    fn score_above(&self, plane: &Plane, scorer: &Scorer, floor: f32) -> Option<f32> {
+    /// `plane` in the scorer's f32 form.
+    fn hyp32(&self, plane: &Plane, scorer: &Scorer) -> Hyp32 {
         let m = plane.normal * scorer.gain;
-        let d = plane.centroid - self.origin;
-        let o = ((m.x * d.x + m.y * d.y) + m.z * d.z) as f32;
-        let (nx, ny, nz) = (m.x as f32, m.y as f32, m.z as f32);
+        let u = plane.centroid - self.origin;
+        let o = (m.x * u.x + m.y * u.y) + m.z * u.z;
+        Hyp32 {
+            n: [m.x as f32, m.y as f32, m.z as f32],
+            o: o as f32,
+            tau: scorer.tau,
+        }
+    }
+
+    /// Adds blocks `blocks` of `h`'s soft inlier terms to the lane accumulators `acc`.
+    #[inline(always)]
+    fn add_blocks(&self, h: &Hyp32, acc: &mut [f32; BLOCK], blocks: std::ops::Range<usize>) {
+        let [nx, ny, nz] = h.n;
         let [rx, ry, rz] = &self.rel;
-        let mut acc = [0.0; BLOCK];
-        for b in 0..BLOCKS {
+        for b in blocks {
             for (l, a) in acc.iter_mut().enumerate() {
                 let k = b * BLOCK + l;
-                let s = (nx * rx[k] + ny * ry[k]) + nz * rz[k] - o;
-                let v = recip_one_plus_exp2(s.abs() - scorer.tau);
+                let s = (nx * rx[k] + ny * ry[k]) + nz * rz[k] - h.o;
+                let v = recip_one_plus_exp2(s.abs() - h.tau);
                 *a += f32::from_bits(v.to_bits() & self.valid[k]);
             }
-            if (1..=4).contains(&b) && sum_block(acc) + self.to_come[b] <= floor {
+        }
+    }
+
+    /// The f32 soft inlier count of `h` over the valid candidates (module docs, step 4).
+    fn full_score(&self, h: &Hyp32) -> f32 {
+        let mut acc = [0.0; BLOCK];
+        self.add_blocks(h, &mut acc, 0..BLOCKS);
+        sum_block(acc)
+    }
+
+    /// The score of `h` from its accumulators after [`LEAD_BLOCKS`] blocks, or `None` once it
+    /// provably is below `floor`: the partial sum plus one per valid candidate still to come,
+    /// plus [`PRUNE_MARGIN`] for the f32 rounding of both sums (at most 56 · 10 · 2⁻²⁴
+    /// relative), bounds it from above.
+    fn finish_above(&self, h: &Hyp32, mut acc: [f32; BLOCK], floor: f32) -> Option<f32> {
+        for b in LEAD_BLOCKS..BLOCKS {
+            if sum_block(acc) + self.to_come[b - 1] <= floor {
                 return None;
             }
+            self.add_blocks(h, &mut acc, b..b + 1);
         }
         Some(sum_block(acc))
     }
@@ -1055,11 +1146,12 @@ mod tests {
         assert!(none.iter().all(|&r| r == 0.0));
     }
 
-    /// A bumpy surface seen from 1.5 m.
+    /// A bumpy surface seen from 1.5 m, with a 2 cm step along a diagonal and some holes.
     fn bumpy(w: usize, h: usize) -> PointMap {
         Grid::from_fn(w, h, |x, y| {
             let (u, v) = (x as f64 * 0.004, y as f64 * 0.004);
-            let z = 1.5 + 0.3 * u + 0.006 * (x as f64 * 1.7).sin() * (y as f64 * 2.3).cos();
+            let step = if x + y > w { 0.02 } else { 0.0 };
+            let z = 1.5 + 0.3 * u + 0.006 * (x as f64 * 1.7).sin() * (y as f64 * 2.3).cos() + step;
             if (x * 7 + y * 3) % 17 == 0 {
                 INVALID_POINT
             } else {
@@ -1083,11 +1175,7 @@ mod tests {
                 .filter(|q| is_valid_point(q))
                 .map(|q| cfg.soft_inlier(plane.distance(q)))
                 .sum();
-            let fast = f64::from(
-                window
-                    .score_above(&plane, &scorer, f32::NEG_INFINITY)
-                    .unwrap(),
-            );
+            let fast = f64::from(window.full_score(&window.hyp32(&plane, &scorer)));
             assert!((fast - reference).abs() < 2e-5, "{fast} vs {reference}");
         }
     }
