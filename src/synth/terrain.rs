@@ -140,15 +140,13 @@ impl Terrain {
 
     /// Ground of one category everywhere (for tests and calibration).
     pub fn uniform(category: Category, seed: u64) -> Self {
-        let mut rng = Rng(seed);
-        let steps = (category == Category::Stairs).then(|| Steps {
+        let steps = (category == Category::Stairs).then_some(Steps {
             dir: (0.0, 1.0),
             start_m: 0.8,
             tread_m: 0.35,
             riser_m: 0.10,
             steps: 3,
         });
-        let _ = rng.next();
         Self {
             regions: vec![Region {
                 centre: (0.0, 0.0),
