@@ -61,6 +61,23 @@ impl<T> Grid<T> {
         }
     }
 
+    /// Builds a grid by calling `f(x, y)` for every pixel, rows in parallel.
+    pub fn par_from_fn(width: usize, height: usize, f: impl Fn(usize, usize) -> T + Sync) -> Self
+    where
+        T: Send,
+    {
+        use rayon::prelude::*;
+        let data = (0..width * height)
+            .into_par_iter()
+            .map(|i| f(i % width, i / width))
+            .collect();
+        Self {
+            width,
+            height,
+            data,
+        }
+    }
+
     /// Width in pixels.
     pub fn width(&self) -> usize {
         self.width

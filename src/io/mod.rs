@@ -295,11 +295,25 @@ pub fn write_mask_png(path: &Path, mask: &Grid<bool>) -> Result<(), IoError> {
 }
 
 /// Saves an image, choosing the format from the extension.
+/// PNG files use fast compression: frames are written often and read by machines.
 pub fn save(path: &Path, img: &DynamicImage) -> Result<(), IoError> {
-    img.save(path).map_err(|e| IoError::Image {
+    let err = |e: image::ImageError| IoError::Image {
         path: path.to_owned(),
         reason: e.to_string(),
-    })
+    };
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+        let out = BufWriter::new(File::create(path).map_err(|source| IoError::Read {
+            path: path.to_owned(),
+            source,
+        })?);
+        let enc = PngEncoder::new_with_quality(out, CompressionType::Fast, FilterType::Adaptive);
+        return img.write_with_encoder(enc).map_err(err);
+    }
+    img.save(path).map_err(err)
 }
 
 /// Encodes depth (metres) as a 16-bit grey PNG in millimetres (0: no data; saturates at

@@ -89,7 +89,7 @@ pub fn annotate(
     let edge_term = edge_weight_m.map(|&w| edge_term(w, cfg.epsilon_m));
     let edge_m = edge_transient(&edge_term, &points, cfg.edge_sigma_px);
     let surface_m = surface_term(&points, &normals, &centroids);
-    let roughness_m = Grid::from_fn(points.width(), points.height(), |x, y| {
+    let roughness_m = Grid::par_from_fn(points.width(), points.height(), |x, y| {
         if is_valid_point(&points[(x, y)]) {
             surface_m[(x, y)].max(edge_m[(x, y)])
         } else {
@@ -142,7 +142,7 @@ fn checked_points(input: &AnnotateInput<'_>) -> Result<PointMap, RoughnessError>
 
 /// Normalises given normals and turns them towards the camera (invalid where not finite).
 fn oriented_normals(normals: &Grid<Vec3>, points: &PointMap) -> Grid<Vec3> {
-    Grid::from_fn(points.width(), points.height(), |x, y| {
+    Grid::par_from_fn(points.width(), points.height(), |x, y| {
         let (n, p) = (normals[(x, y)], points[(x, y)]);
         let len = n.norm();
         if is_valid_point(&p) && len > 0.0 && len.is_finite() {
@@ -260,7 +260,7 @@ fn neighbours8(w: usize, h: usize, x: usize, y: usize) -> impl Iterator<Item = u
 pub fn boundary_mask(points: &PointMap, segments: &Grid<u32>) -> Grid<bool> {
     let (w, h) = points.size();
     let s = segments.as_slice();
-    Grid::from_fn(w, h, |x, y| {
+    Grid::par_from_fn(w, h, |x, y| {
         let i = y * w + x;
         s[i] != 0 && neighbours8(w, h, x, y).any(|j| s[j] != 0 && s[j] != s[i])
     })
@@ -270,7 +270,7 @@ pub fn boundary_mask(points: &PointMap, segments: &Grid<u32>) -> Grid<bool> {
 pub fn edge_weights(points: &PointMap, boundary: &Grid<bool>) -> Grid<f64> {
     let (w, h) = points.size();
     let p = points.as_slice();
-    Grid::from_fn(w, h, |x, y| {
+    Grid::par_from_fn(w, h, |x, y| {
         let i = y * w + x;
         if !boundary.as_slice()[i] {
             return 0.0;
@@ -302,7 +302,7 @@ pub fn edge_term(w_m: f64, epsilon_m: f64) -> f64 {
 
 /// Step 5: `|n_i·(p_i − c_i)|` where normal and centroid exist; 0 where the normal is missing.
 fn surface_term(points: &PointMap, normals: &Grid<Vec3>, centroids: &PointMap) -> Grid<f64> {
-    Grid::from_fn(points.width(), points.height(), |x, y| {
+    Grid::par_from_fn(points.width(), points.height(), |x, y| {
         let (p, n, c) = (points[(x, y)], normals[(x, y)], centroids[(x, y)]);
         let s = n.dot(&(p - c)).abs();
         if s.is_finite() {
