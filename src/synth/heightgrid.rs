@@ -9,6 +9,8 @@ use crate::geometry::Vec3;
 
 /// Cells per side of a skipping block.
 const BLOCK: usize = 16;
+/// Blocks per side of a super-block (16 × 16 blocks: about 1 m at 4 mm cells).
+const SUPER: usize = 16;
 
 /// Heights on a regular grid of vertices (metres, gravity frame, z up).
 #[derive(Debug, Clone)]
@@ -21,6 +23,8 @@ pub struct HeightGrid {
     heights: Vec<f32>,
     block_max: Vec<f32>,
     bnx: usize,
+    super_max: Vec<f32>,
+    snx: usize,
     max_h: f64,
 }
 
@@ -68,6 +72,14 @@ impl HeightGrid {
                 }
             }
         }
+        let (snx, sny) = (bnx.div_ceil(SUPER), bny.div_ceil(SUPER));
+        let mut super_max = vec![f32::NEG_INFINITY; snx * sny];
+        for bj in 0..bny {
+            for bi in 0..bnx {
+                let m = &mut super_max[(bj / SUPER) * snx + bi / SUPER];
+                *m = m.max(block_max[bj * bnx + bi]);
+            }
+        }
         let max_h = heights.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b)) as f64;
         Self {
             x0,
@@ -78,6 +90,8 @@ impl HeightGrid {
             heights,
             block_max,
             bnx,
+            super_max,
+            snx,
             max_h,
         }
     }
@@ -127,6 +141,27 @@ impl HeightGrid {
     /// Distance along the unit ray `o + t·d` to its first intersection with the surface.
     pub fn intersect(&self, o: &Vec3, d: &Vec3, t_max: f64) -> Option<f64> {
         let (mut t, t_end) = self.clip(o, d, t_max)?;
+        let super_m = self.cell_m * (BLOCK * SUPER) as f64;
+        let sny = self.ny.div_ceil(BLOCK).div_ceil(SUPER);
+        while t < t_end {
+            let (si, sj, t_out) = dda_step(o, d, t, self.x0, self.y0, super_m)?;
+            if si >= self.snx || sj >= sny {
+                return None;
+            }
+            let t_out = t_out.min(t_end);
+            let z_low = (o.z + t * d.z).min(o.z + t_out * d.z);
+            if z_low <= f64::from(self.super_max[sj * self.snx + si]) {
+                if let Some(hit) = self.intersect_blocks(o, d, t, t_out) {
+                    return Some(hit);
+                }
+            }
+            t = t_out;
+        }
+        None
+    }
+
+    /// Block-by-block search between `t` and `t_end`.
+    fn intersect_blocks(&self, o: &Vec3, d: &Vec3, mut t: f64, t_end: f64) -> Option<f64> {
         let block_m = self.cell_m * BLOCK as f64;
         let (bny, bnx) = (self.ny.div_ceil(BLOCK), self.bnx);
         while t < t_end {
