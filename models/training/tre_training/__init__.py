@@ -1,0 +1,1 @@
+"""TRENet training code: a numpy reference of the serving geometry and its shared test vectors."""
