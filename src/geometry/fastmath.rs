@@ -83,7 +83,7 @@ fn pow2_of_rounded(r: f32) -> f32 {
 
 /// eˣ with relative error below 2e-7 over the whole f32 range of results it returns.
 ///
-/// Operations: `x ← min(max(x, −87), 88)`; `r = x·log₂e + ROUND`; `n = r − ROUND`;
+/// Operations: `x ← min(88, max(−87, x))` (NaN stays NaN); `r = x·log₂e + ROUND`; `n = r − ROUND`;
 /// `f = (x − n·LN2_HI) − n·LN2_LO`; `p = (((((E₀f + E₁)f + E₂)f + E₃)f + E₄)f + E₅)·(f·f) + f + 1`
 /// (added left to right); result `p · 2ⁿ` with 2ⁿ from the bits of `r` (see the source for the
 /// constants). NaN gives NaN.
@@ -107,7 +107,7 @@ pub fn exp(x: f32) -> f32 {
 
 /// 2ʸ with relative error below 2.5e-7.
 ///
-/// Operations: `y ← min(max(y, −125), 127)`; `r = y + ROUND`; `n = r − ROUND`; `f = y − n`;
+/// Operations: `y ← min(127, max(−125, y))` (NaN stays NaN); `r = y + ROUND`; `n = r − ROUND`; `f = y − n`;
 /// `g = f·f`; `q = (C₂·f + C₁) + ((C₄·f + C₃) + C₅·g)·g` (Estrin's scheme, for a short
 /// dependency chain); result `(1 + f·q) · 2ⁿ` with 2ⁿ from the bits of `r`. NaN gives NaN.
 ///

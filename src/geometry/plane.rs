@@ -15,7 +15,8 @@ pub struct Plane {
 }
 
 impl Plane {
-    /// The plane through three points, or `None` when they are (nearly) collinear.
+    /// The plane through three points, or `None` when they are (nearly) collinear: exactly when
+    /// `!(|ab × ac| > 1e-9·|ab|·|ac|)` or `|ab × ac|` is not finite (`ab = b − a`, `ac = c − a`).
     ///
     /// ```
     /// use nalgebra::Vector3;
