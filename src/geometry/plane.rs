@@ -156,19 +156,7 @@ pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
     }
     let a = a * (1.0 / scale);
     let (l_min, l_mid) = smallest_two_eigenvalues(&a);
-    if !(l_mid - l_min > 1e-6) {
-        return None;
-    }
-    let row = |i: usize| Vec3::new(a[(i, 0)], a[(i, 1)], a[(i, 2)]) - Vec3::ith(i, l_min);
-    let (r0, r1, r2) = (row(0), row(1), row(2));
-    let mut best = r0.cross(&r1);
-    for c in [r0.cross(&r2), r1.cross(&r2)] {
-        if c.norm_squared() > best.norm_squared() {
-            best = c;
-        }
-    }
-    let len = best.norm();
-    (len > 0.0 && len.is_finite()).then(|| best / len)
+    eigenvector_for(&a, l_min, l_mid)
 }
 
 /// Lanes of [`smallest_eigenvectors`].
