@@ -235,3 +235,65 @@ fn stairs_show_their_step_heights_on_the_boundaries() {
     assert!(ann.segments.as_slice().iter().max().copied().unwrap_or(0) >= 3);
     let _ = (is_valid_point(&Vec3::zeros()), Grid::new(1, 1, 0u8));
 }
+
+#[test]
+fn eval_scores_the_geometric_baseline_on_a_generated_split() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = SynthConfig {
+        out: dir.path().to_owned(),
+        scenes: 3,
+        seed: 11,
+        size: (96, 96),
+        views: 2,
+        ply: false,
+        test_fraction: 0.5,
+        ..SynthConfig::default()
+    };
+    let m = tre::synth::generate(&cfg).unwrap();
+    let split = if m.counts.1 > 0 { "test" } else { "train" };
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tre"))
+        .args([
+            "eval",
+            "--data",
+            dir.path().to_str().unwrap(),
+            "--mode",
+            "geometric",
+            "--split",
+            split,
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // RMSE is a finite, positive number of centimetres, below a metre on ground seen from 1 m.
+    let rmse: f64 = text
+        .split("RMSE ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(rmse > 0.0 && rmse < 100.0, "{text}");
+    assert!(text.contains("normals    mean"), "{text}");
+    // A split with no frames is a clear error.
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_tre"))
+        .args([
+            "eval",
+            "--data",
+            dir.path().to_str().unwrap(),
+            "--split",
+            "nope",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        !bad.status.success()
+            && String::from_utf8_lossy(&bad.stderr).contains("no frames in split")
+    );
+}

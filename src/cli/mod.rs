@@ -1,6 +1,7 @@
 //! Command-line subcommands, one file each; `main.rs` only parses and dispatches.
 
 pub mod annotate;
+pub mod eval;
 pub mod synth;
 
 use clap::{Parser, Subcommand};
@@ -24,6 +25,8 @@ pub enum Command {
     Annotate(annotate::Annotate),
     /// Generate a synthetic terrain dataset with exact ground truth.
     Synth(synth::Synth),
+    /// Score roughness and normals on a synthetic dataset's test split.
+    Eval(eval::Eval),
 }
 
 impl Command {
@@ -32,6 +35,7 @@ impl Command {
         match self {
             Command::Annotate(cmd) => cmd.run(),
             Command::Synth(cmd) => cmd.run(),
+            Command::Eval(cmd) => cmd.run(),
         }
     }
 }
