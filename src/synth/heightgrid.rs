@@ -9,8 +9,6 @@ use crate::geometry::Vec3;
 
 /// Cells per side of a skipping block.
 const BLOCK: usize = 16;
-/// Blocks per side of a super-block (16 × 16 blocks: about 1 m at 4 mm cells).
-const SUPER: usize = 16;
 
 /// Heights on a regular grid of vertices (metres, gravity frame, z up).
 #[derive(Debug, Clone)]
@@ -23,8 +21,6 @@ pub struct HeightGrid {
     heights: Vec<f32>,
     block_max: Vec<f32>,
     bnx: usize,
-    super_max: Vec<f32>,
-    snx: usize,
     max_h: f64,
 }
 
@@ -72,14 +68,6 @@ impl HeightGrid {
                 }
             }
         }
-        let (snx, sny) = (bnx.div_ceil(SUPER), bny.div_ceil(SUPER));
-        let mut super_max = vec![f32::NEG_INFINITY; snx * sny];
-        for bj in 0..bny {
-            for bi in 0..bnx {
-                let m = &mut super_max[(bj / SUPER) * snx + bi / SUPER];
-                *m = m.max(block_max[bj * bnx + bi]);
-            }
-        }
         let max_h = heights.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b)) as f64;
         Self {
             x0,
@@ -90,8 +78,6 @@ impl HeightGrid {
             heights,
             block_max,
             bnx,
-            super_max,
-            snx,
             max_h,
         }
     }
@@ -138,47 +124,34 @@ impl HeightGrid {
         Some(Vec3::new(-(b + e * v) / self.cell_m, -(c + e * u) / self.cell_m, 1.0).normalize())
     }
 
-    /// Distance along the unit ray `o + t·d` to its first intersection with the surface.
+    /// Distance along the unit ray `o + t·d` to its first intersection with the surface:
+    /// blocks whose highest vertex the ray passes above are skipped whole.
     pub fn intersect(&self, o: &Vec3, d: &Vec3, t_max: f64) -> Option<f64> {
-        let (mut t, t_end) = self.clip(o, d, t_max)?;
-        let super_m = self.cell_m * (BLOCK * SUPER) as f64;
-        let sny = self.ny.div_ceil(BLOCK).div_ceil(SUPER);
-        while t < t_end {
-            let (si, sj, t_out) = dda_step(o, d, t, self.x0, self.y0, super_m)?;
-            if si >= self.snx || sj >= sny {
-                return None;
-            }
-            let t_out = t_out.min(t_end);
-            let z_low = (o.z + t * d.z).min(o.z + t_out * d.z);
-            if z_low <= f64::from(self.super_max[sj * self.snx + si]) {
-                if let Some(hit) = self.intersect_blocks(o, d, t, t_out) {
-                    return Some(hit);
+        let (t, t_end) = self.clip(o, d, t_max)?;
+        let blocks = (self.bnx, self.ny.div_ceil(BLOCK));
+        walk(
+            o,
+            d,
+            (t, t_end),
+            (self.x0, self.y0),
+            self.cell_m * BLOCK as f64,
+            blocks,
+            |bi, bj, t0, t1| {
+                let z_low = (o.z + t0 * d.z).min(o.z + t1 * d.z);
+                if z_low > f64::from(self.block_max[bj * self.bnx + bi]) {
+                    return None;
                 }
-            }
-            t = t_out;
-        }
-        None
-    }
-
-    /// Block-by-block search between `t` and `t_end`.
-    fn intersect_blocks(&self, o: &Vec3, d: &Vec3, mut t: f64, t_end: f64) -> Option<f64> {
-        let block_m = self.cell_m * BLOCK as f64;
-        let (bny, bnx) = (self.ny.div_ceil(BLOCK), self.bnx);
-        while t < t_end {
-            let (bi, bj, t_out) = dda_step(o, d, t, self.x0, self.y0, block_m)?;
-            if bi >= bnx || bj >= bny {
-                return None;
-            }
-            let t_out = t_out.min(t_end);
-            let z_low = (o.z + t * d.z).min(o.z + t_out * d.z);
-            if z_low <= f64::from(self.block_max[bj * bnx + bi]) {
-                if let Some(hit) = self.intersect_block(o, d, t, t_out) {
-                    return Some(hit);
-                }
-            }
-            t = t_out;
-        }
-        None
+                walk(
+                    o,
+                    d,
+                    (t0, t1),
+                    (self.x0, self.y0),
+                    self.cell_m,
+                    (self.nx, self.ny),
+                    |i, j, c0, c1| self.intersect_cell(o, d, i, j, c0, c1),
+                )
+            },
+        )
     }
 
     /// Clips the ray to the grid's footprint and to heights at or below the highest vertex.
@@ -208,22 +181,6 @@ impl HeightGrid {
             t1 = t1.min((self.max_h - o.z) / d.z);
         }
         (t0 < t1).then_some((t0, t1))
-    }
-
-    /// Cell-by-cell search of one block between `t` and `t_out`.
-    fn intersect_block(&self, o: &Vec3, d: &Vec3, mut t: f64, t_out: f64) -> Option<f64> {
-        while t < t_out {
-            let (i, j, t_cell) = dda_step(o, d, t, self.x0, self.y0, self.cell_m)?;
-            if i >= self.nx || j >= self.ny {
-                return None;
-            }
-            let t_cell = t_cell.min(t_out);
-            if let Some(hit) = self.intersect_cell(o, d, i, j, t, t_cell) {
-                return Some(hit);
-            }
-            t = t_cell;
-        }
-        None
     }
 
     /// Exact intersection with the bilinear patch of cell `(i, j)` for `t ∈ [t0, t1]`.
@@ -275,6 +232,31 @@ fn first_root(a: f64, b: f64, c: f64, len: f64) -> Option<f64> {
     let (r1, r2) = (q / a, if q != 0.0 { c / q } else { f64::INFINITY });
     let (lo, hi) = (r1.min(r2), r1.max(r2));
     ok(lo).or_else(|| ok(hi))
+}
+
+/// Walks the cells (of `size` metres from `origin`, `n` per side) that the ray crosses over
+/// `[t, t_end]`, calling `visit(i, j, t_in, t_out)` on each until one returns a hit.
+fn walk(
+    o: &Vec3,
+    d: &Vec3,
+    (mut t, t_end): (f64, f64),
+    (x0, y0): (f64, f64),
+    size: f64,
+    (nx, ny): (usize, usize),
+    mut visit: impl FnMut(usize, usize, f64, f64) -> Option<f64>,
+) -> Option<f64> {
+    while t < t_end {
+        let (i, j, t_out) = dda_step(o, d, t, x0, y0, size)?;
+        if i >= nx || j >= ny {
+            return None;
+        }
+        let t_out = t_out.min(t_end);
+        if let Some(hit) = visit(i, j, t, t_out) {
+            return Some(hit);
+        }
+        t = t_out;
+    }
+    None
 }
 
 /// The grid cell (cells of `size` metres from `(x0, y0)`) that the ray occupies just after `t`,
