@@ -168,26 +168,11 @@ pub const EIGEN_LANES: usize = 4;
 pub fn smallest_eigenvectors(covs: &[Matrix3<f64>; EIGEN_LANES]) -> [Option<Vec3>; EIGEN_LANES] {
     let scale = covs.map(|a| a.abs().max());
     let a: [Matrix3<f64>; EIGEN_LANES] = std::array::from_fn(|l| covs[l] * (1.0 / scale[l]));
-    let c2 = a.map(|a| a.trace());
-    let c1 = a.map(|a| {
-        a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)] + a[(0, 0)] * a[(2, 2)]
-            - a[(0, 2)] * a[(2, 0)]
-            + a[(1, 1)] * a[(2, 2)]
-            - a[(1, 2)] * a[(2, 1)]
-    });
-    let c0 = a.map(|a| a.determinant());
+    let c = a.map(|a| char_poly(&a));
     let (mut l, mut step) = ([0.0f64; EIGEN_LANES], [0.0f64; EIGEN_LANES]);
     for _ in 0..6 {
         for i in 0..EIGEN_LANES {
-            let f = ((-l[i] + c2[i]) * l[i] - c1[i]) * l[i] + c0[i];
-            let df = (-3.0 * l[i] + 2.0 * c2[i]) * l[i] - c1[i];
-            let ddf = -6.0 * l[i] + 2.0 * c2[i];
-            let denom = 2.0 * df * df - f * ddf;
-            step[i] = if denom != 0.0 {
-                2.0 * f * df / denom
-            } else {
-                0.0
-            };
+            step[i] = halley_step(&c[i], l[i]);
             l[i] -= step[i];
         }
     }
@@ -196,10 +181,7 @@ pub fn smallest_eigenvectors(covs: &[Matrix3<f64>; EIGEN_LANES]) -> [Option<Vec3
         if !(scale[i] > 0.0) || !scale[i].is_finite() {
             None
         } else if converged {
-            let s = c2[i] - l[i];
-            let q = c1[i] - l[i] * s;
-            let mid = 0.5 * (s - (s * s - 4.0 * q).max(0.0).sqrt());
-            eigenvector_for(&a[i], l[i], mid)
+            eigenvector_for(&a[i], l[i], next_root(&c[i], l[i]))
         } else {
             smallest_eigenvector(&covs[i])
         }
@@ -226,35 +208,51 @@ fn eigenvector_for(a: &Matrix3<f64>, l_min: f64, l_mid: f64) -> Option<Vec3> {
 
 /// The two smallest eigenvalues (ascending) of a symmetric PSD 3×3 matrix.
 fn smallest_two_eigenvalues(a: &Matrix3<f64>) -> (f64, f64) {
-    // det(A − λI) = −λ³ + c2·λ² − c1·λ + c0.
-    let c2 = a.trace();
-    let c1 = a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)] + a[(0, 0)] * a[(2, 2)]
-        - a[(0, 2)] * a[(2, 0)]
-        + a[(1, 1)] * a[(2, 2)]
-        - a[(1, 2)] * a[(2, 1)];
-    let c0 = a.determinant();
+    let c = char_poly(a);
     // Halley's method from 0: cubic convergence, and monotone like Newton's on this side of
     // the smallest root (f > 0, f' < 0, f'' > 0 there).
     let mut l = 0.0f64;
     for _ in 0..100 {
-        let f = ((-l + c2) * l - c1) * l + c0;
-        let df = (-3.0 * l + 2.0 * c2) * l - c1;
-        let ddf = -6.0 * l + 2.0 * c2;
-        let denom = 2.0 * df * df - f * ddf;
-        if denom == 0.0 {
-            break;
-        }
-        let step = 2.0 * f * df / denom;
+        let step = halley_step(&c, l);
         l -= step;
         if step.abs() <= 1e-15 * (1.0 + l.abs()) {
             break;
         }
     }
-    // The other two roots: sum s = c2 − λ, product q = c1 − λ·s.
+    (l, next_root(&c, l))
+}
+
+/// `[c2, c1, c0]` of `det(A − λI) = −λ³ + c2·λ² − c1·λ + c0`.
+#[inline(always)]
+fn char_poly(a: &Matrix3<f64>) -> [f64; 3] {
+    let c1 = a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)] + a[(0, 0)] * a[(2, 2)]
+        - a[(0, 2)] * a[(2, 0)]
+        + a[(1, 1)] * a[(2, 2)]
+        - a[(1, 2)] * a[(2, 1)];
+    [a.trace(), c1, a.determinant()]
+}
+
+/// One Halley step for the characteristic cubic at `l` (0 where it is flat).
+#[inline(always)]
+fn halley_step(&[c2, c1, c0]: &[f64; 3], l: f64) -> f64 {
+    let f = ((-l + c2) * l - c1) * l + c0;
+    let df = (-3.0 * l + 2.0 * c2) * l - c1;
+    let ddf = -6.0 * l + 2.0 * c2;
+    let denom = 2.0 * df * df - f * ddf;
+    if denom != 0.0 {
+        2.0 * f * df / denom
+    } else {
+        0.0
+    }
+}
+
+/// The smaller of the other two roots, given root `l`: their sum is `c2 − l`, their product
+/// `c1 − l·(c2 − l)`.
+#[inline(always)]
+fn next_root(&[c2, c1, _]: &[f64; 3], l: f64) -> f64 {
     let s = c2 - l;
     let q = c1 - l * s;
-    let mid = 0.5 * (s - (s * s - 4.0 * q).max(0.0).sqrt());
-    (l, mid)
+    0.5 * (s - (s * s - 4.0 * q).max(0.0).sqrt())
 }
 
 #[cfg(test)]
