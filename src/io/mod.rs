@@ -255,13 +255,19 @@ pub fn roughness_png16(roughness_m: &Grid<f64>) -> ImageBuffer<LumaA<u16>, Vec<u
 /// Encodes a non-negative map in metres as 16-bit grey at 0.1 mm per unit (saturating at
 /// 6.5535 m; non-finite: 0).
 pub fn metres_png16(map_m: &Grid<f64>) -> image::ImageBuffer<image::Luma<u16>, Vec<u16>> {
-    image::ImageBuffer::from_fn(map_m.width() as u32, map_m.height() as u32, |x, y| {
-        let v = map_m[(x as usize, y as usize)];
-        image::Luma([if v.is_finite() {
-            (v / ROUGHNESS_PNG_SCALE_M).round().clamp(0.0, 65535.0) as u16
-        } else {
-            0
-        }])
+    luma16(map_m, |v| {
+        v.is_finite()
+            .then(|| (v / ROUGHNESS_PNG_SCALE_M).round().clamp(0.0, 65535.0) as u16)
+    })
+}
+
+/// A 16-bit grey image of a float map, `encode` giving each pixel's value (`None`: 0).
+fn luma16(
+    map: &Grid<f64>,
+    encode: impl Fn(f64) -> Option<u16>,
+) -> image::ImageBuffer<image::Luma<u16>, Vec<u16>> {
+    image::ImageBuffer::from_fn(map.width() as u32, map.height() as u32, |x, y| {
+        image::Luma([encode(map[(x as usize, y as usize)]).unwrap_or(0)])
     })
 }
 
@@ -319,13 +325,8 @@ pub fn save(path: &Path, img: &DynamicImage) -> Result<(), IoError> {
 /// Encodes depth (metres) as a 16-bit grey PNG in millimetres (0: no data; saturates at
 /// 65.535 m).
 pub fn depth_png16(depth_m: &Grid<f64>) -> image::ImageBuffer<image::Luma<u16>, Vec<u16>> {
-    image::ImageBuffer::from_fn(depth_m.width() as u32, depth_m.height() as u32, |x, y| {
-        let d = depth_m[(x as usize, y as usize)];
-        image::Luma([if d > 0.0 && d.is_finite() {
-            (d * 1000.0).round().clamp(1.0, 65535.0) as u16
-        } else {
-            0
-        }])
+    luma16(depth_m, |d| {
+        (d > 0.0 && d.is_finite()).then(|| (d * 1000.0).round().clamp(1.0, 65535.0) as u16)
     })
 }
 
