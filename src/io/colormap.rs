@@ -53,17 +53,7 @@ pub fn roughness_preview(roughness_m: &Grid<f64>, max_m: f64) -> RgbImage {
     let (w, h) = (roughness_m.width() as u32, roughness_m.height() as u32);
     let width = w.max(60);
     let mut img = RgbImage::from_pixel(width, h + LEGEND_H, Rgb([255, 255, 255]));
-    for (x, y, px) in img
-        .enumerate_pixels_mut()
-        .filter(|(x, y, _)| *x < w && *y < h)
-    {
-        let r = roughness_m[(x as usize, y as usize)];
-        *px = Rgb(if r.is_finite() {
-            turbo(r / max_m)
-        } else {
-            NO_DATA
-        });
-    }
+    image::imageops::replace(&mut img, &colourise(roughness_m, 0.0, max_m), 0, 0);
     draw_legend(&mut img, h, max_m);
     img
 }
@@ -137,12 +127,11 @@ fn draw_text(img: &mut RgbImage, x0: u32, y0: u32, s: &str) {
     }
 }
 
-/// Turbo colours of a float map over `[lo, hi]` (non-finite or ≤ 0 where `lo` is 0: no-data grey).
+/// Turbo colours of a float map over `[lo, hi]` (non-finite: no-data grey).
 pub fn colourise(map: &Grid<f64>, lo: f64, hi: f64) -> RgbImage {
     RgbImage::from_fn(map.width() as u32, map.height() as u32, |x, y| {
         let v = map[(x as usize, y as usize)];
-        let missing = !v.is_finite() || (lo == 0.0 && v <= 0.0 && hi > 1.0);
-        Rgb(if missing {
+        Rgb(if !v.is_finite() {
             NO_DATA
         } else {
             turbo((v - lo) / (hi - lo))

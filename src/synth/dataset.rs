@@ -413,7 +413,8 @@ fn write_frame(
 /// One contact-sheet row: rgb | depth | normals | labels | roughness (0–5 cm).
 fn tiles(f: &RenderedFrame, roughness_m: &Grid<f64>) -> RgbImage {
     let (w, h) = (f.rgb.width(), f.rgb.height());
-    let depth = io::colormap::colourise(&f.depth_m, 0.0, 3.0);
+    let depth_or_nan = f.depth_m.map(|&d| if d > 0.0 { d } else { f64::NAN });
+    let depth = io::colormap::colourise(&depth_or_nan, 0.0, 3.0);
     let normals = RgbImage::from_fn(w, h, |u, v| {
         let n: Vec3 = f.normals_cam[(u as usize, v as usize)];
         image::Rgb(if n.x.is_finite() {
