@@ -231,14 +231,21 @@ def dsac_loss(
     normals_gt: Tensor,
     seed: int,
     cfg: DsacSettings = DsacSettings(),
+    max_pixels: int | None = None,
 ) -> tuple[Tensor, Tensor]:
     """DSAC training loss for N×49×H×W logits; returns (loss to minimise, expected normal error
-    in degrees for logging). Pixels without a valid point or ground-truth normal are skipped."""
+    in degrees for logging). Pixels without a valid point or ground-truth normal are skipped;
+    with `max_pixels`, a random subset of that many (chosen from `seed`) is scored."""
     cands, cvalid = pixel_candidates(points_m, valid)
     gt = normals_gt.permute(0, 2, 3, 1).reshape(-1, 3)
     keep = cvalid[:, CENTRE] & torch.isfinite(gt).all(1)
+    idx = torch.nonzero(keep).squeeze(1)
+    if max_pixels is not None and idx.shape[0] > max_pixels:
+        g = torch.Generator().manual_seed(seed)
+        idx = idx[torch.randperm(idx.shape[0], generator=g)[:max_pixels]]
+    keep = torch.zeros_like(keep)
+    keep[idx] = True
     rho = candidate_rho(logits, cvalid)[keep]
-    idx = torch.arange(keep.shape[0])[keep]
     u = uniforms(seed, idx, cfg.hypotheses)
     hyp = hypotheses(cands[keep], cvalid[keep], rho, u, cfg)
     cos = (hyp.normals * gt[keep].unsqueeze(0)).sum(-1).abs().clamp(max=1.0)

@@ -22,6 +22,7 @@ import onnxruntime as ort
 import torch
 
 from . import nets
+from .geometry import prior_depth
 from .train import CHECKPOINTS, STAGE_NET
 
 REPO = Path(__file__).resolve().parents[3]
@@ -104,6 +105,31 @@ def write_vectors(name: str, model: torch.nn.Module) -> None:
     np.save(out / f"output_{cls.output_names[0]}.npy", y.numpy().astype(np.float32))
 
 
+def write_prior_vectors() -> None:
+    """The flat-ground prior depth for two cameras (one looking above the horizon), for the Rust
+    side's `prior_depth`; float32 maps, compared within 1e-5 relative."""
+    cases = []
+    for k, mount, (w, h) in (
+        ([40.0, 42.0, 15.5, 9.5], (np.deg2rad(60.0), 1.0), (32, 20)),
+        ([20.0, 20.0, 16.0, 12.0], (np.deg2rad(10.0), 0.4), (32, 24)),
+    ):
+        prior = prior_depth(torch.tensor([k]), torch.tensor([mount], dtype=torch.float32), h, w)[
+            0, 0
+        ]
+        cases.append(
+            {
+                "intrinsics": k,
+                "pitch_rad": float(mount[0]),
+                "height_m": mount[1],
+                "width": w,
+                "height": h,
+                "prior_depth_m": [round(float(v), 6) for v in prior.reshape(-1)],
+            }
+        )
+    PARITY.mkdir(parents=True, exist_ok=True)
+    (PARITY / "prior_depth.json").write_text(json.dumps({"cases": cases}) + "\n")
+
+
 def io_spec(names: tuple[str, ...], channels: dict[str, int]) -> list[dict]:
     return [{"name": k, "shape": ["N", channels[k], "H", "W"], "dtype": "float32"} for k in names]
 
@@ -134,6 +160,7 @@ def main(argv: list[str] | None = None) -> int:
         "models": {},
     }
     data = dataset_info(args.data)
+    write_prior_vectors()
     for name, cls in nets.NETS.items():
         model, log = load_net(name, args.allow_untrained)
         path = MODELS / f"{name}.onnx"

@@ -45,7 +45,7 @@ STAGE_NET = {
 }
 DEFAULTS = {  # batch, crop
     "depth": (12, 128),
-    "neighbour": (4, 64),
+    "neighbour": (8, 64),
     "refiner": (12, 128),
     "centroid": (12, 128),
     "e2e": (12, 128),
@@ -144,7 +144,7 @@ def step_loss(stage: str, model: torch.nn.Module, b: dict, step: int) -> tuple[T
     if stage == "neighbour":
         logits = model(b["rgb"], b["points_m"], b["valid"])
         dsac, angle = dsac_torch.dsac_loss(
-            logits, b["points_m"], b["valid"], b["normals_gt"], seed=step
+            logits, b["points_m"], b["valid"], b["normals_gt"], seed=step, max_pixels=4096
         )
         target = inlier_target(b["points_m"], b["valid"], b["normals_gt"], 0.01)
         ce = -(target * F.log_softmax(logits, 1)).sum(1).mean()
