@@ -63,6 +63,7 @@ impl Infer {
         let mode = self.mode()?;
         let cfg = self.stages.config(mode);
         let frame = self.read_frame()?;
+        crate::pipeline::check_input(&frame, &cfg)?;
         let mut pipeline = self.stages.pipeline(&[cfg])?;
         let out = pipeline.run(&frame, &cfg)?;
         self.write(&out)?;

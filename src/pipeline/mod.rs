@@ -33,7 +33,7 @@ pub use config::{
 };
 pub use depth::{prior_depth, MAX_PRIOR_DEPTH_M};
 pub use frame::{FrameInput, FrameOutput, StageTimings, DEFAULT_HFOV_DEG};
-pub use run::{Pipeline, DEFAULT_WORKING_SIZE};
+pub use run::{check_input, Pipeline, DEFAULT_WORKING_SIZE};
 
 use crate::geometry::GeometryError;
 use crate::model::ModelError;

@@ -276,8 +276,15 @@ fn loaded(models: &mut Option<Models>) -> Result<&mut Models, PipelineError> {
         })
 }
 
-/// Checks the frame against the mode; returns its `(width, height)`.
-fn check_input(input: &FrameInput, cfg: &PipelineConfig) -> Result<(usize, usize), PipelineError> {
+/// Checks a frame against the configuration without running anything (as [`Pipeline::run`]
+/// does first): the inputs the mode needs are there, depth and RGB agree in size, the frame is
+/// neither empty nor too large. Returns its `(width, height)`.
+///
+/// # Errors
+///
+/// [`PipelineError::MissingInput`], [`PipelineError::DepthSizeMismatch`],
+/// [`PipelineError::EmptyImage`] or [`PipelineError::TooLarge`].
+pub fn check_input(input: &FrameInput, cfg: &PipelineConfig) -> Result<(usize, usize), PipelineError> {
     let (mode, needs_rgb, needs_depth) = match (cfg.method, cfg.mode) {
         (Method::EndToEnd, _) => ("the end-to-end method", true, false),
         (Method::Pipeline, Mode::Rgb) => ("rgb mode", true, false),
