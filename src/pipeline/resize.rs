@@ -26,12 +26,13 @@ pub fn resize_rgb(rgb: &RgbImage, width: usize, height: usize) -> Cow<'_, RgbIma
 }
 
 /// The source index that output index `i` of `n_out` samples among `n_in`: the pixel whose
-/// area holds the output pixel's centre.
+/// area `[j, j + 1)` holds the output pixel's centre (on an edge between two, the later one).
 ///
 /// ```
 /// use tre::pipeline::resize::nearest_index;
-/// assert_eq!(nearest_index(0, 4, 2), 0);
-/// assert_eq!(nearest_index(1, 4, 2), 2);
+/// assert_eq!(nearest_index(0, 4, 2), 1);
+/// assert_eq!(nearest_index(1, 4, 2), 3);
+/// assert_eq!(nearest_index(0, 3, 1), 1);
 /// assert_eq!(nearest_index(5, 2, 6), 1);
 /// ```
 pub fn nearest_index(i: usize, n_in: usize, n_out: usize) -> usize {

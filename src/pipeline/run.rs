@@ -284,7 +284,10 @@ fn loaded(models: &mut Option<Models>) -> Result<&mut Models, PipelineError> {
 ///
 /// [`PipelineError::MissingInput`], [`PipelineError::DepthSizeMismatch`],
 /// [`PipelineError::EmptyImage`] or [`PipelineError::TooLarge`].
-pub fn check_input(input: &FrameInput, cfg: &PipelineConfig) -> Result<(usize, usize), PipelineError> {
+pub fn check_input(
+    input: &FrameInput,
+    cfg: &PipelineConfig,
+) -> Result<(usize, usize), PipelineError> {
     let (mode, needs_rgb, needs_depth) = match (cfg.method, cfg.mode) {
         (Method::EndToEnd, _) => ("the end-to-end method", true, false),
         (Method::Pipeline, Mode::Rgb) => ("rgb mode", true, false),
