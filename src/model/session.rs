@@ -10,7 +10,7 @@ use ort::session::Session;
 use ort::value::TensorRef;
 use serde::{Deserialize, Serialize};
 
-use super::manifest::{sha256_file, ModelEntry, TensorSpec};
+use super::manifest::{sha256_hex, ModelEntry, TensorSpec};
 use super::onnx;
 use super::{runtime, ModelError};
 
@@ -219,11 +219,11 @@ fn check_file(model: &str, path: &Path, entry: &ModelEntry) -> Result<(), ModelE
         path: path.to_owned(),
         reason,
     };
-    let sha = sha256_file(path).map_err(|e| bad_onnx(e.to_string()))?;
+    let bytes = std::fs::read(path).map_err(|e| bad_onnx(e.to_string()))?;
+    let sha = sha256_hex(&bytes);
     if !sha.eq_ignore_ascii_case(entry.sha256.trim()) {
         return Err(ModelError::mismatch(model, "sha256", &entry.sha256, sha));
     }
-    let bytes = std::fs::read(path).map_err(|e| bad_onnx(e.to_string()))?;
     let imports = onnx::opset_imports(&bytes).map_err(|e| bad_onnx(e.to_string()))?;
     let found = onnx::default_opset(&imports).map_or_else(|| "none".to_owned(), |v| v.to_string());
     if found != entry.opset.to_string() {
