@@ -1,10 +1,12 @@
 //! Terrain roughness estimation (TRENet): geometry, roughness annotation, models and service.
 //!
 //! Layers depend downward only: [`geometry`] and [`roughness`] are pure and synchronous;
-//! [`io`] reads and writes the on-disk formats; [`model`] owns ONNX Runtime; the CLI sits on top.
+//! [`io`] reads and writes the on-disk formats; [`model`] owns ONNX Runtime and the manifest;
+//! [`pipeline`] runs one frame through every stage; the CLI sits on top.
 pub mod cli;
 pub mod geometry;
 pub mod io;
 pub mod model;
+pub mod pipeline;
 pub mod roughness;
 pub mod synth;

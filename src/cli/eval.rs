@@ -1,25 +1,25 @@
-//! `tre eval`: scores roughness and normals on the test split of a `tre synth` dataset. For now
-//! the `geometric` mode (no networks): LS normals and window centroids on the true depth,
-//! roughness `|n·(p − c)|` (Eq. 1), against annotation spec v1.
+//! `tre eval`: scores the pipeline (any mode and switches, or the end-to-end baseline) on a
+//! split of a `tre synth` dataset against annotation spec v1: roughness RMSE, B-RMSE, F-RMSE;
+//! normal angle errors; depth errors in rgb mode; mean time per stage. `--tables` runs every
+//! row of the paper's Tables II, IV and V and prints them as markdown.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use clap::{Args, ValueEnum};
+use clap::Args;
+use serde::Serialize;
 
-use crate::geometry::{local_planes, Grid, Neighbourhood, Vec3, INVALID_POINT};
+use super::options::{ModeArg, StageArgs};
+use super::tables;
+use crate::geometry::{Grid, Vec3};
 use crate::io;
-use crate::roughness::{NormalAccumulator, RoughnessAccumulator};
+use crate::pipeline::{FrameInput, Method, Pipeline, PipelineConfig};
+use crate::roughness::metrics::{DepthMetrics, NormalMetrics, RoughnessMetrics};
+use crate::roughness::{DepthAccumulator, NormalAccumulator, RoughnessAccumulator};
 use crate::synth::dataset::Manifest;
 
-/// Input modes (the paper's Table IV rows); only `geometric` runs without models.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Mode {
-    /// Depth only, no networks: LS normals and window centroids.
-    Geometric,
-}
-
-/// Score a method on a synthetic dataset's test split.
+/// Score a method on a synthetic dataset's split.
 #[derive(Debug, Args)]
 pub struct Eval {
     /// Dataset folder written by `tre synth` (holds dataset.json).
@@ -27,73 +27,254 @@ pub struct Eval {
     pub data: PathBuf,
     /// Input mode.
     #[arg(long, value_enum, default_value = "geometric")]
-    pub mode: Mode,
+    pub mode: ModeArg,
+    /// Pipeline switches and models.
+    #[command(flatten)]
+    pub stages: StageArgs,
     /// Split to score.
     #[arg(long, default_value = "test")]
     pub split: String,
+    /// Score only the first N frames of the split.
+    #[arg(long)]
+    pub limit: Option<usize>,
+    /// Run every row of the paper's Tables II, IV and V (ignores --mode and the switches).
+    #[arg(long)]
+    pub tables: bool,
+    /// Also write the numbers as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// One configuration to score, with a stable key (`mode:label`).
+#[derive(Debug, Clone)]
+pub struct RowSpec {
+    /// `rgb:DE+DSAC+NR+ESR`, `geometric:LS+window`, `e2e:E2E`, ...
+    pub key: String,
+    /// What runs.
+    pub cfg: PipelineConfig,
+}
+
+/// The scores of one configuration over the split.
+#[derive(Debug, Clone, Serialize)]
+pub struct RowResult {
+    /// The row's key.
+    pub key: String,
+    /// What ran.
+    pub config: PipelineConfig,
+    /// Roughness errors, cm.
+    pub roughness: RoughnessMetrics,
+    /// Normal errors (none for the end-to-end baseline).
+    pub normals: Option<NormalMetrics>,
+    /// Depth errors (rgb mode only: elsewhere depth is given).
+    pub depth: Option<DepthMetrics>,
+    /// Mean wall time per frame of each stage, ms.
+    pub mean_ms: BTreeMap<String, f64>,
+}
+
+/// The JSON report.
+#[derive(Debug, Serialize)]
+struct Report<'a> {
+    data: &'a Path,
+    split: &'a str,
+    frames: usize,
+    rows: &'a [RowResult],
+}
+
+/// Accumulators of one row.
+#[derive(Default)]
+struct Score {
+    roughness: RoughnessAccumulator,
+    normals: NormalAccumulator,
+    depth: DepthAccumulator,
+    has_normals: bool,
+    has_depth: bool,
+    total_ms: BTreeMap<String, f64>,
+}
+
+/// One frame's inputs and ground truth.
+struct Frame {
+    input: FrameInput,
+    roughness_m: Grid<f64>,
+    boundary: Grid<bool>,
+    normals: Grid<Vec3>,
+    depth_m: Grid<f64>,
 }
 
 impl Eval {
-    /// Scores every frame of the split and prints the metrics.
+    /// Scores every frame of the split and prints the metrics (and the tables).
     pub fn run(self) -> anyhow::Result<()> {
-        let text = std::fs::read_to_string(self.data.join("dataset.json"))
-            .with_context(|| format!("reading {}/dataset.json", self.data.display()))?;
+        let dirs = self.frame_dirs()?;
+        let specs = if self.tables {
+            tables::row_specs(&self.stages.config(self.mode))
+        } else {
+            let cfg = self.stages.config(self.mode);
+            vec![RowSpec {
+                key: row_key(&cfg),
+                cfg,
+            }]
+        };
+        let configs: Vec<PipelineConfig> = specs.iter().map(|s| s.cfg).collect();
+        let mut pipeline = self.stages.pipeline(&configs)?;
+        let mut scores: Vec<Score> = specs.iter().map(|_| Score::default()).collect();
+        for (i, dir) in dirs.iter().enumerate() {
+            let frame = read_frame(dir).with_context(|| format!("frame {}", dir.display()))?;
+            for (spec, score) in specs.iter().zip(&mut scores) {
+                score_frame(&mut pipeline, &frame, spec, score)
+                    .with_context(|| format!("frame {}, {}", dir.display(), spec.key))?;
+            }
+            tracing::info!("{}/{} frames", i + 1, dirs.len());
+        }
+        let rows: Vec<RowResult> = specs
+            .iter()
+            .zip(&scores)
+            .map(|(spec, score)| score.finish(spec, dirs.len()))
+            .collect();
+        println!(
+            "{}, split {}, {} frames\n",
+            self.data.display(),
+            self.split,
+            dirs.len()
+        );
+        if self.tables {
+            println!("{}", tables::markdown(&rows));
+        } else {
+            rows.iter().for_each(print_row);
+        }
+        self.write_json(dirs.len(), &rows)
+    }
+
+    /// The frame folders of the split, at most `--limit`.
+    fn frame_dirs(&self) -> anyhow::Result<Vec<PathBuf>> {
+        let path = self.data.join("dataset.json");
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("reading {}", path.display()))?;
         let manifest: Manifest = serde_json::from_str(&text).context("parsing dataset.json")?;
         let dirs: Vec<PathBuf> = manifest
             .scenes
             .iter()
             .filter(|s| s.split == self.split)
             .flat_map(|s| s.frames.iter().map(|f| self.data.join(&f.dir)))
+            .take(self.limit.unwrap_or(usize::MAX))
             .collect();
         if dirs.is_empty() {
             bail!("no frames in split {:?}", self.split);
         }
-        let (mut rough, mut normals) = (
-            RoughnessAccumulator::default(),
-            NormalAccumulator::default(),
-        );
-        for dir in &dirs {
-            score_frame(dir, &mut rough, &mut normals)
-                .with_context(|| format!("frame {}", dir.display()))?;
+        Ok(dirs)
+    }
+
+    fn write_json(&self, frames: usize, rows: &[RowResult]) -> anyhow::Result<()> {
+        let Some(path) = &self.json else {
+            return Ok(());
+        };
+        let report = Report {
+            data: &self.data,
+            split: &self.split,
+            frames,
+            rows,
+        };
+        let text = serde_json::to_string_pretty(&report)?;
+        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+    }
+}
+
+/// `mode:label`, e.g. `rgbd:DSAC+NR+ESR`; `e2e:E2E` for the baseline.
+pub fn row_key(cfg: &PipelineConfig) -> String {
+    let mode = match (cfg.method, cfg.mode) {
+        (Method::EndToEnd, _) => "e2e",
+        (Method::Pipeline, crate::pipeline::Mode::Rgb) => "rgb",
+        (Method::Pipeline, crate::pipeline::Mode::Rgbd) => "rgbd",
+        (Method::Pipeline, crate::pipeline::Mode::Geometric) => "geometric",
+    };
+    format!("{mode}:{}", cfg.label())
+}
+
+/// Reads a `tre synth` frame folder: inputs and ground truth.
+fn read_frame(dir: &Path) -> anyhow::Result<Frame> {
+    let (cam, k) = io::read_camera(&dir.join("camera.json"))?;
+    let depth_m = io::read_depth(&dir.join("depth.png"), cam.depth_scale.unwrap_or(1000.0))?;
+    let input = FrameInput {
+        rgb: Some(io::read_image(&dir.join("rgb.png"))?.to_rgb8()),
+        depth_m: Some(depth_m.clone()),
+        intrinsics: Some(k),
+        mounting: cam.mounting()?,
+    };
+    Ok(Frame {
+        input,
+        roughness_m: io::decode_roughness_png16(&io::read_image(&dir.join("roughness.png"))?),
+        boundary: io::read_labels(&dir.join("boundary.png"))?.map(|&b| b > 0),
+        normals: io::read_normals(&dir.join("normals.npy"))?,
+        depth_m,
+    })
+}
+
+/// Runs one configuration on one frame and adds its errors and timings to `score`.
+fn score_frame(
+    pipeline: &mut Pipeline,
+    frame: &Frame,
+    spec: &RowSpec,
+    score: &mut Score,
+) -> anyhow::Result<()> {
+    let out = pipeline.run(&frame.input, &spec.cfg)?;
+    score
+        .roughness
+        .add(&out.roughness_m, &frame.roughness_m, &frame.boundary)?;
+    if let Some(normals) = &out.normals {
+        score.normals.add(normals, &frame.normals)?;
+        score.has_normals = true;
+    }
+    if let (Some(depth), crate::pipeline::Mode::Rgb) = (&out.depth_m, spec.cfg.mode) {
+        score.depth.add(depth, &frame.depth_m)?;
+        score.has_depth = true;
+    }
+    for (name, took) in out.timings.iter() {
+        *score.total_ms.entry(name.to_owned()).or_default() += took.as_secs_f64() * 1e3;
+    }
+    Ok(())
+}
+
+impl Score {
+    fn finish(&self, spec: &RowSpec, frames: usize) -> RowResult {
+        RowResult {
+            key: spec.key.clone(),
+            config: spec.cfg,
+            roughness: self.roughness.finish(),
+            normals: self.has_normals.then(|| self.normals.finish()),
+            depth: self.has_depth.then(|| self.depth.finish()),
+            mean_ms: self
+                .total_ms
+                .iter()
+                .map(|(k, v)| (k.clone(), v / frames.max(1) as f64))
+                .collect(),
         }
-        let (r, n) = (rough.finish(), normals.finish());
-        println!(
-            "mode {:?}, split {}, {} frames",
-            self.mode,
-            self.split,
-            dirs.len()
-        );
-        println!("roughness  RMSE {:.3} cm  B-RMSE {:.3} cm  F-RMSE {:.3} cm  ({} px, {} without prediction)", r.rmse_cm, r.b_rmse_cm, r.f_rmse_cm, r.pixels, r.missing);
+    }
+}
+
+/// The metrics of one row, as lines of text.
+fn print_row(row: &RowResult) {
+    let r = &row.roughness;
+    println!("{}", row.key);
+    println!(
+        "roughness  RMSE {:.3} cm  B-RMSE {:.3} cm  F-RMSE {:.3} cm  ({} px, {} without prediction)",
+        r.rmse_cm, r.b_rmse_cm, r.f_rmse_cm, r.pixels, r.missing
+    );
+    if let Some(n) = &row.normals {
         println!(
             "normals    mean {:.2}°  median {:.2}°  <11.25° {:.1}%  <22.5° {:.1}%  <30° {:.1}%",
             n.mean_deg, n.median_deg, n.under_11_25_pct, n.under_22_5_pct, n.under_30_pct
         );
-        Ok(())
     }
-}
-
-/// Geometric roughness and LS normals of one frame, added to the accumulators.
-fn score_frame(
-    dir: &Path,
-    rough: &mut RoughnessAccumulator,
-    normals: &mut NormalAccumulator,
-) -> anyhow::Result<()> {
-    let (cam, k) = io::read_camera(&dir.join("camera.json"))?;
-    let depth = io::read_depth(&dir.join("depth.png"), cam.depth_scale.unwrap_or(1000.0))?;
-    let points = k.back_project_map(&depth);
-    let planes = local_planes(&points, k.fx_px, &Neighbourhood::default());
-    let pred = Grid::par_from_fn(depth.width(), depth.height(), |x, y| {
-        planes.normal[(x, y)]
-            .dot(&(points[(x, y)] - planes.centroid[(x, y)]))
-            .abs()
-    });
-    let gt = io::decode_roughness_png16(&io::read_image(&dir.join("roughness.png"))?);
-    let boundary = io::read_labels(&dir.join("boundary.png"))?.map(|&b| b > 0);
-    rough.add(&pred, &gt, &boundary)?;
-    let gt_normals = io::read_normals(&dir.join("normals.npy"))?;
-    let pred_normals = planes
-        .normal
-        .map(|n: &Vec3| if n.x.is_finite() { *n } else { INVALID_POINT });
-    normals.add(&pred_normals, &gt_normals)?;
-    Ok(())
+    if let Some(d) = &row.depth {
+        println!(
+            "depth      AbsRel {:.4}  RMSE {:.3} m  δ<1.25 {:.1}%",
+            d.abs_rel,
+            d.rmse_m,
+            100.0 * d.delta_1_25
+        );
+    }
+    let stages: Vec<String> = row
+        .mean_ms
+        .iter()
+        .map(|(k, v)| format!("{k} {v:.1}"))
+        .collect();
+    println!("mean ms    {}", stages.join(", "));
 }

@@ -2,7 +2,10 @@
 
 pub mod annotate;
 pub mod eval;
+pub mod infer;
+pub mod options;
 pub mod synth;
+pub mod tables;
 
 use clap::{Parser, Subcommand};
 
@@ -25,7 +28,10 @@ pub enum Command {
     Annotate(annotate::Annotate),
     /// Generate a synthetic terrain dataset with exact ground truth.
     Synth(synth::Synth),
-    /// Score roughness and normals on a synthetic dataset's test split.
+    /// Estimate roughness for one frame (RGB, RGB-D or depth only).
+    Infer(infer::Infer),
+    /// Score roughness, normals and depth on a synthetic dataset's split; --tables for the
+    /// paper's Tables II, IV and V.
     Eval(eval::Eval),
 }
 
@@ -35,6 +41,7 @@ impl Command {
         match self {
             Command::Annotate(cmd) => cmd.run(),
             Command::Synth(cmd) => cmd.run(),
+            Command::Infer(cmd) => cmd.run(),
             Command::Eval(cmd) => cmd.run(),
         }
     }

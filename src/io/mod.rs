@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use image::{DynamicImage, ImageBuffer, ImageReader, LumaA};
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::{GeometryError, Grid, Intrinsics, Vec3};
+use crate::geometry::{GeometryError, Grid, Intrinsics, Mounting, Vec3};
 
 /// Roughness on the wire: metres per unit of the 16-bit PNG (0.1 mm).
 pub const ROUGHNESS_PNG_SCALE_M: f64 = 1e-4;
@@ -87,12 +87,28 @@ pub struct CameraFile {
     /// Depth PNG units per metre (1000 for mm, 5000 for TUM), if stated.
     #[serde(default)]
     pub depth_scale: Option<f64>,
+    /// Camera pitch below the horizon, degrees, if stated (default 60°).
+    #[serde(default)]
+    pub pitch_deg: Option<f64>,
+    /// Camera height above the ground, metres, if stated (default 1 m).
+    #[serde(default)]
+    pub height_m: Option<f64>,
 }
 
 impl CameraFile {
     /// The checked intrinsics.
     pub fn intrinsics(&self) -> Result<Intrinsics, GeometryError> {
         Intrinsics::new(self.fx, self.fy, self.cx, self.cy)
+    }
+
+    /// The checked mounting: the stated pitch and height, each defaulting to
+    /// [`Mounting::default`]'s (60°, 1 m).
+    pub fn mounting(&self) -> Result<Mounting, GeometryError> {
+        let default = Mounting::default();
+        Mounting::new(
+            self.pitch_deg.map_or(default.pitch_rad, f64::to_radians),
+            self.height_m.unwrap_or(default.height_m),
+        )
     }
 }
 

@@ -1,0 +1,167 @@
+//! `tre infer`: roughness for one frame through the pipeline, written as a 16-bit PNG (or float
+//! `.npy`) with a colour preview beside it.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use clap::{Args, ValueEnum};
+use image::DynamicImage;
+
+use super::options::{ModeArg, StageArgs};
+use crate::geometry::Mounting;
+use crate::io;
+use crate::pipeline::{FrameInput, FrameOutput};
+
+/// Output format of the roughness map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Format {
+    /// 16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data.
+    Png16,
+    /// (H, W) float32 .npy in metres, NaN where there is no data.
+    Npy,
+}
+
+/// Estimate roughness for one frame.
+#[derive(Debug, Args)]
+pub struct Infer {
+    /// RGB frame (PNG or JPEG); not needed in geometric mode.
+    pub frame: Option<PathBuf>,
+    /// Registered depth of the same size: 16-bit grey PNG (see --depth-scale) or float .npy in
+    /// metres; 0 = no data.
+    #[arg(long)]
+    pub depth: Option<PathBuf>,
+    /// Depth PNG units per metre (1000: millimetres); default: the camera JSON's depth_scale,
+    /// else 1000.
+    #[arg(long, env = "TRE_DEPTH_SCALE")]
+    pub depth_scale: Option<f64>,
+    /// Camera JSON: fx, fy, cx, cy in pixels of this frame; optional depth_scale, pitch_deg
+    /// (default 60) and height_m (default 1). Without it: a 60° horizontal field of view,
+    /// centred, 60° pitch, 1 m height.
+    #[arg(long)]
+    pub camera: Option<PathBuf>,
+    /// Input mode; default: rgbd with a frame and --depth, geometric with --depth alone, else
+    /// rgb.
+    #[arg(long, value_enum)]
+    pub mode: Option<ModeArg>,
+    /// Pipeline switches and models.
+    #[command(flatten)]
+    pub stages: StageArgs,
+    /// Output roughness file; the preview goes beside it as <stem>_preview.png.
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "png16")]
+    pub format: Format,
+    /// Top of the preview's colour scale, centimetres.
+    #[arg(long, default_value_t = 5.0)]
+    pub preview_max_cm: f64,
+}
+
+impl Infer {
+    /// Reads the frame, runs the pipeline and writes the roughness map and its preview.
+    pub fn run(self) -> anyhow::Result<()> {
+        let mode = self.mode()?;
+        let cfg = self.stages.config(mode);
+        let frame = self.read_frame()?;
+        crate::pipeline::check_input(&frame, &cfg)?;
+        let mut pipeline = self.stages.pipeline(&[cfg])?;
+        let out = pipeline.run(&frame, &cfg)?;
+        self.write(&out)?;
+        print_summary(&out, &cfg.label());
+        Ok(())
+    }
+
+    /// The mode asked for, or the one the inputs imply.
+    fn mode(&self) -> anyhow::Result<ModeArg> {
+        Ok(match (self.mode, &self.frame, &self.depth) {
+            (Some(mode), _, _) => mode,
+            (None, Some(_), Some(_)) => ModeArg::Rgbd,
+            (None, None, Some(_)) => ModeArg::Geometric,
+            (None, Some(_), None) => ModeArg::Rgb,
+            (None, None, None) => bail!("give an RGB frame, --depth, or both"),
+        })
+    }
+
+    /// The frame, depth and camera from disk.
+    fn read_frame(&self) -> anyhow::Result<FrameInput> {
+        let cam = self.camera.as_deref().map(io::read_camera).transpose()?;
+        let scale = self
+            .depth_scale
+            .or(cam.as_ref().and_then(|(c, _)| c.depth_scale))
+            .unwrap_or(1000.0);
+        if !(scale.is_finite() && scale > 0.0) {
+            bail!("--depth-scale must be positive, got {scale}");
+        }
+        let rgb = match &self.frame {
+            Some(path) => Some(io::read_image(path)?.to_rgb8()),
+            None => None,
+        };
+        let depth_m = match &self.depth {
+            Some(path) => Some(io::read_depth(path, scale)?),
+            None => None,
+        };
+        let mounting = match &cam {
+            Some((c, _)) => c.mounting().context("camera pitch or height")?,
+            None => Mounting::default(),
+        };
+        Ok(FrameInput {
+            rgb,
+            depth_m,
+            intrinsics: cam.map(|(_, k)| k),
+            mounting,
+        })
+    }
+
+    /// Writes the roughness map in the chosen format and the preview beside it.
+    fn write(&self, out: &FrameOutput) -> anyhow::Result<()> {
+        if let Some(dir) = self.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        }
+        match self.format {
+            Format::Png16 => io::save(
+                &self.out,
+                &DynamicImage::ImageLumaA16(io::roughness_png16(&out.roughness_m)),
+            )?,
+            Format::Npy => io::write_npy_f32(&self.out, &out.roughness_m)
+                .with_context(|| format!("writing {}", self.out.display()))?,
+        }
+        let preview =
+            io::colormap::roughness_preview(&out.roughness_m, self.preview_max_cm / 100.0);
+        io::save(&preview_path(&self.out), &DynamicImage::ImageRgb8(preview))?;
+        Ok(())
+    }
+}
+
+/// `DIR/<stem>_preview.png` beside `out`.
+fn preview_path(out: &Path) -> PathBuf {
+    let stem = out.file_stem().map_or_else(
+        || "roughness".to_owned(),
+        |s| s.to_string_lossy().into_owned(),
+    );
+    out.with_file_name(format!("{stem}_preview.png"))
+}
+
+/// One line of results and one of timings, on stdout.
+fn print_summary(out: &FrameOutput, label: &str) {
+    let mut valid: Vec<f64> = out
+        .roughness_m
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|r| r.is_finite())
+        .collect();
+    valid.sort_by(f64::total_cmp);
+    let median_cm = valid.get(valid.len() / 2).map_or(f64::NAN, |r| 100.0 * r);
+    let traversable = out.traversable.as_slice().iter().filter(|&&t| t).count();
+    let (w, h) = out.working_size;
+    println!(
+        "{label} at {w}×{h}: {} px with roughness, median {median_cm:.3} cm, {traversable} px traversable",
+        valid.len()
+    );
+    let stages: Vec<String> = out
+        .timings
+        .iter()
+        .map(|(name, d)| format!("{name} {:.1}", d.as_secs_f64() * 1e3))
+        .collect();
+    println!("ms: {}", stages.join(", "));
+}

@@ -1,0 +1,131 @@
+//! Options shared by `tre infer` and `tre eval`: input mode, method, the pipeline's ablation
+//! switches and the models, turned into a [`PipelineConfig`] and a [`Pipeline`].
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::{Args, ValueEnum};
+
+use crate::model::{Models, SessionConfig};
+use crate::pipeline::{CentroidMethod, Method, Mode, NormalsMethod, Pipeline, PipelineConfig};
+
+/// Input mode (the paper's Table IV rows).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModeArg {
+    /// One RGB frame: the depth net predicts depth.
+    Rgb,
+    /// RGB plus a registered depth frame: the depth net is skipped.
+    Rgbd,
+    /// Depth only, no networks: LS normals and window centroids.
+    Geometric,
+}
+
+/// The staged pipeline or the end-to-end baseline.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// The staged pipeline of the paper's Fig. 5.
+    Pipeline,
+    /// The end-to-end baseline (end_to_end.onnx; RGB only).
+    EndToEnd,
+}
+
+/// Initial normals.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum NormalsArg {
+    /// Least-squares planes.
+    Ls,
+    /// Neighbour net and DSAC hypotheses.
+    Dsac,
+}
+
+/// Centroids of Eq. 1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CentroidArg {
+    /// The centroid net.
+    Net,
+    /// The mean of the metric neighbourhood.
+    Window,
+}
+
+/// On or off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Switch {
+    /// Enabled.
+    On,
+    /// Disabled.
+    Off,
+}
+
+impl From<ModeArg> for Mode {
+    fn from(m: ModeArg) -> Self {
+        match m {
+            ModeArg::Rgb => Mode::Rgb,
+            ModeArg::Rgbd => Mode::Rgbd,
+            ModeArg::Geometric => Mode::Geometric,
+        }
+    }
+}
+
+/// The pipeline's switches and models, shared by `infer` and `eval`.
+#[derive(Debug, Clone, Args)]
+pub struct StageArgs {
+    /// Staged pipeline or end-to-end baseline.
+    #[arg(long, value_enum, default_value = "pipeline")]
+    pub method: MethodArg,
+    /// Initial normals (ignored in geometric mode).
+    #[arg(long, value_enum, default_value = "dsac")]
+    pub normals: NormalsArg,
+    /// Normal refiner (ignored in geometric mode).
+    #[arg(long, value_enum, default_value = "on")]
+    pub refine: Switch,
+    /// Centroids (ignored in geometric mode).
+    #[arg(long, value_enum, default_value = "net")]
+    pub centroid: CentroidArg,
+    /// Seed of the DSAC sampler: the same seed gives the same output.
+    #[arg(long, env = "TRE_SEED", default_value_t = 0)]
+    pub seed: u64,
+    /// Folder with manifest.json and the ONNX models (only read when a network runs).
+    #[arg(long, env = "TRE_MODELS", default_value = "models")]
+    pub models: PathBuf,
+    /// ONNX Runtime threads per operator (0: one per core).
+    #[arg(long, env = "TRE_ORT_THREADS", default_value_t = 0)]
+    pub ort_threads: usize,
+}
+
+impl StageArgs {
+    /// The pipeline configuration for `mode`.
+    pub fn config(&self, mode: ModeArg) -> PipelineConfig {
+        PipelineConfig {
+            mode: mode.into(),
+            method: match self.method {
+                MethodArg::Pipeline => Method::Pipeline,
+                MethodArg::EndToEnd => Method::EndToEnd,
+            },
+            normals: match self.normals {
+                NormalsArg::Ls => NormalsMethod::Ls,
+                NormalsArg::Dsac => NormalsMethod::Dsac,
+            },
+            refine: self.refine == Switch::On,
+            centroid: match self.centroid {
+                CentroidArg::Net => CentroidMethod::Net,
+                CentroidArg::Window => CentroidMethod::Window,
+            },
+            seed: self.seed,
+            ..PipelineConfig::default()
+        }
+    }
+
+    /// A pipeline with the models loaded when any of `configs` runs a network.
+    pub fn pipeline(&self, configs: &[PipelineConfig]) -> anyhow::Result<Pipeline> {
+        if configs.iter().all(|c| c.networks().is_empty()) {
+            return Ok(Pipeline::new(None));
+        }
+        let session = SessionConfig {
+            intra_threads: self.ort_threads,
+            ..SessionConfig::default()
+        };
+        let models = Models::load(&self.models, &session)
+            .with_context(|| format!("loading models from {}", self.models.display()))?;
+        Ok(Pipeline::new(Some(models)))
+    }
+}

@@ -1,0 +1,158 @@
+//! [`Models`]: the manifest plus one checked session per learned stage, with typed run methods
+//! (NCHW float32 in, NCHW float32 out). One `Models` is owned by one worker thread.
+
+use std::path::Path;
+
+use ndarray::{Array4, ArrayView4};
+
+use super::manifest::Manifest;
+use super::session::{ModelSession, SessionConfig};
+use super::ModelError;
+
+/// Manifest name of the depth net: `rgb`, `prior_depth_m` → `depth_m`.
+pub const DEPTH_NET: &str = "depth_net";
+/// Manifest name of the neighbour net: `rgb`, `points_m`, `valid` → `logits` (49 channels).
+pub const NEIGHBOUR_NET: &str = "neighbour_net";
+/// Manifest name of the normal refiner: `rgb`, `points_m`, `valid`, `normals_init` → `normals`.
+pub const NORMAL_REFINER: &str = "normal_refiner";
+/// Manifest name of the centroid net: `rgb`, `points_m`, `valid`, `normals` → `centroid_m`.
+pub const CENTROID_NET: &str = "centroid_net";
+/// Manifest name of the end-to-end baseline: `rgb`, `prior_depth_m` → `roughness_m`.
+pub const END_TO_END: &str = "end_to_end";
+
+/// The four pipeline stages (required) and the end-to-end baseline (loaded when listed).
+#[derive(Debug)]
+pub struct Models {
+    manifest: Manifest,
+    depth: ModelSession,
+    neighbour: ModelSession,
+    refiner: ModelSession,
+    centroid: ModelSession,
+    end_to_end: Option<ModelSession>,
+}
+
+impl Models {
+    /// Reads `dir/manifest.json`, checks every model it lists and builds their sessions.
+    ///
+    /// # Errors
+    ///
+    /// [`ModelError::Manifest`] for a bad manifest, [`ModelError::NotInManifest`] when a
+    /// pipeline stage is not listed, and the errors of [`ModelSession::load`], which name the
+    /// model and the field that disagrees.
+    pub fn load(dir: &Path, cfg: &SessionConfig) -> Result<Self, ModelError> {
+        let manifest = Manifest::read(dir)?;
+        let load =
+            |name: &str| ModelSession::load(dir, name, manifest.entry(name)?, manifest.stride, cfg);
+        let end_to_end = match manifest.models.contains_key(END_TO_END) {
+            true => Some(load(END_TO_END)?),
+            false => None,
+        };
+        Ok(Self {
+            depth: load(DEPTH_NET)?,
+            neighbour: load(NEIGHBOUR_NET)?,
+            refiner: load(NORMAL_REFINER)?,
+            centroid: load(CENTROID_NET)?,
+            end_to_end,
+            manifest,
+        })
+    }
+
+    /// The manifest the models were checked against.
+    pub fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    /// H and W of every input must be multiples of this.
+    pub fn stride(&self) -> usize {
+        self.manifest.stride
+    }
+
+    /// The default working size, `(width, height)` pixels.
+    pub fn working_size(&self) -> (usize, usize) {
+        let [w, h] = self.manifest.working_size;
+        (w, h)
+    }
+
+    /// Whether the end-to-end baseline is loaded.
+    pub fn has_end_to_end(&self) -> bool {
+        self.end_to_end.is_some()
+    }
+
+    /// Depth net: RGB in [0, 1] (N×3×H×W) and the flat-ground prior (N×1×H×W, metres) →
+    /// depth in metres (N×1×H×W).
+    ///
+    /// # Errors
+    ///
+    /// Those of [`ModelSession::run`].
+    pub fn depth(
+        &mut self,
+        rgb: ArrayView4<'_, f32>,
+        prior_depth_m: ArrayView4<'_, f32>,
+    ) -> Result<Array4<f32>, ModelError> {
+        self.depth.run(&[rgb, prior_depth_m])
+    }
+
+    /// Neighbour net: RGB, camera-frame points (N×3×H×W, 0 where invalid) and validity (N×1×H×W,
+    /// 1/0) → 49 logits per pixel over its 7×7 window (N×49×H×W).
+    ///
+    /// # Errors
+    ///
+    /// Those of [`ModelSession::run`].
+    pub fn neighbour_logits(
+        &mut self,
+        rgb: ArrayView4<'_, f32>,
+        points_m: ArrayView4<'_, f32>,
+        valid: ArrayView4<'_, f32>,
+    ) -> Result<Array4<f32>, ModelError> {
+        self.neighbour.run(&[rgb, points_m, valid])
+    }
+
+    /// Normal refiner: RGB, points, validity and initial normals (N×3×H×W, 0 where none) →
+    /// unit normals (N×3×H×W).
+    ///
+    /// # Errors
+    ///
+    /// Those of [`ModelSession::run`].
+    pub fn refine_normals(
+        &mut self,
+        rgb: ArrayView4<'_, f32>,
+        points_m: ArrayView4<'_, f32>,
+        valid: ArrayView4<'_, f32>,
+        normals_init: ArrayView4<'_, f32>,
+    ) -> Result<Array4<f32>, ModelError> {
+        self.refiner.run(&[rgb, points_m, valid, normals_init])
+    }
+
+    /// Centroid net: RGB, points, validity and normals → local-plane centroids in metres
+    /// (N×3×H×W).
+    ///
+    /// # Errors
+    ///
+    /// Those of [`ModelSession::run`].
+    pub fn centroids(
+        &mut self,
+        rgb: ArrayView4<'_, f32>,
+        points_m: ArrayView4<'_, f32>,
+        valid: ArrayView4<'_, f32>,
+        normals: ArrayView4<'_, f32>,
+    ) -> Result<Array4<f32>, ModelError> {
+        self.centroid.run(&[rgb, points_m, valid, normals])
+    }
+
+    /// End-to-end baseline: RGB and the flat-ground prior → roughness in metres (N×1×H×W).
+    ///
+    /// # Errors
+    ///
+    /// [`ModelError::NotInManifest`] when the manifest has no `end_to_end`, else those of
+    /// [`ModelSession::run`].
+    pub fn end_to_end(
+        &mut self,
+        rgb: ArrayView4<'_, f32>,
+        prior_depth_m: ArrayView4<'_, f32>,
+    ) -> Result<Array4<f32>, ModelError> {
+        let session = self.end_to_end.as_mut().ok_or(ModelError::NotInManifest {
+            model: END_TO_END.to_owned(),
+        })?;
+        session.run(&[rgb, prior_depth_m])
+    }
+}

@@ -1,0 +1,337 @@
+//! One validated ONNX Runtime session per model: built from the manifest entry after its file,
+//! SHA-256, opset and tensor names and channels have been checked, and run on NCHW float32
+//! arrays.
+
+use std::path::Path;
+
+use ndarray::{Array4, ArrayView4, Ix4};
+use ort::session::builder::GraphOptimizationLevel;
+use ort::session::Session;
+use ort::value::TensorRef;
+use serde::{Deserialize, Serialize};
+
+use super::manifest::{sha256_hex, ModelEntry, TensorSpec};
+use super::onnx;
+use super::{runtime, ModelError};
+
+/// How ONNX Runtime builds each session. The default runs on the CPU with every graph
+/// optimisation and ONNX Runtime's own choice of thread count.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct SessionConfig {
+    /// Threads inside one operator; 0 lets ONNX Runtime choose (one per core).
+    pub intra_threads: usize,
+    /// Graph optimisation level.
+    pub optimisation: Optimisation,
+    /// Where the graph runs.
+    pub provider: ExecutionProvider,
+}
+
+/// ONNX Runtime graph optimisation levels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Optimisation {
+    /// No rewriting.
+    Disable,
+    /// Constant folding and redundant-node removal.
+    Basic,
+    /// Basic plus complex fusions.
+    Extended,
+    /// Everything, including layout changes.
+    #[default]
+    All,
+}
+
+/// Execution providers. CUDA and TensorRT exist only when `tre` is built with the cargo
+/// features `cuda` or `tensorrt` (which enable `ort`'s features of the same names); the ONNX
+/// Runtime library loaded at run time must then be a GPU build. ONNX Runtime falls back to the
+/// CPU for operators the provider cannot run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum ExecutionProvider {
+    /// ONNX Runtime's CPU kernels.
+    #[default]
+    Cpu,
+    /// NVIDIA CUDA on the given device.
+    #[cfg(feature = "cuda")]
+    Cuda {
+        /// CUDA device index.
+        device_id: i32,
+    },
+    /// NVIDIA TensorRT on the given device.
+    #[cfg(feature = "tensorrt")]
+    TensorRt {
+        /// CUDA device index.
+        device_id: i32,
+    },
+}
+
+impl From<Optimisation> for GraphOptimizationLevel {
+    fn from(level: Optimisation) -> Self {
+        match level {
+            Optimisation::Disable => GraphOptimizationLevel::Disable,
+            Optimisation::Basic => GraphOptimizationLevel::Level1,
+            Optimisation::Extended => GraphOptimizationLevel::Level2,
+            Optimisation::All => GraphOptimizationLevel::All,
+        }
+    }
+}
+
+/// A checked session for one model. `Session::run` needs `&mut self`, so a `ModelSession`
+/// belongs to one worker thread.
+#[derive(Debug)]
+pub struct ModelSession {
+    name: String,
+    entry: ModelEntry,
+    stride: usize,
+    session: Session,
+}
+
+impl ModelSession {
+    /// Checks model `name`'s file in `dir` against its manifest `entry` (existence, SHA-256,
+    /// opset), builds its session and checks the session's inputs and outputs (count, names,
+    /// float32, channels). H and W of every run must be multiples of `stride`.
+    ///
+    /// # Errors
+    ///
+    /// [`ModelError::MissingFile`], [`ModelError::Mismatch`] naming the model and the field,
+    /// [`ModelError::BadOnnx`], [`ModelError::Runtime`] or [`ModelError::Ort`].
+    pub fn load(
+        dir: &Path,
+        name: &str,
+        entry: &ModelEntry,
+        stride: usize,
+        cfg: &SessionConfig,
+    ) -> Result<Self, ModelError> {
+        let path = dir.join(&entry.file);
+        check_file(name, &path, entry)?;
+        let session = build_session(name, &path, cfg)?;
+        check_outlets(name, "inputs", &entry.inputs, session.inputs())?;
+        check_outlets(name, "outputs", &entry.outputs, session.outputs())?;
+        Ok(Self {
+            name: name.to_owned(),
+            entry: entry.clone(),
+            stride,
+            session,
+        })
+    }
+
+    /// The model's name in the manifest.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The model's manifest entry.
+    pub fn entry(&self) -> &ModelEntry {
+        &self.entry
+    }
+
+    /// Runs the model on its inputs, in manifest order (each `1..N × C × H × W`, the same N, H
+    /// and W, H and W multiples of the stride) and returns its first output.
+    ///
+    /// # Errors
+    ///
+    /// [`ModelError::InputShape`] for inputs of the wrong number or shape,
+    /// [`ModelError::Ort`] when ONNX Runtime fails, [`ModelError::OutputShape`] for an output
+    /// that is not `N × C × H × W`.
+    pub fn run(&mut self, inputs: &[ArrayView4<'_, f32>]) -> Result<Array4<f32>, ModelError> {
+        let (n, h, w) = self.check_inputs(inputs)?;
+        let ort_err = |source| ModelError::Ort {
+            model: self.name.clone(),
+            source,
+        };
+        let mut values = Vec::with_capacity(inputs.len());
+        for (spec, x) in self.entry.inputs.iter().zip(inputs) {
+            let tensor = TensorRef::from_array_view(x.view()).map_err(ort_err)?;
+            values.push((spec.name.as_str(), tensor));
+        }
+        let out_spec = &self.entry.outputs[0];
+        let outputs = self.session.run(values).map_err(ort_err)?;
+        let y = outputs[out_spec.name.as_str()]
+            .try_extract_array::<f32>()
+            .map_err(ort_err)?;
+        let c = out_spec
+            .channels()
+            .unwrap_or(y.shape()[1.min(y.ndim() - 1)]);
+        let y4 = y
+            .into_dimensionality::<Ix4>()
+            .ok()
+            .filter(|y| y.dim() == (n, c, h, w));
+        match y4 {
+            Some(y) => Ok(y.as_standard_layout().into_owned()),
+            None => Err(ModelError::OutputShape {
+                model: self.name.clone(),
+                output: out_spec.name.clone(),
+                expected: vec![n, c, h, w],
+            }),
+        }
+    }
+
+    /// Checks the inputs against the manifest; returns their N, H and W.
+    fn check_inputs(
+        &self,
+        inputs: &[ArrayView4<'_, f32>],
+    ) -> Result<(usize, usize, usize), ModelError> {
+        let bad = |input: &str, why: String| ModelError::InputShape {
+            model: self.name.clone(),
+            input: input.to_owned(),
+            reason: why,
+        };
+        if inputs.len() != self.entry.inputs.len() {
+            let why = format!(
+                "{} inputs given, {} expected",
+                inputs.len(),
+                self.entry.inputs.len()
+            );
+            return Err(bad("*", why));
+        }
+        let (n, _, h, w) = inputs.first().map_or((0, 0, 0, 0), ArrayView4::dim);
+        if n == 0 || h == 0 || w == 0 || h % self.stride != 0 || w % self.stride != 0 {
+            let why = format!(
+                "N×H×W = {n}×{h}×{w}: all must be positive, H and W multiples of {}",
+                self.stride
+            );
+            return Err(bad(&self.entry.inputs[0].name, why));
+        }
+        for (spec, x) in self.entry.inputs.iter().zip(inputs) {
+            let (xn, xc, xh, xw) = x.dim();
+            let c_ok = spec.channels().is_none_or(|c| c == xc);
+            if (xn, xh, xw) != (n, h, w) || !c_ok {
+                let why = format!(
+                    "shape {:?}, expected {n}×{:?}×{h}×{w}",
+                    x.shape(),
+                    spec.channels()
+                );
+                return Err(bad(&spec.name, why));
+            }
+        }
+        Ok((n, h, w))
+    }
+}
+
+/// The file exists, hashes to the manifest's SHA-256 and imports the manifest's opset.
+fn check_file(model: &str, path: &Path, entry: &ModelEntry) -> Result<(), ModelError> {
+    if !path.is_file() {
+        return Err(ModelError::MissingFile {
+            model: model.to_owned(),
+            path: path.to_owned(),
+        });
+    }
+    let bad_onnx = |reason: String| ModelError::BadOnnx {
+        model: model.to_owned(),
+        path: path.to_owned(),
+        reason,
+    };
+    let bytes = std::fs::read(path).map_err(|e| bad_onnx(e.to_string()))?;
+    let sha = sha256_hex(&bytes);
+    if !sha.eq_ignore_ascii_case(entry.sha256.trim()) {
+        return Err(ModelError::mismatch(model, "sha256", &entry.sha256, sha));
+    }
+    let imports = onnx::opset_imports(&bytes).map_err(|e| bad_onnx(e.to_string()))?;
+    let found = onnx::default_opset(&imports).map_or_else(|| "none".to_owned(), |v| v.to_string());
+    if found != entry.opset.to_string() {
+        return Err(ModelError::mismatch(model, "opset", entry.opset, found));
+    }
+    Ok(())
+}
+
+/// Builds the session with the configured threads, optimisation and provider.
+fn build_session(model: &str, path: &Path, cfg: &SessionConfig) -> Result<Session, ModelError> {
+    let env = runtime::environment()?;
+    let ort_err = |e: ort::Error<_>| ModelError::Ort {
+        model: model.to_owned(),
+        source: ort::Error::new_with_code(e.code(), e.message()),
+    };
+    let builder = Session::builder(env).map_err(|source| ModelError::Ort {
+        model: model.to_owned(),
+        source,
+    })?;
+    let mut builder = builder
+        .with_optimization_level(cfg.optimisation.into())
+        .map_err(ort_err)?;
+    if cfg.intra_threads > 0 {
+        builder = builder
+            .with_intra_threads(cfg.intra_threads)
+            .map_err(ort_err)?;
+    }
+    if let Some(provider) = provider_dispatch(cfg.provider) {
+        builder = builder
+            .with_execution_providers([provider])
+            .map_err(ort_err)?;
+    }
+    builder
+        .commit_from_file(path)
+        .map_err(|source| ModelError::Ort {
+            model: model.to_owned(),
+            source,
+        })
+}
+
+/// The `ort` provider to register (none for the CPU, ONNX Runtime's default).
+fn provider_dispatch(provider: ExecutionProvider) -> Option<ort::ep::ExecutionProviderDispatch> {
+    match provider {
+        ExecutionProvider::Cpu => None,
+        #[cfg(feature = "cuda")]
+        ExecutionProvider::Cuda { device_id } => Some(
+            ort::ep::CUDA::default()
+                .with_device_id(device_id)
+                .build()
+                .error_on_failure(),
+        ),
+        #[cfg(feature = "tensorrt")]
+        ExecutionProvider::TensorRt { device_id } => Some(
+            ort::ep::TensorRT::default()
+                .with_device_id(device_id)
+                .build()
+                .error_on_failure(),
+        ),
+    }
+}
+
+/// The session's inputs or outputs (`which`) agree with the manifest: count, names in order,
+/// float32, and fixed channel counts.
+fn check_outlets(
+    model: &str,
+    which: &str,
+    specs: &[TensorSpec],
+    outlets: &[ort::value::Outlet],
+) -> Result<(), ModelError> {
+    if specs.len() != outlets.len() {
+        let field = format!("{which}.count");
+        return Err(ModelError::mismatch(
+            model,
+            &field,
+            specs.len(),
+            outlets.len(),
+        ));
+    }
+    for (i, (spec, outlet)) in specs.iter().zip(outlets).enumerate() {
+        if spec.name != outlet.name() {
+            let field = format!("{which}[{i}].name");
+            return Err(ModelError::mismatch(
+                model,
+                &field,
+                &spec.name,
+                outlet.name(),
+            ));
+        }
+        let dtype = outlet.dtype();
+        let is_f32 = matches!(
+            dtype,
+            ort::value::ValueType::Tensor {
+                ty: ort::value::TensorElementType::Float32,
+                ..
+            }
+        );
+        if spec.dtype != "float32" || !is_f32 {
+            let field = format!("{which}[{i}].dtype");
+            return Err(ModelError::mismatch(model, &field, &spec.dtype, dtype));
+        }
+        let found_c = dtype.tensor_shape().and_then(|s| s.get(1).copied());
+        let found_c = found_c.filter(|&c| c > 0);
+        if let (Some(want), Some(got)) = (spec.channels(), found_c) {
+            if i64::try_from(want).ok() != Some(got) {
+                let field = format!("{which}[{i}].channels");
+                return Err(ModelError::mismatch(model, &field, want, got));
+            }
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,209 @@
+//! What one run of the pipeline does: input mode, method, the ablation switches of the paper's
+//! Table IV, the DSAC seed, the working size and the traversability thresholds.
+
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::Neighbourhood;
+
+/// Where depth comes from (the paper's Table IV rows).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// One RGB frame; the depth net predicts depth.
+    Rgb,
+    /// RGB plus a depth-sensor frame; the depth net is skipped.
+    Rgbd,
+    /// Depth only, no networks: LS normals and window centroids (the switches are ignored).
+    Geometric,
+}
+
+/// The full pipeline or the end-to-end baseline of the paper's Table II.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// The staged pipeline of Fig. 5 (the switches choose its stages).
+    #[default]
+    Pipeline,
+    /// `end_to_end.onnx`: RGB and the flat-ground prior straight to roughness (needs RGB; the
+    /// mode and switches are ignored; no depth, normals or slope come out).
+    EndToEnd,
+}
+
+/// How initial normals are estimated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum NormalsMethod {
+    /// Least-squares planes over the metric neighbourhood (no network).
+    Ls,
+    /// Neighbour net probabilities and DSAC plane hypotheses.
+    Dsac,
+}
+
+/// How the local-plane centroid of Eq. 1 is found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CentroidMethod {
+    /// The centroid net (edge- and semantics-aware).
+    Net,
+    /// The mean of the neighbourhood's points (no network).
+    Window,
+}
+
+/// Thresholds of the traversability map: a pixel is traversable when its roughness and its
+/// slope are both at most these (pixels without data are not traversable).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Traversability {
+    /// Largest roughness a robot drives over, metres (default 0.05).
+    pub max_roughness_m: f64,
+    /// Steepest slope a robot drives on, radians from horizontal (default 20°).
+    pub max_slope_rad: f64,
+}
+
+impl Default for Traversability {
+    fn default() -> Self {
+        Self {
+            max_roughness_m: 0.05,
+            max_slope_rad: 20f64.to_radians(),
+        }
+    }
+}
+
+/// Largest input frame accepted by default, pixels (about 40 MP).
+pub const DEFAULT_MAX_INPUT_PIXELS: usize = 40_000_000;
+
+/// Largest working size accepted, pixels per side.
+pub const MAX_WORKING_SIDE: usize = 4096;
+
+/// Everything one run of the pipeline needs besides the frame. The default is the full
+/// pipeline on RGB: depth net, DSAC normals, refiner, centroid net.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PipelineConfig {
+    /// Where depth comes from.
+    pub mode: Mode,
+    /// Staged pipeline or end-to-end baseline.
+    pub method: Method,
+    /// Initial normals (ignored in geometric mode, which uses LS).
+    pub normals: NormalsMethod,
+    /// Run the normal refiner (ignored in geometric mode).
+    pub refine: bool,
+    /// Centroids (ignored in geometric mode, which uses windows).
+    pub centroid: CentroidMethod,
+    /// Seed of the DSAC sampler for this request: the same seed gives the same output.
+    pub seed: u64,
+    /// Size the stages run at, `(width, height)`. `None`: the manifest's working size when any
+    /// network runs (256×256 without models), the input's own size in geometric mode.
+    /// With networks, both sides must be multiples of the manifest's stride.
+    pub working_size: Option<(usize, usize)>,
+    /// Neighbourhood of LS normals and window centroids.
+    pub neighbourhood: Neighbourhood,
+    /// Traversability thresholds.
+    pub traversability: Traversability,
+    /// Largest input frame, pixels.
+    pub max_input_pixels: usize,
+}
+
+impl Default for PipelineConfig {
+    fn default() -> Self {
+        Self {
+            mode: Mode::Rgb,
+            method: Method::Pipeline,
+            normals: NormalsMethod::Dsac,
+            refine: true,
+            centroid: CentroidMethod::Net,
+            seed: 0,
+            working_size: None,
+            neighbourhood: Neighbourhood::default(),
+            traversability: Traversability::default(),
+            max_input_pixels: DEFAULT_MAX_INPUT_PIXELS,
+        }
+    }
+}
+
+impl PipelineConfig {
+    /// The full pipeline in `mode` (geometric mode: the classical baseline).
+    pub fn for_mode(mode: Mode) -> Self {
+        Self {
+            mode,
+            ..Self::default()
+        }
+    }
+
+    /// The stages that actually run: geometric mode forces LS normals, no refiner and window
+    /// centroids.
+    pub fn effective(&self) -> (NormalsMethod, bool, CentroidMethod) {
+        match self.mode {
+            Mode::Geometric => (NormalsMethod::Ls, false, CentroidMethod::Window),
+            Mode::Rgb | Mode::Rgbd => (self.normals, self.refine, self.centroid),
+        }
+    }
+
+    /// The networks this configuration runs, by manifest name (empty: no models needed).
+    pub fn networks(&self) -> Vec<&'static str> {
+        use crate::model::{CENTROID_NET, DEPTH_NET, END_TO_END, NEIGHBOUR_NET, NORMAL_REFINER};
+        if self.method == Method::EndToEnd {
+            return vec![END_TO_END];
+        }
+        let (normals, refine, centroid) = self.effective();
+        let mut nets = Vec::new();
+        if self.mode == Mode::Rgb {
+            nets.push(DEPTH_NET);
+        }
+        if normals == NormalsMethod::Dsac {
+            nets.push(NEIGHBOUR_NET);
+        }
+        if refine {
+            nets.push(NORMAL_REFINER);
+        }
+        if centroid == CentroidMethod::Net {
+            nets.push(CENTROID_NET);
+        }
+        nets
+    }
+
+    /// A short name of the stages, in the paper's notation: `DE+DSAC+NR+ESR`, `LS+window`, `E2E`.
+    pub fn label(&self) -> String {
+        if self.method == Method::EndToEnd {
+            return "E2E".to_owned();
+        }
+        let (normals, refine, centroid) = self.effective();
+        let mut parts = Vec::new();
+        if self.mode == Mode::Rgb {
+            parts.push("DE");
+        }
+        parts.push(match normals {
+            NormalsMethod::Ls => "LS",
+            NormalsMethod::Dsac => "DSAC",
+        });
+        if refine {
+            parts.push("NR");
+        }
+        parts.push(match centroid {
+            CentroidMethod::Net => "ESR",
+            CentroidMethod::Window => "window",
+        });
+        parts.join("+")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn geometric_mode_needs_no_network_and_the_default_needs_all_four() {
+        assert!(PipelineConfig::for_mode(Mode::Geometric)
+            .networks()
+            .is_empty());
+        assert_eq!(PipelineConfig::default().networks().len(), 4);
+        assert_eq!(PipelineConfig::default().label(), "DE+DSAC+NR+ESR");
+        let rgbd_ls = PipelineConfig {
+            mode: Mode::Rgbd,
+            normals: NormalsMethod::Ls,
+            refine: false,
+            centroid: CentroidMethod::Window,
+            ..PipelineConfig::default()
+        };
+        assert!(rgbd_ls.networks().is_empty());
+        assert_eq!(rgbd_ls.label(), "LS+window");
+    }
+}

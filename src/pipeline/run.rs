@@ -1,0 +1,362 @@
+//! [`Pipeline`]: checks a frame, runs the stages in order at the working size, and brings the
+//! maps back to the frame's size. It owns the models and the tensors it reuses across frames;
+//! like [`Models`], it belongs to one worker thread.
+
+use ndarray::Array4;
+
+use super::centroid::{net_centroids, roughness_into, slopes, traversable};
+use super::depth::prior_depth;
+use super::frame::{FrameInput, FrameOutput, StageTimings, DEFAULT_HFOV_DEG};
+use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
+use super::resize::{resize_nearest, resize_rgb};
+use super::tensors::{depth_from_tensor, points_tensors, rgb_tensor, scalar_tensor};
+use super::{
+    CentroidMethod, Method, Mode, NormalsMethod, PipelineConfig, PipelineError, MAX_WORKING_SIDE,
+};
+use crate::geometry::{window_centroids, Grid, Intrinsics, PointMap, Vec3, INVALID_POINT};
+use crate::model::Models;
+
+/// Working size when no models are loaded, `(width, height)`.
+pub const DEFAULT_WORKING_SIZE: (usize, usize) = (256, 256);
+/// Stride assumed for network inputs when no models are loaded.
+const DEFAULT_STRIDE: usize = 16;
+
+/// Tensors reused from frame to frame (reallocated only when the working size changes).
+#[derive(Debug, Default)]
+struct Scratch {
+    rgb: Array4<f32>,
+    prior: Array4<f32>,
+    points: Array4<f32>,
+    valid: Array4<f32>,
+    normals: Array4<f32>,
+}
+
+/// The frame at the working size, as the stages see it.
+struct Working {
+    size: (usize, usize),
+    k: Intrinsics,
+}
+
+/// The pipeline: optional models (geometric mode needs none) and scratch buffers.
+#[derive(Debug)]
+pub struct Pipeline {
+    models: Option<Models>,
+    scratch: Scratch,
+}
+
+impl Pipeline {
+    /// A pipeline over `models` (`None`: only configurations without networks can run).
+    pub fn new(models: Option<Models>) -> Self {
+        Self {
+            models,
+            scratch: Scratch::default(),
+        }
+    }
+
+    /// The loaded models, if any.
+    pub fn models(&self) -> Option<&Models> {
+        self.models.as_ref()
+    }
+
+    /// Runs every stage `cfg` chooses on one frame.
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError`] for a frame that is empty, too large, lacks an input the mode needs
+    /// or has depth of another size than its RGB; for a configuration whose networks are not
+    /// loaded or whose working size is bad; and when a stage fails.
+    pub fn run(
+        &mut self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+    ) -> Result<FrameOutput, PipelineError> {
+        let size = check_input(input, cfg)?;
+        self.check_models(cfg)?;
+        let work = self.working(input, cfg, size)?;
+        let mut timings = StageTimings::default();
+        let rgb = timings.time("resize", || {
+            input.rgb.as_ref().map(|rgb| {
+                let small = resize_rgb(rgb, work.size.0, work.size.1);
+                rgb_tensor(&small, &mut self.scratch.rgb);
+            })
+        });
+        let has_rgb = rgb.is_some();
+        if cfg.method == Method::EndToEnd {
+            return self.end_to_end(input, cfg, &work, size, timings);
+        }
+        let depth_m = timings.time("depth", || self.depth(input, cfg, &work))?;
+        let points = timings.time("back_project", || {
+            let points = work.k.back_project_map(&depth_m);
+            if has_rgb && !cfg.networks().is_empty() {
+                points_tensors(&points, &mut self.scratch.points, &mut self.scratch.valid);
+            }
+            points
+        });
+        let (normals, centroids) = self.normals_and_centroids(cfg, &work, &points, &mut timings)?;
+        let mut roughness_m = Grid::new(work.size.0, work.size.1, f64::NAN);
+        timings.time("roughness", || {
+            roughness_into(&points, &normals, &centroids, &mut roughness_m);
+        });
+        let maps = WorkingMaps {
+            depth_m,
+            normals,
+            roughness_m,
+        };
+        let mut out = timings.time("outputs", || maps.into_output(input, cfg, size, work.size));
+        out.timings = timings;
+        Ok(out)
+    }
+
+    /// Normals (initial, refined) and centroids, each timed as its stage.
+    fn normals_and_centroids(
+        &mut self,
+        cfg: &PipelineConfig,
+        work: &Working,
+        points: &PointMap,
+        timings: &mut StageTimings,
+    ) -> Result<(Grid<Vec3>, PointMap), PipelineError> {
+        let (normals_method, do_refine, centroid_method) = cfg.effective();
+        let Self { models, scratch } = self;
+        let net = NetInputs {
+            rgb: &scratch.rgb,
+            points_m: &scratch.points,
+            valid: &scratch.valid,
+        };
+        let start = std::time::Instant::now();
+        let initial = match normals_method {
+            NormalsMethod::Ls => ls_normals(points, work.k.fx_px, &cfg.neighbourhood),
+            NormalsMethod::Dsac => dsac_normals_from_net(loaded(models)?, &net, points, cfg.seed)?,
+        };
+        timings.add("normals", start.elapsed());
+        let InitialNormals {
+            mut normals,
+            window_centroids: ls_centroids,
+        } = initial;
+        if do_refine {
+            let start = std::time::Instant::now();
+            normals = refine(
+                loaded(models)?,
+                &net,
+                points,
+                &normals,
+                &mut scratch.normals,
+            )?;
+            timings.add("refine", start.elapsed());
+        }
+        let start = std::time::Instant::now();
+        let centroids = match (centroid_method, ls_centroids) {
+            (CentroidMethod::Window, Some(c)) => c,
+            (CentroidMethod::Window, None) => {
+                window_centroids(points, work.k.fx_px, &cfg.neighbourhood)
+            }
+            (CentroidMethod::Net, _) => net_centroids(
+                loaded(models)?,
+                &net,
+                points,
+                &normals,
+                &mut scratch.normals,
+            )?,
+        };
+        timings.add("centroid", start.elapsed());
+        Ok((normals, centroids))
+    }
+
+    /// Depth at the working size: the depth net on RGB and the prior, or the given depth
+    /// resized nearest-neighbour.
+    fn depth(
+        &mut self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+        work: &Working,
+    ) -> Result<Grid<f64>, PipelineError> {
+        let (w, h) = work.size;
+        if cfg.mode != Mode::Rgb {
+            let given = input.depth_m.as_ref().ok_or(PipelineError::MissingInput {
+                mode: "this mode",
+                input: "depth",
+            })?;
+            return Ok(resize_nearest(given, w, h, 0.0));
+        }
+        let prior = prior_depth(&work.k, &input.mounting, w, h);
+        scalar_tensor(&prior, &mut self.scratch.prior);
+        let models = loaded(&mut self.models)?;
+        let depth = models.depth(self.scratch.rgb.view(), self.scratch.prior.view())?;
+        Ok(depth_from_tensor(&depth))
+    }
+
+    /// The end-to-end baseline: RGB and the prior straight to roughness.
+    fn end_to_end(
+        &mut self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+        work: &Working,
+        size: (usize, usize),
+        mut timings: StageTimings,
+    ) -> Result<FrameOutput, PipelineError> {
+        let (w, h) = work.size;
+        let start = std::time::Instant::now();
+        let prior = prior_depth(&work.k, &input.mounting, w, h);
+        scalar_tensor(&prior, &mut self.scratch.prior);
+        let models = loaded(&mut self.models)?;
+        let r = models.end_to_end(self.scratch.rgb.view(), self.scratch.prior.view())?;
+        let roughness_m = depth_from_tensor(&r).map(|&v| v.max(0.0));
+        timings.add("end_to_end", start.elapsed());
+        let start = std::time::Instant::now();
+        let roughness_m = resize_nearest(&roughness_m, size.0, size.1, f64::NAN);
+        let traversable = traversable(&roughness_m, None, &cfg.traversability);
+        timings.add("outputs", start.elapsed());
+        Ok(FrameOutput {
+            roughness_m,
+            depth_m: None,
+            normals: None,
+            slope_rad: None,
+            traversable,
+            working_size: work.size,
+            timings,
+        })
+    }
+
+    /// Fails when `cfg` runs networks that are not loaded.
+    fn check_models(&self, cfg: &PipelineConfig) -> Result<(), PipelineError> {
+        let networks = cfg.networks();
+        let missing = match &self.models {
+            None => !networks.is_empty(),
+            Some(m) => networks.contains(&crate::model::END_TO_END) && !m.has_end_to_end(),
+        };
+        if missing {
+            return Err(PipelineError::ModelsRequired {
+                label: cfg.label(),
+                networks,
+                loaded: self.models.is_some(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The working size and the intrinsics scaled to it.
+    fn working(
+        &self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+        (w0, h0): (usize, usize),
+    ) -> Result<Working, PipelineError> {
+        let nets = !cfg.networks().is_empty();
+        let stride = nets.then(|| self.models.as_ref().map_or(DEFAULT_STRIDE, Models::stride));
+        let size = match (cfg.working_size, cfg.mode, nets) {
+            (Some(size), _, _) => size,
+            (None, Mode::Geometric, false) => (w0, h0),
+            (None, _, _) => self
+                .models
+                .as_ref()
+                .map_or(DEFAULT_WORKING_SIZE, Models::working_size),
+        };
+        let fits = |s: usize| {
+            s > 0 && s <= MAX_WORKING_SIDE && stride.is_none_or(|st| s.is_multiple_of(st))
+        };
+        if !(fits(size.0) && fits(size.1)) {
+            return Err(PipelineError::BadWorkingSize { size, stride });
+        }
+        let k0 = match input.intrinsics {
+            Some(k) => k,
+            None => Intrinsics::from_hfov(w0, h0, DEFAULT_HFOV_DEG)?,
+        };
+        let k = k0.scaled(size.0 as f64 / w0 as f64, size.1 as f64 / h0 as f64)?;
+        Ok(Working { size, k })
+    }
+}
+
+/// The models, or the error that says they are needed (checked up front; kept for safety).
+fn loaded(models: &mut Option<Models>) -> Result<&mut Models, PipelineError> {
+    models
+        .as_mut()
+        .ok_or_else(|| PipelineError::ModelsRequired {
+            label: "this configuration".to_owned(),
+            networks: Vec::new(),
+            loaded: false,
+        })
+}
+
+/// Checks a frame against the configuration without running anything (as [`Pipeline::run`]
+/// does first): the inputs the mode needs are there, depth and RGB agree in size, the frame is
+/// neither empty nor too large. Returns its `(width, height)`.
+///
+/// # Errors
+///
+/// [`PipelineError::MissingInput`], [`PipelineError::DepthSizeMismatch`],
+/// [`PipelineError::EmptyImage`] or [`PipelineError::TooLarge`].
+pub fn check_input(
+    input: &FrameInput,
+    cfg: &PipelineConfig,
+) -> Result<(usize, usize), PipelineError> {
+    let (mode, needs_rgb, needs_depth) = match (cfg.method, cfg.mode) {
+        (Method::EndToEnd, _) => ("the end-to-end method", true, false),
+        (Method::Pipeline, Mode::Rgb) => ("rgb mode", true, false),
+        (Method::Pipeline, Mode::Rgbd) => ("rgbd mode", true, true),
+        (Method::Pipeline, Mode::Geometric) => ("geometric mode", false, true),
+    };
+    if needs_rgb && input.rgb.is_none() {
+        return Err(PipelineError::MissingInput { mode, input: "rgb" });
+    }
+    let depth = input.depth_m.as_ref().filter(|_| needs_depth);
+    if needs_depth && depth.is_none() {
+        return Err(PipelineError::MissingInput {
+            mode,
+            input: "depth",
+        });
+    }
+    let rgb_size = input
+        .rgb
+        .as_ref()
+        .map(|i| (i.width() as usize, i.height() as usize));
+    let depth_size = depth.map(Grid::size);
+    if let (Some(rgb), Some(depth)) = (rgb_size, depth_size) {
+        if rgb != depth {
+            return Err(PipelineError::DepthSizeMismatch { rgb, depth });
+        }
+    }
+    let what = if rgb_size.is_some() { "rgb" } else { "depth" };
+    let size = rgb_size.or(depth_size).ok_or(PipelineError::MissingInput {
+        mode,
+        input: "rgb or depth",
+    })?;
+    if size.0 == 0 || size.1 == 0 {
+        return Err(PipelineError::EmptyImage { what, size });
+    }
+    if size.0.saturating_mul(size.1) > cfg.max_input_pixels {
+        return Err(PipelineError::TooLarge {
+            size,
+            max_pixels: cfg.max_input_pixels,
+        });
+    }
+    Ok(size)
+}
+
+/// The stage outputs at the working size.
+struct WorkingMaps {
+    depth_m: Grid<f64>,
+    normals: Grid<Vec3>,
+    roughness_m: Grid<f64>,
+}
+
+impl WorkingMaps {
+    /// Slope and traversability, then every map at the frame's size (nearest-neighbour).
+    fn into_output(
+        self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+        (w, h): (usize, usize),
+        working_size: (usize, usize),
+    ) -> FrameOutput {
+        let slope = slopes(&self.normals, &input.mounting);
+        let ok = traversable(&self.roughness_m, Some(&slope), &cfg.traversability);
+        FrameOutput {
+            roughness_m: resize_nearest(&self.roughness_m, w, h, f64::NAN),
+            depth_m: Some(resize_nearest(&self.depth_m, w, h, 0.0)),
+            normals: Some(resize_nearest(&self.normals, w, h, INVALID_POINT)),
+            slope_rad: Some(resize_nearest(&slope, w, h, f64::NAN)),
+            traversable: resize_nearest(&ok, w, h, false),
+            working_size,
+            timings: StageTimings::default(),
+        }
+    }
+}

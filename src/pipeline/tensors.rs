@@ -1,0 +1,115 @@
+//! Grids ↔ NCHW float32 tensors (N = 1) in the layout the models expect: RGB in [0, 1],
+//! points in metres with 0 and `valid = 0` where there is no point (NaN cannot flow through a
+//! network), normals 0 where there is none. Tensors are caller-owned buffers, reused across
+//! frames, filled plane by plane with rows in parallel.
+
+use image::RgbImage;
+use ndarray::Array4;
+use rayon::prelude::*;
+
+use crate::geometry::{is_valid_point, Grid, PointMap, Vec3, INVALID_POINT};
+
+/// Makes `t` a zeroed-or-reused `1 × channels × height × width` tensor: reallocates only when
+/// the shape changes.
+pub fn ensure_shape(t: &mut Array4<f32>, channels: usize, height: usize, width: usize) {
+    if t.dim() != (1, channels, height, width) {
+        *t = Array4::zeros((1, channels, height, width));
+    }
+}
+
+/// Writes `value(x, y, c)` into every element of a `1 × C × H × W` tensor whose size is already
+/// set, rows in parallel.
+fn fill(t: &mut Array4<f32>, value: impl Fn(usize, usize, usize) -> f32 + Sync) {
+    let (_, _, h, w) = t.dim();
+    let data = t
+        .as_slice_mut()
+        .expect("tensors made by ensure_shape are contiguous; this is a bug");
+    for (c, plane) in data.chunks_mut((h * w).max(1)).enumerate() {
+        plane
+            .par_chunks_mut(w.max(1))
+            .enumerate()
+            .for_each(|(y, row)| {
+                for (x, v) in row.iter_mut().enumerate() {
+                    *v = value(x, y, c);
+                }
+            });
+    }
+}
+
+/// RGB as `1 × 3 × H × W` in [0, 1] (8-bit / 255).
+pub fn rgb_tensor(rgb: &RgbImage, t: &mut Array4<f32>) {
+    let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+    ensure_shape(t, 3, h, w);
+    let raw = rgb.as_raw();
+    fill(t, |x, y, c| f32::from(raw[(y * w + x) * 3 + c]) / 255.0);
+}
+
+/// A scalar map as `1 × 1 × H × W`.
+pub fn scalar_tensor(map: &Grid<f64>, t: &mut Array4<f32>) {
+    let (w, h) = map.size();
+    ensure_shape(t, 1, h, w);
+    fill(t, |x, y, _| map[(x, y)] as f32);
+}
+
+/// Points as `1 × 3 × H × W` metres (0 where invalid) and validity as `1 × 1 × H × W` (1/0).
+pub fn points_tensors(points: &PointMap, points_t: &mut Array4<f32>, valid_t: &mut Array4<f32>) {
+    let (w, h) = points.size();
+    ensure_shape(points_t, 3, h, w);
+    ensure_shape(valid_t, 1, h, w);
+    fill(points_t, |x, y, c| {
+        let p = &points[(x, y)];
+        if is_valid_point(p) {
+            p[c] as f32
+        } else {
+            0.0
+        }
+    });
+    fill(valid_t, |x, y, _| {
+        f32::from(u8::from(is_valid_point(&points[(x, y)])))
+    });
+}
+
+/// Vectors (normals) as `1 × 3 × H × W`, 0 where a vector is not finite.
+pub fn vectors_tensor(vectors: &Grid<Vec3>, t: &mut Array4<f32>) {
+    let (w, h) = vectors.size();
+    ensure_shape(t, 3, h, w);
+    fill(t, |x, y, c| {
+        let v = &vectors[(x, y)];
+        if v.iter().all(|c| c.is_finite()) {
+            v[c] as f32
+        } else {
+            0.0
+        }
+    });
+}
+
+/// Channel 0 of a `1 × 1 × H × W` depth tensor as metres; non-positive or non-finite: 0.
+pub fn depth_from_tensor(t: &Array4<f32>) -> Grid<f64> {
+    let (_, _, h, w) = t.dim();
+    Grid::par_from_fn(w, h, |x, y| {
+        let d = f64::from(t[(0, 0, y, x)]);
+        if d > 0.0 && d.is_finite() {
+            d
+        } else {
+            0.0
+        }
+    })
+}
+
+/// Channels 0..3 of a `1 × 3 × H × W` tensor as vectors where `points` is valid, NaN elsewhere;
+/// `unit` normalises them (a zero or non-finite vector becomes NaN).
+pub fn vectors_from_tensor(t: &Array4<f32>, points: &PointMap, unit: bool) -> Grid<Vec3> {
+    let (w, h) = points.size();
+    Grid::par_from_fn(w, h, |x, y| {
+        if !is_valid_point(&points[(x, y)]) {
+            return INVALID_POINT;
+        }
+        let v = Vec3::from_fn(|c, _| f64::from(t[(0, c, y, x)]));
+        let v = if unit { v / v.norm() } else { v };
+        if v.iter().all(|c| c.is_finite()) {
+            v
+        } else {
+            INVALID_POINT
+        }
+    })
+}

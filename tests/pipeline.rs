@@ -1,0 +1,351 @@
+//! The pipeline end to end: every mode and method on a tiny synthetic frame and on a real Kinect
+//! frame, odd frame sizes, every kind of bad input, and determinism by seed.
+
+use std::error::Error;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use image::RgbImage;
+use tre::geometry::{local_planes, Grid, Mounting, Neighbourhood};
+use tre::model::{Models, SessionConfig};
+use tre::pipeline::{
+    CentroidMethod, FrameInput, Method, Mode, NormalsMethod, Pipeline, PipelineConfig,
+    PipelineError,
+};
+use tre::synth::SynthConfig;
+
+type TestResult = Result<(), Box<dyn Error>>;
+
+fn models() -> Result<Models, Box<dyn Error>> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    let cfg = SessionConfig {
+        intra_threads: 1,
+        ..SessionConfig::default()
+    };
+    Ok(Models::load(&dir, &cfg)?)
+}
+
+/// A pipeline config at a small working size (the nets are fully convolutional).
+fn small(mode: Mode) -> PipelineConfig {
+    PipelineConfig {
+        working_size: Some((64, 64)),
+        ..PipelineConfig::for_mode(mode)
+    }
+}
+
+/// One frame of a one-scene, one-view synthetic dataset at 64×64, generated once per process.
+fn synth_frame() -> &'static (tempfile::TempDir, PathBuf) {
+    static FRAME: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    FRAME.get_or_init(|| {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let cfg = SynthConfig {
+            out: dir.path().to_owned(),
+            scenes: 1,
+            seed: 5,
+            size: (64, 64),
+            views: 1,
+            ply: false,
+            ..SynthConfig::default()
+        };
+        let manifest = tre::synth::generate(&cfg).expect("synth generates");
+        let frame = dir.path().join(&manifest.scenes[0].frames[0].dir);
+        (dir, frame)
+    })
+}
+
+/// Reads a frame folder of `tre synth` (rgb.png, depth.png, camera.json).
+fn read_synth(dir: &Path) -> Result<FrameInput, Box<dyn Error>> {
+    let (cam, k) = tre::io::read_camera(&dir.join("camera.json"))?;
+    Ok(FrameInput {
+        rgb: Some(tre::io::read_image(&dir.join("rgb.png"))?.to_rgb8()),
+        depth_m: Some(tre::io::read_depth(&dir.join("depth.png"), 1000.0)?),
+        intrinsics: Some(k),
+        mounting: cam.mounting()?,
+    })
+}
+
+fn real(rel: &str) -> PathBuf {
+    Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/data/real-rgbd"
+    ))
+    .join(rel)
+}
+
+/// A real Kinect frame: RGB, registered depth and intrinsics (slambook2 ch5, frame 1).
+fn real_frame() -> Result<FrameInput, Box<dyn Error>> {
+    let (cam, k) = tre::io::read_camera(&real("slambook2_ch5/intrinsics.json"))?;
+    Ok(FrameInput {
+        rgb: Some(tre::io::read_image(&real("slambook2_ch5/color/1.png"))?.to_rgb8()),
+        depth_m: Some(tre::io::read_depth(
+            &real("slambook2_ch5/depth/1.png"),
+            cam.depth_scale.unwrap_or(1000.0),
+        )?),
+        intrinsics: Some(k),
+        mounting: Mounting::default(),
+    })
+}
+
+/// The configurations of the paper's tables, at the small working size.
+fn configs() -> Vec<PipelineConfig> {
+    let mut out = Vec::new();
+    for mode in [Mode::Rgb, Mode::Rgbd] {
+        for normals in [NormalsMethod::Ls, NormalsMethod::Dsac] {
+            for (refine, centroid) in [(true, CentroidMethod::Net), (false, CentroidMethod::Window)]
+            {
+                out.push(PipelineConfig {
+                    normals,
+                    refine,
+                    centroid,
+                    ..small(mode)
+                });
+            }
+        }
+    }
+    out.push(small(Mode::Geometric));
+    out.push(PipelineConfig {
+        method: Method::EndToEnd,
+        ..small(Mode::Rgb)
+    });
+    out
+}
+
+fn finite(g: &Grid<f64>) -> usize {
+    g.as_slice().iter().filter(|v| v.is_finite()).count()
+}
+
+#[test]
+fn every_mode_runs_on_a_synthetic_frame() -> TestResult {
+    let frame = read_synth(&synth_frame().1)?;
+    let mut pipeline = Pipeline::new(Some(models()?));
+    let valid_depth = frame
+        .depth_m
+        .as_ref()
+        .map_or(0, |d| d.as_slice().iter().filter(|&&z| z > 0.0).count());
+    assert!(valid_depth > 1000, "the synthetic frame sees ground");
+    for cfg in configs() {
+        let out = pipeline.run(&frame, &cfg)?;
+        let label = cfg.label();
+        assert_eq!(out.roughness_m.size(), (64, 64), "{label}");
+        assert_eq!(out.traversable.size(), (64, 64), "{label}");
+        assert!(
+            out.roughness_m
+                .as_slice()
+                .iter()
+                .all(|r| r.is_nan() || *r >= 0.0),
+            "{label}"
+        );
+        if cfg.method == Method::EndToEnd {
+            assert!(out.normals.is_none() && out.timings.get("end_to_end").is_some());
+            continue;
+        }
+        assert!(out.timings.get("normals").is_some() && out.timings.get("centroid").is_some());
+        assert_eq!(
+            out.timings.get("refine").is_some(),
+            cfg.effective().1,
+            "{label}"
+        );
+        if cfg.mode != Mode::Rgb {
+            // Given depth: every pixel with depth has a point, and nearly all a roughness.
+            assert!(finite(&out.roughness_m) + 20 >= valid_depth, "{label}");
+        }
+        let normals = out.normals.as_ref().ok_or("normals")?;
+        let unit = normals
+            .as_slice()
+            .iter()
+            .filter(|n| n.x.is_finite())
+            .all(|n| (n.norm() - 1.0).abs() < 1e-3);
+        assert!(unit, "{label}: normals are unit");
+    }
+    Ok(())
+}
+
+#[test]
+fn geometric_mode_is_ls_normals_and_window_centroids_at_the_frame_size() -> TestResult {
+    let frame = read_synth(&synth_frame().1)?;
+    let mut pipeline = Pipeline::new(None);
+    let out = pipeline.run(&frame, &PipelineConfig::for_mode(Mode::Geometric))?;
+    let k = frame.intrinsics.ok_or("intrinsics")?;
+    let points = k.back_project_map(frame.depth_m.as_ref().ok_or("depth")?);
+    let planes = local_planes(&points, k.fx_px, &Neighbourhood::default());
+    for y in 0..64 {
+        for x in 0..64 {
+            let want = planes.normal[(x, y)]
+                .dot(&(points[(x, y)] - planes.centroid[(x, y)]))
+                .abs();
+            let got = out.roughness_m[(x, y)];
+            assert!(
+                got == want || (got.is_nan() && want.is_nan()),
+                "({x}, {y}): {got} vs {want}"
+            );
+        }
+    }
+    assert_eq!(out.working_size, (64, 64));
+    Ok(())
+}
+
+#[test]
+fn every_mode_runs_on_a_real_frame() -> TestResult {
+    let frame = real_frame()?;
+    let mut pipeline = Pipeline::new(Some(models()?));
+    for mode in [Mode::Rgb, Mode::Rgbd, Mode::Geometric] {
+        let out = pipeline.run(&frame, &PipelineConfig::for_mode(mode))?;
+        assert_eq!(out.roughness_m.size(), (640, 480), "{mode:?}");
+        assert!(finite(&out.roughness_m) > 100_000, "{mode:?}");
+        let expected = if mode == Mode::Geometric {
+            (640, 480)
+        } else {
+            (256, 256)
+        };
+        assert_eq!(out.working_size, expected);
+    }
+    // Holes in the sensor's depth stay holes in rgbd and geometric modes.
+    let depth = frame.depth_m.as_ref().ok_or("depth")?;
+    let out = pipeline.run(&frame, &PipelineConfig::for_mode(Mode::Geometric))?;
+    let hole = depth
+        .as_slice()
+        .iter()
+        .position(|&z| z <= 0.0)
+        .ok_or("the frame has holes")?;
+    assert!(out.roughness_m.as_slice()[hole].is_nan());
+    Ok(())
+}
+
+#[test]
+fn odd_sizes_work() -> TestResult {
+    let mut pipeline = Pipeline::new(Some(models()?));
+    for (w, h) in [(1, 1), (7, 5), (1242, 375)] {
+        let rgb = RgbImage::from_fn(w as u32, h as u32, |x, y| {
+            image::Rgb([(x % 256) as u8, (y % 256) as u8, 90])
+        });
+        let depth = Grid::from_fn(w, h, |_, y| 1.0 + 0.01 * y as f64);
+        let frame = FrameInput {
+            rgb: Some(rgb),
+            depth_m: Some(depth),
+            intrinsics: None,
+            mounting: Mounting::default(),
+        };
+        for mode in [Mode::Rgb, Mode::Rgbd, Mode::Geometric] {
+            let out = pipeline.run(&frame, &small(mode))?;
+            assert_eq!(out.roughness_m.size(), (w, h), "{mode:?} {w}×{h}");
+            assert_eq!(out.depth_m.as_ref().map(Grid::size), Some((w, h)));
+        }
+        let native = pipeline.run(&frame, &PipelineConfig::for_mode(Mode::Geometric))?;
+        assert_eq!(native.working_size, (w, h));
+    }
+    Ok(())
+}
+
+#[test]
+fn the_same_seed_gives_the_same_output() -> TestResult {
+    let frame = read_synth(&synth_frame().1)?;
+    let mut pipeline = Pipeline::new(Some(models()?));
+    let cfg = PipelineConfig {
+        seed: 42,
+        ..small(Mode::Rgbd)
+    };
+    let a = pipeline.run(&frame, &cfg)?;
+    let b = pipeline.run(&frame, &cfg)?;
+    let bits = |g: &Grid<f64>| g.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&a.roughness_m), bits(&b.roughness_m));
+    let (na, nb) = (a.normals.ok_or("normals")?, b.normals.ok_or("normals")?);
+    assert!(na
+        .as_slice()
+        .iter()
+        .zip(nb.as_slice())
+        .all(|(p, q)| p == q || (p.x.is_nan() && q.x.is_nan())));
+    Ok(())
+}
+
+#[test]
+fn bad_inputs_are_clear_errors() -> TestResult {
+    let mut pipeline = Pipeline::new(None);
+    let rgb = RgbImage::new(8, 6);
+    let frame = FrameInput {
+        rgb: Some(rgb.clone()),
+        depth_m: Some(Grid::new(6, 8, 1.0)),
+        ..FrameInput::default()
+    };
+    let err = pipeline
+        .run(&frame, &small(Mode::Rgbd))
+        .expect_err("depth of another size");
+    assert!(
+        matches!(
+            err,
+            PipelineError::DepthSizeMismatch {
+                rgb: (8, 6),
+                depth: (6, 8)
+            }
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("6×8"), "{err}");
+
+    let err = pipeline
+        .run(&frame, &small(Mode::Rgb))
+        .expect_err("no models");
+    assert!(matches!(err, PipelineError::ModelsRequired { .. }), "{err}");
+    assert!(err.to_string().contains("depth_net"), "{err}");
+
+    let no_depth = FrameInput {
+        rgb: Some(rgb),
+        ..FrameInput::default()
+    };
+    let err = pipeline
+        .run(&no_depth, &small(Mode::Geometric))
+        .expect_err("no depth");
+    assert!(
+        matches!(err, PipelineError::MissingInput { input: "depth", .. }),
+        "{err}"
+    );
+
+    let empty = FrameInput {
+        rgb: Some(RgbImage::new(0, 4)),
+        ..FrameInput::default()
+    };
+    let e2e = PipelineConfig {
+        method: Method::EndToEnd,
+        ..small(Mode::Rgb)
+    };
+    let err = Pipeline::new(Some(models()?))
+        .run(&empty, &e2e)
+        .expect_err("empty");
+    assert!(matches!(err, PipelineError::EmptyImage { .. }), "{err}");
+
+    let depth_only = FrameInput {
+        depth_m: Some(Grid::new(100, 100, 1.0)),
+        ..FrameInput::default()
+    };
+    let tiny_limit = PipelineConfig {
+        max_input_pixels: 5000,
+        ..small(Mode::Geometric)
+    };
+    let err = pipeline
+        .run(&depth_only, &tiny_limit)
+        .expect_err("too large");
+    assert!(matches!(err, PipelineError::TooLarge { .. }), "{err}");
+
+    let mut with_models = Pipeline::new(Some(models()?));
+    let odd = PipelineConfig {
+        working_size: Some((60, 64)),
+        ..PipelineConfig::for_mode(Mode::Rgb)
+    };
+    let frame = FrameInput {
+        rgb: Some(RgbImage::new(8, 6)),
+        ..FrameInput::default()
+    };
+    let err = with_models
+        .run(&frame, &odd)
+        .expect_err("60 is not a multiple of 16");
+    assert!(
+        matches!(
+            err,
+            PipelineError::BadWorkingSize {
+                stride: Some(16),
+                ..
+            }
+        ),
+        "{err}"
+    );
+    Ok(())
+}
