@@ -90,8 +90,10 @@ pub struct PipelineConfig {
     pub centroid: CentroidMethod,
     /// Seed of the DSAC sampler for this request: the same seed gives the same output.
     pub seed: u64,
-    /// Size the stages run at, `(width, height)`. `None`: the manifest's working size when any
-    /// network runs (256×256 without models), the input's own size in geometric mode.
+    /// Size the stages run at, `(width, height)`. `None`: when any network runs, the longer
+    /// side of the frame takes the manifest's working size (256 without models) and the other
+    /// keeps the aspect ratio ([`fit_aspect`](super::run::fit_aspect)); in geometric mode, the
+    /// input's own size.
     /// With networks, both sides must be multiples of the manifest's stride.
     pub working_size: Option<(usize, usize)>,
     /// Neighbourhood of LS normals and window centroids.

@@ -21,6 +21,26 @@ pub const DEFAULT_WORKING_SIZE: (usize, usize) = (256, 256);
 /// Stride assumed for network inputs when no models are loaded.
 const DEFAULT_STRIDE: usize = 16;
 
+/// The working size for a `(w0, h0)` frame: the longer side takes the manifest's size for it,
+/// the shorter side keeps the frame's aspect ratio, rounded to a multiple of `stride` (at least
+/// one stride), so the nets never see a stretched image.
+///
+/// ```
+/// # use tre::pipeline::run::fit_aspect;
+/// assert_eq!(fit_aspect((256, 256), (640, 480), 16), (256, 192));
+/// assert_eq!(fit_aspect((256, 256), (375, 1242), 16), (80, 256));
+/// assert_eq!(fit_aspect((256, 256), (512, 512), 16), (256, 256));
+/// assert_eq!(fit_aspect((256, 256), (4000, 1), 16), (256, 16));
+/// ```
+pub fn fit_aspect(working: (usize, usize), (w0, h0): (usize, usize), stride: usize) -> (usize, usize) {
+    let round = |v: f64| ((v / stride as f64).round() as usize).max(1) * stride;
+    if w0 >= h0 {
+        (working.0, round(working.0 as f64 * h0 as f64 / w0.max(1) as f64))
+    } else {
+        (round(working.1 as f64 * w0 as f64 / h0.max(1) as f64), working.1)
+    }
+}
+
 /// Tensors reused from frame to frame (reallocated only when the working size changes).
 #[derive(Debug, Default)]
 struct Scratch {
@@ -245,10 +265,13 @@ impl Pipeline {
         let size = match (cfg.working_size, cfg.mode, nets) {
             (Some(size), _, _) => size,
             (None, Mode::Geometric, false) => (w0, h0),
-            (None, _, _) => self
-                .models
-                .as_ref()
-                .map_or(DEFAULT_WORKING_SIZE, Models::working_size),
+            (None, _, _) => fit_aspect(
+                self.models
+                    .as_ref()
+                    .map_or(DEFAULT_WORKING_SIZE, Models::working_size),
+                (w0, h0),
+                stride.unwrap_or(DEFAULT_STRIDE),
+            ),
         };
         let fits = |s: usize| {
             s > 0 && s <= MAX_WORKING_SIDE && stride.is_none_or(|st| s.is_multiple_of(st))
