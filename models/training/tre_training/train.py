@@ -55,20 +55,26 @@ DEFAULTS = {  # batch, crop
 class Data:
     """A split in memory plus the cached stage outputs, cut into batches of crops."""
 
-    def __init__(self, root: Path, split: str) -> None:
+    def __init__(self, root: Path, split: str, depth: str = "gt") -> None:
+        """`depth="pred"` swaps the true depth for the depth net's (cached by `cache-depth`), so
+        the geometric stages see what they see in the `rgb` mode; the caches of stage outputs
+        then carry a `_pred` suffix."""
         self.root = root
         self.cache = root / ".cache"
         self.split_name = split
+        self.suffix = "" if depth == "gt" else "_pred"
         self.s: Split = load_split(root, split, self.cache / f"{split}.npz")
+        if depth == "pred":
+            self.s.depth_m = np.load(self.cache / f"{split}_pred_depth.npy")
         self.extra: dict[str, np.ndarray] = {}
         self.frames = np.arange(len(self.s))
         """Frames batches are drawn from: all, or those the cached stage outputs cover."""
         self.row = {int(i): int(i) for i in self.frames}
         for name in ("n0", "n"):
-            path = self.cache / f"{split}_{name}.npy"
+            path = self.cache / f"{split}_{name}{self.suffix}.npy"
             if path.exists():
                 self.extra[name] = np.load(path, mmap_mode="r")
-                self.frames = np.load(self.cache / f"{split}_{name}_index.npy")
+                self.frames = np.load(self.cache / f"{split}_{name}{self.suffix}_index.npy")
                 self.row = {int(i): r for r, i in enumerate(self.frames)}
 
     def __len__(self) -> int:
@@ -166,11 +172,24 @@ def step_loss(stage: str, model: torch.nn.Module, b: dict, step: int) -> tuple[T
     raise ValueError(stage)
 
 
-def train(stage: str, data: Data, minutes: float, batch: int, crop: int, seed: int) -> dict:
-    """Trains `stage` for `minutes` of wall time and saves its checkpoint; returns the log."""
+def train(
+    stage: str,
+    data: Data,
+    minutes: float,
+    batch: int,
+    crop: int,
+    seed: int,
+    pred: Data | None = None,
+    init: Path | None = None,
+) -> dict:
+    """Trains `stage` for `minutes` of wall time and saves its checkpoint; returns the log.
+    With `pred`, every other batch comes from it (points from the depth net's depth); `init`
+    starts from a checkpoint (fine-tuning)."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     model = nets.NETS[STAGE_NET[stage]]()
+    if init is not None:
+        model.load_state_dict(torch.load(init, weights_only=True))
     opt = torch.optim.Adam(model.parameters(), lr=1e-3, betas=(0.9, 0.999), eps=1e-8)
     start, step, history = time.time(), 0, []
     budget = minutes * 60.0
@@ -183,7 +202,8 @@ def train(stage: str, data: Data, minutes: float, batch: int, crop: int, seed: i
         )
         for g in opt.param_groups:
             g["lr"] = lr
-        b = data.random_batch(rng, batch, crop)
+        source = pred if pred is not None and step % 2 == 1 else data
+        b = source.random_batch(rng, batch, crop)
         loss, logs = step_loss(stage, model, b, step)
         opt.zero_grad()
         loss.backward()
@@ -204,6 +224,8 @@ def train(stage: str, data: Data, minutes: float, batch: int, crop: int, seed: i
         "device": "cpu",
         "threads": torch.get_num_threads(),
         "train_frames": len(data),
+        "mixed_predicted_depth": pred is not None,
+        "init": None if init is None else init.name,
         "final_train": final,
         "seed": seed,
     }
@@ -243,13 +265,25 @@ def cache_outputs(kind: str, data: Data, seed: int, frames: int) -> None:
             out[r] = n[0].numpy().astype(np.float16)
             if r % 50 == 0:
                 print(f"cache {kind} {r}/{len(index)} {time.time() - start:.0f}s", flush=True)
-    np.save(data.cache / f"{data.split_name}_{kind}.npy", out)
-    np.save(data.cache / f"{data.split_name}_{kind}_index.npy", index)
+    np.save(data.cache / f"{data.split_name}_{kind}{data.suffix}.npy", out)
+    np.save(data.cache / f"{data.split_name}_{kind}{data.suffix}_index.npy", index)
+
+
+def cache_depth(data: Data) -> None:
+    """Writes the depth net's depth for every frame of the split (float32 metres, N×H×W)."""
+    model = load("depth")
+    data.extra = {}
+    out = np.zeros(data.s.depth_m.shape, np.float32)
+    with torch.no_grad():
+        for lo in range(0, len(data), 16):
+            b = data.whole(np.arange(lo, min(lo + 16, len(data))))
+            out[lo : lo + 16] = model(b["rgb"], b["prior_depth_m"])[:, 0].numpy()
+    np.save(data.cache / f"{data.split_name}_pred_depth.npy", out)
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("stage", choices=[*STAGE_NET, "cache-n0", "cache-n"])
+    ap.add_argument("stage", choices=[*STAGE_NET, "cache-depth", "cache-n0", "cache-n"])
     ap.add_argument("--data", type=Path, required=True, help="dataset folder from `tre synth`")
     ap.add_argument("--minutes", type=float, default=15.0, help="wall-time budget")
     ap.add_argument("--batch", type=int, help="batch size (default per stage)")
@@ -257,9 +291,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--split", default="train", help="split for the cache-* stages")
     ap.add_argument("--frames", type=int, default=480, help="frames cache-n0 covers")
+    ap.add_argument(
+        "--depth", choices=["gt", "pred"], default="gt", help="points from true or predicted depth"
+    )
+    ap.add_argument("--mix-pred", action="store_true", help="alternate true and predicted depth")
+    ap.add_argument("--init", type=Path, help="start from this checkpoint")
     args = ap.parse_args(argv)
+    if args.stage == "cache-depth":
+        cache_depth(Data(args.data, args.split))
+        return 0
     if args.stage.startswith("cache-"):
-        data = Data(args.data, args.split)
+        data = Data(args.data, args.split, args.depth)
         cache_outputs(args.stage.removeprefix("cache-"), data, args.seed, args.frames)
         return 0
     batch, crop = DEFAULTS[args.stage]
@@ -270,6 +312,8 @@ def main(argv: list[str] | None = None) -> int:
         args.batch or batch,
         args.crop or crop,
         args.seed,
+        pred=Data(args.data, "train", "pred") if args.mix_pred else None,
+        init=args.init,
     )
     print(json.dumps(log, indent=2))
     return 0
