@@ -54,6 +54,10 @@ def load_net(name: str, allow_untrained: bool) -> tuple[torch.nn.Module, dict | 
     if ckpt.exists():
         model.load_state_dict(torch.load(ckpt, weights_only=True))
         log = json.loads((CHECKPOINTS / f"{STAGE_OF[name]}.json").read_text())
+        if log.get("init"):
+            # Fine-tuned: keep the log of the run it started from.
+            base = CHECKPOINTS / Path(log["init"]).with_suffix(".json").name
+            log["pretraining"] = json.loads(base.read_text())
     elif not allow_untrained:
         raise SystemExit(f"{name}: no checkpoint {ckpt}; train it first")
     return model.eval(), log
