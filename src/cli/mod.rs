@@ -14,7 +14,7 @@ use clap::{Parser, Subcommand};
 #[command(name = "tre", version, about)]
 pub struct Cli {
     /// Log filter (tracing's env-filter syntax), e.g. `info` or `tre=debug`.
-    #[arg(long, env = "TRE_LOG", default_value = "info", global = true)]
+    #[arg(long, env = "TRE_LOG", default_value = "info,ort=warn", global = true)]
     pub log: String,
     /// What to do.
     #[command(subcommand)]

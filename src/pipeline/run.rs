@@ -32,12 +32,22 @@ const DEFAULT_STRIDE: usize = 16;
 /// assert_eq!(fit_aspect((256, 256), (512, 512), 16), (256, 256));
 /// assert_eq!(fit_aspect((256, 256), (4000, 1), 16), (256, 16));
 /// ```
-pub fn fit_aspect(working: (usize, usize), (w0, h0): (usize, usize), stride: usize) -> (usize, usize) {
+pub fn fit_aspect(
+    working: (usize, usize),
+    (w0, h0): (usize, usize),
+    stride: usize,
+) -> (usize, usize) {
     let round = |v: f64| ((v / stride as f64).round() as usize).max(1) * stride;
     if w0 >= h0 {
-        (working.0, round(working.0 as f64 * h0 as f64 / w0.max(1) as f64))
+        (
+            working.0,
+            round(working.0 as f64 * h0 as f64 / w0.max(1) as f64),
+        )
     } else {
-        (round(working.1 as f64 * w0 as f64 / h0.max(1) as f64), working.1)
+        (
+            round(working.1 as f64 * w0 as f64 / h0.max(1) as f64),
+            working.1,
+        )
     }
 }
 
