@@ -237,6 +237,32 @@ fn odd_sizes_work() -> TestResult {
     Ok(())
 }
 
+/// A 12-megapixel frame (4000×3000) runs at 256×192 and every map comes back at full size.
+#[test]
+fn a_twelve_megapixel_frame_runs_at_the_working_size() -> TestResult {
+    let (w, h) = (4000, 3000);
+    let rgb = RgbImage::from_fn(w as u32, h as u32, |x, y| {
+        image::Rgb([(x / 16 % 256) as u8, (y / 16 % 256) as u8, 90])
+    });
+    let frame = FrameInput {
+        rgb: Some(rgb),
+        depth_m: Some(Grid::from_fn(w, h, |_, y| 1.0 + 0.001 * y as f64)),
+        intrinsics: None,
+        mounting: Mounting::default(),
+    };
+    let mut pipeline = Pipeline::new(Some(models()?));
+    for mode in [Mode::Rgb, Mode::Rgbd] {
+        let out = pipeline.run(&frame, &PipelineConfig::for_mode(mode))?;
+        assert_eq!(out.working_size, (256, 192), "{mode:?}");
+        assert_eq!(out.roughness_m.size(), (w, h), "{mode:?}");
+        assert!(
+            out.roughness_m.as_slice().iter().all(|r| r.is_finite()),
+            "{mode:?}"
+        );
+    }
+    Ok(())
+}
+
 #[test]
 fn the_same_seed_gives_the_same_output() -> TestResult {
     let frame = read_synth(&synth_frame().1)?;
