@@ -24,6 +24,10 @@ pub struct SessionConfig {
     pub optimisation: Optimisation,
     /// Where the graph runs.
     pub provider: ExecutionProvider,
+    /// Let ONNX Runtime's idle intra-op threads spin between runs. Off by default: the
+    /// pipeline's geometry (DSAC, LS fits) runs on the same cores right after each net, and
+    /// spinning threads would take the cores from it.
+    pub spin: bool,
 }
 
 /// ONNX Runtime graph optimisation levels.
@@ -246,6 +250,7 @@ fn build_session(model: &str, path: &Path, cfg: &SessionConfig) -> Result<Sessio
     let mut builder = builder
         .with_optimization_level(cfg.optimisation.into())
         .map_err(ort_err)?;
+    builder = builder.with_intra_op_spinning(cfg.spin).map_err(ort_err)?;
     if cfg.intra_threads > 0 {
         builder = builder
             .with_intra_threads(cfg.intra_threads)
