@@ -124,14 +124,7 @@ impl Annotate {
 
 /// Prints pixel counts and roughness quantiles.
 fn print_summary(ann: &Annotation) {
-    let mut r: Vec<f64> = ann
-        .roughness_m
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite())
-        .collect();
-    r.sort_by(f64::total_cmp);
+    let r = super::finite_sorted(&ann.roughness_m);
     let q = |f: f64| {
         r.get(((r.len() as f64 - 1.0) * f).round() as usize)
             .copied()

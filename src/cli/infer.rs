@@ -143,14 +143,7 @@ fn preview_path(out: &Path) -> PathBuf {
 
 /// One line of results and one of timings, on stdout.
 fn print_summary(out: &FrameOutput, label: &str) {
-    let mut valid: Vec<f64> = out
-        .roughness_m
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|r| r.is_finite())
-        .collect();
-    valid.sort_by(f64::total_cmp);
+    let valid = super::finite_sorted(&out.roughness_m);
     let median_cm = valid.get(valid.len() / 2).map_or(f64::NAN, |r| 100.0 * r);
     let traversable = out.traversable.as_slice().iter().filter(|&&t| t).count();
     let (w, h) = out.working_size;

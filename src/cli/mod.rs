@@ -46,3 +46,15 @@ impl Command {
         }
     }
 }
+
+/// The finite values of a roughness map, sorted ascending (for the summaries' quantiles).
+fn finite_sorted(map: &crate::geometry::Grid<f64>) -> Vec<f64> {
+    let mut v: Vec<f64> = map
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|r| r.is_finite())
+        .collect();
+    v.sort_by(f64::total_cmp);
+    v
+}

@@ -70,15 +70,16 @@ fn table_ii<'a>(out: &mut String, find: &Find<'a>) {
     ];
     for (name, key) in rows {
         if let Some(r) = find(key) {
-            let m = &r.roughness;
-            let _ = writeln!(
-                out,
-                "| {name} | {:.3} | {:.3} | {:.3} |",
-                m.rmse_cm, m.b_rmse_cm, m.f_rmse_cm
-            );
+            let _ = writeln!(out, "| {name} | {} |", roughness_cells(r));
         }
     }
     out.push('\n');
+}
+
+/// RMSE, B-RMSE and F-RMSE of a row as three markdown cells (cm, 3 decimals).
+fn roughness_cells(r: &RowResult) -> String {
+    let m = &r.roughness;
+    format!("{:.3} | {:.3} | {:.3}", m.rmse_cm, m.b_rmse_cm, m.f_rmse_cm)
 }
 
 fn table_iv(out: &mut String, rows: &[RowResult]) {
@@ -89,12 +90,7 @@ fn table_iv(out: &mut String, rows: &[RowResult]) {
             continue;
         }
         let (input, stages) = r.key.split_once(':').unwrap_or((&r.key, ""));
-        let m = &r.roughness;
-        let _ = writeln!(
-            out,
-            "| {input} | {stages} | {:.3} | {:.3} | {:.3} |",
-            m.rmse_cm, m.b_rmse_cm, m.f_rmse_cm
-        );
+        let _ = writeln!(out, "| {input} | {stages} | {} |", roughness_cells(r));
     }
     out.push('\n');
 }

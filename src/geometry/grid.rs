@@ -18,6 +18,17 @@ pub struct Grid<T> {
     data: Vec<T>,
 }
 
+impl<T> Default for Grid<T> {
+    /// An empty 0×0 grid (a buffer not sized yet).
+    fn default() -> Self {
+        Self {
+            width: 0,
+            height: 0,
+            data: Vec::new(),
+        }
+    }
+}
+
 impl<T: Clone> Grid<T> {
     /// A grid filled with `value`.
     pub fn new(width: usize, height: usize, value: T) -> Self {

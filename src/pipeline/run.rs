@@ -5,7 +5,7 @@
 use ndarray::Array4;
 
 use super::centroid::{net_centroids, roughness_into, slopes, traversable};
-use super::depth::prior_depth;
+use super::depth::{prior_depth_into, MAX_PRIOR_DEPTH_M};
 use super::frame::{FrameInput, FrameOutput, StageTimings, DEFAULT_HFOV_DEG};
 use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
 use super::resize::{resize_nearest, resize_rgb};
@@ -55,6 +55,7 @@ pub fn fit_aspect(
 #[derive(Debug, Default)]
 struct Scratch {
     rgb: Array4<f32>,
+    prior_m: Grid<f64>,
     prior: Array4<f32>,
     points: Array4<f32>,
     valid: Array4<f32>,
@@ -207,11 +208,22 @@ impl Pipeline {
             })?;
             return Ok(resize_nearest(given, w, h, 0.0));
         }
-        let prior = prior_depth(&work.k, &input.mounting, w, h);
-        scalar_tensor(&prior, &mut self.scratch.prior);
+        self.prior_tensor(work, input);
         let models = loaded(&mut self.models)?;
         let depth = models.depth(self.scratch.rgb.view(), self.scratch.prior.view())?;
         Ok(depth_from_tensor(&depth))
+    }
+
+    /// The flat-ground prior depth at the working size into the prior tensor (both buffers
+    /// reused across frames).
+    fn prior_tensor(&mut self, work: &Working, input: &FrameInput) {
+        let (w, h) = work.size;
+        let grid = &mut self.scratch.prior_m;
+        if grid.size() != (w, h) {
+            *grid = Grid::new(w, h, MAX_PRIOR_DEPTH_M);
+        }
+        prior_depth_into(&work.k, &input.mounting, grid);
+        scalar_tensor(grid, &mut self.scratch.prior);
     }
 
     /// The end-to-end baseline: RGB and the prior straight to roughness.
@@ -223,10 +235,8 @@ impl Pipeline {
         size: (usize, usize),
         mut timings: StageTimings,
     ) -> Result<FrameOutput, PipelineError> {
-        let (w, h) = work.size;
         let start = std::time::Instant::now();
-        let prior = prior_depth(&work.k, &input.mounting, w, h);
-        scalar_tensor(&prior, &mut self.scratch.prior);
+        self.prior_tensor(work, input);
         let models = loaded(&mut self.models)?;
         let r = models.end_to_end(self.scratch.rgb.view(), self.scratch.prior.view())?;
         let roughness_m = depth_from_tensor(&r).map(|&v| v.max(0.0));

@@ -172,9 +172,12 @@ def pixel_candidates(points_m: Tensor, valid: Tensor) -> tuple[Tensor, Tensor]:
     return cands, cvalid
 
 
-def candidate_rho(logits: Tensor, cvalid: Tensor) -> Tensor:
-    """N×49×H×W logits → ρ (P×49): softmax over the valid candidates, 0 elsewhere."""
+def candidate_rho(logits: Tensor, cvalid: Tensor, pixels: Tensor | None = None) -> Tensor:
+    """N×49×H×W logits → ρ (P×49): softmax over the valid candidates, 0 elsewhere; with
+    `pixels` (flat indices into the P pixels), only those rows, in that order."""
     lg = logits.permute(0, 2, 3, 1).reshape(-1, CANDIDATES)
+    if pixels is not None:
+        lg, cvalid = lg[pixels], cvalid[pixels]
     lg = torch.where(cvalid, lg, torch.full_like(lg, -1e9))
     rho = torch.softmax(lg, 1) * cvalid
     return rho / torch.clamp(rho.sum(1, keepdim=True), min=1e-30)
@@ -242,13 +245,12 @@ def dsac_loss(
     idx = torch.nonzero(keep).squeeze(1)
     if max_pixels is not None and idx.shape[0] > max_pixels:
         g = torch.Generator().manual_seed(seed)
-        idx = idx[torch.randperm(idx.shape[0], generator=g)[:max_pixels]]
-    keep = torch.zeros_like(keep)
-    keep[idx] = True
-    rho = candidate_rho(logits, cvalid)[keep]
-    u = uniforms(seed, idx, cfg.hypotheses)
-    hyp = hypotheses(cands[keep], cvalid[keep], rho, u, cfg)
-    cos = (hyp.normals * gt[keep].unsqueeze(0)).sum(-1).abs().clamp(max=1.0)
+        idx = idx[torch.randperm(idx.shape[0], generator=g)[:max_pixels]].sort().values
+    rho = candidate_rho(logits, cvalid, idx)
+    h, w = points_m.shape[2:]
+    u = uniforms(seed, idx % (h * w), cfg.hypotheses)
+    hyp = hypotheses(cands[idx], cvalid[idx], rho, u, cfg)
+    cos = (hyp.normals * gt[idx].unsqueeze(0)).sum(-1).abs().clamp(max=1.0)
     err = torch.where(hyp.exists, 1.0 - cos, torch.ones_like(cos))
     w = torch.softmax(cfg.selection_alpha * torch.where(hyp.exists, hyp.scores, -1e4), 0)
     expected = (w * err).sum(0)
@@ -274,12 +276,12 @@ def dsac_normals(
     with torch.no_grad():
         cands, cvalid = pixel_candidates(points_m, valid)
         keep = torch.nonzero(cvalid[:, CENTRE]).squeeze(1)
-        rho_all = candidate_rho(logits, cvalid)
         out = torch.zeros(cands.shape[0], 3, dtype=torch.float64)
         for lo in range(0, keep.shape[0], chunk):
             idx = keep[lo : lo + chunk]
             u = uniforms(seed, idx % (h * w), cfg.hypotheses)
-            out[idx] = _best_refit(cands[idx], cvalid[idx], rho_all[idx], u, cfg, exact)
+            rho = candidate_rho(logits, cvalid, idx)
+            out[idx] = _best_refit(cands[idx], cvalid[idx], rho, u, cfg, exact)
     return out.view(n, h, w, 3).permute(0, 3, 1, 2).to(points_m.dtype)
 
 
