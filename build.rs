@@ -1,4 +1,5 @@
-//! Build script: provisions the ONNX Runtime library that `tre` loads at run time.
+//! Build script: compiles the stream protocol in `proto/` and provisions the ONNX Runtime
+//! library that `tre` loads at run time.
 //!
 //! Each step is one function called from `main`. ONNX Runtime is not linked: `ort` loads it with
 //! `dlopen` (`load-dynamic`), so this step only makes sure a library is there for development
@@ -15,7 +16,22 @@ const ORT_VERSION: &str = "1.31.1";
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
+    compile_protos();
     provision_onnxruntime();
+}
+
+/// Compiles `proto/roughness/v1/*.proto` into Rust with prost. The descriptors come from
+/// protox, a protobuf compiler written in Rust, so no system `protoc` is needed.
+fn compile_protos() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = root.join("proto");
+    let file = dir.join("roughness").join("v1").join("stream.proto");
+    println!("cargo:rerun-if-changed={}", dir.display());
+    let descriptors = protox::compile([&file], [&dir])
+        .unwrap_or_else(|e| panic!("cannot compile {}: {e}", file.display()));
+    prost_build::Config::new()
+        .compile_fds(descriptors)
+        .unwrap_or_else(|e| panic!("cannot generate Rust for {}: {e}", file.display()));
 }
 
 /// Compiles in the default library path and fetches the library there when it is missing,

@@ -8,5 +8,7 @@ pub mod geometry;
 pub mod io;
 pub mod model;
 pub mod pipeline;
+pub mod proto;
 pub mod roughness;
+pub mod server;
 pub mod synth;

@@ -4,6 +4,7 @@ pub mod annotate;
 pub mod eval;
 pub mod infer;
 pub mod options;
+pub mod serve;
 pub mod synth;
 pub mod tables;
 
@@ -16,6 +17,9 @@ pub struct Cli {
     /// Log filter (tracing's env-filter syntax), e.g. `info` or `tre=debug`.
     #[arg(long, env = "TRE_LOG", default_value = "info,ort=warn", global = true)]
     pub log: String,
+    /// Logs as JSON lines (one object per event) instead of text.
+    #[arg(long, env = "TRE_LOG_JSON", global = true)]
+    pub log_json: bool,
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
@@ -33,6 +37,8 @@ pub enum Command {
     /// Score roughness, normals and depth on a synthetic dataset's split; --tables for the
     /// paper's Tables II, IV and V.
     Eval(eval::Eval),
+    /// Serve roughness over HTTP and a WebSocket stream.
+    Serve(serve::Serve),
 }
 
 impl Command {
@@ -43,6 +49,7 @@ impl Command {
             Command::Synth(cmd) => cmd.run(),
             Command::Infer(cmd) => cmd.run(),
             Command::Eval(cmd) => cmd.run(),
+            Command::Serve(cmd) => cmd.run(),
         }
     }
 }

@@ -327,15 +327,21 @@ pub fn save(path: &Path, img: &DynamicImage) -> Result<(), IoError> {
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"))
     {
-        use image::codecs::png::{CompressionType, FilterType, PngEncoder};
         let out = BufWriter::new(File::create(path).map_err(|source| IoError::Read {
             path: path.to_owned(),
             source,
         })?);
-        let enc = PngEncoder::new_with_quality(out, CompressionType::Fast, FilterType::Adaptive);
-        return img.write_with_encoder(enc).map_err(err);
+        return encode_png(img, out).map_err(err);
     }
     img.save(path).map_err(err)
+}
+
+/// Encodes `img` as PNG into `out` with the settings [`save`] uses (fast compression,
+/// adaptive filter), so a file and a network answer carry the same bytes.
+pub fn encode_png(img: &DynamicImage, out: impl std::io::Write) -> Result<(), image::ImageError> {
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    let enc = PngEncoder::new_with_quality(out, CompressionType::Fast, FilterType::Adaptive);
+    img.write_with_encoder(enc)
 }
 
 /// Encodes depth (metres) as a 16-bit grey PNG in millimetres (0: no data; saturates at

@@ -1,0 +1,168 @@
+//! `tre serve`: the HTTP and WebSocket service.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{bail, Context};
+use clap::{Args, ValueEnum};
+
+use crate::model::{ExecutionProvider, SessionConfig};
+use crate::server::{serve, ServeConfig};
+
+/// Execution provider of the ONNX Runtime sessions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ProviderArg {
+    /// ONNX Runtime's CPU kernels.
+    Cpu,
+    /// NVIDIA CUDA (needs a build with `--features cuda` and a GPU build of ONNX Runtime).
+    Cuda,
+    /// NVIDIA TensorRT (needs a build with `--features tensorrt` and a GPU build of ONNX Runtime).
+    Tensorrt,
+}
+
+/// Serve roughness over HTTP (`POST /v1/roughness`) and WebSocket (`GET /v1/stream`).
+#[derive(Debug, Args)]
+pub struct Serve {
+    /// Address to listen on (port 0: any free port; the address is printed on stdout).
+    #[arg(long, env = "TRE_ADDR", default_value = "0.0.0.0:8080")]
+    pub addr: SocketAddr,
+    /// Folder with manifest.json and the ONNX models.
+    #[arg(long, env = "TRE_MODELS", default_value = "models")]
+    pub models: PathBuf,
+    /// Inference worker threads, each with its own sessions (0: one per core).
+    #[arg(long, env = "TRE_WORKERS", default_value_t = 0)]
+    pub workers: usize,
+    /// ONNX Runtime threads per operator in each worker (0: cores / workers, at least 1).
+    #[arg(long, env = "TRE_ORT_THREADS", default_value_t = 0)]
+    pub ort_threads: usize,
+    /// Execution provider.
+    #[arg(long, env = "TRE_PROVIDER", value_enum, default_value = "cpu")]
+    pub provider: ProviderArg,
+    /// GPU index for the cuda and tensorrt providers.
+    #[arg(long, env = "TRE_DEVICE_ID", default_value_t = 0)]
+    pub device_id: i32,
+    /// Frames that may wait for a worker; beyond, requests get 503 at once (0: 2 per worker).
+    #[arg(long, env = "TRE_QUEUE", default_value_t = 0)]
+    pub queue: usize,
+    /// Largest request body, bytes.
+    #[arg(long, env = "TRE_MAX_BODY_BYTES", default_value_t = 32 << 20)]
+    pub max_body_bytes: usize,
+    /// Largest image, pixels (checked from the header, before decoding).
+    #[arg(long, env = "TRE_MAX_PIXELS", default_value_t = 40_000_000)]
+    pub max_pixels: usize,
+    /// HTTP requests handled at once; beyond, requests get 429 at once.
+    #[arg(long, env = "TRE_MAX_CONCURRENT", default_value_t = 64)]
+    pub max_concurrent: usize,
+    /// Time one request may take, queue included, milliseconds (then 503).
+    #[arg(long, env = "TRE_REQUEST_TIMEOUT_MS", default_value_t = 30_000)]
+    pub request_timeout_ms: u64,
+    /// Largest WebSocket message, bytes (up to 4× this gets an error message; beyond, the
+    /// connection is closed with 1009).
+    #[arg(long, env = "TRE_WS_MAX_MESSAGE_BYTES", default_value_t = 16 << 20)]
+    pub ws_max_message_bytes: usize,
+    /// Seconds in-flight work may take to finish after SIGTERM or Ctrl-C.
+    #[arg(long, env = "TRE_SHUTDOWN_GRACE_S", default_value_t = 30)]
+    pub shutdown_grace_s: u64,
+}
+
+impl Serve {
+    /// The checked service configuration.
+    pub fn config(&self) -> anyhow::Result<ServeConfig> {
+        let cores = std::thread::available_parallelism().map_or(1, usize::from);
+        let workers = if self.workers == 0 {
+            cores
+        } else {
+            self.workers
+        };
+        let ort_threads = if self.ort_threads == 0 {
+            (cores / workers).max(1)
+        } else {
+            self.ort_threads
+        };
+        if self.max_body_bytes == 0
+            || self.max_pixels == 0
+            || self.max_concurrent == 0
+            || self.ws_max_message_bytes == 0
+        {
+            bail!("--max-body-bytes, --max-pixels, --max-concurrent and --ws-max-message-bytes must be positive");
+        }
+        Ok(ServeConfig {
+            addr: self.addr,
+            models: self.models.clone(),
+            workers,
+            session: SessionConfig {
+                intra_threads: ort_threads,
+                provider: self.provider()?,
+                ..SessionConfig::default()
+            },
+            queue: if self.queue == 0 {
+                2 * workers
+            } else {
+                self.queue
+            },
+            max_body_bytes: self.max_body_bytes,
+            max_pixels: self.max_pixels,
+            max_concurrent: self.max_concurrent,
+            request_timeout: Duration::from_millis(self.request_timeout_ms.max(1)),
+            ws_max_message_bytes: self.ws_max_message_bytes,
+            shutdown_grace: Duration::from_secs(self.shutdown_grace_s),
+        })
+    }
+
+    fn provider(&self) -> anyhow::Result<ExecutionProvider> {
+        let _ = self.device_id;
+        Ok(match self.provider {
+            ProviderArg::Cpu => ExecutionProvider::Cpu,
+            #[cfg(feature = "cuda")]
+            ProviderArg::Cuda => ExecutionProvider::Cuda { device_id: self.device_id },
+            #[cfg(feature = "tensorrt")]
+            ProviderArg::Tensorrt => ExecutionProvider::TensorRt { device_id: self.device_id },
+            #[allow(unreachable_patterns)]
+            other => bail!("--provider {other:?}: this build of tre lacks the cargo feature for it (build with --features cuda or tensorrt)"),
+        })
+    }
+
+    /// Binds, prints `listening on http://ADDR` on stdout, and serves until SIGTERM or Ctrl-C.
+    pub fn run(self) -> anyhow::Result<()> {
+        let cfg = self.config()?;
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .thread_name("tre-http")
+            .enable_all()
+            .build()
+            .context("starting the async runtime")?;
+        runtime.block_on(async move {
+            let listener = tokio::net::TcpListener::bind(cfg.addr).await.with_context(|| format!("binding {}", cfg.addr))?;
+            let addr = listener.local_addr()?;
+            println!("listening on http://{addr}");
+            tracing::info!(%addr, workers = cfg.workers, queue = cfg.queue, "listening; loading models");
+            serve(cfg, listener, shutdown_signal()).await?;
+            tracing::info!("stopped");
+            Ok(())
+        })
+    }
+}
+
+/// Completes on SIGTERM or Ctrl-C.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        if tokio::signal::ctrl_c().await.is_err() {
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => {},
+        () = term => {},
+    }
+}

@@ -1,0 +1,402 @@
+//! HTTP handlers: `POST /v1/roughness` and the operational endpoints (`/healthz`, `/readyz`,
+//! `/metrics`, `/v1/models`, `/openapi.json`, the demo page at `/`).
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use axum::body::{to_bytes, Body};
+use axum::extract::{FromRequest, Multipart, Query, Request, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+use serde::Deserialize;
+
+use super::error::{ApiError, ErrorCode};
+use super::metrics::Gauges;
+use super::request::{Extras, Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
+use super::AppState;
+use crate::io::CameraFile;
+use crate::pipeline::Mode;
+
+/// Query of `POST /v1/roughness`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RoughnessQuery {
+    /// `png16` (default), `color` or `npy`.
+    format: Option<String>,
+    /// `rgb`, `rgbd` or `geometric`; default from the inputs.
+    mode: Option<String>,
+    /// DSAC seed.
+    seed: Option<u64>,
+    /// Top of the colour scale, centimetres.
+    preview_max_cm: Option<f64>,
+    /// Extra maps, comma-separated: `depth,normals,slope,traversable`.
+    outputs: Option<String>,
+    fx: Option<f64>,
+    fy: Option<f64>,
+    cx: Option<f64>,
+    cy: Option<f64>,
+    pitch_deg: Option<f64>,
+    height_m: Option<f64>,
+    depth_scale: Option<f64>,
+}
+
+fn bad(msg: impl Into<String>) -> ApiError {
+    ApiError::new(ErrorCode::BadRequest, msg)
+}
+
+impl RoughnessQuery {
+    /// The options, checked.
+    fn options(&self) -> Result<FrameOptions, ApiError> {
+        let format = match self.format.as_deref() {
+            None | Some("png16") => Format::Png16,
+            Some("color" | "colour") => Format::Color,
+            Some("npy") => Format::Npy,
+            Some(f) => {
+                return Err(bad(format!(
+                    "format: expected png16, color or npy, got {f:?}"
+                )))
+            }
+        };
+        let mode = match self.mode.as_deref() {
+            None => None,
+            Some("rgb") => Some(Mode::Rgb),
+            Some("rgbd") => Some(Mode::Rgbd),
+            Some("geometric") => Some(Mode::Geometric),
+            Some(m) => {
+                return Err(bad(format!(
+                    "mode: expected rgb, rgbd or geometric, got {m:?}"
+                )))
+            }
+        };
+        let mut extras = Extras::default();
+        for name in self
+            .outputs
+            .iter()
+            .flat_map(|o| o.split(','))
+            .filter(|s| !s.is_empty())
+        {
+            match name {
+                "depth" => extras.depth = true,
+                "normals" => extras.normals = true,
+                "slope" => extras.slope = true,
+                "traversable" => extras.traversable = true,
+                other => {
+                    return Err(bad(format!(
+                        "outputs: unknown map {other:?} (depth, normals, slope, traversable)"
+                    )))
+                }
+            }
+        }
+        if let Some(cm) = self.preview_max_cm.filter(|c| !(c.is_finite() && *c > 0.0)) {
+            return Err(bad(format!("preview_max_cm: must be positive, got {cm}")));
+        }
+        Ok(FrameOptions {
+            mode,
+            format,
+            seed: self.seed.unwrap_or(0),
+            preview_max_m: self.preview_max_cm.map(|c| c / 100.0),
+            extras,
+            traversable_bytes: false,
+        })
+    }
+
+    /// Camera from the query (all four intrinsics, or none of them).
+    fn camera(&self) -> Result<Option<CameraFile>, ApiError> {
+        let k = [self.fx, self.fy, self.cx, self.cy];
+        let any = k.iter().any(Option::is_some)
+            || self.pitch_deg.is_some()
+            || self.height_m.is_some()
+            || self.depth_scale.is_some();
+        if !any {
+            return Ok(None);
+        }
+        let [Some(fx), Some(fy), Some(cx), Some(cy)] = k else {
+            return Err(ApiError::new(
+                ErrorCode::BadCamera,
+                "camera: give all of fx, fy, cx, cy",
+            ));
+        };
+        Ok(Some(CameraFile {
+            fx,
+            fy,
+            cx,
+            cy,
+            width: None,
+            height: None,
+            depth_scale: self.depth_scale,
+            pitch_deg: self.pitch_deg,
+            height_m: self.height_m,
+        }))
+    }
+}
+
+/// `POST /v1/roughness`.
+pub async fn roughness(State(app): State<Arc<AppState>>, req: Request) -> Response {
+    let start = Instant::now();
+    match roughness_inner(&app, req).await {
+        Ok(reply) => {
+            app.metrics
+                .request("roughness", "ok", Some(start.elapsed()));
+            reply_response(reply)
+        }
+        Err(e) => {
+            app.metrics.request("roughness", e.code.as_str(), None);
+            if e.code == ErrorCode::Internal {
+                tracing::error!(error = %e.message, "request failed");
+            } else {
+                tracing::debug!(code = e.code.as_str(), error = %e.message, "request refused");
+            }
+            e.into_response()
+        }
+    }
+}
+
+async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, ApiError> {
+    let _permit = app.concurrency.clone().try_acquire_owned().map_err(|_| {
+        ApiError::new(
+            ErrorCode::TooManyRequests,
+            format!(
+                "more than {} requests at once; retry later",
+                app.cfg.max_concurrent
+            ),
+        )
+    })?;
+    let query = match req.uri().query() {
+        None => RoughnessQuery::default(),
+        Some(q) => Query::<RoughnessQuery>::try_from_uri(req.uri())
+            .map(|Query(q)| q)
+            .map_err(|e| bad(format!("query {q:?}: {}", e.body_text())))?,
+    };
+    let options = query.options()?;
+    let mut frame = read_body(app, req).await?;
+    frame.options = options;
+    if frame.camera.is_none() {
+        frame.camera = query.camera()?;
+    }
+    let rx = app.workers.submit(frame)?;
+    let timeout = app.cfg.request_timeout;
+    match tokio::time::timeout(timeout, rx).await {
+        Ok(Ok((result, _queued))) => result,
+        Ok(Err(_)) => Err(ApiError::new(
+            ErrorCode::Internal,
+            "the worker stopped before answering",
+        )),
+        Err(_) => Err(ApiError::new(
+            ErrorCode::Timeout,
+            format!("no answer within {} ms", timeout.as_millis()),
+        )),
+    }
+}
+
+/// Reads the body within the byte limit: a bare image, or multipart with `rgb`, `depth`,
+/// `camera`.
+async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiError> {
+    let limit = app.cfg.max_body_bytes;
+    let content_type = req
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    let (parts, body) = req.into_parts();
+    let bytes = to_bytes(body, limit).await.map_err(|e| {
+        let too_large = std::error::Error::source(&e)
+            .is_some_and(|s| s.is::<http_body_util::LengthLimitError>())
+            || e.to_string().contains("length limit");
+        if too_large {
+            ApiError::new(
+                ErrorCode::TooLarge,
+                format!("the body is larger than the limit of {limit} bytes"),
+            )
+        } else {
+            bad(format!("reading the body: {e}"))
+        }
+    })?;
+    if content_type.starts_with("multipart/form-data") {
+        let req = Request::from_parts(parts, Body::from(bytes));
+        let multipart = Multipart::from_request(req, &())
+            .await
+            .map_err(|e| bad(format!("multipart: {}", e.body_text())))?;
+        return read_multipart(multipart).await;
+    }
+    let image_type = [
+        "",
+        "image/png",
+        "image/jpeg",
+        "image/jpg",
+        "application/octet-stream",
+    ];
+    let essence = content_type.split(';').next().unwrap_or("").trim();
+    if !image_type.contains(&essence) {
+        return Err(ApiError::new(
+            ErrorCode::UnsupportedMedia,
+            format!("Content-Type {essence:?}: send image/png, image/jpeg or multipart/form-data"),
+        ));
+    }
+    Ok(FrameRequest {
+        rgb: Some(bytes.to_vec()),
+        ..FrameRequest::default()
+    })
+}
+
+async fn read_multipart(mut m: Multipart) -> Result<FrameRequest, ApiError> {
+    let mut frame = FrameRequest::default();
+    while let Some(field) = m
+        .next_field()
+        .await
+        .map_err(|e| bad(format!("multipart: {}", e.body_text())))?
+    {
+        let name = field.name().unwrap_or("").to_owned();
+        let data = field
+            .bytes()
+            .await
+            .map_err(|e| bad(format!("multipart field {name:?}: {}", e.body_text())))?;
+        match name.as_str() {
+            "rgb" => frame.rgb = Some(data.to_vec()),
+            "depth" => frame.depth = Some(data.to_vec()),
+            "camera" => {
+                let cam: CameraFile = serde_json::from_slice(&data)
+                    .map_err(|e| ApiError::new(ErrorCode::BadCamera, format!("camera: not valid camera JSON ({{fx, fy, cx, cy, pitch_deg?, height_m?, depth_scale?}}): {e}")))?;
+                frame.camera = Some(cam);
+            }
+            other => {
+                return Err(bad(format!(
+                    "multipart: unknown field {other:?} (rgb, depth, camera)"
+                )))
+            }
+        }
+    }
+    if frame.rgb.is_none() && frame.depth.is_none() {
+        return Err(bad("multipart: give an `rgb` part, a `depth` part or both"));
+    }
+    Ok(frame)
+}
+
+/// `Server-Timing` value: one entry per stage, milliseconds.
+pub fn server_timing(reply: &FrameReply) -> String {
+    reply
+        .timings
+        .iter()
+        .map(|(stage, d)| format!("{stage};dur={:.2}", d.as_secs_f64() * 1e3))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn reply_response(reply: FrameReply) -> Response {
+    let mut headers = HeaderMap::new();
+    let mut set = |name: &'static str, value: String| {
+        if let Ok(v) = HeaderValue::from_str(&value) {
+            headers.insert(name, v);
+        }
+    };
+    set("x-roughness-scale-m", SCALE_M.to_string());
+    set("x-image-width", reply.size.0.to_string());
+    set("x-image-height", reply.size.1.to_string());
+    set(
+        "x-working-size",
+        format!("{}x{}", reply.working_size.0, reply.working_size.1),
+    );
+    set("server-timing", server_timing(&reply));
+    set(
+        "access-control-expose-headers",
+        "server-timing, x-roughness-scale-m, x-image-width, x-image-height, x-working-size".into(),
+    );
+    if reply.extras.is_empty() {
+        set("content-type", reply.format.content_type().into());
+        return (StatusCode::OK, headers, reply.roughness).into_response();
+    }
+    let boundary = format!(
+        "tre-{:016x}",
+        crate::geometry::hash::splitmix64(reply.roughness.len() as u64 ^ 0x5eed)
+    );
+    set(
+        "content-type",
+        format!("multipart/mixed; boundary={boundary}"),
+    );
+    let name = match reply.format {
+        Format::Png16 | Format::Color => "roughness.png",
+        Format::Npy | Format::F32 => "roughness.npy",
+    };
+    let mut body = Vec::new();
+    let mut part = |field: &str, file: &str, ct: &str, bytes: &[u8]| {
+        body.extend_from_slice(format!("--{boundary}\r\nContent-Disposition: attachment; name=\"{field}\"; filename=\"{file}\"\r\nContent-Type: {ct}\r\n\r\n").as_bytes());
+        body.extend_from_slice(bytes);
+        body.extend_from_slice(b"\r\n");
+    };
+    part(
+        "roughness",
+        name,
+        reply.format.content_type(),
+        &reply.roughness,
+    );
+    for p in &reply.extras {
+        part(p.name, p.filename, p.content_type, &p.bytes);
+    }
+    body.extend_from_slice(format!("--{boundary}--\r\n").as_bytes());
+    (StatusCode::OK, headers, body).into_response()
+}
+
+/// `GET /healthz`: the process is up.
+pub async fn healthz() -> impl IntoResponse {
+    (
+        StatusCode::OK,
+        [(header::CONTENT_TYPE, "application/json")],
+        r#"{"status":"ok"}"#,
+    )
+}
+
+/// `GET /readyz`: 200 once every worker has loaded and warmed up its models.
+pub async fn readyz(State(app): State<Arc<AppState>>) -> Response {
+    if app.workers.ready() {
+        (
+            StatusCode::OK,
+            [(header::CONTENT_TYPE, "application/json")],
+            r#"{"status":"ready"}"#,
+        )
+            .into_response()
+    } else {
+        ApiError::new(
+            ErrorCode::NotReady,
+            "models loading or warming up, or shutting down",
+        )
+        .into_response()
+    }
+}
+
+/// `GET /metrics`: Prometheus text.
+pub async fn metrics(State(app): State<Arc<AppState>>) -> impl IntoResponse {
+    let text = app.metrics.render(Gauges {
+        queue_depth: app.workers.queue_depth(),
+        queue_capacity: app.workers.capacity(),
+        workers: app.workers.count(),
+        ready: app.workers.ready(),
+    });
+    ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], text)
+}
+
+/// `GET /v1/models`: the manifest the workers loaded.
+pub async fn models(State(app): State<Arc<AppState>>) -> impl IntoResponse {
+    (
+        [(header::CONTENT_TYPE, "application/json")],
+        app.manifest_json.clone(),
+    )
+}
+
+/// The OpenAPI document of the service.
+pub const OPENAPI: &str = include_str!("openapi.json");
+
+/// `GET /openapi.json`.
+pub async fn openapi() -> impl IntoResponse {
+    ([(header::CONTENT_TYPE, "application/json")], OPENAPI)
+}
+
+/// The demo page.
+pub const DEMO_PAGE: &str = include_str!("demo/index.html");
+
+/// `GET /`: the demo page.
+pub async fn demo() -> impl IntoResponse {
+    (
+        [(header::CONTENT_TYPE, "text/html; charset=utf-8")],
+        DEMO_PAGE,
+    )
+}

@@ -1,0 +1,217 @@
+//! The inference service: axum over tokio for HTTP and the WebSocket stream, with the pipeline
+//! on named worker threads ([`workers`]) fed by a bounded queue. One mapping turns every error
+//! into a status and a code ([`error`]); limits answer overload at once (429/503 with
+//! `Retry-After`) instead of queueing without bound.
+//!
+//! ```no_run
+//! # async fn demo() -> Result<(), Box<dyn std::error::Error>> {
+//! let cfg = tre::server::ServeConfig::default();
+//! let listener = tokio::net::TcpListener::bind(cfg.addr).await?;
+//! tre::server::serve(cfg, listener, std::future::pending()).await?;
+//! # Ok(())
+//! # }
+//! ```
+
+pub mod error;
+pub mod http;
+pub mod metrics;
+pub mod proto;
+pub mod request;
+pub mod stream;
+pub mod workers;
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::extract::DefaultBodyLimit;
+use axum::routing::{get, post};
+use axum::Router;
+use tokio::sync::{watch, Semaphore};
+
+use crate::model::{Manifest, SessionConfig};
+use metrics::Metrics;
+use request::DecodeLimits;
+use workers::{PoolConfig, Workers};
+
+/// Settings of the service; every field has a `tre serve` option.
+#[derive(Debug, Clone)]
+pub struct ServeConfig {
+    /// Address to listen on.
+    pub addr: SocketAddr,
+    /// Folder with `manifest.json` and the models.
+    pub models: PathBuf,
+    /// Inference worker threads.
+    pub workers: usize,
+    /// ONNX Runtime settings of each worker.
+    pub session: SessionConfig,
+    /// Frames that may wait for a worker.
+    pub queue: usize,
+    /// Largest request body, bytes.
+    pub max_body_bytes: usize,
+    /// Largest image, pixels (checked from the header before decoding).
+    pub max_pixels: usize,
+    /// Requests handled at once; more get 429.
+    pub max_concurrent: usize,
+    /// Time a request may take, queue included.
+    pub request_timeout: Duration,
+    /// Largest WebSocket message, bytes.
+    pub ws_max_message_bytes: usize,
+    /// Time in-flight work may take to finish after SIGTERM.
+    pub shutdown_grace: Duration,
+}
+
+impl Default for ServeConfig {
+    fn default() -> Self {
+        let cores = std::thread::available_parallelism().map_or(1, usize::from);
+        Self {
+            addr: SocketAddr::from(([0, 0, 0, 0], 8080)),
+            models: PathBuf::from("models"),
+            workers: cores,
+            session: SessionConfig {
+                intra_threads: 1,
+                ..SessionConfig::default()
+            },
+            queue: 2 * cores,
+            max_body_bytes: 32 << 20,
+            max_pixels: 40_000_000,
+            max_concurrent: 64,
+            request_timeout: Duration::from_secs(30),
+            ws_max_message_bytes: 16 << 20,
+            shutdown_grace: Duration::from_secs(30),
+        }
+    }
+}
+
+/// Shared state of the handlers.
+#[derive(Debug)]
+pub struct AppState {
+    /// The settings.
+    pub cfg: ServeConfig,
+    /// The inference workers.
+    pub workers: Workers,
+    /// The metrics.
+    pub metrics: Arc<Metrics>,
+    /// Permits for concurrent HTTP requests.
+    pub concurrency: Arc<Semaphore>,
+    /// The manifest, as served by `/v1/models`.
+    pub manifest_json: String,
+    /// Model names, for the stream's Ready.
+    pub model_names: Vec<String>,
+    /// Becomes `true` when shutdown begins.
+    pub shutdown: watch::Receiver<bool>,
+}
+
+/// Errors that keep the service from starting or serving.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// The manifest is missing or malformed.
+    #[error(transparent)]
+    Manifest(#[from] crate::model::ModelError),
+    /// A worker could not load or warm up the models.
+    #[error("{0}")]
+    Workers(String),
+    /// Socket or thread failure.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+}
+
+/// The routes over `state`.
+pub fn router(state: Arc<AppState>) -> Router {
+    Router::new()
+        .route("/", get(http::demo))
+        .route("/healthz", get(http::healthz))
+        .route("/readyz", get(http::readyz))
+        .route("/metrics", get(http::metrics))
+        .route("/openapi.json", get(http::openapi))
+        .route("/v1/models", get(http::models))
+        .route("/v1/roughness", post(http::roughness))
+        .route("/v1/stream", get(stream::stream))
+        .layer(DefaultBodyLimit::disable())
+        .with_state(state)
+}
+
+/// Serves on `listener` until `shutdown` completes, then stops taking connections, lets
+/// in-flight requests and stream frames finish (up to the grace time) and stops the workers.
+/// The models load on the workers while `/healthz` already answers; `/readyz` turns 200 once
+/// every worker has warmed up. A worker that cannot load the models stops the service with
+/// [`ServeError::Workers`].
+pub async fn serve(
+    cfg: ServeConfig,
+    listener: tokio::net::TcpListener,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> Result<(), ServeError> {
+    let manifest = Manifest::read(&cfg.models)?;
+    let manifest_json = std::fs::read_to_string(cfg.models.join("manifest.json"))?;
+    let model_names = manifest.models.keys().cloned().collect();
+    let metrics = Arc::new(Metrics::default());
+    let pool = PoolConfig {
+        workers: cfg.workers,
+        queue: cfg.queue,
+        models: cfg.models.clone(),
+        session: cfg.session,
+        limits: DecodeLimits {
+            max_pixels: cfg.max_pixels,
+        },
+    };
+    let workers = Workers::start(&pool, metrics.clone())?;
+    let (stop_tx, stop_rx) = watch::channel(false);
+    let state = Arc::new(AppState {
+        concurrency: Arc::new(Semaphore::new(cfg.max_concurrent)),
+        cfg: cfg.clone(),
+        workers,
+        metrics,
+        manifest_json,
+        model_names,
+        shutdown: stop_rx,
+    });
+    let (failed_tx, failed_rx) = tokio::sync::oneshot::channel::<String>();
+    tokio::spawn(watch_startup(state.clone(), failed_tx));
+    let app = router(state.clone());
+    let signal = async move {
+        tokio::select! {
+            () = shutdown => tracing::info!("shutting down: finishing in-flight work"),
+            Ok(why) = failed_rx => tracing::error!("{why}"),
+        }
+        let _ = stop_tx.send(true);
+    };
+    let server = axum::serve(listener, app).with_graceful_shutdown(signal);
+    let grace = cfg.shutdown_grace;
+    let mut stopping = state.shutdown.clone();
+    tokio::select! {
+        r = server => r?,
+        () = async { let _ = stopping.wait_for(|s| *s).await; tokio::time::sleep(grace).await } => {
+            tracing::warn!("in-flight work did not finish within {} s; stopping anyway", grace.as_secs());
+        }
+    }
+    let st = state.clone();
+    tokio::task::spawn_blocking(move || st.workers.shutdown())
+        .await
+        .map_err(std::io::Error::other)?;
+    match state.workers.failure() {
+        Some(why) => Err(ServeError::Workers(why)),
+        None => Ok(()),
+    }
+}
+
+/// Logs readiness, or reports the first worker failure.
+async fn watch_startup(state: Arc<AppState>, failed: tokio::sync::oneshot::Sender<String>) {
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(why) = state.workers.failure() {
+            let _ = failed.send(why);
+            return;
+        }
+        if state.workers.ready() {
+            tracing::info!(
+                took_ms = start.elapsed().as_millis() as u64,
+                workers = state.workers.count(),
+                "ready"
+            );
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}

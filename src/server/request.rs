@@ -1,0 +1,426 @@
+//! What a client asks for, in domain types (HTTP and stream requests both become a
+//! [`FrameRequest`]), and the worker-side steps around the pipeline: decoding the bytes under
+//! the limits, choosing the configuration, and encoding the maps for the answer.
+
+use std::io::Cursor;
+
+use image::{DynamicImage, ImageFormat, ImageReader};
+
+use super::error::{ApiError, ErrorCode};
+use crate::geometry::{Grid, Mounting};
+use crate::io::{self, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
+use crate::pipeline::{FrameInput, FrameOutput, Mode, PipelineConfig};
+
+/// Encodings of the roughness map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Format {
+    /// 16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data (as `tre infer`).
+    #[default]
+    Png16,
+    /// 8-bit colour preview PNG (turbo, 0 to `preview_max_m`; black: no data).
+    Color,
+    /// `(H, W)` float32 `.npy`, metres, NaN where there is no data.
+    Npy,
+    /// Raw little-endian float32, metres, row-major (the stream's `FORMAT_F32`).
+    F32,
+}
+
+impl Format {
+    /// MIME type of the encoded map.
+    pub fn content_type(self) -> &'static str {
+        match self {
+            Self::Png16 | Self::Color => "image/png",
+            Self::Npy | Self::F32 => "application/octet-stream",
+        }
+    }
+}
+
+/// Extra maps a client may ask for beside roughness.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Extras {
+    /// Depth used, 16-bit grey PNG in millimetres.
+    pub depth: bool,
+    /// Unit normals (camera frame), `(H, W, 3)` float32 `.npy`.
+    pub normals: bool,
+    /// Slope in the gravity frame, `(H, W)` float32 `.npy`, radians.
+    pub slope: bool,
+    /// Traversability mask, 8-bit grey PNG (255 = traversable).
+    pub traversable: bool,
+}
+
+impl Extras {
+    /// Whether any extra map is asked for.
+    pub fn any(self) -> bool {
+        self.depth || self.normals || self.slope || self.traversable
+    }
+}
+
+/// How to run and answer one frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FrameOptions {
+    /// Input mode; `None`: rgbd with RGB and depth, geometric with depth alone, else rgb.
+    pub mode: Option<Mode>,
+    /// Encoding of the roughness map.
+    pub format: Format,
+    /// Seed of the DSAC sampler.
+    pub seed: u64,
+    /// Top of the colour preview's scale, metres (default 0.05).
+    pub preview_max_m: Option<f64>,
+    /// Extra maps.
+    pub extras: Extras,
+    /// The traversability mask as raw bytes (1 per pixel), for the stream.
+    pub traversable_bytes: bool,
+}
+
+/// A frame as received: encoded images and an unchecked camera.
+#[derive(Debug, Clone, Default)]
+pub struct FrameRequest {
+    /// PNG or JPEG bytes.
+    pub rgb: Option<Vec<u8>>,
+    /// 16-bit grey PNG or float `.npy` bytes.
+    pub depth: Option<Vec<u8>>,
+    /// Intrinsics, mounting and depth scale.
+    pub camera: Option<CameraFile>,
+    /// What to run and return.
+    pub options: FrameOptions,
+}
+
+/// Decoding limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DecodeLimits {
+    /// Largest image, pixels (checked from the header, before decoding).
+    pub max_pixels: usize,
+}
+
+/// One extra output map, encoded.
+#[derive(Debug, Clone)]
+pub struct Part {
+    /// `depth`, `normals`, `slope` or `traversable`.
+    pub name: &'static str,
+    /// Its MIME type.
+    pub content_type: &'static str,
+    /// Its file name (for multipart answers).
+    pub filename: &'static str,
+    /// The bytes.
+    pub bytes: Vec<u8>,
+}
+
+/// The answer to one frame.
+#[derive(Debug, Clone)]
+pub struct FrameReply {
+    /// `(width, height)` of the frame and the maps.
+    pub size: (usize, usize),
+    /// Size the stages ran at.
+    pub working_size: (usize, usize),
+    /// The roughness map, encoded.
+    pub roughness: Vec<u8>,
+    /// How it is encoded.
+    pub format: Format,
+    /// Extra maps, encoded.
+    pub extras: Vec<Part>,
+    /// Traversability, one byte per pixel (1 = traversable), if asked for as bytes.
+    pub traversable: Vec<u8>,
+    /// Wall time of each stage.
+    pub timings: crate::pipeline::StageTimings,
+}
+
+/// PNG and JPEG magic numbers.
+fn sniff(bytes: &[u8]) -> Option<ImageFormat> {
+    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        Some(ImageFormat::Png)
+    } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        Some(ImageFormat::Jpeg)
+    } else {
+        None
+    }
+}
+
+/// Decodes `what` (`rgb` or `depth`) after checking its header against the pixel limit, so a
+/// small file that declares a huge image is refused before any allocation.
+pub fn decode_image(
+    what: &str,
+    bytes: &[u8],
+    limits: DecodeLimits,
+) -> Result<DynamicImage, ApiError> {
+    if bytes.is_empty() {
+        return Err(ApiError::new(ErrorCode::BadImage, format!("{what}: empty")));
+    }
+    let Some(format) = sniff(bytes) else {
+        return Err(ApiError::new(
+            ErrorCode::UnsupportedMedia,
+            format!("{what}: not a PNG or JPEG image"),
+        ));
+    };
+    let bad = |e: image::ImageError| ApiError::new(ErrorCode::BadImage, format!("{what}: {e}"));
+    let (w, h) = ImageReader::with_format(Cursor::new(bytes), format)
+        .into_dimensions()
+        .map_err(bad)?;
+    let pixels = u64::from(w) * u64::from(h);
+    if pixels == 0 {
+        return Err(ApiError::new(
+            ErrorCode::BadImage,
+            format!("{what}: the image is {w}×{h}, it has no pixels"),
+        ));
+    }
+    if pixels > limits.max_pixels as u64 {
+        return Err(ApiError::new(
+            ErrorCode::TooLarge,
+            format!(
+                "{what}: the image is {w}×{h} = {pixels} pixels, more than the limit of {}",
+                limits.max_pixels
+            ),
+        ));
+    }
+    let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
+    let mut l = image::Limits::default();
+    l.max_image_width = Some(w);
+    l.max_image_height = Some(h);
+    l.max_alloc = Some(pixels * 16 + (1 << 20));
+    reader.limits(l);
+    reader.decode().map_err(bad)
+}
+
+/// Decodes depth in metres: a 16-bit grey PNG at `units_per_m`, or a float `.npy`.
+pub fn decode_depth(
+    bytes: &[u8],
+    units_per_m: f64,
+    limits: DecodeLimits,
+) -> Result<Grid<f64>, ApiError> {
+    let bad = |m: String| ApiError::new(ErrorCode::BadDepth, format!("depth: {m}"));
+    if bytes.starts_with(b"\x93NUMPY") {
+        let a = io::npy::read_npy(Cursor::new(bytes)).map_err(|e| bad(e.to_string()))?;
+        let [h, w] = a.shape[..] else {
+            return Err(bad(format!(
+                "expected a 2-D array (H, W), got shape {:?}",
+                a.shape
+            )));
+        };
+        if w * h > limits.max_pixels {
+            return Err(ApiError::new(
+                ErrorCode::TooLarge,
+                format!(
+                    "depth: {w}×{h} is more than the limit of {} pixels",
+                    limits.max_pixels
+                ),
+            ));
+        }
+        return Grid::from_vec(w, h, a.data).map_err(|e| bad(e.to_string()));
+    }
+    match decode_image("depth", bytes, limits)? {
+        DynamicImage::ImageLuma16(img) => {
+            let (w, h) = (img.width() as usize, img.height() as usize);
+            let data = img
+                .into_raw()
+                .into_iter()
+                .map(|v| f64::from(v) / units_per_m)
+                .collect();
+            Grid::from_vec(w, h, data).map_err(|e| bad(e.to_string()))
+        }
+        other => Err(bad(format!(
+            "must be a 16-bit grey PNG or a float .npy, got {:?}",
+            other.color()
+        ))),
+    }
+}
+
+/// The pipeline input for `req`: decoded images, checked camera.
+pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInput, ApiError> {
+    let camera = |e: crate::geometry::GeometryError| {
+        ApiError::new(ErrorCode::BadCamera, format!("camera: {e}"))
+    };
+    let (intrinsics, mounting, scale) = match &req.camera {
+        Some(c) => (
+            Some(c.intrinsics().map_err(camera)?),
+            c.mounting().map_err(camera)?,
+            c.depth_scale.unwrap_or(1000.0),
+        ),
+        None => (None, Mounting::default(), 1000.0),
+    };
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(ApiError::new(
+            ErrorCode::BadCamera,
+            format!("camera: depth_scale must be positive, got {scale}"),
+        ));
+    }
+    let rgb = match &req.rgb {
+        Some(b) => Some(decode_image("rgb", b, limits)?.to_rgb8()),
+        None => None,
+    };
+    let depth_m = match &req.depth {
+        Some(b) => Some(decode_depth(b, scale, limits)?),
+        None => None,
+    };
+    if rgb.is_none() && depth_m.is_none() {
+        return Err(ApiError::new(
+            ErrorCode::BadRequest,
+            "the frame has neither an image nor depth",
+        ));
+    }
+    Ok(FrameInput {
+        rgb,
+        depth_m,
+        intrinsics,
+        mounting,
+    })
+}
+
+/// The pipeline configuration for a frame with these inputs.
+pub fn config_for(frame: &FrameInput, opts: &FrameOptions, max_pixels: usize) -> PipelineConfig {
+    let mode = opts.mode.unwrap_or(match (&frame.rgb, &frame.depth_m) {
+        (Some(_), Some(_)) => Mode::Rgbd,
+        (None, Some(_)) => Mode::Geometric,
+        _ => Mode::Rgb,
+    });
+    PipelineConfig {
+        seed: opts.seed,
+        max_input_pixels: max_pixels,
+        ..PipelineConfig::for_mode(mode)
+    }
+}
+
+/// Encodes a PNG with the settings `tre infer` uses (fast compression, adaptive filter).
+fn png(img: &DynamicImage) -> Result<Vec<u8>, ApiError> {
+    let mut out = Vec::new();
+    io::encode_png(img, &mut out)
+        .map_err(|e| ApiError::new(ErrorCode::Internal, format!("encoding PNG: {e}")))?;
+    Ok(out)
+}
+
+/// Writes an `.npy` into memory.
+fn npy<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Result<Vec<u8>, ApiError> {
+    let mut out = Vec::new();
+    io::npy::write_npy(&mut out, shape, data)
+        .map_err(|e| ApiError::new(ErrorCode::Internal, format!("encoding .npy: {e}")))?;
+    Ok(out)
+}
+
+/// Encodes the pipeline's output as the options ask.
+pub fn encode_reply(out: FrameOutput, opts: &FrameOptions) -> Result<FrameReply, ApiError> {
+    let r = &out.roughness_m;
+    let (w, h) = r.size();
+    let roughness = match opts.format {
+        Format::Png16 => png(&DynamicImage::ImageLumaA16(io::roughness_png16(r)))?,
+        Format::Color => png(&DynamicImage::ImageRgb8(colormap::roughness_preview(
+            r,
+            opts.preview_max_m.unwrap_or(0.05),
+        )))?,
+        Format::Npy => npy(
+            &[h, w],
+            &r.as_slice().iter().map(|&v| v as f32).collect::<Vec<_>>(),
+        )?,
+        Format::F32 => r
+            .as_slice()
+            .iter()
+            .flat_map(|&v| (v as f32).to_le_bytes())
+            .collect(),
+    };
+    let mut extras = Vec::new();
+    let e = opts.extras;
+    if let (true, Some(d)) = (e.depth, &out.depth_m) {
+        extras.push(Part {
+            name: "depth",
+            content_type: "image/png",
+            filename: "depth.png",
+            bytes: png(&DynamicImage::ImageLuma16(io::depth_png16(d)))?,
+        });
+    }
+    if let (true, Some(n)) = (e.normals, &out.normals) {
+        let data: Vec<f32> = n
+            .as_slice()
+            .iter()
+            .flat_map(|v| [v.x as f32, v.y as f32, v.z as f32])
+            .collect();
+        extras.push(Part {
+            name: "normals",
+            content_type: "application/octet-stream",
+            filename: "normals.npy",
+            bytes: npy(&[h, w, 3], &data)?,
+        });
+    }
+    if let (true, Some(s)) = (e.slope, &out.slope_rad) {
+        let data: Vec<f32> = s.as_slice().iter().map(|&v| v as f32).collect();
+        extras.push(Part {
+            name: "slope",
+            content_type: "application/octet-stream",
+            filename: "slope.npy",
+            bytes: npy(&[h, w], &data)?,
+        });
+    }
+    if e.traversable {
+        let mask = out.traversable.map(|&t| if t { 255u8 } else { 0 });
+        extras.push(Part {
+            name: "traversable",
+            content_type: "image/png",
+            filename: "traversable.png",
+            bytes: png(&DynamicImage::ImageLuma8(io::gray8(&mask)))?,
+        });
+    }
+    let traversable = if opts.traversable_bytes {
+        out.traversable
+            .as_slice()
+            .iter()
+            .map(|&t| u8::from(t))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    Ok(FrameReply {
+        size: (w, h),
+        working_size: out.working_size,
+        roughness,
+        format: opts.format,
+        extras,
+        traversable,
+        timings: out.timings,
+    })
+}
+
+/// Metres per unit of the 16-bit roughness PNG.
+pub const SCALE_M: f64 = ROUGHNESS_PNG_SCALE_M;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIMITS: DecodeLimits = DecodeLimits {
+        max_pixels: 1_000_000,
+    };
+
+    fn png_bytes(w: u32, h: u32) -> Vec<u8> {
+        let mut out = Vec::new();
+        io::encode_png(&DynamicImage::new_rgb8(w, h), &mut out).expect("encodes");
+        out
+    }
+
+    #[test]
+    fn refuses_what_is_not_an_image() {
+        let e = decode_image("rgb", b"hello world", LIMITS).unwrap_err();
+        assert_eq!(e.code, ErrorCode::UnsupportedMedia);
+        assert_eq!(
+            decode_image("rgb", b"", LIMITS).unwrap_err().code,
+            ErrorCode::BadImage
+        );
+    }
+
+    #[test]
+    fn refuses_truncated_and_oversized_images() {
+        let good = png_bytes(64, 48);
+        assert_eq!(
+            decode_image("rgb", &good, LIMITS).expect("decodes").width(),
+            64
+        );
+        let e = decode_image("rgb", &good[..good.len() / 2], LIMITS).unwrap_err();
+        assert_eq!(e.code, ErrorCode::BadImage, "{e}");
+        let small = DecodeLimits { max_pixels: 1000 };
+        assert_eq!(
+            decode_image("rgb", &good, small).unwrap_err().code,
+            ErrorCode::TooLarge
+        );
+    }
+
+    #[test]
+    fn depth_must_be_16_bit() {
+        let e = decode_depth(&png_bytes(4, 4), 1000.0, LIMITS).unwrap_err();
+        assert_eq!(e.code, ErrorCode::BadDepth);
+    }
+}

@@ -1,0 +1,275 @@
+//! `GET /v1/stream`: the WebSocket stream. Latest frame wins: each connection has at most one
+//! frame running and one waiting; a newer frame replaces the waiting one, which is answered
+//! with `Dropped`. Bad messages get an `Error` and the stream goes on. The server pings idle
+//! clients and closes cleanly (1001) on shutdown, after the frame in flight.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
+use axum::extract::State;
+use axum::response::Response;
+use tokio::sync::oneshot;
+
+use super::error::{ApiError, ErrorCode};
+use super::proto::{self, Incoming, StreamFrame, StreamSettings};
+use super::workers::JobResult;
+use super::AppState;
+
+/// Interval of the server's pings.
+const PING_EVERY: Duration = Duration::from_secs(15);
+/// A client silent for this long (no message, no pong) is disconnected.
+const IDLE_LIMIT: Duration = Duration::from_secs(60);
+/// Frames larger than the message limit but below this multiple of it are answered with an
+/// error and the stream goes on; larger ones close the connection (1009).
+const HARD_LIMIT_FACTOR: usize = 4;
+
+/// Upgrades the connection.
+pub async fn stream(State(app): State<Arc<AppState>>, ws: WebSocketUpgrade) -> Response {
+    let hard = app
+        .cfg
+        .ws_max_message_bytes
+        .saturating_mul(HARD_LIMIT_FACTOR);
+    ws.max_message_size(hard)
+        .max_frame_size(hard)
+        .on_upgrade(move |socket| async move {
+            app.metrics.stream_open(true);
+            Connection::new(app.clone(), socket).run().await;
+            app.metrics.stream_open(false);
+        })
+}
+
+/// A frame being run by a worker.
+struct InFlight {
+    frame: StreamFrame,
+    arrived: Instant,
+    rx: oneshot::Receiver<(JobResult, Duration)>,
+}
+
+/// One stream's state.
+struct Connection {
+    app: Arc<AppState>,
+    socket: WebSocket,
+    settings: Option<StreamSettings>,
+    in_flight: Option<InFlight>,
+    waiting: Option<(StreamFrame, Instant)>,
+    dropped_total: u64,
+    last_heard: Instant,
+}
+
+/// What woke the connection up.
+enum Event {
+    Message(Option<Result<Message, axum::Error>>),
+    Done((JobResult, Duration)),
+    WorkerGone,
+    Ping,
+    Shutdown,
+}
+
+impl Connection {
+    fn new(app: Arc<AppState>, socket: WebSocket) -> Self {
+        Self {
+            app,
+            socket,
+            settings: None,
+            in_flight: None,
+            waiting: None,
+            dropped_total: 0,
+            last_heard: Instant::now(),
+        }
+    }
+
+    async fn run(mut self) {
+        let mut ping = tokio::time::interval(PING_EVERY);
+        ping.tick().await;
+        let mut shutdown = self.app.shutdown.clone();
+        loop {
+            let event = tokio::select! {
+                m = self.socket.recv() => Event::Message(m),
+                r = async { (&mut self.in_flight.as_mut().expect("guarded by the branch condition; this is a bug").rx).await }, if self.in_flight.is_some() => {
+                    r.map_or(Event::WorkerGone, Event::Done)
+                }
+                _ = ping.tick() => Event::Ping,
+                _ = shutdown.changed() => Event::Shutdown,
+            };
+            let keep_going = match event {
+                Event::Message(Some(Ok(msg))) => {
+                    self.last_heard = Instant::now();
+                    self.on_message(msg).await
+                }
+                Event::Message(Some(Err(e))) => {
+                    tracing::debug!(error = %e, "stream read failed; closing");
+                    if e.to_string().to_ascii_lowercase().contains("too long")
+                        || e.to_string().to_ascii_lowercase().contains("size")
+                    {
+                        self.close(1009, "message too big").await;
+                    }
+                    false
+                }
+                Event::Message(None) => false,
+                Event::Done(done) => self.on_done(done).await,
+                Event::WorkerGone => {
+                    let frame = self.in_flight.take().map(|f| f.frame.sequence);
+                    let e =
+                        ApiError::new(ErrorCode::Internal, "the worker stopped before answering");
+                    self.send(proto::error(frame, &e)).await && self.start_waiting().await
+                }
+                Event::Ping => self.on_ping().await,
+                Event::Shutdown => {
+                    self.finish_in_flight().await;
+                    self.close(1001, "server shutting down").await;
+                    false
+                }
+            };
+            if !keep_going {
+                break;
+            }
+        }
+    }
+
+    async fn send(&mut self, bytes: Vec<u8>) -> bool {
+        self.socket
+            .send(Message::Binary(bytes.into()))
+            .await
+            .is_ok()
+    }
+
+    async fn close(&mut self, code: u16, reason: &'static str) {
+        let frame = CloseFrame {
+            code,
+            reason: reason.into(),
+        };
+        let _ = self.socket.send(Message::Close(Some(frame))).await;
+    }
+
+    async fn on_ping(&mut self) -> bool {
+        if self.last_heard.elapsed() > IDLE_LIMIT {
+            self.close(1001, "idle").await;
+            return false;
+        }
+        self.socket
+            .send(Message::Ping(Vec::new().into()))
+            .await
+            .is_ok()
+    }
+
+    async fn on_message(&mut self, msg: Message) -> bool {
+        let bytes = match msg {
+            Message::Binary(b) => b,
+            Message::Text(_) => {
+                let e = ApiError::new(ErrorCode::BadRequest, "text messages are not part of the protocol; send binary roughness.v1.ClientMessage");
+                return self.refuse(None, &e).await;
+            }
+            Message::Close(_) => return false,
+            Message::Ping(_) | Message::Pong(_) => return true,
+        };
+        let limit = self.app.cfg.ws_max_message_bytes;
+        if bytes.len() > limit {
+            let e = ApiError::new(
+                ErrorCode::TooLarge,
+                format!(
+                    "message of {} bytes, more than the limit of {limit}",
+                    bytes.len()
+                ),
+            );
+            return self.refuse(None, &e).await;
+        }
+        match proto::decode_client(&bytes) {
+            Ok(Incoming::Hello(settings)) => {
+                self.settings = Some(settings);
+                let models = self.app.model_names.clone();
+                self.send(proto::ready(limit, models)).await
+            }
+            Ok(Incoming::Frame(frame)) => self.on_frame(frame).await,
+            Err((seq, e)) => self.refuse(seq, &e).await,
+        }
+    }
+
+    async fn refuse(&mut self, seq: Option<u64>, e: &ApiError) -> bool {
+        self.app.metrics.request("stream", e.code.as_str(), None);
+        self.send(proto::error(seq, e)).await
+    }
+
+    async fn on_frame(&mut self, frame: StreamFrame) -> bool {
+        if self.settings.is_none() {
+            let e = ApiError::new(ErrorCode::BadRequest, "send a Hello before the first frame");
+            return self.refuse(Some(frame.sequence), &e).await;
+        }
+        if self.in_flight.is_none() {
+            return self.start(frame, Instant::now()).await;
+        }
+        if let Some((old, _)) = self.waiting.replace((frame, Instant::now())) {
+            self.dropped_total += 1;
+            self.app.metrics.dropped();
+            return self
+                .send(proto::dropped(old.sequence, self.dropped_total))
+                .await;
+        }
+        true
+    }
+
+    /// Submits `frame`; a refusal (queue full) is reported for that frame.
+    async fn start(&mut self, frame: StreamFrame, arrived: Instant) -> bool {
+        let settings = self.settings.clone().unwrap_or_default();
+        let request = frame.clone().into_request(&settings);
+        match self.app.workers.submit(request) {
+            Ok(rx) => {
+                self.in_flight = Some(InFlight { frame, arrived, rx });
+                true
+            }
+            Err(e) => self.refuse(Some(frame.sequence), &e).await,
+        }
+    }
+
+    async fn start_waiting(&mut self) -> bool {
+        match self.waiting.take() {
+            Some((frame, arrived)) => self.start(frame, arrived).await,
+            None => true,
+        }
+    }
+
+    async fn on_done(&mut self, (result, _queued): (JobResult, Duration)) -> bool {
+        let Some(done) = self.in_flight.take() else {
+            return true;
+        };
+        let sent = match result {
+            Ok(reply) => {
+                let latency = done.arrived.elapsed();
+                self.app.metrics.request("stream", "ok", Some(latency));
+                let msg = proto::result(
+                    done.frame.sequence,
+                    done.frame.timestamp_us,
+                    reply,
+                    latency.as_secs_f64() * 1e3,
+                    self.dropped_total,
+                );
+                self.send(msg).await
+            }
+            Err(e) => self.refuse(Some(done.frame.sequence), &e).await,
+        };
+        sent && self.start_waiting().await
+    }
+
+    /// On shutdown: waits for the frame in flight and sends its result; the waiting one is
+    /// reported dropped.
+    async fn finish_in_flight(&mut self) {
+        if let Some(f) = self.in_flight.as_mut() {
+            if let Ok(done) = (&mut f.rx).await {
+                let _ = self.on_done_no_restart(done).await;
+            }
+        }
+        if let Some((frame, _)) = self.waiting.take() {
+            self.dropped_total += 1;
+            let _ = self
+                .send(proto::dropped(frame.sequence, self.dropped_total))
+                .await;
+        }
+    }
+
+    async fn on_done_no_restart(&mut self, done: (JobResult, Duration)) -> bool {
+        let waiting = self.waiting.take();
+        let ok = self.on_done(done).await;
+        self.waiting = waiting;
+        ok
+    }
+}

@@ -1,0 +1,252 @@
+//! The inference workers: named threads, each with its own [`Pipeline`] (ONNX Runtime sessions
+//! need `&mut`), fed by one bounded queue. Async handlers only enqueue and await a oneshot
+//! reply; decoding, the pipeline and encoding all run here, never on the async runtime.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
+use tokio::sync::oneshot;
+
+use super::error::{ApiError, ErrorCode};
+use super::metrics::Metrics;
+use super::request::{
+    config_for, decode_frame, encode_reply, DecodeLimits, FrameReply, FrameRequest,
+};
+use crate::geometry::Grid;
+use crate::model::{Models, SessionConfig};
+use crate::pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
+
+/// How the pool is built.
+#[derive(Debug, Clone)]
+pub struct PoolConfig {
+    /// Worker threads.
+    pub workers: usize,
+    /// Jobs that may wait for a worker; more are refused at once.
+    pub queue: usize,
+    /// Folder with `manifest.json` and the models.
+    pub models: PathBuf,
+    /// ONNX Runtime settings of every worker's sessions.
+    pub session: SessionConfig,
+    /// Decoding limits.
+    pub limits: DecodeLimits,
+}
+
+/// A frame's answer, or why there is none.
+pub type JobResult = Result<FrameReply, ApiError>;
+
+/// One frame to run, with where to send the answer.
+struct Job {
+    request: FrameRequest,
+    reply: oneshot::Sender<(JobResult, Duration)>,
+    enqueued: Instant,
+}
+
+/// Start-up state of the workers.
+#[derive(Debug, Default)]
+struct Startup {
+    warm: AtomicUsize,
+    failed: Mutex<Option<String>>,
+    stopped: AtomicBool,
+}
+
+/// The worker pool.
+#[derive(Debug)]
+pub struct Workers {
+    tx: Mutex<Option<Sender<Job>>>,
+    rx_probe: Receiver<Job>,
+    capacity: usize,
+    count: usize,
+    startup: Arc<Startup>,
+    handles: Mutex<Vec<JoinHandle<()>>>,
+}
+
+impl Workers {
+    /// Starts `cfg.workers` named threads; each loads the models and warms them up, then
+    /// serves jobs. Use [`Workers::ready`] and [`Workers::failure`] to follow the start.
+    pub fn start(cfg: &PoolConfig, metrics: Arc<Metrics>) -> std::io::Result<Self> {
+        let (tx, rx) = bounded::<Job>(cfg.queue);
+        let startup = Arc::new(Startup::default());
+        let mut handles = Vec::with_capacity(cfg.workers);
+        for i in 0..cfg.workers.max(1) {
+            let (rx, startup, metrics, cfg) =
+                (rx.clone(), startup.clone(), metrics.clone(), cfg.clone());
+            let handle = std::thread::Builder::new()
+                .name(format!("tre-worker-{i}"))
+                .spawn(move || worker(i, &cfg, &rx, &startup, &metrics))?;
+            handles.push(handle);
+        }
+        Ok(Self {
+            tx: Mutex::new(Some(tx)),
+            rx_probe: rx,
+            capacity: cfg.queue,
+            count: cfg.workers.max(1),
+            startup,
+            handles: Mutex::new(handles),
+        })
+    }
+
+    /// Whether every worker has loaded and warmed up its models.
+    pub fn ready(&self) -> bool {
+        self.startup.warm.load(Ordering::Acquire) == self.count
+            && !self.startup.stopped.load(Ordering::Acquire)
+    }
+
+    /// Why a worker could not start, if one could not.
+    pub fn failure(&self) -> Option<String> {
+        self.startup
+            .failed
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// Jobs waiting for a worker.
+    pub fn queue_depth(&self) -> usize {
+        self.rx_probe.len()
+    }
+
+    /// Capacity of the queue.
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+
+    /// Worker threads.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// Enqueues a frame. Refused at once when the queue is full (`overloaded`), before the
+    /// workers are warm or after shutdown began (`not_ready`). The receiver yields the answer
+    /// and the time the job waited in the queue; dropping it cancels a job not yet started.
+    pub fn submit(
+        &self,
+        request: FrameRequest,
+    ) -> Result<oneshot::Receiver<(JobResult, Duration)>, ApiError> {
+        if !self.ready() {
+            return Err(ApiError::new(
+                ErrorCode::NotReady,
+                "the models are still loading",
+            ));
+        }
+        let guard = self.tx.lock().unwrap_or_else(PoisonError::into_inner);
+        let Some(tx) = guard.as_ref() else {
+            return Err(ApiError::new(
+                ErrorCode::NotReady,
+                "the server is shutting down",
+            ));
+        };
+        let (reply, rx) = oneshot::channel();
+        let job = Job {
+            request,
+            reply,
+            enqueued: Instant::now(),
+        };
+        match tx.try_send(job) {
+            Ok(()) => Ok(rx),
+            Err(TrySendError::Full(_)) => Err(ApiError::new(
+                ErrorCode::Overloaded,
+                format!(
+                    "all {} workers are busy and {} frames are queued; retry later",
+                    self.count, self.capacity
+                ),
+            )),
+            Err(TrySendError::Disconnected(_)) => Err(ApiError::new(
+                ErrorCode::NotReady,
+                "the workers have stopped",
+            )),
+        }
+    }
+
+    /// Stops taking jobs, lets the workers finish the queued ones, and joins them.
+    pub fn shutdown(&self) {
+        self.startup.stopped.store(true, Ordering::Release);
+        drop(
+            self.tx
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .take(),
+        );
+        let handles =
+            std::mem::take(&mut *self.handles.lock().unwrap_or_else(PoisonError::into_inner));
+        for h in handles {
+            if h.join().is_err() {
+                tracing::error!("a worker thread panicked");
+            }
+        }
+    }
+}
+
+/// One worker: load, warm up, then serve until the queue closes.
+fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, metrics: &Metrics) {
+    let started = Instant::now();
+    let mut pipeline = match Models::load(&cfg.models, &cfg.session) {
+        Ok(models) => Pipeline::new(Some(models)),
+        Err(e) => {
+            let why = format!("loading models from {}: {e}", cfg.models.display());
+            *startup
+                .failed
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner) = Some(why);
+            return;
+        }
+    };
+    if let Err(e) = warm_up(&mut pipeline) {
+        let why = format!("warming up the models: {e}");
+        *startup
+            .failed
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = Some(why);
+        return;
+    }
+    startup.warm.fetch_add(1, Ordering::AcqRel);
+    tracing::info!(
+        worker = i,
+        took_ms = started.elapsed().as_millis() as u64,
+        "worker ready"
+    );
+    while let Ok(job) = rx.recv() {
+        let queued = job.enqueued.elapsed();
+        if job.reply.is_closed() {
+            tracing::debug!(worker = i, "client gone before its frame started; skipped");
+            continue;
+        }
+        metrics.batch(1);
+        let result = run_job(&mut pipeline, &job.request, cfg.limits);
+        if let Ok(reply) = &result {
+            metrics.frame(&reply.timings, queued);
+        }
+        // A closed receiver means the client left; nothing to do with the answer.
+        let _ = job.reply.send((result, queued));
+    }
+}
+
+/// Decodes, runs and encodes one frame.
+fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, limits: DecodeLimits) -> JobResult {
+    let frame = decode_frame(req, limits)?;
+    let cfg = config_for(&frame, &req.options, limits.max_pixels);
+    let out = pipeline.run(&frame, &cfg)?;
+    encode_reply(out, &req.options)
+}
+
+/// Runs every mode once on a synthetic 256×192 frame, so that ONNX Runtime has allocated and
+/// tuned everything before the first request.
+fn warm_up(pipeline: &mut Pipeline) -> Result<(), crate::pipeline::PipelineError> {
+    let (w, h) = (256u32, 192u32);
+    let rgb = image::RgbImage::from_fn(w, h, |x, y| {
+        image::Rgb([(x % 256) as u8, (y % 256) as u8, 128])
+    });
+    let depth = Grid::from_fn(w as usize, h as usize, |_, y| 1.0 + y as f64 / 100.0);
+    let frame = FrameInput {
+        rgb: Some(rgb),
+        depth_m: Some(depth),
+        ..FrameInput::default()
+    };
+    for mode in [Mode::Rgb, Mode::Rgbd, Mode::Geometric] {
+        pipeline.run(&frame, &PipelineConfig::for_mode(mode))?;
+    }
+    Ok(())
+}
