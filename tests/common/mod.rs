@@ -1,0 +1,217 @@
+//! Helpers shared by the service's integration tests: a real `tre serve` on a loopback port,
+//! stopped on drop, and the `tre infer` reference a service answer must equal.
+#![allow(dead_code, clippy::unwrap_used)] // Not every test file uses every helper.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A `tre serve` child process on 127.0.0.1, killed when dropped.
+pub struct Server {
+    child: Child,
+    /// Its address.
+    pub addr: SocketAddr,
+}
+
+impl Server {
+    /// Starts `tre serve` with `args` (plus loopback address, committed models, one ORT
+    /// thread) and waits until `/readyz` answers 200.
+    pub fn start(args: &[&str]) -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_tre"))
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(["serve", "--addr", "127.0.0.1:0", "--ort-threads", "1"])
+            .args(args)
+            .env("TRE_LOG", "warn")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("starts tre serve");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let addr: SocketAddr = line
+            .trim()
+            .strip_prefix("listening on http://")
+            .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
+            .parse()
+            .unwrap();
+        let server = Self { child, addr };
+        let start = Instant::now();
+        while get(addr, "/readyz").0 != 200 {
+            assert!(
+                start.elapsed() < Duration::from_secs(180),
+                "not ready after 180 s"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        server
+    }
+
+    /// `http://ADDR`.
+    pub fn url(&self) -> String {
+        format!("http://{}", self.addr)
+    }
+
+    /// The process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Whether the process is still running.
+    pub fn alive(&mut self) -> bool {
+        self.child.try_wait().unwrap().is_none()
+    }
+
+    /// Resident set size, KiB, from /proc.
+    pub fn rss_kib(&self) -> u64 {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.pid())).unwrap();
+        let line = status.lines().find(|l| l.starts_with("VmRSS:")).unwrap();
+        line.split_whitespace().nth(1).unwrap().parse().unwrap()
+    }
+
+    /// Sends SIGTERM and waits for the exit status.
+    pub fn terminate(mut self) -> std::process::ExitStatus {
+        Command::new("kill")
+            .args(["-TERM", &self.pid().to_string()])
+            .status()
+            .unwrap();
+        let status = self.child.wait().unwrap();
+        std::mem::forget(self);
+        status
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A plain HTTP/1.1 GET: status and body.
+pub fn get(addr: SocketAddr, path: &str) -> (u16, Vec<u8>) {
+    let Ok(mut s) = TcpStream::connect(addr) else {
+        return (0, Vec::new());
+    };
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let req = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n");
+    if s.write_all(req.as_bytes()).is_err() {
+        return (0, Vec::new());
+    }
+    let mut raw = Vec::new();
+    let _ = s.read_to_end(&mut raw);
+    let text = String::from_utf8_lossy(&raw);
+    let status = text
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    let body = raw
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .map_or_else(Vec::new, |i| raw[i + 4..].to_vec());
+    (status, body)
+}
+
+/// A file of the real RGB-D frames in `../shared/data/real-rgbd`.
+pub fn real(rel: &str) -> PathBuf {
+    Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/data/real-rgbd"
+    ))
+    .join(rel)
+}
+
+/// Runs `tre infer` with `args` writing a 16-bit PNG, and returns its raw grey+alpha values.
+pub fn infer_png16(args: &[&str]) -> (u32, u32, Vec<u16>) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.png");
+    let o = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("TRE_ORT_THREADS", "1")
+        .arg("infer")
+        .args(args)
+        .args(["-o", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "tre infer failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    png16_values(&std::fs::read(&out).unwrap())
+}
+
+/// Width, height and raw grey+alpha values of a 16-bit grey+alpha PNG.
+pub fn png16_values(bytes: &[u8]) -> (u32, u32, Vec<u16>) {
+    let img = image::load_from_memory(bytes).unwrap();
+    assert_eq!(
+        img.color(),
+        image::ColorType::La16,
+        "not a 16-bit grey+alpha PNG"
+    );
+    let la = img.to_luma_alpha16();
+    (la.width(), la.height(), la.into_raw())
+}
+
+/// A PNG of the given size with a hand-written IHDR (for sizes no encoder writes: 0×0, or a
+/// huge declared size with almost no data).
+pub fn png_with_header(width: u32, height: u32) -> Vec<u8> {
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&width.to_be_bytes());
+    ihdr.extend_from_slice(&height.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
+    chunk(&mut png, b"IHDR", &ihdr);
+    // A zlib stream of a few zero bytes: far too little data for the declared size.
+    chunk(
+        &mut png,
+        b"IDAT",
+        &[0x78, 0x9c, 0x63, 0x00, 0x00, 0x00, 0x01, 0x00, 0x01],
+    );
+    chunk(&mut png, b"IEND", &[]);
+    png
+}
+
+fn chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+    out.extend_from_slice(&(data.len() as u32).to_be_bytes());
+    out.extend_from_slice(kind);
+    out.extend_from_slice(data);
+    let mut crc_input = kind.to_vec();
+    crc_input.extend_from_slice(data);
+    out.extend_from_slice(&crc32(&crc_input).to_be_bytes());
+}
+
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = 0xFFFF_FFFFu32;
+    for &b in bytes {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+/// An RGB PNG of `w`×`h`, a deterministic pattern.
+pub fn pattern_png(w: u32, h: u32) -> Vec<u8> {
+    let img = image::RgbImage::from_fn(w, h, |x, y| {
+        image::Rgb([
+            (x * 7 % 256) as u8,
+            (y * 5 % 256) as u8,
+            ((x + y) % 256) as u8,
+        ])
+    });
+    let mut out = Vec::new();
+    image::DynamicImage::ImageRgb8(img)
+        .write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
+        .unwrap();
+    out
+}

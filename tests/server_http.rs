@@ -1,0 +1,450 @@
+//! `POST /v1/roughness` and the operational endpoints on a real `tre serve` over loopback:
+//! answers equal `tre infer`, every kind of bad input is a clear JSON error after which the
+//! server still serves, and overload is refused at once while accepted work finishes.
+#![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
+
+mod common;
+
+use std::io::Write;
+use std::net::TcpStream;
+
+use common::{get, infer_png16, png16_values, png_with_header, real, Server};
+use reqwest::multipart::{Form, Part};
+
+fn rt() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .unwrap()
+}
+
+async fn post(url: &str, content_type: &str, body: Vec<u8>) -> reqwest::Response {
+    reqwest::Client::new()
+        .post(url)
+        .header("content-type", content_type)
+        .body(body)
+        .send()
+        .await
+        .unwrap()
+}
+
+/// Status, error code and message of a JSON error answer.
+async fn error_of(resp: reqwest::Response) -> (u16, String, String) {
+    let status = resp.status().as_u16();
+    assert_eq!(resp.headers()["content-type"], "application/json");
+    let v: serde_json::Value = serde_json::from_slice(&resp.bytes().await.unwrap()).unwrap();
+    let e = &v["error"];
+    (
+        status,
+        e["code"].as_str().unwrap().to_owned(),
+        e["message"].as_str().unwrap().to_owned(),
+    )
+}
+
+/// A small real frame must still be answered with a map (the server is still serving).
+async fn still_serves(server: &Server) {
+    let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    let resp = post(
+        &format!("{}/v1/roughness?mode=rgb", server.url()),
+        "image/png",
+        frame,
+    )
+    .await;
+    assert_eq!(resp.status().as_u16(), 200, "the server stopped serving");
+}
+
+#[test]
+fn answers_equal_tre_infer_in_rgb_and_rgbd() {
+    let server = Server::start(&["--workers", "1"]);
+    rt().block_on(async {
+        let rgb_path = real("slambook2_ch7/1.png");
+        let frame = std::fs::read(&rgb_path).unwrap();
+        let resp = post(
+            &format!("{}/v1/roughness", server.url()),
+            "image/png",
+            frame.clone(),
+        )
+        .await;
+        assert_eq!(resp.status().as_u16(), 200);
+        let h = resp.headers().clone();
+        assert_eq!(h["x-roughness-scale-m"], "0.0001");
+        assert_eq!(
+            (
+                h["x-image-width"].to_str().unwrap(),
+                h["x-image-height"].to_str().unwrap()
+            ),
+            ("640", "480")
+        );
+        assert_eq!(h["x-working-size"], "256x192");
+        let timing = h["server-timing"].to_str().unwrap().to_owned();
+        for stage in ["depth;dur=", "normals;dur=", "refine;dur=", "centroid;dur="] {
+            assert!(timing.contains(stage), "{timing}");
+        }
+        let served = png16_values(&resp.bytes().await.unwrap());
+        let reference = infer_png16(&[rgb_path.to_str().unwrap(), "--mode", "rgb"]);
+        assert_eq!(served, reference, "HTTP rgb answer differs from tre infer");
+
+        let depth_path = real("slambook2_ch7/1_depth.png");
+        let camera_path = real("slambook2_ch7/intrinsics.json");
+        let form = Form::new()
+            .part("rgb", Part::bytes(frame).file_name("1.png"))
+            .part("depth", Part::bytes(std::fs::read(&depth_path).unwrap()))
+            .part(
+                "camera",
+                Part::text(std::fs::read_to_string(&camera_path).unwrap()),
+            );
+        let resp = reqwest::Client::new()
+            .post(format!("{}/v1/roughness?seed=3", server.url()))
+            .multipart(form)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(resp.status().as_u16(), 200);
+        let served = png16_values(&resp.bytes().await.unwrap());
+        let reference = infer_png16(&[
+            rgb_path.to_str().unwrap(),
+            "--depth",
+            depth_path.to_str().unwrap(),
+            "--camera",
+            camera_path.to_str().unwrap(),
+            "--seed",
+            "3",
+        ]);
+        assert_eq!(served, reference, "HTTP rgbd answer differs from tre infer");
+    });
+}
+
+#[test]
+fn formats_and_extra_outputs() {
+    let server = Server::start(&["--workers", "1"]);
+    rt().block_on(async {
+        let frame = common::pattern_png(96, 64);
+        let url = format!("{}/v1/roughness?format=npy", server.url());
+        let resp = post(&url, "image/png", frame.clone()).await;
+        assert_eq!(resp.status().as_u16(), 200);
+        let npy = resp.bytes().await.unwrap();
+        assert!(npy.starts_with(b"\x93NUMPY"));
+        let a = tre::io::npy::read_npy(std::io::Cursor::new(&npy[..])).unwrap();
+        assert_eq!(a.shape, vec![64, 96]);
+
+        let url = format!(
+            "{}/v1/roughness?format=color&outputs=depth,traversable,slope,normals",
+            server.url()
+        );
+        let resp = post(&url, "image/png", frame).await;
+        assert_eq!(resp.status().as_u16(), 200);
+        let ct = resp.headers()["content-type"].to_str().unwrap().to_owned();
+        assert!(ct.starts_with("multipart/mixed; boundary="), "{ct}");
+        let body = resp.bytes().await.unwrap();
+        let text = String::from_utf8_lossy(&body);
+        for name in ["roughness", "depth", "traversable", "slope", "normals"] {
+            assert!(
+                text.contains(&format!("name=\"{name}\"")),
+                "part {name} missing"
+            );
+        }
+    });
+}
+
+#[test]
+fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
+    let mut server = Server::start(&[
+        "--workers",
+        "1",
+        "--max-body-bytes",
+        "3000000",
+        "--max-pixels",
+        "20000000",
+    ]);
+    let url = format!("{}/v1/roughness", server.url());
+    rt().block_on(async {
+        let cases: Vec<(&str, &str, Vec<u8>, u16, &str)> = vec![
+            (
+                "not an image",
+                "image/png",
+                b"this is not a picture".to_vec(),
+                415,
+                "unsupported_media",
+            ),
+            (
+                "wrong content type",
+                "text/plain",
+                b"hello".to_vec(),
+                415,
+                "unsupported_media",
+            ),
+            ("empty body", "image/png", Vec::new(), 422, "bad_image"),
+            (
+                "truncated PNG",
+                "image/png",
+                {
+                    let f = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+                    f[..f.len() / 3].to_vec()
+                },
+                422,
+                "bad_image",
+            ),
+            (
+                "zero-size image",
+                "image/png",
+                png_with_header(0, 0),
+                422,
+                "bad_image",
+            ),
+            (
+                "decompression bomb",
+                "image/png",
+                png_with_header(100_000, 100_000),
+                413,
+                "too_large",
+            ),
+            (
+                "oversize body",
+                "image/png",
+                vec![0u8; 3_500_000],
+                413,
+                "too_large",
+            ),
+        ];
+        for (what, ct, body, status, code) in cases {
+            let (s, c, message) = error_of(post(&url, ct, body).await).await;
+            assert_eq!((s, c.as_str()), (status, code), "{what}: {message}");
+            assert!(!message.is_empty());
+            still_serves(&server).await;
+        }
+        let rgb = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+        let small_depth = {
+            let mut out = Vec::new();
+            image::DynamicImage::ImageLuma16(image::ImageBuffer::from_pixel(
+                320,
+                240,
+                image::Luma([1000u16]),
+            ))
+            .write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
+            .unwrap();
+            out
+        };
+        let forms: Vec<(&str, Form, &str)> = vec![
+            (
+                "depth of the wrong size",
+                Form::new()
+                    .part("rgb", Part::bytes(rgb.clone()))
+                    .part("depth", Part::bytes(small_depth)),
+                "bad_depth",
+            ),
+            (
+                "camera that is not JSON",
+                Form::new()
+                    .part("rgb", Part::bytes(rgb.clone()))
+                    .part("camera", Part::text("fx=500")),
+                "bad_camera",
+            ),
+            (
+                "nonsense intrinsics",
+                Form::new().part("rgb", Part::bytes(rgb.clone())).part(
+                    "camera",
+                    Part::text(r#"{"fx": -5, "fy": 0, "cx": 1e300, "cy": 2}"#),
+                ),
+                "bad_camera",
+            ),
+            (
+                "nonsense mounting",
+                Form::new().part("rgb", Part::bytes(rgb.clone())).part(
+                    "camera",
+                    Part::text(r#"{"fx": 500, "fy": 500, "cx": 320, "cy": 240, "height_m": -3}"#),
+                ),
+                "bad_camera",
+            ),
+            (
+                "unknown part",
+                Form::new().part("picture", Part::bytes(rgb.clone())),
+                "bad_request",
+            ),
+        ];
+        for (what, form, code) in forms {
+            let resp = reqwest::Client::new()
+                .post(&url)
+                .multipart(form)
+                .send()
+                .await
+                .unwrap();
+            let (s, c, message) = error_of(resp).await;
+            assert_eq!(c, code, "{what}: {message}");
+            assert!(s == 400 || s == 422, "{what}: status {s}");
+            still_serves(&server).await;
+        }
+        let (s, c, _) =
+            error_of(post(&format!("{url}?format=jpeg2000"), "image/png", rgb.clone()).await).await;
+        assert_eq!((s, c.as_str()), (400, "bad_request"));
+        let (s, c, _) = error_of(post(&format!("{url}?mode=rgbd"), "image/png", rgb).await).await;
+        assert_eq!((s, c.as_str()), (422, "bad_input"));
+    });
+    // A client that vanishes mid-request: headers promise 2 MB, half arrives, then it is gone.
+    for _ in 0..3 {
+        let mut s = TcpStream::connect(server.addr).unwrap();
+        let head = format!("POST /v1/roughness HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nContent-Length: 2000000\r\n\r\n");
+        s.write_all(head.as_bytes()).unwrap();
+        s.write_all(&std::fs::read(real("slambook2_ch7/1.png")).unwrap()[..50_000])
+            .unwrap();
+        drop(s);
+    }
+    // One that vanishes while its frame is being processed.
+    let mut s = TcpStream::connect(server.addr).unwrap();
+    let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    let head = format!("POST /v1/roughness HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nContent-Length: {}\r\n\r\n", frame.len());
+    s.write_all(head.as_bytes()).unwrap();
+    s.write_all(&frame).unwrap();
+    drop(s);
+    assert!(server.alive());
+    rt().block_on(still_serves(&server));
+    assert_eq!(get(server.addr, "/healthz").0, 200);
+    let metrics = String::from_utf8(get(server.addr, "/metrics").1).unwrap();
+    assert!(
+        metrics.contains("tre_requests_total{endpoint=\"roughness\",outcome=\"bad_image\"} 3"),
+        "{metrics}"
+    );
+    assert!(metrics.contains("tre_requests_total{endpoint=\"roughness\",outcome=\"too_large\"} 2"));
+}
+
+#[test]
+fn overload_is_refused_at_once_and_accepted_work_finishes() {
+    let server = Server::start(&["--workers", "1", "--queue", "1"]);
+    let url = format!("{}/v1/roughness", server.url());
+    let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    let outcomes = rt().block_on(async {
+        let client = reqwest::Client::new();
+        let order = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+        let tasks: Vec<_> = (0..12)
+            .map(|_| {
+                let (client, url, frame, order) =
+                    (client.clone(), url.clone(), frame.clone(), order.clone());
+                tokio::spawn(async move {
+                    let resp = client
+                        .post(&url)
+                        .header("content-type", "image/png")
+                        .body(frame)
+                        .send()
+                        .await
+                        .unwrap();
+                    let status = resp.status().as_u16();
+                    let retry = resp
+                        .headers()
+                        .get("retry-after")
+                        .map(|v| v.to_str().unwrap().to_owned());
+                    let body = resp.bytes().await.unwrap();
+                    let finished = order.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                    (status, retry, body, finished)
+                })
+            })
+            .collect();
+        let mut out = Vec::new();
+        for t in tasks {
+            out.push(t.await.unwrap());
+        }
+        out
+    });
+    let ok: Vec<_> = outcomes.iter().filter(|o| o.0 == 200).collect();
+    let refused: Vec<_> = outcomes.iter().filter(|o| o.0 == 503).collect();
+    assert_eq!(
+        ok.len() + refused.len(),
+        outcomes.len(),
+        "only 200 and 503 expected"
+    );
+    assert!(
+        ok.len() >= 2 && !refused.is_empty(),
+        "{} ok, {} refused",
+        ok.len(),
+        refused.len()
+    );
+    for r in &refused {
+        assert_eq!(r.1.as_deref(), Some("1"), "503 without Retry-After");
+        let v: serde_json::Value = serde_json::from_slice(&r.2).unwrap();
+        assert_eq!(v["error"]["code"], "overloaded");
+    }
+    for o in &ok {
+        png16_values(&o.2);
+    }
+    // Refusals come back while accepted frames are still running: every refusal finished
+    // before the last accepted frame did.
+    let last_ok = ok.iter().map(|o| o.3).max().unwrap();
+    assert!(refused.iter().all(|r| r.3 < last_ok));
+    let metrics = String::from_utf8(get(server.addr, "/metrics").1).unwrap();
+    assert!(metrics.contains(&format!(
+        "tre_requests_total{{endpoint=\"roughness\",outcome=\"overloaded\"}} {}",
+        refused.len()
+    )));
+    assert!(metrics.contains("tre_queue_capacity 1"));
+}
+
+#[test]
+fn operational_endpoints() {
+    let server = Server::start(&["--workers", "1"]);
+    let (s, body) = get(server.addr, "/healthz");
+    assert_eq!(s, 200, "{}", String::from_utf8_lossy(&body));
+    assert_eq!(get(server.addr, "/readyz").0, 200);
+    let (s, body) = get(server.addr, "/v1/models");
+    assert_eq!(s, 200);
+    let manifest: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert!(manifest["models"]["depth_net"]["sha256"].is_string());
+    let (s, body) = get(server.addr, "/openapi.json");
+    assert_eq!(s, 200);
+    let doc: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    for path in [
+        "/v1/roughness",
+        "/v1/stream",
+        "/v1/models",
+        "/healthz",
+        "/readyz",
+        "/metrics",
+        "/openapi.json",
+        "/",
+    ] {
+        assert!(
+            doc["paths"][path].is_object(),
+            "{path} missing from the OpenAPI document"
+        );
+    }
+    let (s, body) = get(server.addr, "/");
+    assert_eq!(s, 200);
+    assert!(String::from_utf8_lossy(&body).contains("<html"));
+    let (s, body) = get(server.addr, "/metrics");
+    assert_eq!(s, 200);
+    let text = String::from_utf8(body).unwrap();
+    for name in [
+        "tre_ready 1",
+        "tre_queue_depth",
+        "tre_frames_dropped_total",
+        "tre_batch_size_bucket",
+        "tre_workers 1",
+    ] {
+        assert!(text.contains(name), "{name} missing from /metrics");
+    }
+    assert_eq!(get(server.addr, "/nope").0, 404);
+}
+
+#[test]
+fn sigterm_finishes_in_flight_work_then_exits() {
+    let server = Server::start(&["--workers", "1"]);
+    let url = format!("{}/v1/roughness", server.url());
+    let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    let rt = rt();
+    let pending = rt.spawn(async move { post(&url, "image/png", frame).await.status().as_u16() });
+    // Wait until the frame is running (the queue has taken it), then ask the server to stop.
+    let start = std::time::Instant::now();
+    loop {
+        let text = String::from_utf8(get(server.addr, "/metrics").1).unwrap_or_default();
+        if text.contains("tre_batch_size_count 1")
+            || start.elapsed() > std::time::Duration::from_secs(20)
+        {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let status = server.terminate();
+    assert!(status.success(), "exit status {status}");
+    assert_eq!(
+        rt.block_on(pending).unwrap(),
+        200,
+        "the in-flight request was not finished"
+    );
+}
