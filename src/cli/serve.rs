@@ -48,8 +48,9 @@ pub struct Serve {
     /// Largest request body, bytes.
     #[arg(long, env = "TRE_MAX_BODY_BYTES", default_value_t = 32 << 20)]
     pub max_body_bytes: usize,
-    /// Largest image, pixels (checked from the header, before decoding).
-    #[arg(long, env = "TRE_MAX_PIXELS", default_value_t = 40_000_000)]
+    /// Largest image, pixels (checked from the header, before decoding). A frame in flight
+    /// takes about 60 bytes per pixel: 16 Mpx is about 1 GB per worker.
+    #[arg(long, env = "TRE_MAX_PIXELS", default_value_t = 16 << 20)]
     pub max_pixels: usize,
     /// HTTP requests handled at once; beyond, requests get 429 at once.
     #[arg(long, env = "TRE_MAX_CONCURRENT", default_value_t = 64)]

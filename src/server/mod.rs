@@ -76,7 +76,7 @@ impl Default for ServeConfig {
             },
             queue: 2 * cores,
             max_body_bytes: 32 << 20,
-            max_pixels: 40_000_000,
+            max_pixels: 16 << 20,
             max_concurrent: 64,
             request_timeout: Duration::from_secs(30),
             ws_max_message_bytes: 16 << 20,

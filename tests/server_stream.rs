@@ -1,0 +1,317 @@
+//! `GET /v1/stream` on a real `tre serve` over loopback: results equal `tre infer`, latest
+//! frame wins with drops reported, garbage and oversize messages are errors that keep the
+//! stream open, vanishing clients do not hurt the server, and memory stays flat over thousands
+//! of frames.
+#![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
+
+mod common;
+
+use std::time::Duration;
+
+use common::{get, infer_png16, png16_values, real, Server};
+use futures_util::{SinkExt, StreamExt};
+use prost::Message as _;
+use tokio_tungstenite::tungstenite::Message;
+use tre::proto::v1 as pb;
+
+type Ws =
+    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+fn rt() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .unwrap()
+}
+
+async fn connect(server: &Server) -> Ws {
+    let url = format!("ws://{}/v1/stream", server.addr);
+    tokio_tungstenite::connect_async(url).await.unwrap().0
+}
+
+fn hello(format: pb::Format, mode: pb::Mode) -> Vec<u8> {
+    pb::ClientMessage {
+        msg: Some(pb::client_message::Msg::Hello(pb::Hello {
+            format: format as i32,
+            mode: mode as i32,
+            ..Default::default()
+        })),
+    }
+    .encode_to_vec()
+}
+
+fn frame(sequence: u64, image: Vec<u8>) -> Vec<u8> {
+    pb::ClientMessage {
+        msg: Some(pb::client_message::Msg::Frame(pb::Frame {
+            sequence,
+            timestamp_us: 1_000 + sequence as i64,
+            image,
+            ..Default::default()
+        })),
+    }
+    .encode_to_vec()
+}
+
+async fn send(ws: &mut Ws, bytes: Vec<u8>) {
+    ws.send(Message::Binary(bytes.into())).await.unwrap();
+}
+
+/// The next server message (pings skipped).
+async fn next(ws: &mut Ws) -> pb::server_message::Msg {
+    loop {
+        let msg = tokio::time::timeout(Duration::from_secs(60), ws.next())
+            .await
+            .expect("no message within 60 s")
+            .expect("stream ended")
+            .expect("stream failed");
+        match msg {
+            Message::Binary(b) => return pb::ServerMessage::decode(&b[..]).unwrap().msg.unwrap(),
+            Message::Ping(_) | Message::Pong(_) => continue,
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+}
+
+async fn handshake(ws: &mut Ws, format: pb::Format, mode: pb::Mode) {
+    send(ws, hello(format, mode)).await;
+    match next(ws).await {
+        pb::server_message::Msg::Ready(r) => assert!(r.models.iter().any(|m| m == "depth_net")),
+        other => panic!("expected Ready, got {other:?}"),
+    }
+}
+
+#[test]
+fn stream_results_equal_tre_infer() {
+    let server = Server::start(&["--workers", "1"]);
+    let path = real("slambook2_ch7/2.png");
+    let reference = infer_png16(&[path.to_str().unwrap(), "--mode", "rgb"]);
+    rt().block_on(async {
+        let mut ws = connect(&server).await;
+        handshake(&mut ws, pb::Format::Png16, pb::Mode::Rgb).await;
+        let image = std::fs::read(&path).unwrap();
+        for seq in [7u64, 8, 9] {
+            send(&mut ws, frame(seq, image.clone())).await;
+            match next(&mut ws).await {
+                pb::server_message::Msg::Result(r) => {
+                    assert_eq!(r.sequence, seq);
+                    assert_eq!(r.timestamp_us, 1_000 + seq as i64);
+                    assert_eq!((r.width, r.height), (640, 480));
+                    assert_eq!(r.scale_m, 1e-4);
+                    assert!(r.timings.iter().any(|t| t.stage == "normals" && t.ms > 0.0));
+                    assert!(r.latency_ms > 0.0);
+                    assert_eq!(png16_values(&r.roughness), reference, "frame {seq}");
+                }
+                other => panic!("expected a Result, got {other:?}"),
+            }
+        }
+        ws.close(None).await.unwrap();
+    });
+}
+
+#[test]
+fn latest_frame_wins_and_drops_are_reported() {
+    let server = Server::start(&["--workers", "1"]);
+    let image = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    rt().block_on(async {
+        let mut ws = connect(&server).await;
+        handshake(&mut ws, pb::Format::F32, pb::Mode::Rgb).await;
+        for seq in 0..6 {
+            send(&mut ws, frame(seq, image.clone())).await;
+        }
+        let (mut results, mut dropped, mut last_total) = (Vec::new(), Vec::new(), 0);
+        while results.len() + dropped.len() < 6 {
+            match next(&mut ws).await {
+                pb::server_message::Msg::Result(r) => {
+                    assert_eq!(r.roughness.len(), 640 * 480 * 4);
+                    last_total = last_total.max(r.dropped_total);
+                    results.push(r.sequence);
+                }
+                pb::server_message::Msg::Dropped(d) => {
+                    assert_eq!(d.dropped_total, dropped.len() as u64 + 1);
+                    dropped.push(d.sequence);
+                }
+                other => panic!("unexpected {other:?}"),
+            }
+        }
+        // Frames sent back to back while one runs: the first and the newest are processed, the
+        // ones in between are dropped, each once, and no frame is lost without a word.
+        assert_eq!(results.first(), Some(&0));
+        assert_eq!(results.last(), Some(&5));
+        assert!(!dropped.is_empty(), "nothing was dropped");
+        let mut all: Vec<u64> = results.iter().chain(&dropped).copied().collect();
+        all.sort_unstable();
+        assert_eq!(all, (0..6).collect::<Vec<_>>());
+        assert_eq!(last_total, dropped.len() as u64);
+    });
+    let metrics = String::from_utf8(get(server.addr, "/metrics").1).unwrap();
+    assert!(!metrics.contains("tre_frames_dropped_total 0"));
+}
+
+#[test]
+fn bad_messages_are_errors_and_the_stream_goes_on() {
+    let mut server = Server::start(&["--workers", "1", "--ws-max-message-bytes", "1000000"]);
+    let small = common::pattern_png(64, 48);
+    rt().block_on(async {
+        let mut ws = connect(&server).await;
+        // A frame before the Hello.
+        send(&mut ws, frame(1, small.clone())).await;
+        let expect_error = |m: pb::server_message::Msg, code: &str| match m {
+            pb::server_message::Msg::Error(e) => {
+                assert_eq!(e.code, code, "{}", e.message);
+                assert!(!e.message.is_empty());
+                e
+            }
+            other => panic!("expected error {code}, got {other:?}"),
+        };
+        let e = expect_error(next(&mut ws).await, "bad_request");
+        assert_eq!(e.sequence, Some(1));
+        handshake(&mut ws, pb::Format::Png16, pb::Mode::Rgb).await;
+        send(&mut ws, vec![0xFF, 0x13, 0x37, 0x00, 0xAB]).await;
+        expect_error(next(&mut ws).await, "bad_request");
+        ws.send(Message::Text("hello?".into())).await.unwrap();
+        expect_error(next(&mut ws).await, "bad_request");
+        send(&mut ws, frame(2, b"not an image at all".to_vec())).await;
+        let e = expect_error(next(&mut ws).await, "unsupported_media");
+        assert_eq!(e.sequence, Some(2));
+        let truncated = std::fs::read(real("slambook2_ch7/1.png")).unwrap()[..4000].to_vec();
+        send(&mut ws, frame(3, truncated)).await;
+        expect_error(next(&mut ws).await, "bad_image");
+        send(&mut ws, frame(4, common::png_with_header(90_000, 90_000))).await;
+        expect_error(next(&mut ws).await, "too_large");
+        send(&mut ws, frame(5, vec![0x89; 1_500_000])).await;
+        expect_error(next(&mut ws).await, "too_large");
+        let bad_cam = pb::ClientMessage {
+            msg: Some(pb::client_message::Msg::Frame(pb::Frame {
+                sequence: 6,
+                image: small.clone(),
+                camera: Some(pb::Camera {
+                    fx: f64::NAN,
+                    fy: 1.0,
+                    cx: 0.0,
+                    cy: 0.0,
+                    ..Default::default()
+                }),
+                ..Default::default()
+            })),
+        };
+        send(&mut ws, bad_cam.encode_to_vec()).await;
+        expect_error(next(&mut ws).await, "bad_camera");
+        // After all that, the same stream still answers a good frame.
+        send(&mut ws, frame(10, small.clone())).await;
+        match next(&mut ws).await {
+            pb::server_message::Msg::Result(r) => {
+                assert_eq!((r.sequence, r.width, r.height), (10, 64, 48))
+            }
+            other => panic!("expected a Result, got {other:?}"),
+        }
+        // Beyond 4× the limit the connection is closed (1009), and the server is unharmed.
+        let _ = ws.send(Message::Binary(vec![0u8; 4_500_000].into())).await;
+        let closed = tokio::time::timeout(Duration::from_secs(30), async {
+            loop {
+                match ws.next().await {
+                    Some(Ok(Message::Close(f))) => break f.map(|f| u16::from(f.code)),
+                    Some(Ok(_)) => continue,
+                    _ => break None,
+                }
+            }
+        })
+        .await
+        .unwrap();
+        assert!(
+            closed.is_none() || closed == Some(1009),
+            "closed with {closed:?}"
+        );
+
+        // Clients that vanish mid-stream, with a frame in flight.
+        for _ in 0..3 {
+            let mut ws = connect(&server).await;
+            handshake(&mut ws, pb::Format::Png16, pb::Mode::Rgb).await;
+            send(&mut ws, frame(1, small.clone())).await;
+            drop(ws);
+        }
+        let mut ws = connect(&server).await;
+        handshake(&mut ws, pb::Format::Png16, pb::Mode::Rgb).await;
+        send(&mut ws, frame(11, small.clone())).await;
+        assert!(
+            matches!(next(&mut ws).await, pb::server_message::Msg::Result(r) if r.sequence == 11)
+        );
+    });
+    assert!(server.alive());
+}
+
+#[test]
+fn shutdown_closes_streams_cleanly() {
+    let server = Server::start(&["--workers", "1"]);
+    let image = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    let rt = rt();
+    let mut ws = rt.block_on(async {
+        let mut ws = connect(&server).await;
+        handshake(&mut ws, pb::Format::Png16, pb::Mode::Rgb).await;
+        send(&mut ws, frame(1, image)).await;
+        ws
+    });
+    std::thread::sleep(Duration::from_millis(20));
+    let status = server.terminate();
+    assert!(status.success(), "{status}");
+    rt.block_on(async {
+        let mut got_result = false;
+        let mut close = None;
+        while let Some(Ok(m)) = ws.next().await {
+            match m {
+                Message::Binary(b) => {
+                    if let Some(pb::server_message::Msg::Result(r)) =
+                        pb::ServerMessage::decode(&b[..]).unwrap().msg
+                    {
+                        got_result = r.sequence == 1;
+                    }
+                }
+                Message::Close(f) => {
+                    close = f.map(|f| u16::from(f.code));
+                    break;
+                }
+                _ => {}
+            }
+        }
+        assert!(
+            got_result,
+            "the frame in flight was not answered before the close"
+        );
+        assert_eq!(close, Some(1001));
+    });
+}
+
+/// Streams thousands of small frames and reports the server's RSS before and after; it must
+/// stay flat (growth under 16 MiB once warm).
+#[test]
+fn memory_stays_flat_over_a_sustained_stream() {
+    let server = Server::start(&["--workers", "1"]);
+    let image = common::pattern_png(64, 48);
+    let frames: u64 = std::env::var("TRE_STREAM_FRAMES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1000);
+    let (before, after) = rt().block_on(async {
+        let mut ws = connect(&server).await;
+        handshake(&mut ws, pb::Format::Png16, pb::Mode::Rgb).await;
+        run(&mut ws, &image, 0, 200).await;
+        let before = server.rss_kib();
+        run(&mut ws, &image, 200, 200 + frames).await;
+        (before, server.rss_kib())
+    });
+    eprintln!("RSS over {frames} frames of 64×48 in rgb mode: {before} KiB before, {after} KiB after ({:+} KiB)", after as i64 - before as i64);
+    assert!(
+        after < before + 16 * 1024,
+        "RSS grew from {before} KiB to {after} KiB"
+    );
+}
+
+/// Sends frames `from..to` one at a time, each answered before the next.
+async fn run(ws: &mut Ws, image: &[u8], from: u64, to: u64) {
+    for seq in from..to {
+        send(ws, frame(seq, image.to_vec())).await;
+        match next(ws).await {
+            pb::server_message::Msg::Result(r) => assert_eq!(r.sequence, seq),
+            other => panic!("frame {seq}: {other:?}"),
+        }
+    }
+}
