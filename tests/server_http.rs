@@ -282,7 +282,7 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
     // A client that vanishes mid-request: headers promise 2 MB, half arrives, then it is gone.
     for _ in 0..3 {
         let mut s = TcpStream::connect(server.addr).unwrap();
-        let head = format!("POST /v1/roughness HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nContent-Length: 2000000\r\n\r\n");
+        let head = "POST /v1/roughness HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nContent-Length: 2000000\r\n\r\n";
         s.write_all(head.as_bytes()).unwrap();
         s.write_all(&std::fs::read(real("slambook2_ch7/1.png")).unwrap()[..50_000])
             .unwrap();

@@ -107,6 +107,22 @@ impl Models {
         self.neighbour.run(&[rgb, points_m, valid])
     }
 
+    /// The neighbour net like [`Models::neighbour_logits`], its logits handed to `consume`
+    /// without a copy.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`ModelSession::run`].
+    pub fn neighbour_logits_with<R>(
+        &mut self,
+        rgb: ArrayView4<'_, f32>,
+        points_m: ArrayView4<'_, f32>,
+        valid: ArrayView4<'_, f32>,
+        consume: impl FnOnce(ArrayView4<'_, f32>) -> R,
+    ) -> Result<R, ModelError> {
+        self.neighbour.run_with(&[rgb, points_m, valid], consume)
+    }
+
     /// Normal refiner: RGB, points, validity and initial normals (N×3×H×W, 0 where none) →
     /// unit normals (N×3×H×W).
     ///

@@ -49,16 +49,21 @@ pub fn dsac_normals_from_net(
     points: &PointMap,
     seed: u64,
 ) -> Result<InitialNormals, PipelineError> {
-    let logits = models.neighbour_logits(net.rgb.view(), net.points_m.view(), net.valid.view())?;
-    let logits = logits
-        .as_slice()
-        .expect("model outputs are made standard-layout; this is a bug");
     let cfg = DsacConfig {
         seed,
         ..DsacConfig::default()
     };
+    let normals = models.neighbour_logits_with(
+        net.rgb.view(),
+        net.points_m.view(),
+        net.valid.view(),
+        |logits| match logits.as_slice() {
+            Some(logits) => dsac_normals(points, logits, &cfg),
+            None => dsac_normals(points, &logits.iter().copied().collect::<Vec<_>>(), &cfg),
+        },
+    )??;
     Ok(InitialNormals {
-        normals: dsac_normals(points, logits, &cfg)?,
+        normals,
         window_centroids: None,
     })
 }

@@ -17,7 +17,7 @@ pub enum Format {
     /// 16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data (as `tre infer`).
     #[default]
     Png16,
-    /// 8-bit colour preview PNG (turbo, 0 to `preview_max_m`; black: no data).
+    /// 8-bit colour map PNG the frame's size (turbo, 0 to `preview_max_m`; dark grey: no data).
     Color,
     /// `(H, W)` float32 `.npy`, metres, NaN where there is no data.
     Npy,
@@ -300,8 +300,9 @@ pub fn encode_reply(out: FrameOutput, opts: &FrameOptions) -> Result<FrameReply,
     let (w, h) = r.size();
     let roughness = match opts.format {
         Format::Png16 => png(&DynamicImage::ImageLumaA16(io::roughness_png16(r)))?,
-        Format::Color => png(&DynamicImage::ImageRgb8(colormap::roughness_preview(
+        Format::Color => png(&DynamicImage::ImageRgb8(colormap::colourise(
             r,
+            0.0,
             opts.preview_max_m.unwrap_or(0.05),
         )))?,
         Format::Npy => npy(

@@ -1,0 +1,196 @@
+// Headless-Chromium test of the demo page of `tre serve` (run by tests/demo_page.rs).
+//
+//   node tests/browser/demo.mjs http://127.0.0.1:PORT path/to/image.png
+//
+// Drives Debian's Chromium (CHROMIUM, default /usr/bin/chromium) with playwright-core: picks the
+// image, waits for the roughness overlay and checks that it really rendered (size, colours,
+// legend, stage timings), streams it over the WebSocket until 3 results came back, then submits
+// a text file and checks that the server's error message is shown. Exits 0 when every check
+// passes, 1 with the failed check otherwise. TRE_SCREENSHOT=path saves a screenshot of the page.
+import { mkdtempSync, readFileSync, rmSync, writeFileSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { join } from "node:path";
+import { chromium } from "playwright-core";
+
+const RESULT_TIMEOUT_MS = 180_000;
+const CHROMIUM_ARGS = [
+  "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+];
+
+class CheckFailed extends Error {}
+
+function check(cond, what) {
+  if (!cond) throw new CheckFailed(what);
+  console.log(`ok: ${what}`);
+}
+
+/** Width and height from a PNG's IHDR, or null for another format. */
+function pngSize(bytes) {
+  const sig = [0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a];
+  if (bytes.length < 24 || !sig.every((b, i) => bytes[i] === b)) return null;
+  return { width: bytes.readUInt32BE(16), height: bytes.readUInt32BE(20) };
+}
+
+/** Pixel statistics of an <img> or <canvas> drawn on a canvas in the page. */
+function pixelStats(page, selector) {
+  return page.evaluate((sel) => {
+    const el = document.querySelector(sel);
+    const w = el.naturalWidth ?? el.width, h = el.naturalHeight ?? el.height;
+    if (!w || !h) return { width: 0, height: 0, colours: 0, nonBlack: 0, opaque: 0, total: 0 };
+    const c = document.createElement("canvas");
+    c.width = w;
+    c.height = h;
+    const g = c.getContext("2d");
+    g.drawImage(el, 0, 0);
+    const d = g.getImageData(0, 0, w, h).data;
+    const colours = new Set();
+    let nonBlack = 0, opaque = 0;
+    for (let i = 0; i < d.length; i += 4) {
+      if (d[i + 3] === 0) continue;
+      opaque += 1;
+      if (d[i] + d[i + 1] + d[i + 2] > 30) nonBlack += 1;
+      colours.add(((d[i] >> 3) << 10) | ((d[i + 1] >> 3) << 5) | (d[i + 2] >> 3));
+    }
+    return { width: w, height: h, colours: colours.size, nonBlack, opaque, total: w * h };
+  }, selector);
+}
+
+async function waitForResult(page, what) {
+  await page.waitForFunction(
+    () => ["done", "error"].includes(document.body.dataset.state), null,
+    { timeout: RESULT_TIMEOUT_MS },
+  );
+  const state = await page.evaluate(() => document.body.dataset.state);
+  const error = (await page.textContent("#error")).trim();
+  check(state === "done", `${what} rendered (state ${state}${error ? `, #error: ${error}` : ""})`);
+}
+
+async function checkSingleImage(page, imagePath) {
+  const bytes = readFileSync(imagePath);
+  await page.setInputFiles("#file", imagePath);
+  await waitForResult(page, "the roughness of the picked image");
+  const input = pngSize(bytes) ?? await page.evaluate(() => {
+    const img = document.getElementById("input-img");
+    return { width: img.naturalWidth, height: img.naturalHeight };
+  });
+  const overlay = await pixelStats(page, "#overlay");
+  console.log(`overlay: ${JSON.stringify(overlay)}`);
+  check(overlay.width === input.width && overlay.height === input.height,
+    `overlay is ${overlay.width}×${overlay.height}, as the input (${input.width}×${input.height})`);
+  check(overlay.colours > 1, `overlay has more than one colour (${overlay.colours})`);
+  check(overlay.nonBlack > 0, `overlay has non-black pixels (${overlay.nonBlack})`);
+  check(await page.isVisible("#overlay"), "overlay is visible");
+  const legend = await pixelStats(page, "#legend");
+  check(legend.opaque > 0 && legend.colours > 10,
+    `legend is drawn (${legend.opaque} px, ${legend.colours} colours)`);
+  const timings = await page.textContent("#timings");
+  console.log(`timings: ${timings.replace(/\s+/g, " ").trim()}`);
+  check(/depth/.test(timings) && /normals/.test(timings), "#timings names depth and normals");
+  const workingSize = (await page.textContent("#working-size")).trim();
+  check(/\d+\s*×\s*\d+/.test(workingSize), `working size shown (${workingSize})`);
+  check((await page.textContent("#error")).trim() === "", "no error shown");
+}
+
+async function checkStream(page) {
+  await page.click("#stream-start");
+  await page.waitForFunction(() => {
+    const n = parseInt(document.getElementById("stream-count").textContent, 10);
+    const err = document.getElementById("stream-error").textContent;
+    return n >= 3 || err !== "" || document.getElementById("stream-state").dataset.state === "closed";
+  }, null, { timeout: RESULT_TIMEOUT_MS });
+  const count = parseInt(await page.textContent("#stream-count"), 10);
+  const streamError = (await page.textContent("#stream-error")).trim();
+  check(count >= 3, `3 stream results received (${count}${streamError ? `; ${streamError}` : ""})`);
+  await page.waitForFunction(() => document.getElementById("stream-view").naturalWidth > 0, null,
+    { timeout: 10_000 });
+  const view = await pixelStats(page, "#stream-view");
+  check(view.width > 0 && view.colours > 1 && view.nonBlack > 0,
+    `stream view shows a colour map (${view.width}×${view.height}, ${view.colours} colours)`);
+  const dropped = (await page.textContent("#stream-dropped")).trim();
+  check(/^\d+$/.test(dropped), `dropped counter shown (${dropped})`);
+  check(streamError === "", "no stream error shown");
+  await page.click("#stream-start");
+  await page.waitForFunction(
+    () => document.getElementById("stream-state").dataset.state === "closed", null,
+    { timeout: 10_000 },
+  );
+  check(true, "stream stopped");
+}
+
+async function checkBadInput(page, baseUrl) {
+  const dir = mkdtempSync(join(tmpdir(), "tre-demo-"));
+  const path = join(dir, "not-an-image.txt");
+  const text = "this is not an image\n";
+  writeFileSync(path, text);
+  try {
+    // The same request straight to the server, for the message the page must show.
+    const resp = await fetch(`${baseUrl}/v1/roughness?format=color&preview_max_cm=5`, {
+      method: "POST", body: text, headers: { "Content-Type": "text/plain" },
+    });
+    const body = await resp.text();
+    check(resp.status >= 400 && resp.status < 500, `server refuses a text file (HTTP ${resp.status})`);
+    const message = JSON.parse(body).error.message;
+    await page.setInputFiles("#file", path);
+    await page.waitForFunction(() => document.body.dataset.state !== "loading", null,
+      { timeout: RESULT_TIMEOUT_MS });
+    const shown = (await page.textContent("#error")).trim();
+    console.log(`#error: ${shown}`);
+    check(shown.includes(message), `#error shows the server's message "${message}"`);
+    check(await page.evaluate(() => document.body.dataset.state) === "error", "page state is error");
+  } finally {
+    rmSync(dir, { recursive: true, force: true });
+  }
+}
+
+async function main() {
+  const [baseArg, imagePath] = process.argv.slice(2);
+  if (!baseArg || !imagePath) {
+    console.error("usage: node demo.mjs BASE_URL IMAGE");
+    return 2;
+  }
+  const baseUrl = baseArg.replace(/\/+$/, "");
+  const userDataDir = mkdtempSync(join(tmpdir(), "tre-chromium-"));
+  const context = await chromium.launchPersistentContext(userDataDir, {
+    executablePath: process.env.CHROMIUM || "/usr/bin/chromium",
+    headless: true,
+    args: CHROMIUM_ARGS,
+    viewport: { width: 1280, height: 1100 },
+  });
+  const pageErrors = [];
+  const page = context.pages()[0] ?? await context.newPage();
+  page.on("pageerror", (e) => pageErrors.push(e.message));
+  page.on("console", (m) => { if (m.type() === "error") console.log(`console error: ${m.text()}`); });
+  const screenshot = async () => {
+    if (process.env.TRE_SCREENSHOT) {
+      await page.screenshot({ path: process.env.TRE_SCREENSHOT, fullPage: true }).catch(() => {});
+      console.log(`screenshot: ${process.env.TRE_SCREENSHOT}`);
+    }
+  };
+  try {
+    const resp = await page.goto(`${baseUrl}/`);
+    check(resp && resp.ok(), `GET / answers ${resp && resp.status()}`);
+    check(await page.title() === "tre — terrain roughness", "page title");
+    await checkSingleImage(page, imagePath);
+    await checkStream(page);
+    await screenshot();
+    await checkBadInput(page, baseUrl);
+    check(pageErrors.length === 0, `no uncaught errors in the page (${pageErrors.join("; ")})`);
+    console.log("demo page: all checks passed");
+    return 0;
+  } catch (e) {
+    await screenshot();
+    const what = e instanceof CheckFailed ? "check failed" : "error";
+    console.error(`demo page test FAILED (${what}): ${e.message}`);
+    if (pageErrors.length) console.error(`uncaught errors in the page: ${pageErrors.join("; ")}`);
+    return 1;
+  } finally {
+    await context.close().catch(() => {});
+    rmSync(userDataDir, { recursive: true, force: true });
+  }
+}
+
+process.exitCode = await main().catch((e) => {
+  console.error(`demo page test FAILED: ${e.stack || e}`);
+  return 1;
+});
