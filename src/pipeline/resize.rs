@@ -4,7 +4,6 @@
 
 use std::borrow::Cow;
 
-use image::imageops::{self, FilterType};
 use image::RgbImage;
 use rayon::prelude::*;
 
@@ -12,17 +11,116 @@ use crate::geometry::Grid;
 
 /// `rgb` at `(width, height)`: unchanged when it already has that size, else resampled with a
 /// triangle (bilinear) filter whose support widens with the shrink factor, so that shrinking
-/// averages over each output pixel's source area instead of aliasing.
+/// averages over each output pixel's source area instead of aliasing. The filter and its taps
+/// are those of `image::imageops::resize` with `FilterType::Triangle` (columns first, f32,
+/// rounded to the nearest byte); the passes run on precomputed taps, rows in parallel.
+///
+/// ```
+/// use tre::pipeline::resize::resize_rgb;
+/// let img = image::RgbImage::from_fn(8, 4, |x, _| image::Rgb([x as u8 * 10, 0, 255]));
+/// let small = resize_rgb(&img, 4, 2);
+/// assert_eq!(small.dimensions(), (4, 2));
+/// assert_eq!(small.get_pixel(0, 0).0, [7, 0, 255]);
+/// ```
 pub fn resize_rgb(rgb: &RgbImage, width: usize, height: usize) -> Cow<'_, RgbImage> {
-    if (rgb.width() as usize, rgb.height() as usize) == (width, height) {
+    let (w_in, h_in) = (rgb.width() as usize, rgb.height() as usize);
+    if (w_in, h_in) == (width, height) {
         return Cow::Borrowed(rgb);
     }
-    Cow::Owned(imageops::resize(
-        rgb,
-        width as u32,
-        height as u32,
-        FilterType::Triangle,
-    ))
+    if w_in == 0 || h_in == 0 || width == 0 || height == 0 {
+        return Cow::Owned(RgbImage::new(width as u32, height as u32));
+    }
+    let rows = Taps::triangle(h_in, height);
+    let cols = Taps::triangle(w_in, width);
+    let raw = rgb.as_raw();
+    // Vertical pass: `height` rows of `w_in` pixels, f32.
+    let mut tmp = vec![0f32; height * w_in * 3];
+    tmp.par_chunks_mut(w_in * 3)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let (start, weights) = rows.of(y);
+            for (k, &wt) in weights.iter().enumerate() {
+                let src = &raw[(start + k) * w_in * 3..(start + k + 1) * w_in * 3];
+                for (o, &v) in row.iter_mut().zip(src) {
+                    *o += wt * f32::from(v);
+                }
+            }
+        });
+    // Horizontal pass, rounded to bytes.
+    let mut out = vec![0u8; height * width * 3];
+    out.par_chunks_mut(width * 3)
+        .zip(tmp.par_chunks(w_in * 3))
+        .for_each(|(row, src)| {
+            for (x, px) in row.chunks_exact_mut(3).enumerate() {
+                let (start, weights) = cols.of(x);
+                let mut acc = [0f32; 3];
+                for (k, &wt) in weights.iter().enumerate() {
+                    let s = &src[(start + k) * 3..(start + k) * 3 + 3];
+                    for c in 0..3 {
+                        acc[c] += wt * s[c];
+                    }
+                }
+                for c in 0..3 {
+                    px[c] = acc[c].clamp(0.0, 255.0).round() as u8;
+                }
+            }
+        });
+    Cow::Owned(
+        RgbImage::from_raw(width as u32, height as u32, out)
+            .expect("buffer sized for the image; this is a bug"),
+    )
+}
+
+/// Normalised filter taps of every output index along one axis.
+struct Taps {
+    /// First source index of each output index.
+    start: Vec<usize>,
+    /// Range of each output index's weights in `weights`.
+    range: Vec<(usize, usize)>,
+    weights: Vec<f32>,
+}
+
+impl Taps {
+    /// Triangle-filter taps from `n_in` to `n_out`, as `image` computes them.
+    fn triangle(n_in: usize, n_out: usize) -> Self {
+        let ratio = n_in as f32 / n_out as f32;
+        let sratio = ratio.max(1.0);
+        let support = sratio;
+        let mut taps = Self {
+            start: Vec::with_capacity(n_out),
+            range: Vec::with_capacity(n_out),
+            weights: Vec::with_capacity(n_out * (2 * support.ceil() as usize + 2)),
+        };
+        for o in 0..n_out {
+            let centre = (o as f32 + 0.5) * ratio;
+            let left = ((centre - support).floor() as i64).clamp(0, n_in as i64 - 1) as usize;
+            let right =
+                ((centre + support).ceil() as i64).clamp(left as i64 + 1, n_in as i64) as usize;
+            let centre = centre - 0.5;
+            let first = taps.weights.len();
+            let mut sum = 0.0;
+            for i in left..right {
+                let t = ((i as f32 - centre) / sratio).abs();
+                let w = if t < 1.0 { 1.0 - t } else { 0.0 };
+                taps.weights.push(w);
+                sum += w;
+            }
+            if sum != 0.0 {
+                for w in &mut taps.weights[first..] {
+                    *w /= sum;
+                }
+            }
+            taps.start.push(left);
+            taps.range.push((first, taps.weights.len()));
+        }
+        taps
+    }
+
+    /// First source index and weights of output index `o`.
+    fn of(&self, o: usize) -> (usize, &[f32]) {
+        let (a, b) = self.range[o];
+        (self.start[o], &self.weights[a..b])
+    }
 }
 
 /// The source index that output index `i` of `n_out` samples among `n_in`: the pixel whose
@@ -82,4 +180,37 @@ pub fn resize_nearest<T: Clone + Send + Sync>(
     let mut out = Grid::new(width, height, fill);
     resize_nearest_into(src, &mut out);
     out
+}
+
+#[cfg(test)]
+mod rgb_tests {
+    use super::*;
+
+    #[test]
+    fn matches_image_triangle_resize_within_one_level() {
+        let img = RgbImage::from_fn(640, 480, |x, y| {
+            image::Rgb([
+                (x * 7 % 251) as u8,
+                (y * 13 % 241) as u8,
+                ((x * y) % 239) as u8,
+            ])
+        });
+        for (w, h) in [(256, 192), (80, 256), (1000, 700), (3, 2)] {
+            let ours = resize_rgb(&img, w, h);
+            let theirs = image::imageops::resize(
+                &img,
+                w as u32,
+                h as u32,
+                image::imageops::FilterType::Triangle,
+            );
+            let worst = ours
+                .as_raw()
+                .iter()
+                .zip(theirs.as_raw())
+                .map(|(&a, &b)| a.abs_diff(b))
+                .max()
+                .unwrap_or(0);
+            assert!(worst <= 1, "{w}×{h}: differs by {worst}");
+        }
+    }
 }
