@@ -83,6 +83,25 @@ fn answers_equal_tre_infer_in_rgb_and_rgbd() {
         let served = png16_values(&resp.bytes().await.unwrap());
         let reference = infer_png16(&[rgb_path.to_str().unwrap(), "--mode", "rgb"]);
         assert_eq!(served, reference, "HTTP rgb answer differs from tre infer");
+        let url = format!("{}/v1/roughness?normals=ls", server.url());
+        let served = png16_values(
+            &post(&url, "image/png", frame.clone())
+                .await
+                .bytes()
+                .await
+                .unwrap(),
+        );
+        let reference = infer_png16(&[
+            rgb_path.to_str().unwrap(),
+            "--mode",
+            "rgb",
+            "--normals",
+            "ls",
+        ]);
+        assert_eq!(
+            served, reference,
+            "HTTP rgb answer with LS normals differs from tre infer"
+        );
 
         let depth_path = real("slambook2_ch7/1_depth.png");
         let camera_path = real("slambook2_ch7/intrinsics.json");
@@ -275,6 +294,9 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
         }
         let (s, c, _) =
             error_of(post(&format!("{url}?format=jpeg2000"), "image/png", rgb.clone()).await).await;
+        assert_eq!((s, c.as_str()), (400, "bad_request"));
+        let (s, c, _) =
+            error_of(post(&format!("{url}?normals=magic"), "image/png", rgb.clone()).await).await;
         assert_eq!((s, c.as_str()), (400, "bad_request"));
         let (s, c, _) = error_of(post(&format!("{url}?mode=rgbd"), "image/png", rgb).await).await;
         assert_eq!((s, c.as_str()), (422, "bad_input"));

@@ -7,7 +7,9 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 
+use super::options::NormalsArg;
 use crate::model::{ExecutionProvider, SessionConfig};
+use crate::pipeline::NormalsMethod;
 use crate::server::{serve, ServeConfig};
 
 /// Execution provider of the ONNX Runtime sessions.
@@ -62,6 +64,10 @@ pub struct Serve {
     /// connection is closed with 1009).
     #[arg(long, env = "TRE_WS_MAX_MESSAGE_BYTES", default_value_t = 16 << 20)]
     pub ws_max_message_bytes: usize,
+    /// Initial normals of frames that do not choose: dsac (the paper's method) or ls (faster;
+    /// see the README's accuracy and speed tables). Requests override it with `normals=`.
+    #[arg(long, env = "TRE_NORMALS", value_enum, default_value = "dsac")]
+    pub normals: NormalsArg,
     /// Seconds in-flight work may take to finish after SIGTERM or Ctrl-C.
     #[arg(long, env = "TRE_SHUTDOWN_GRACE_S", default_value_t = 30)]
     pub shutdown_grace_s: u64,
@@ -108,6 +114,10 @@ impl Serve {
             request_timeout: Duration::from_millis(self.request_timeout_ms.max(1)),
             ws_max_message_bytes: self.ws_max_message_bytes,
             shutdown_grace: Duration::from_secs(self.shutdown_grace_s),
+            normals: match self.normals {
+                NormalsArg::Dsac => NormalsMethod::Dsac,
+                NormalsArg::Ls => NormalsMethod::Ls,
+            },
         })
     }
 

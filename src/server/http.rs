@@ -15,7 +15,7 @@ use super::metrics::Gauges;
 use super::request::{Extras, Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
 use super::AppState;
 use crate::io::CameraFile;
-use crate::pipeline::Mode;
+use crate::pipeline::{Mode, NormalsMethod};
 
 /// Query of `POST /v1/roughness`.
 #[derive(Debug, Default, Deserialize)]
@@ -27,6 +27,8 @@ pub struct RoughnessQuery {
     mode: Option<String>,
     /// DSAC seed.
     seed: Option<u64>,
+    /// Initial normals, `dsac` or `ls`.
+    normals: Option<String>,
     /// Top of the colour scale, centimetres.
     preview_max_cm: Option<f64>,
     /// Extra maps, comma-separated: `depth,normals,slope,traversable`.
@@ -68,6 +70,12 @@ impl RoughnessQuery {
                 )))
             }
         };
+        let normals = match self.normals.as_deref() {
+            None => None,
+            Some("dsac") => Some(NormalsMethod::Dsac),
+            Some("ls") => Some(NormalsMethod::Ls),
+            Some(n) => return Err(bad(format!("normals: expected dsac or ls, got {n:?}"))),
+        };
         let mut extras = Extras::default();
         for name in self
             .outputs
@@ -94,6 +102,7 @@ impl RoughnessQuery {
             mode,
             format,
             seed: self.seed.unwrap_or(0),
+            normals,
             preview_max_m: self.preview_max_cm.map(|c| c / 100.0),
             extras,
             traversable_bytes: false,

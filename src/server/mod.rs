@@ -32,6 +32,7 @@ use axum::Router;
 use tokio::sync::{watch, Semaphore};
 
 use crate::model::{Manifest, SessionConfig};
+use crate::pipeline::NormalsMethod;
 use metrics::Metrics;
 use request::DecodeLimits;
 use workers::{PoolConfig, Workers};
@@ -61,6 +62,8 @@ pub struct ServeConfig {
     pub ws_max_message_bytes: usize,
     /// Time in-flight work may take to finish after SIGTERM.
     pub shutdown_grace: Duration,
+    /// Initial normals of frames that do not choose (DSAC: the paper's method).
+    pub normals: NormalsMethod,
 }
 
 impl Default for ServeConfig {
@@ -81,6 +84,7 @@ impl Default for ServeConfig {
             request_timeout: Duration::from_secs(30),
             ws_max_message_bytes: 16 << 20,
             shutdown_grace: Duration::from_secs(30),
+            normals: NormalsMethod::Dsac,
         }
     }
 }
@@ -155,6 +159,7 @@ pub async fn serve(
         limits: DecodeLimits {
             max_pixels: cfg.max_pixels,
         },
+        normals: cfg.normals,
     };
     let workers = Workers::start(&pool, metrics.clone())?;
     let (stop_tx, stop_rx) = watch::channel(false);

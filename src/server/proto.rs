@@ -6,7 +6,7 @@ use prost::Message;
 use super::error::{ApiError, ErrorCode};
 use super::request::{Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
 use crate::io::CameraFile;
-use crate::pipeline::Mode;
+use crate::pipeline::{Mode, NormalsMethod};
 use crate::proto::v1 as pb;
 
 /// A stream's settings from its Hello.
@@ -105,6 +105,13 @@ impl TryFrom<pb::Hello> for StreamSettings {
             pb::Format::Color => Format::Color,
             pb::Format::F32 => Format::F32,
         };
+        let normals = match pb::Normals::try_from(h.normals)
+            .map_err(|_| bad("hello.normals", format!("unknown value {}", h.normals)))?
+        {
+            pb::Normals::Unspecified => None,
+            pb::Normals::Dsac => Some(NormalsMethod::Dsac),
+            pb::Normals::Ls => Some(NormalsMethod::Ls),
+        };
         if let Some(m) = h.preview_max_m.filter(|m| !(m.is_finite() && *m > 0.0)) {
             return Err(bad(
                 "hello.preview_max_m",
@@ -117,6 +124,7 @@ impl TryFrom<pb::Hello> for StreamSettings {
                 mode,
                 format,
                 seed: h.seed,
+                normals,
                 preview_max_m: h.preview_max_m,
                 traversable_bytes: h.want_traversable,
                 ..FrameOptions::default()

@@ -9,7 +9,7 @@ use image::{DynamicImage, ImageFormat, ImageReader};
 use super::error::{ApiError, ErrorCode};
 use crate::geometry::{Grid, Mounting};
 use crate::io::{self, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
-use crate::pipeline::{FrameInput, FrameOutput, Mode, PipelineConfig};
+use crate::pipeline::{FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig};
 
 /// Encodings of the roughness map.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -64,6 +64,8 @@ pub struct FrameOptions {
     pub format: Format,
     /// Seed of the DSAC sampler.
     pub seed: u64,
+    /// Initial normals; `None`: the server's default (`tre serve --normals`).
+    pub normals: Option<NormalsMethod>,
     /// Top of the colour preview's scale, metres (default 0.05).
     pub preview_max_m: Option<f64>,
     /// Extra maps.
@@ -264,8 +266,14 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
     })
 }
 
-/// The pipeline configuration for a frame with these inputs.
-pub fn config_for(frame: &FrameInput, opts: &FrameOptions, max_pixels: usize) -> PipelineConfig {
+/// The pipeline configuration for a frame with these inputs (`normals`: the server's default
+/// initial normals).
+pub fn config_for(
+    frame: &FrameInput,
+    opts: &FrameOptions,
+    max_pixels: usize,
+    normals: NormalsMethod,
+) -> PipelineConfig {
     let mode = opts.mode.unwrap_or(match (&frame.rgb, &frame.depth_m) {
         (Some(_), Some(_)) => Mode::Rgbd,
         (None, Some(_)) => Mode::Geometric,
@@ -273,6 +281,7 @@ pub fn config_for(frame: &FrameInput, opts: &FrameOptions, max_pixels: usize) ->
     });
     PipelineConfig {
         seed: opts.seed,
+        normals: opts.normals.unwrap_or(normals),
         max_input_pixels: max_pixels,
         ..PipelineConfig::for_mode(mode)
     }

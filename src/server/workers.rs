@@ -18,7 +18,7 @@ use super::request::{
 };
 use crate::geometry::Grid;
 use crate::model::{Models, SessionConfig};
-use crate::pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
+use crate::pipeline::{FrameInput, Mode, NormalsMethod, Pipeline, PipelineConfig};
 
 /// How the pool is built.
 #[derive(Debug, Clone)]
@@ -33,6 +33,8 @@ pub struct PoolConfig {
     pub session: SessionConfig,
     /// Decoding limits.
     pub limits: DecodeLimits,
+    /// Initial normals of frames that do not choose.
+    pub normals: NormalsMethod,
 }
 
 /// A frame's answer, or why there is none.
@@ -215,7 +217,7 @@ fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, met
             continue;
         }
         metrics.batch(1);
-        let result = run_job(&mut pipeline, &job.request, cfg.limits);
+        let result = run_job(&mut pipeline, &job.request, cfg);
         if let Ok(reply) = &result {
             metrics.frame(&reply.timings, queued);
         }
@@ -225,9 +227,9 @@ fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, met
 }
 
 /// Decodes, runs and encodes one frame.
-fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, limits: DecodeLimits) -> JobResult {
-    let frame = decode_frame(req, limits)?;
-    let cfg = config_for(&frame, &req.options, limits.max_pixels);
+fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> JobResult {
+    let frame = decode_frame(req, pool.limits)?;
+    let cfg = config_for(&frame, &req.options, pool.limits.max_pixels, pool.normals);
     let out = pipeline.run(&frame, &cfg)?;
     encode_reply(out, &req.options)
 }
