@@ -1,0 +1,516 @@
+//! The connection task behind a session: it owns the WebSocket, sends the Hello and waits for
+//! Ready, writes frames, matches answers to frames by sequence number (send times kept in a
+//! bounded map), times frames out, and on a dropped connection reports the frames in flight as
+//! lost and reconnects with exponential back-off.
+
+use std::collections::BTreeMap;
+use std::future::Future;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use futures_util::{SinkExt, StreamExt};
+use tokio::sync::{mpsc, oneshot, watch};
+use tokio_tungstenite::tungstenite::{self, Message};
+
+use super::config::{ClientConfig, Endpoints};
+use super::event::{Event, FrameResult, LostReason, ServerInfo};
+use super::proto::{self, Incoming};
+use super::ClientError;
+
+type Ws =
+    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+/// A frame on its way from the sender to the socket.
+#[derive(Debug)]
+pub(crate) struct Outgoing {
+    /// Its sequence number.
+    pub sequence: u64,
+    /// The encoded `ClientMessage`.
+    pub bytes: Vec<u8>,
+    /// When `send` was called (the start of its latency).
+    pub sent: Instant,
+}
+
+/// What the sending half sees of the link.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct LinkState {
+    /// A connection is up and its Hello accepted.
+    pub connected: bool,
+    /// Frames that have had their final event.
+    pub settled: u64,
+    /// The session has ended.
+    pub closed: bool,
+    /// The server's largest message, bytes (0: not known yet).
+    pub max_message_bytes: usize,
+}
+
+/// Settings every connection attempt needs.
+struct Shared {
+    cfg: ClientConfig,
+    endpoints: Endpoints,
+    hello: Vec<u8>,
+    http: Option<reqwest::Client>,
+}
+
+/// Why a connection's pump returned.
+enum Ended {
+    /// The sender is gone and every frame has its answer.
+    Finished,
+    /// The connection dropped.
+    Dropped(String),
+}
+
+/// The state of the connection task.
+pub(crate) struct Link {
+    shared: Arc<Shared>,
+    frames: mpsc::Receiver<Outgoing>,
+    frames_open: bool,
+    events: mpsc::Sender<Event>,
+    state: watch::Sender<LinkState>,
+    /// Send time of each frame awaiting its answer, by sequence number (so also by age).
+    pending: BTreeMap<u64, Instant>,
+}
+
+impl Link {
+    /// A link for the checked `cfg`.
+    pub(crate) fn new(
+        cfg: ClientConfig,
+        endpoints: Endpoints,
+        frames: mpsc::Receiver<Outgoing>,
+        events: mpsc::Sender<Event>,
+        state: watch::Sender<LinkState>,
+    ) -> Result<Self, ClientError> {
+        let http = if cfg.wait_ready {
+            let client = reqwest::Client::builder()
+                .timeout(cfg.connect_timeout)
+                .build()
+                .map_err(|e| ClientError::BadConfig {
+                    field: "wait_ready",
+                    reason: format!("cannot make an HTTP client: {e}"),
+                })?;
+            Some(client)
+        } else {
+            None
+        };
+        let hello = proto::hello(&cfg);
+        Ok(Self {
+            shared: Arc::new(Shared {
+                cfg,
+                endpoints,
+                hello,
+                http,
+            }),
+            frames,
+            frames_open: true,
+            events,
+            state,
+            pending: BTreeMap::new(),
+        })
+    }
+
+    /// Connects (reporting the outcome on `first`), then serves the connection and every
+    /// reconnection until the sender is gone and all frames are answered, or reconnecting
+    /// fails for good.
+    pub(crate) async fn run(mut self, first: oneshot::Sender<Result<ServerInfo, ClientError>>) {
+        let mut ws = match self.connect().await {
+            Ok((ws, info, _)) => {
+                self.up(&info);
+                let _ = first.send(Ok(info));
+                ws
+            }
+            Err(e) => {
+                let _ = first.send(Err(e));
+                self.close();
+                return;
+            }
+        };
+        loop {
+            let reason = match self.pump(ws).await {
+                Ended::Finished => break,
+                Ended::Dropped(reason) => reason,
+            };
+            let down_since = Instant::now();
+            tracing::warn!(%reason, url = %self.shared.endpoints.stream, "stream connection dropped; reconnecting");
+            self.state.send_modify(|s| s.connected = false);
+            self.lose_pending(LostReason::Disconnected).await;
+            self.emit(Event::Disconnected { reason }).await;
+            match self.connect().await {
+                Ok((next, server, attempts)) => {
+                    self.up(&server);
+                    let downtime = down_since.elapsed();
+                    tracing::info!(
+                        attempts,
+                        downtime_ms = downtime.as_millis() as u64,
+                        "stream reconnected"
+                    );
+                    self.emit(Event::Reconnected {
+                        attempts,
+                        downtime,
+                        server,
+                    })
+                    .await;
+                    ws = next;
+                }
+                Err(ClientError::Closed) => break,
+                Err(e) => {
+                    tracing::error!(error = %e, "stream session ended");
+                    self.emit(Event::GaveUp {
+                        reason: e.to_string(),
+                    })
+                    .await;
+                    break;
+                }
+            }
+        }
+        self.close();
+    }
+
+    /// Connection attempts with back-off until one succeeds, one is refused for good, the
+    /// allowance runs out or the sender is gone ([`ClientError::Closed`]).
+    async fn connect(&mut self) -> Result<(Ws, ServerInfo, u32), ClientError> {
+        let backoff = self.shared.cfg.reconnect;
+        let mut failed = 0u32;
+        loop {
+            match self.while_down(attempt(self.shared.clone())).await? {
+                Ok((ws, info)) => return Ok((ws, info, failed + 1)),
+                Err(e) if !e.is_retryable() => return Err(e),
+                Err(e) => {
+                    failed += 1;
+                    if backoff.exhausted(failed) {
+                        return Err(ClientError::GaveUp {
+                            attempts: failed,
+                            last: e.to_string(),
+                        });
+                    }
+                    let wait = backoff.delay(failed);
+                    tracing::info!(error = %e, attempt = failed, retry_in_ms = wait.as_millis() as u64, "stream connection attempt failed");
+                    self.while_down(tokio::time::sleep(wait)).await?;
+                }
+            }
+        }
+    }
+
+    /// Runs `fut` while there is no connection: frames sent meanwhile are reported lost at once.
+    /// [`ClientError::Closed`] when the sender is gone.
+    async fn while_down<T>(&mut self, fut: impl Future<Output = T>) -> Result<T, ClientError> {
+        tokio::pin!(fut);
+        loop {
+            if !self.frames_open {
+                return Err(ClientError::Closed);
+            }
+            tokio::select! {
+                out = &mut fut => return Ok(out),
+                f = self.frames.recv() => match f {
+                    Some(o) => {
+                        let lost = Event::Lost { sequence: o.sequence, reason: LostReason::NotConnected };
+                        self.settle(lost).await;
+                    }
+                    None => self.frames_open = false,
+                },
+            }
+        }
+    }
+
+    /// Serves one connection until it drops or the session is finished.
+    async fn pump(&mut self, mut ws: Ws) -> Ended {
+        let silence = self.shared.cfg.silence_timeout;
+        let mut last_heard = Instant::now();
+        loop {
+            if !self.frames_open && self.pending.is_empty() {
+                let _ = ws.close(None).await;
+                return Ended::Finished;
+            }
+            let expiry = self.next_expiry();
+            tokio::select! {
+                m = ws.next() => {
+                    last_heard = Instant::now();
+                    match m {
+                        Some(Ok(Message::Binary(b))) => self.on_message(&b).await,
+                        Some(Ok(Message::Close(c))) => {
+                            let why = c.map_or_else(String::new, |c| format!(" ({} {})", u16::from(c.code), c.reason));
+                            return Ended::Dropped(format!("the server closed the stream{why}"));
+                        }
+                        Some(Ok(_)) => {}
+                        Some(Err(e)) => return Ended::Dropped(e.to_string()),
+                        None => return Ended::Dropped("the connection ended".into()),
+                    }
+                }
+                f = self.frames.recv(), if self.frames_open => match f {
+                    Some(o) => {
+                        if let Err(e) = self.transmit(&mut ws, o).await {
+                            return Ended::Dropped(format!("sending a frame: {e}"));
+                        }
+                    }
+                    None => self.frames_open = false,
+                },
+                () = sleep_until(expiry), if expiry.is_some() => self.expire().await,
+                () = sleep_until(Some(last_heard + silence)) => {
+                    return Ended::Dropped(format!("nothing heard from the server for {} s", silence.as_secs_f64()));
+                }
+            }
+        }
+    }
+
+    /// Remembers the frame's send time (forgetting the oldest beyond the bound) and writes it.
+    async fn transmit(&mut self, ws: &mut Ws, o: Outgoing) -> Result<(), tungstenite::Error> {
+        if self.pending.len() >= self.shared.cfg.max_pending {
+            if let Some((sequence, _)) = self.pending.pop_first() {
+                let lost = Event::Lost {
+                    sequence,
+                    reason: LostReason::Evicted,
+                };
+                self.settle(lost).await;
+            }
+        }
+        self.pending.insert(o.sequence, o.sent);
+        ws.send(Message::Binary(o.bytes.into())).await
+    }
+
+    /// Handles one server message.
+    async fn on_message(&mut self, bytes: &[u8]) {
+        let incoming = match proto::decode_server(bytes) {
+            Ok(m) => m,
+            Err(e) => {
+                let code = "bad_message".to_owned();
+                let message = e.to_string();
+                return self
+                    .emit(Event::Error {
+                        sequence: None,
+                        code,
+                        message,
+                    })
+                    .await;
+            }
+        };
+        match incoming {
+            Incoming::Result(wire) => {
+                let sequence = wire.sequence();
+                let Some(sent) = self.pending.remove(&sequence) else {
+                    tracing::debug!(
+                        sequence,
+                        "result for a frame no longer awaited (timed out or evicted)"
+                    );
+                    return;
+                };
+                let event = match FrameResult::try_from((wire, sent.elapsed())) {
+                    Ok(r) => Event::Result(Box::new(r)),
+                    Err(e) => Event::Error {
+                        sequence: Some(sequence),
+                        code: "bad_result".into(),
+                        message: e.to_string(),
+                    },
+                };
+                self.settle(event).await;
+            }
+            Incoming::Dropped {
+                sequence,
+                dropped_total,
+            } => {
+                if self.pending.remove(&sequence).is_some() {
+                    self.settle(Event::Dropped {
+                        sequence,
+                        dropped_total,
+                    })
+                    .await;
+                }
+            }
+            Incoming::Error {
+                sequence,
+                code,
+                message,
+            } => {
+                let event = Event::Error {
+                    sequence,
+                    code,
+                    message,
+                };
+                match sequence.and_then(|s| self.pending.remove(&s)) {
+                    Some(_) => self.settle(event).await,
+                    None => self.emit(event).await,
+                }
+            }
+            Incoming::Ready(_) => tracing::debug!("unexpected Ready ignored"),
+        }
+    }
+
+    /// When the oldest frame awaiting an answer times out.
+    fn next_expiry(&self) -> Option<Instant> {
+        let (_, sent) = self.pending.first_key_value()?;
+        Some(*sent + self.shared.cfg.frame_timeout)
+    }
+
+    /// Reports every frame past its timeout lost.
+    async fn expire(&mut self) {
+        let now = Instant::now();
+        while self.next_expiry().is_some_and(|t| t <= now) {
+            if let Some((sequence, _)) = self.pending.pop_first() {
+                let lost = Event::Lost {
+                    sequence,
+                    reason: LostReason::TimedOut,
+                };
+                self.settle(lost).await;
+            }
+        }
+    }
+
+    /// Reports every frame awaiting an answer lost.
+    async fn lose_pending(&mut self, reason: LostReason) {
+        while let Some((sequence, _)) = self.pending.pop_first() {
+            self.settle(Event::Lost { sequence, reason }).await;
+        }
+    }
+
+    /// Emits a frame's final event and counts it settled.
+    async fn settle(&mut self, event: Event) {
+        self.state.send_modify(|s| s.settled += 1);
+        self.emit(event).await;
+    }
+
+    /// Hands an event to the application (which may have stopped listening).
+    async fn emit(&mut self, event: Event) {
+        let _ = self.events.send(event).await;
+    }
+
+    fn up(&mut self, info: &ServerInfo) {
+        self.state.send_modify(|s| {
+            s.connected = true;
+            s.max_message_bytes = info.max_message_bytes;
+        });
+    }
+
+    fn close(&mut self) {
+        self.state.send_modify(|s| {
+            s.connected = false;
+            s.closed = true;
+        });
+    }
+}
+
+/// Sleeps until `t` (forever for `None`).
+async fn sleep_until(t: Option<Instant>) {
+    match t {
+        Some(t) => tokio::time::sleep_until(tokio::time::Instant::from_std(t)).await,
+        None => std::future::pending().await,
+    }
+}
+
+/// One connection attempt: readiness (if asked), WebSocket handshake, Hello → Ready.
+async fn attempt(shared: Arc<Shared>) -> Result<(Ws, ServerInfo), ClientError> {
+    let limit = shared.cfg.connect_timeout;
+    if let Some(http) = &shared.http {
+        within(
+            limit,
+            "the readiness check",
+            check_ready(http, &shared.endpoints.readyz),
+        )
+        .await??;
+    }
+    let url = shared.endpoints.stream.as_str();
+    let handshake = tokio_tungstenite::connect_async_with_config(url, None, true);
+    let (mut ws, _) = within(limit, "the WebSocket handshake", handshake)
+        .await?
+        .map_err(|e| handshake_error(url, e))?;
+    let connect = |e: tungstenite::Error| ClientError::Connect {
+        url: url.to_owned(),
+        reason: e.to_string(),
+    };
+    ws.send(Message::Binary(shared.hello.clone().into()))
+        .await
+        .map_err(connect)?;
+    let info = within(limit, "Hello → Ready", await_ready(&mut ws, url)).await??;
+    Ok((ws, info))
+}
+
+/// `fut`, or [`ClientError::Timeout`] after `limit`.
+async fn within<T>(
+    limit: Duration,
+    what: &'static str,
+    fut: impl Future<Output = T>,
+) -> Result<T, ClientError> {
+    tokio::time::timeout(limit, fut)
+        .await
+        .map_err(|_| ClientError::Timeout {
+            what,
+            ms: limit.as_millis(),
+        })
+}
+
+/// `GET /readyz`: 200 (or 404: no such route behind a proxy) is ready.
+async fn check_ready(http: &reqwest::Client, url: &str) -> Result<(), ClientError> {
+    let resp = http
+        .get(url)
+        .send()
+        .await
+        .map_err(|e| ClientError::Connect {
+            url: url.to_owned(),
+            reason: error_chain(&e),
+        })?;
+    match resp.status().as_u16() {
+        200 | 404 => Ok(()),
+        status => Err(ClientError::NotReady {
+            url: url.to_owned(),
+            status: format!("HTTP {status}"),
+        }),
+    }
+}
+
+/// The first message after the Hello must be Ready; an Error means the Hello was refused.
+async fn await_ready(ws: &mut Ws, url: &str) -> Result<ServerInfo, ClientError> {
+    while let Some(msg) = ws.next().await {
+        let msg = msg.map_err(|e| ClientError::Connect {
+            url: url.to_owned(),
+            reason: e.to_string(),
+        })?;
+        match msg {
+            Message::Binary(b) => {
+                return match proto::decode_server(&b)? {
+                    Incoming::Ready(info) => Ok(info),
+                    Incoming::Error { code, message, .. } => {
+                        Err(ClientError::HelloRefused { code, message })
+                    }
+                    other => Err(ClientError::Protocol(format!(
+                        "expected Ready after the Hello, got {other:?}"
+                    ))),
+                };
+            }
+            Message::Close(_) => break,
+            _ => {}
+        }
+    }
+    Err(ClientError::Connect {
+        url: url.to_owned(),
+        reason: "the connection closed before Ready".into(),
+    })
+}
+
+/// Handshake failures: HTTP 4xx (but 408 and 429) and bad URLs will not fix themselves.
+fn handshake_error(url: &str, e: tungstenite::Error) -> ClientError {
+    let rejected = |reason: String| ClientError::Rejected {
+        url: url.to_owned(),
+        reason,
+    };
+    match &e {
+        tungstenite::Error::Http(resp)
+            if resp.status().is_client_error() && ![408, 429].contains(&resp.status().as_u16()) =>
+        {
+            rejected(format!("HTTP {} on the WebSocket upgrade", resp.status()))
+        }
+        tungstenite::Error::Url(_) => rejected(e.to_string()),
+        _ => ClientError::Connect {
+            url: url.to_owned(),
+            reason: error_chain(&e),
+        },
+    }
+}
+
+/// An error and its sources on one line.
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut source = e.source();
+    while let Some(c) = source {
+        s.push_str(": ");
+        s.push_str(&c.to_string());
+        source = c.source();
+    }
+    s
+}
