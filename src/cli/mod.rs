@@ -1,6 +1,7 @@
 //! Command-line subcommands, one file each; `main.rs` only parses and dispatches.
 
 pub mod annotate;
+pub mod client;
 pub mod eval;
 pub mod infer;
 pub mod options;
@@ -39,6 +40,9 @@ pub enum Command {
     Eval(eval::Eval),
     /// Serve roughness over HTTP and a WebSocket stream.
     Serve(serve::Serve),
+    /// Stream frames (a folder, a video or a camera) to `tre serve` over the WebSocket and
+    /// write the roughness maps that come back.
+    Client(client::Client),
 }
 
 impl Command {
@@ -50,6 +54,7 @@ impl Command {
             Command::Infer(cmd) => cmd.run(),
             Command::Eval(cmd) => cmd.run(),
             Command::Serve(cmd) => cmd.run(),
+            Command::Client(cmd) => cmd.run(),
         }
     }
 }
