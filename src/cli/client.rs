@@ -257,12 +257,21 @@ async fn stream(cfg: ClientRun) -> anyhow::Result<()> {
     finish(stats, sent_outcome, &cfg)
 }
 
-/// The run's verdict: an error if nothing came back, the session gave up or the source failed.
+/// The run's verdict: an error if the source failed, the session gave up or nothing came back.
 fn finish(
     stats: Stats,
     sent: Result<Result<(), ClientError>, tokio::task::JoinError>,
     cfg: &ClientRun,
 ) -> anyhow::Result<()> {
+    match sent {
+        Ok(Ok(()) | Err(ClientError::Closed)) => {}
+        Ok(Err(e)) => return Err(e.into()),
+        Err(e) if e.is_cancelled() => {}
+        Err(e) => bail!("the sending task failed: {e}"),
+    }
+    if let Some(reason) = stats.gave_up {
+        bail!("the stream ended early: {reason}");
+    }
     if stats.results == 0 {
         bail!(
             "no results came back from {} ({} dropped, {} errors, {} lost)",
@@ -272,15 +281,7 @@ fn finish(
             stats.lost
         );
     }
-    if let Some(reason) = stats.gave_up {
-        bail!("the stream ended early: {reason}");
-    }
-    match sent {
-        Ok(Err(ClientError::Closed)) | Ok(Ok(())) => Ok(()),
-        Ok(Err(e)) => Err(e.into()),
-        Err(e) if e.is_cancelled() => Ok(()),
-        Err(e) => bail!("the sending task failed: {e}"),
-    }
+    Ok(())
 }
 
 /// The frame reader thread: the source (reopened with `repeat`) into `tx`, up to `limit`.
@@ -580,7 +581,8 @@ impl Stats {
             dropped: 0,
             errors: 0,
             lost: 0,
-            latency_us: Histogram::new(3).expect("3 significant figures are valid; this is a bug"),
+            latency_us: Histogram::new_with_bounds(1, 3_600_000_000, 3)
+                .expect("bounds and 3 significant figures are valid; this is a bug"),
             last: (now, 0),
             gave_up: None,
         }

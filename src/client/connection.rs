@@ -132,8 +132,8 @@ impl Link {
             let down_since = Instant::now();
             tracing::warn!(%reason, url = %self.shared.endpoints.stream, "stream connection dropped; reconnecting");
             self.state.send_modify(|s| s.connected = false);
-            self.lose_pending(LostReason::Disconnected).await;
             self.emit(Event::Disconnected { reason }).await;
+            self.lose_pending(LostReason::Disconnected).await;
             match self.connect().await {
                 Ok((next, server, attempts)) => {
                     self.up(&server);

@@ -1,0 +1,455 @@
+//! The streaming client against the real `tre serve` binary over loopback: every frame's result
+//! comes back and equals `tre infer` on the same frame, value for value, alpha mask included;
+//! `tre client` writes one PNG and one CSV row per frame (also through the ffmpeg pipe route,
+//! with a stand-in `ffmpeg`), and fails when nothing comes back; a session whose server is
+//! killed reports the frame in flight lost, reconnects to a new server on the same port and
+//! carries on.
+#![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdout, Command, Stdio};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use image::{DynamicImage, ImageBuffer, LumaA};
+use tre::client::{ClientConfig, Event, Frame, LostReason, Rate, Session};
+use tre::pipeline::Mode;
+
+/// One test at a time: each starts servers, and the machine has few cores.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// A `tre serve` child process, killed on drop.
+struct Server {
+    child: Child,
+    addr: SocketAddr,
+    log: PathBuf,
+    _stdout: BufReader<ChildStdout>,
+}
+
+impl Server {
+    /// Starts `tre serve --addr ADDR --workers 1` and reads the address it listens on.
+    fn start(addr: &str, log: &Path) -> Self {
+        let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_tre"))
+            .args([
+                "serve",
+                "--addr",
+                addr,
+                "--workers",
+                "1",
+                "--ort-threads",
+                "1",
+            ])
+            .arg("--models")
+            .arg(models)
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(log).unwrap())
+            .spawn()
+            .unwrap();
+        let mut stdout = BufReader::new(child.stdout.take().unwrap());
+        let mut line = String::new();
+        stdout.read_line(&mut line).unwrap();
+        let Some(url) = line.trim().strip_prefix("listening on http://") else {
+            let _ = child.kill();
+            panic!(
+                "no listening line: {line:?}; log: {}",
+                std::fs::read_to_string(log).unwrap_or_default()
+            );
+        };
+        Self {
+            addr: url.parse().unwrap(),
+            child,
+            log: log.to_owned(),
+            _stdout: stdout,
+        }
+    }
+
+    /// Polls `GET /readyz` until it answers 200.
+    fn wait_ready(&self) {
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(300) {
+            if http_get_status(self.addr, "/readyz") == Some(200) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        panic!(
+            "not ready after 300 s; log: {}",
+            std::fs::read_to_string(&self.log).unwrap_or_default()
+        );
+    }
+
+    fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+/// The status of `GET path` over a plain TcpStream, `None` if the server does not answer.
+fn http_get_status(addr: SocketAddr, path: &str) -> Option<u16> {
+    let mut s = TcpStream::connect_timeout(&addr, Duration::from_secs(2)).ok()?;
+    s.set_read_timeout(Some(Duration::from_secs(5))).ok()?;
+    write!(
+        s,
+        "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+    )
+    .ok()?;
+    let mut head = [0u8; 12];
+    s.read_exact(&mut head).ok()?;
+    std::str::from_utf8(&head[9..12]).ok()?.parse().ok()
+}
+
+/// Small frames (160×120 PNGs) made from the real Kinect frames in `../shared/data/real-rgbd`.
+fn make_frames(dir: &Path) -> Vec<(String, PathBuf)> {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd");
+    let sources = [
+        ("a_ch7_1", data.join("slambook2_ch7/1.png")),
+        ("b_ch5_3", data.join("slambook2_ch5/color/3.png")),
+        ("c_nyu_50", data.join("metric3d_nyu/rgb/rgb_00050.jpg")),
+        ("d_ch7_2", data.join("slambook2_ch7/2.png")),
+    ];
+    std::fs::create_dir_all(dir).unwrap();
+    sources
+        .iter()
+        .map(|(name, src)| {
+            let img = image::open(src).unwrap().to_rgb8();
+            let small =
+                image::imageops::resize(&img, 160, 120, image::imageops::FilterType::Triangle);
+            let path = dir.join(format!("{name}.png"));
+            tre::io::save(&path, &DynamicImage::ImageRgb8(small)).unwrap();
+            ((*name).to_owned(), path)
+        })
+        .collect()
+}
+
+/// `tre infer FRAME --mode rgb --seed 0`: the 16-bit roughness PNG it writes.
+fn infer(frame: &Path, out: &Path) -> ImageBuffer<LumaA<u16>, Vec<u16>> {
+    let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    let status = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .arg("infer")
+        .arg(frame)
+        .args(["--mode", "rgb", "--seed", "0", "--ort-threads", "1", "-o"])
+        .arg(out)
+        .arg("--models")
+        .arg(models)
+        .stdout(Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success(), "tre infer {}", frame.display());
+    png16(&std::fs::read(out).unwrap())
+}
+
+fn png16(bytes: &[u8]) -> ImageBuffer<LumaA<u16>, Vec<u16>> {
+    match image::load_from_memory(bytes).unwrap() {
+        DynamicImage::ImageLumaA16(img) => img,
+        other => panic!("expected 16-bit grey + alpha, got {:?}", other.color()),
+    }
+}
+
+fn rt() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap()
+}
+
+fn session_config(addr: SocketAddr) -> ClientConfig {
+    ClientConfig {
+        server: format!("ws://{addr}/v1/stream"),
+        mode: Some(Mode::Rgb),
+        seed: 0,
+        rate: Rate::AsFastAsResults,
+        frame_timeout: Duration::from_secs(120),
+        ..ClientConfig::default()
+    }
+}
+
+/// The next event, failing the test after two minutes of silence.
+async fn next(events: &mut tre::client::Events) -> Event {
+    tokio::time::timeout(Duration::from_secs(120), events.recv())
+        .await
+        .expect("no event within 120 s")
+        .expect("the session ended early")
+}
+
+#[test]
+fn every_frame_comes_back_equal_to_tre_infer_and_the_cli_writes_them() {
+    let _serial = SERIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = tempfile::tempdir().unwrap();
+    let frames = make_frames(&dir.path().join("frames"));
+    let server = Server::start("127.0.0.1:0", &dir.path().join("serve.log"));
+    server.wait_ready();
+
+    // The library, one frame at a time: nothing is dropped.
+    let results = rt().block_on(async {
+        let session = Session::connect(session_config(server.addr)).await.unwrap();
+        assert!(session.server().models.iter().any(|m| m == "depth_net"));
+        let (mut sender, mut events) = session.split();
+        let paths: Vec<PathBuf> = frames.iter().map(|(_, p)| p.clone()).collect();
+        let sending = tokio::spawn(async move {
+            let mut sequences = Vec::new();
+            for p in paths {
+                let png = std::fs::read(p).unwrap();
+                sequences.push(sender.send(Frame::rgb(png)).await.unwrap());
+            }
+            sequences
+        });
+        let mut results = Vec::new();
+        while let Some(ev) = events.recv().await {
+            match ev {
+                Event::Result(r) => results.push(*r),
+                other => panic!("unexpected {other:?}"),
+            }
+        }
+        assert_eq!(sending.await.unwrap(), [1, 2, 3, 4]);
+        results
+    });
+    let sequences: Vec<u64> = results.iter().map(|r| r.sequence).collect();
+    assert_eq!(sequences, [1, 2, 3, 4], "every frame's result, in order");
+
+    let infer_dir = dir.path().join("infer");
+    for ((name, path), r) in frames.iter().zip(&results) {
+        let want = infer(path, &infer_dir.join(format!("{name}.png")));
+        assert_eq!((r.width, r.height), (160, 120));
+        let got = png16(&r.encoded);
+        assert_eq!(got.dimensions(), want.dimensions());
+        let differ = got
+            .pixels()
+            .zip(want.pixels())
+            .filter(|(a, b)| a != b)
+            .count();
+        assert_eq!(differ, 0, "{name}: {differ} pixels differ from tre infer");
+        let holes = want.pixels().filter(|p| p[1] == 0).count();
+        let valid = want.pixels().filter(|p| p[1] == u16::MAX).count();
+        assert!(valid > 0, "{name}: no roughness at all");
+        assert_eq!(holes + valid, 160 * 120, "{name}: alpha is 0 or 65535");
+        // The decoded grid is the same map in metres, NaN where alpha is 0.
+        let m = r.roughness_m().unwrap();
+        for (v, p) in m.as_slice().iter().zip(want.pixels()) {
+            if p[1] == 0 {
+                assert!(v.is_nan());
+            } else {
+                assert_eq!(*v, f64::from(p[0]) * tre::io::ROUGHNESS_PNG_SCALE_M);
+            }
+        }
+        assert!(
+            r.latency >= r.server_latency,
+            "{name}: round trip ≥ server time"
+        );
+        assert!(!r.timings.is_empty());
+    }
+
+    // The CLI: one PNG and one CSV row per frame, equal to the library's maps.
+    let out = dir.path().join("cli");
+    let status = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .args(["client", "--server", &format!("http://{}", server.addr)])
+        .arg("--frames")
+        .arg(dir.path().join("frames"))
+        .args([
+            "--as-fast-as-results",
+            "--mode",
+            "rgb",
+            "--seed",
+            "0",
+            "--out",
+        ])
+        .arg(&out)
+        .stderr(Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some("sequence,name,send_unix_us,receive_unix_us,latency_ms,server_latency_ms,dropped,status")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), frames.len(), "{csv}");
+    for (row, ((name, _), r)) in rows.iter().zip(frames.iter().zip(&results)) {
+        assert_eq!(row.len(), 8, "{row:?}");
+        assert_eq!(
+            (row[1], row[6], row[7]),
+            (name.as_str(), "0", "ok"),
+            "{row:?}"
+        );
+        let seq = row[0];
+        let (sent, received): (i64, i64) = (row[2].parse().unwrap(), row[3].parse().unwrap());
+        assert!(received >= sent, "{row:?}");
+        let latency: f64 = row[4].parse().unwrap();
+        let server_latency: f64 = row[5].parse().unwrap();
+        assert!(latency >= server_latency && server_latency > 0.0, "{row:?}");
+        let written = png16(&std::fs::read(out.join(format!("{seq}_{name}.png"))).unwrap());
+        assert_eq!(written, png16(&r.encoded), "{seq}_{name}.png");
+    }
+
+    // Video input goes through `ffmpeg -f image2pipe -vcodec png -`: a stand-in that writes
+    // the frames' PNGs back to back checks the pipe's splitting and naming.
+    let fake_bin = dir.path().join("bin");
+    std::fs::create_dir_all(&fake_bin).unwrap();
+    let pngs: Vec<String> = frames
+        .iter()
+        .map(|(_, p)| p.display().to_string())
+        .collect();
+    let script = format!("#!/bin/sh\ncat {}\n", pngs.join(" "));
+    std::fs::write(fake_bin.join("ffmpeg"), script).unwrap();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let exe = std::fs::Permissions::from_mode(0o755);
+        std::fs::set_permissions(fake_bin.join("ffmpeg"), exe).unwrap();
+    }
+    let video = dir.path().join("drive.mp4");
+    std::fs::write(&video, b"stand-in").unwrap();
+    let client = |path_var: &Path, out: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_tre"))
+            .args([
+                "client",
+                "--server",
+                &server.addr.to_string(),
+                "--limit",
+                "2",
+            ])
+            .args(["--mode", "rgb", "--video"])
+            .arg(&video)
+            .arg("--out")
+            .arg(out)
+            .env("PATH", path_var)
+            .output()
+            .unwrap()
+    };
+    let out = dir.path().join("video");
+    let mut path_var = fake_bin.clone().into_os_string();
+    path_var.push(":");
+    path_var.push(std::env::var_os("PATH").unwrap_or_default());
+    let run = client(Path::new(&path_var), &out);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    for (seq, r) in results.iter().take(2).enumerate() {
+        let written = out.join(format!("{}_drive_{:06}.png", seq + 1, seq + 1));
+        assert_eq!(png16(&std::fs::read(&written).unwrap()), png16(&r.encoded));
+    }
+    assert_eq!(
+        std::fs::read_to_string(out.join("frames.csv"))
+            .unwrap()
+            .lines()
+            .count(),
+        3
+    );
+    // Without ffmpeg on PATH: one clear error line, before connecting.
+    let run = client(&dir.path().join("frames"), &dir.path().join("none"));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success());
+    assert!(
+        stderr.contains("needs the `ffmpeg` executable on PATH"),
+        "{stderr}"
+    );
+
+    // Nothing back (every frame is refused): a non-zero exit and the reason.
+    let junk = dir.path().join("junk");
+    std::fs::create_dir_all(&junk).unwrap();
+    std::fs::write(junk.join("broken.png"), b"\x89PNG\r\n\x1a\n but not really").unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .args(["client", "--server", &server.addr.to_string(), "--frames"])
+        .arg(&junk)
+        .arg("--out")
+        .arg(dir.path().join("junk-out"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success());
+    assert!(stderr.contains("no results came back"), "{stderr}");
+    let csv = std::fs::read_to_string(dir.path().join("junk-out/frames.csv")).unwrap();
+    assert!(
+        csv.lines().nth(1).unwrap().ends_with(",error:bad_image"),
+        "{csv}"
+    );
+}
+
+#[test]
+fn a_session_reconnects_to_a_restarted_server_and_carries_on() {
+    let _serial = SERIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = tempfile::tempdir().unwrap();
+    let frames = make_frames(&dir.path().join("frames"));
+    let png = |i: usize| std::fs::read(&frames[i].1).unwrap();
+    let port = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let addr = format!("127.0.0.1:{port}");
+    let mut first = Server::start(&addr, &dir.path().join("first.log"));
+    first.wait_ready();
+
+    rt().block_on(async {
+        let mut cfg = session_config(first.addr);
+        cfg.reconnect.initial = Duration::from_millis(100);
+        cfg.reconnect.max = Duration::from_millis(500);
+        let (mut sender, mut events) = Session::connect(cfg).await.unwrap().split();
+        assert_eq!(sender.send(Frame::rgb(png(0))).await.unwrap(), 1);
+        match next(&mut events).await {
+            Event::Result(r) => assert_eq!(r.sequence, 1),
+            other => panic!("expected the first result, got {other:?}"),
+        }
+
+        // Frame 2 is in flight when the server dies.
+        assert_eq!(sender.send(Frame::rgb(png(1))).await.unwrap(), 2);
+        first.kill();
+        assert!(matches!(
+            next(&mut events).await,
+            Event::Disconnected { .. }
+        ));
+        // Lost in flight, or (if the socket's end was seen before the frame left the client's
+        // queue) lost for want of a connection: either way, reported and not awaited forever.
+        match next(&mut events).await {
+            Event::Lost {
+                sequence: 2,
+                reason: LostReason::Disconnected | LostReason::NotConnected,
+            } => {}
+            other => panic!("expected frame 2 lost, got {other:?}"),
+        }
+
+        // A new server on the same port; frame 3 waits for the reconnection.
+        let second = Server::start(&addr, &dir.path().join("second.log"));
+        assert_eq!(sender.send(Frame::rgb(png(2))).await.unwrap(), 3);
+        match next(&mut events).await {
+            Event::Reconnected {
+                attempts, server, ..
+            } => {
+                assert!(attempts >= 1);
+                assert!(server.models.iter().any(|m| m == "depth_net"));
+            }
+            other => panic!("expected Reconnected, got {other:?}"),
+        }
+        let expect_result = |ev: Event, seq: u64| match ev {
+            Event::Result(r) => assert_eq!((r.sequence, r.dropped_total), (seq, 0)),
+            other => panic!("expected result {seq}, got {other:?}"),
+        };
+        expect_result(next(&mut events).await, 3);
+        assert_eq!(sender.send(Frame::rgb(png(3))).await.unwrap(), 4);
+        expect_result(next(&mut events).await, 4);
+        drop(sender);
+        assert_eq!(
+            events.recv().await,
+            None,
+            "the session ends once all is answered"
+        );
+        drop(second);
+    });
+}
