@@ -6,21 +6,25 @@
 //! carries on.
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream};
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::net::{SocketAddr, TcpListener};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdout, Command, Stdio};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use image::{DynamicImage, ImageBuffer, LumaA};
+use common::{get, infer_png16, png16_values, real};
+use image::DynamicImage;
 use tre::client::{ClientConfig, Event, Frame, LostReason, Rate, Session};
-use tre::pipeline::Mode;
+use tre::pipeline::{Mode, NormalsMethod};
 
 /// One test at a time: each starts servers, and the machine has few cores.
 static SERIAL: Mutex<()> = Mutex::new(());
 
-/// A `tre serve` child process, killed on drop.
+/// A `tre serve` child process at a chosen address (so that a second one can take the first's
+/// port), killed on drop; its log goes to a file.
 struct Server {
     child: Child,
     addr: SocketAddr,
@@ -70,7 +74,7 @@ impl Server {
     fn wait_ready(&self) {
         let start = Instant::now();
         while start.elapsed() < Duration::from_secs(300) {
-            if http_get_status(self.addr, "/readyz") == Some(200) {
+            if get(self.addr, "/readyz").0 == 200 {
                 return;
             }
             std::thread::sleep(Duration::from_millis(200));
@@ -93,28 +97,13 @@ impl Drop for Server {
     }
 }
 
-/// The status of `GET path` over a plain TcpStream, `None` if the server does not answer.
-fn http_get_status(addr: SocketAddr, path: &str) -> Option<u16> {
-    let mut s = TcpStream::connect_timeout(&addr, Duration::from_secs(2)).ok()?;
-    s.set_read_timeout(Some(Duration::from_secs(5))).ok()?;
-    write!(
-        s,
-        "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
-    )
-    .ok()?;
-    let mut head = [0u8; 12];
-    s.read_exact(&mut head).ok()?;
-    std::str::from_utf8(&head[9..12]).ok()?.parse().ok()
-}
-
 /// Small frames (160×120 PNGs) made from the real Kinect frames in `../shared/data/real-rgbd`.
 fn make_frames(dir: &Path) -> Vec<(String, PathBuf)> {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd");
     let sources = [
-        ("a_ch7_1", data.join("slambook2_ch7/1.png")),
-        ("b_ch5_3", data.join("slambook2_ch5/color/3.png")),
-        ("c_nyu_50", data.join("metric3d_nyu/rgb/rgb_00050.jpg")),
-        ("d_ch7_2", data.join("slambook2_ch7/2.png")),
+        ("a_ch7_1", real("slambook2_ch7/1.png")),
+        ("b_ch5_3", real("slambook2_ch5/color/3.png")),
+        ("c_nyu_50", real("metric3d_nyu/rgb/rgb_00050.jpg")),
+        ("d_ch7_2", real("slambook2_ch7/2.png")),
     ];
     std::fs::create_dir_all(dir).unwrap();
     sources
@@ -130,30 +119,6 @@ fn make_frames(dir: &Path) -> Vec<(String, PathBuf)> {
         .collect()
 }
 
-/// `tre infer FRAME --mode rgb --seed 0`: the 16-bit roughness PNG it writes.
-fn infer(frame: &Path, out: &Path) -> ImageBuffer<LumaA<u16>, Vec<u16>> {
-    let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
-    let status = Command::new(env!("CARGO_BIN_EXE_tre"))
-        .arg("infer")
-        .arg(frame)
-        .args(["--mode", "rgb", "--seed", "0", "--ort-threads", "1", "-o"])
-        .arg(out)
-        .arg("--models")
-        .arg(models)
-        .stdout(Stdio::null())
-        .status()
-        .unwrap();
-    assert!(status.success(), "tre infer {}", frame.display());
-    png16(&std::fs::read(out).unwrap())
-}
-
-fn png16(bytes: &[u8]) -> ImageBuffer<LumaA<u16>, Vec<u16>> {
-    match image::load_from_memory(bytes).unwrap() {
-        DynamicImage::ImageLumaA16(img) => img,
-        other => panic!("expected 16-bit grey + alpha, got {:?}", other.color()),
-    }
-}
-
 fn rt() -> tokio::runtime::Runtime {
     tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -167,6 +132,7 @@ fn session_config(addr: SocketAddr) -> ClientConfig {
         server: format!("ws://{addr}/v1/stream"),
         mode: Some(Mode::Rgb),
         seed: 0,
+        normals: Some(NormalsMethod::Dsac),
         rate: Rate::AsFastAsResults,
         frame_timeout: Duration::from_secs(120),
         ..ClientConfig::default()
@@ -218,25 +184,33 @@ fn every_frame_comes_back_equal_to_tre_infer_and_the_cli_writes_them() {
     let sequences: Vec<u64> = results.iter().map(|r| r.sequence).collect();
     assert_eq!(sequences, [1, 2, 3, 4], "every frame's result, in order");
 
-    let infer_dir = dir.path().join("infer");
     for ((name, path), r) in frames.iter().zip(&results) {
-        let want = infer(path, &infer_dir.join(format!("{name}.png")));
+        let args = [
+            path.to_str().unwrap(),
+            "--mode",
+            "rgb",
+            "--normals",
+            "dsac",
+            "--seed",
+            "0",
+        ];
+        let want = infer_png16(&args);
         assert_eq!((r.width, r.height), (160, 120));
-        let got = png16(&r.encoded);
-        assert_eq!(got.dimensions(), want.dimensions());
-        let differ = got
-            .pixels()
-            .zip(want.pixels())
-            .filter(|(a, b)| a != b)
-            .count();
-        assert_eq!(differ, 0, "{name}: {differ} pixels differ from tre infer");
-        let holes = want.pixels().filter(|p| p[1] == 0).count();
-        let valid = want.pixels().filter(|p| p[1] == u16::MAX).count();
+        let got = png16_values(&r.encoded);
+        assert_eq!((got.0, got.1), (want.0, want.1));
+        let differ = got.2.iter().zip(&want.2).filter(|(a, b)| a != b).count();
+        assert_eq!(
+            differ, 0,
+            "{name}: {differ} grey/alpha values differ from tre infer"
+        );
+        let pixels: Vec<&[u16]> = want.2.chunks_exact(2).collect();
+        let valid = pixels.iter().filter(|p| p[1] == u16::MAX).count();
+        let holes = pixels.iter().filter(|p| p[1] == 0).count();
         assert!(valid > 0, "{name}: no roughness at all");
         assert_eq!(holes + valid, 160 * 120, "{name}: alpha is 0 or 65535");
         // The decoded grid is the same map in metres, NaN where alpha is 0.
         let m = r.roughness_m().unwrap();
-        for (v, p) in m.as_slice().iter().zip(want.pixels()) {
+        for (v, p) in m.as_slice().iter().zip(&pixels) {
             if p[1] == 0 {
                 assert!(v.is_nan());
             } else {
@@ -256,14 +230,8 @@ fn every_frame_comes_back_equal_to_tre_infer_and_the_cli_writes_them() {
         .args(["client", "--server", &format!("http://{}", server.addr)])
         .arg("--frames")
         .arg(dir.path().join("frames"))
-        .args([
-            "--as-fast-as-results",
-            "--mode",
-            "rgb",
-            "--seed",
-            "0",
-            "--out",
-        ])
+        .args(["--as-fast-as-results", "--mode", "rgb", "--normals", "dsac"])
+        .args(["--seed", "0", "--out"])
         .arg(&out)
         .stderr(Stdio::null())
         .status()
@@ -290,8 +258,12 @@ fn every_frame_comes_back_equal_to_tre_infer_and_the_cli_writes_them() {
         let latency: f64 = row[4].parse().unwrap();
         let server_latency: f64 = row[5].parse().unwrap();
         assert!(latency >= server_latency && server_latency > 0.0, "{row:?}");
-        let written = png16(&std::fs::read(out.join(format!("{seq}_{name}.png"))).unwrap());
-        assert_eq!(written, png16(&r.encoded), "{seq}_{name}.png");
+        let written = std::fs::read(out.join(format!("{seq}_{name}.png"))).unwrap();
+        assert_eq!(
+            png16_values(&written),
+            png16_values(&r.encoded),
+            "{seq}_{name}.png"
+        );
     }
 
     // Video input goes through `ffmpeg -f image2pipe -vcodec png -`: a stand-in that writes
@@ -341,7 +313,10 @@ fn every_frame_comes_back_equal_to_tre_infer_and_the_cli_writes_them() {
     );
     for (seq, r) in results.iter().take(2).enumerate() {
         let written = out.join(format!("{}_drive_{:06}.png", seq + 1, seq + 1));
-        assert_eq!(png16(&std::fs::read(&written).unwrap()), png16(&r.encoded));
+        assert_eq!(
+            png16_values(&std::fs::read(&written).unwrap()),
+            png16_values(&r.encoded)
+        );
     }
     assert_eq!(
         std::fs::read_to_string(out.join("frames.csv"))

@@ -15,20 +15,21 @@ use hdrhistogram::Histogram;
 use image::DynamicImage;
 use tokio::sync::mpsc;
 
-use super::options::ModeArg;
+use super::options::{ModeArg, NormalsArg};
 use crate::client::source::{FrameSource, SourceFrame, SourceSpec};
 use crate::client::{
-    unix_us, Backoff, ClientConfig, ClientError, Event, Format, Frame, FrameResult, FrameSender,
-    Rate, Session,
+    unix_us, Backoff, ClientConfig, ClientError, Event, Events, Format, Frame, FrameResult,
+    FrameSender, Rate, Session,
 };
 use crate::io;
+use crate::pipeline::NormalsMethod;
 
 /// Encoding of the maps asked of the server.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum FormatArg {
     /// 16-bit grey + alpha PNG, 0.1 mm per unit (written as received, as `tre infer` writes).
     Png16,
-    /// 8-bit turbo colour preview (written as received).
+    /// 8-bit turbo colour map of the frame's size (written as received).
     Color,
     /// Float32 metres (written as the same 16-bit PNG as png16).
     F32,
@@ -43,9 +44,9 @@ pub struct Client {
     /// Folder of frames (PNG or JPEG), sent in file-name order as they are on disk.
     #[arg(long, env = "TRE_CLIENT_FRAMES", required_unless_present_any = ["video", "device"], conflicts_with_all = ["video", "device"])]
     pub frames: Option<PathBuf>,
-    /// Folder of registered depth frames: frame FRAMES/<stem>.<ext> takes DEPTH/<stem>.png
-    /// (16-bit, the camera's depth_scale units per metre, default 1000) or DEPTH/<stem>.npy
-    /// (metres). Every frame must have one.
+    /// Folder of registered depth frames: frame FRAMES/NAME.EXT takes DEPTH/NAME.png (16-bit,
+    /// the camera's depth_scale units per metre, default 1000) or DEPTH/NAME.npy (metres).
+    /// Every frame must have one.
     #[arg(long, env = "TRE_CLIENT_DEPTH")]
     pub depth: Option<PathBuf>,
     /// Video file, decoded by ffmpeg (which must be on PATH).
@@ -74,7 +75,10 @@ pub struct Client {
     /// Seed of the DSAC sampler: the same seed gives the same output.
     #[arg(long, env = "TRE_SEED", default_value_t = 0)]
     pub seed: u64,
-    /// Also ask for traversability, written as <seq>_<stem>_traversable.png (255 = traversable).
+    /// Initial normals: dsac (the paper's method) or ls (faster); default: the server's.
+    #[arg(long, env = "TRE_CLIENT_NORMALS", value_enum)]
+    pub normals: Option<NormalsArg>,
+    /// Also ask for traversability, written as SEQ_NAME_traversable.png (255 = traversable).
     #[arg(long, env = "TRE_CLIENT_TRAVERSABLE")]
     pub traversable: bool,
     /// Stop after this many frames.
@@ -83,7 +87,7 @@ pub struct Client {
     /// Start over at the end of the folder or video (until --limit or Ctrl-C).
     #[arg(long = "loop", env = "TRE_CLIENT_LOOP")]
     pub repeat: bool,
-    /// Output folder: <seq>_<stem>.png per result and frames.csv.
+    /// Output folder: SEQ_NAME.png per result (NAME: the frame's file stem) and frames.csv.
     #[arg(long, short, env = "TRE_CLIENT_OUT")]
     pub out: PathBuf,
     /// A frame without an answer after this long is counted lost, milliseconds.
@@ -159,6 +163,10 @@ impl Client {
                 FormatArg::F32 => Format::F32,
             },
             seed: self.seed,
+            normals: self.normals.map(|n| match n {
+                NormalsArg::Ls => NormalsMethod::Ls,
+                NormalsArg::Dsac => NormalsMethod::Dsac,
+            }),
             want_traversable: self.traversable,
             rate: self.rate.map_or(Rate::AsFastAsResults, Rate::Fixed),
             reconnect: Backoff {
@@ -221,31 +229,22 @@ async fn stream(cfg: ClientRun) -> anyhow::Result<()> {
         .name("tre-frames".into())
         .spawn(move || read_frames(source, &spec, limit, repeat, &frames_tx))
         .context("starting the frame reader")?;
-    let log = SentLog::default();
-    let sent = Arc::new(AtomicU64::new(0));
-    let sending = tokio::spawn(send_frames(sender, frames_rx, log.clone(), sent.clone()));
     let (jobs, writer) = start_writer(&cfg.out)?;
-    let mut stats = Stats::new();
-    let mut tick = tokio::time::interval(Duration::from_secs(1));
-    tick.tick().await;
-    let ctrl_c = tokio::signal::ctrl_c();
-    tokio::pin!(ctrl_c);
-    let mut stopping = false;
-    loop {
-        tokio::select! {
-            ev = events.recv() => match ev {
-                Some(ev) => on_event(ev, &log, &mut stats, &cfg.out, &jobs).await?,
-                None => break,
-            },
-            _ = tick.tick() => eprintln!("{}", stats.line(sent.load(Ordering::Relaxed), true)),
-            _ = &mut ctrl_c, if !stopping => {
-                stopping = true;
-                sending.abort();
-                eprintln!("stopping: waiting for the frames in flight");
-            }
-        }
-    }
+    let mut sink = Sink::new(&cfg.out, jobs);
+    let sending = tokio::spawn(send_frames(
+        sender,
+        frames_rx,
+        sink.log.clone(),
+        sink.sent.clone(),
+    ));
+    sink.drain(&mut events, &sending).await?;
     let sent_outcome = sending.await;
+    let Sink {
+        mut stats,
+        sent,
+        jobs,
+        ..
+    } = sink;
     drop(jobs);
     let written = writer
         .join()
@@ -367,119 +366,160 @@ fn log_entry(log: &SentLog, sequence: u64, entry: Option<(String, Option<SystemT
     };
 }
 
-/// Takes a settled frame's log entry: its name and send time.
-fn take_entry(log: &SentLog, sequence: u64) -> (String, Option<SystemTime>) {
-    log.lock()
-        .unwrap_or_else(PoisonError::into_inner)
-        .remove(&sequence)
-        .unwrap_or_default()
+/// The receiving side of a run: counts the events, hands maps and CSV rows to the writer and
+/// prints the live line.
+struct Sink {
+    log: SentLog,
+    sent: Arc<AtomicU64>,
+    stats: Stats,
+    out: PathBuf,
+    jobs: mpsc::Sender<Job>,
 }
 
-/// Counts the event, writes its map and CSV row.
-async fn on_event(
-    ev: Event,
-    log: &SentLog,
-    stats: &mut Stats,
-    out: &Path,
-    jobs: &mpsc::Sender<Job>,
-) -> anyhow::Result<()> {
-    let received = SystemTime::now();
-    let row = |sequence: u64, sent: Option<SystemTime>, name: &str, rest: &str| {
-        let send_us = sent.map_or(String::new(), |t| unix_us(t).to_string());
-        format!(
-            "{sequence},{},{send_us},{},{rest}\n",
-            csv_field(name),
-            unix_us(received)
-        )
-    };
-    let job = match ev {
-        Event::Result(r) => {
-            let (name, _) = take_entry(log, r.sequence);
-            stats.result(&r);
-            let sent = SystemTime::UNIX_EPOCH
-                + Duration::from_micros(u64::try_from(r.timestamp_us).unwrap_or(0));
-            let line = row(
-                r.sequence,
-                Some(sent),
-                &name,
-                &format!(
-                    "{:.3},{:.3},{},ok",
-                    r.latency.as_secs_f64() * 1e3,
-                    r.server_latency.as_secs_f64() * 1e3,
-                    r.dropped_total
-                ),
-            );
-            let path = out.join(format!("{}_{name}.png", r.sequence));
-            Job::Map {
-                path,
-                result: r,
-                line,
+impl Sink {
+    fn new(out: &Path, jobs: mpsc::Sender<Job>) -> Self {
+        Self {
+            log: SentLog::default(),
+            sent: Arc::new(AtomicU64::new(0)),
+            stats: Stats::new(),
+            out: out.to_owned(),
+            jobs,
+        }
+    }
+
+    /// Handles events until the session ends; Ctrl-C stops the sending (the frames in flight
+    /// still get their answers).
+    async fn drain(
+        &mut self,
+        events: &mut Events,
+        sending: &tokio::task::JoinHandle<Result<(), ClientError>>,
+    ) -> anyhow::Result<()> {
+        let mut tick = tokio::time::interval(Duration::from_secs(1));
+        tick.tick().await;
+        let ctrl_c = tokio::signal::ctrl_c();
+        tokio::pin!(ctrl_c);
+        let mut stopping = false;
+        loop {
+            tokio::select! {
+                ev = events.recv() => match ev {
+                    Some(ev) => self.on_event(ev).await?,
+                    None => return Ok(()),
+                },
+                _ = tick.tick() => {
+                    eprintln!("{}", self.stats.line(self.sent.load(Ordering::Relaxed), true));
+                }
+                _ = &mut ctrl_c, if !stopping => {
+                    stopping = true;
+                    sending.abort();
+                    eprintln!("stopping: waiting for the frames in flight");
+                }
             }
         }
-        Event::Dropped {
-            sequence,
-            dropped_total,
-        } => {
-            stats.dropped += 1;
-            let (name, sent) = take_entry(log, sequence);
-            Job::Row(row(
-                sequence,
-                sent,
-                &name,
-                &format!(",,{dropped_total},dropped"),
-            ))
-        }
-        Event::Error {
-            sequence: Some(sequence),
-            code,
-            message,
-        } => {
-            stats.errors += 1;
-            let (name, sent) = take_entry(log, sequence);
-            tracing::warn!(sequence, frame = %name, %code, "{message}");
-            Job::Row(row(sequence, sent, &name, &format!(",,,error:{code}")))
-        }
-        Event::Error {
-            sequence: None,
-            code,
-            message,
-        } => {
-            stats.errors += 1;
-            tracing::warn!(%code, "{message}");
+    }
+
+    async fn on_event(&mut self, ev: Event) -> anyhow::Result<()> {
+        let Some(job) = self.job_for(ev) else {
             return Ok(());
-        }
-        Event::Lost { sequence, reason } => {
-            stats.lost += 1;
-            let (name, sent) = take_entry(log, sequence);
-            Job::Row(row(
+        };
+        self.jobs
+            .send(job)
+            .await
+            .map_err(|_| anyhow::anyhow!("the writer thread stopped"))
+    }
+
+    /// Counts the event; the map and CSV row to write, if it settles a frame.
+    fn job_for(&mut self, ev: Event) -> Option<Job> {
+        let received_us = unix_us(SystemTime::now());
+        let (sequence, rest) = match ev {
+            Event::Result(r) => return Some(self.result_job(r, received_us)),
+            Event::Dropped {
                 sequence,
-                sent,
-                &name,
-                &format!(",,,lost:{}", reason.as_str()),
-            ))
+                dropped_total,
+            } => {
+                self.stats.dropped += 1;
+                (sequence, format!(",,{dropped_total},dropped"))
+            }
+            Event::Error {
+                sequence: Some(sequence),
+                code,
+                message,
+            } => {
+                self.stats.errors += 1;
+                tracing::warn!(sequence, %code, "{message}");
+                (sequence, format!(",,,error:{code}"))
+            }
+            Event::Lost { sequence, reason } => {
+                self.stats.lost += 1;
+                (sequence, format!(",,,lost:{}", reason.as_str()))
+            }
+            other => {
+                self.report(other);
+                return None;
+            }
+        };
+        let (name, sent) = self.take_entry(sequence);
+        let row = csv_row(sequence, &name, sent.map(unix_us), received_us, &rest);
+        Some(Job::Row(row))
+    }
+
+    /// A result's map and row; its send time is the timestamp it echoes (stamped at sending).
+    fn result_job(&mut self, r: Box<FrameResult>, received_us: i64) -> Job {
+        let (name, _) = self.take_entry(r.sequence);
+        self.stats.result(&r);
+        let rest = format!(
+            "{:.3},{:.3},{},ok",
+            r.latency.as_secs_f64() * 1e3,
+            r.server_latency.as_secs_f64() * 1e3,
+            r.dropped_total
+        );
+        let line = csv_row(r.sequence, &name, Some(r.timestamp_us), received_us, &rest);
+        let path = self.out.join(format!("{}_{name}.png", r.sequence));
+        Job::Map {
+            path,
+            result: r,
+            line,
         }
-        Event::Disconnected { reason } => {
-            eprintln!("disconnected: {reason}; reconnecting");
-            return Ok(());
-        }
-        Event::Reconnected {
-            attempts, downtime, ..
-        } => {
-            eprintln!(
+    }
+
+    /// Events that settle no frame: said on stderr (or logged).
+    fn report(&mut self, ev: Event) {
+        match ev {
+            Event::Error { code, message, .. } => {
+                self.stats.errors += 1;
+                tracing::warn!(%code, "{message}");
+            }
+            Event::Disconnected { reason } => eprintln!("disconnected: {reason}; reconnecting"),
+            Event::Reconnected {
+                attempts, downtime, ..
+            } => eprintln!(
                 "reconnected after {:.1} s ({attempts} attempts)",
                 downtime.as_secs_f64()
-            );
-            return Ok(());
+            ),
+            Event::GaveUp { reason } => {
+                eprintln!("gave up: {reason}");
+                self.stats.gave_up = Some(reason);
+            }
+            Event::Result(_) | Event::Dropped { .. } | Event::Lost { .. } => {}
         }
-        Event::GaveUp { reason } => {
-            eprintln!("gave up: {reason}");
-            stats.gave_up = Some(reason);
-            return Ok(());
-        }
-    };
-    jobs.send(job)
-        .await
-        .map_err(|_| anyhow::anyhow!("the writer thread stopped"))
+    }
+
+    /// Takes a settled frame's log entry: its name and send time.
+    fn take_entry(&self, sequence: u64) -> (String, Option<SystemTime>) {
+        self.log
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .remove(&sequence)
+            .unwrap_or_default()
+    }
+}
+
+/// One `frames.csv` row; `rest`: latency_ms,server_latency_ms,dropped,status.
+fn csv_row(sequence: u64, name: &str, send_us: Option<i64>, receive_us: i64, rest: &str) -> String {
+    let send = send_us.map_or_else(String::new, |t| t.to_string());
+    format!(
+        "{sequence},{},{send},{receive_us},{rest}\n",
+        csv_field(name)
+    )
 }
 
 /// A CSV field, quoted when it needs to be.

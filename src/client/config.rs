@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use super::ClientError;
 use crate::io::CameraFile;
-use crate::pipeline::Mode;
+use crate::pipeline::{Mode, NormalsMethod};
 
 /// How fast frames go out.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -76,7 +76,7 @@ pub enum Format {
     /// 16-bit grey + alpha PNG at 0.1 mm per unit (as `tre infer` writes), decoded to metres.
     #[default]
     Png16,
-    /// 8-bit turbo colour preview PNG (for display; not decoded to metres).
+    /// 8-bit turbo colour map PNG of the frame's size (for display; not decoded to metres).
     Color,
     /// Raw little-endian float32 metres (NaN: no data), decoded to metres.
     F32,
@@ -98,6 +98,8 @@ pub struct ClientConfig {
     pub format: Format,
     /// Seed of the DSAC sampler (same seed, same output).
     pub seed: u64,
+    /// Initial normals; `None`: the server's default (`tre serve --normals`, DSAC unless set).
+    pub normals: Option<NormalsMethod>,
     /// Top of the colour scale of [`Format::Color`], metres; `None`: 0.05.
     pub preview_max_m: Option<f64>,
     /// Also ask for the traversability mask.
@@ -130,6 +132,7 @@ impl Default for ClientConfig {
             mode: None,
             format: Format::Png16,
             seed: 0,
+            normals: None,
             preview_max_m: None,
             want_traversable: false,
             rate: Rate::AsFastAsResults,

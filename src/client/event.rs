@@ -44,7 +44,7 @@ impl Frame {
 pub enum Roughness {
     /// Metres per pixel, NaN where there is no data ([`Format::Png16`], [`Format::F32`]).
     Metres(Grid<f64>),
-    /// The colour preview ([`Format::Color`]): the map with its colour legend below it.
+    /// The colour map ([`Format::Color`]), the frame's size.
     Colour(RgbImage),
 }
 

@@ -12,7 +12,7 @@ use super::event::{Frame, FrameResult, Roughness, ServerInfo};
 use super::ClientError;
 use crate::geometry::Grid;
 use crate::io::{self, CameraFile, ROUGHNESS_PNG_SCALE_M};
-use crate::pipeline::Mode;
+use crate::pipeline::{Mode, NormalsMethod};
 use crate::proto::v1 as pb;
 
 impl From<&CameraFile> for pb::Camera {
@@ -50,6 +50,16 @@ impl From<Format> for pb::Format {
     }
 }
 
+impl From<Option<NormalsMethod>> for pb::Normals {
+    fn from(n: Option<NormalsMethod>) -> Self {
+        match n {
+            None => Self::Unspecified,
+            Some(NormalsMethod::Dsac) => Self::Dsac,
+            Some(NormalsMethod::Ls) => Self::Ls,
+        }
+    }
+}
+
 impl From<&ClientConfig> for pb::Hello {
     fn from(cfg: &ClientConfig) -> Self {
         Self {
@@ -59,6 +69,7 @@ impl From<&ClientConfig> for pb::Hello {
             seed: cfg.seed,
             preview_max_m: cfg.preview_max_m,
             want_traversable: cfg.want_traversable,
+            normals: pb::Normals::from(cfg.normals) as i32,
         }
     }
 }
@@ -227,11 +238,8 @@ fn decode_map(
             Ok(Roughness::Metres(m))
         }
         Format::Color => {
-            // The preview carries its colour legend below the map: as wide, taller.
             let img = png()?.to_rgb8();
-            if img.width() as usize != w || (img.height() as usize) < h {
-                check(img.dimensions())?;
-            }
+            check(img.dimensions())?;
             Ok(Roughness::Colour(img))
         }
         Format::F32 => {
@@ -327,6 +335,7 @@ mod tests {
             mode: Some(Mode::Rgbd),
             format: Format::F32,
             seed: 42,
+            normals: Some(NormalsMethod::Ls),
             want_traversable: true,
             ..ClientConfig::default()
         };
@@ -335,8 +344,14 @@ mod tests {
             panic!("not a hello")
         };
         assert_eq!(
-            (h.mode, h.format, h.seed, h.want_traversable),
-            (pb::Mode::Rgbd as i32, pb::Format::F32 as i32, 42, true)
+            (h.mode, h.format, h.seed, h.want_traversable, h.normals),
+            (
+                pb::Mode::Rgbd as i32,
+                pb::Format::F32 as i32,
+                42,
+                true,
+                pb::Normals::Ls as i32
+            )
         );
     }
 }
