@@ -8,6 +8,7 @@ pub mod cli;
 pub mod client;
 pub mod geometry;
 pub mod io;
+pub mod loadtest;
 pub mod model;
 pub mod pipeline;
 pub mod proto;

@@ -4,6 +4,7 @@ pub mod annotate;
 pub mod client;
 pub mod eval;
 pub mod infer;
+pub mod loadtest;
 pub mod options;
 pub mod serve;
 pub mod synth;
@@ -43,6 +44,8 @@ pub enum Command {
     /// Stream frames (a folder, a video or a camera) to `tre serve` over the WebSocket and
     /// write the roughness maps that come back.
     Client(client::Client),
+    /// Load a running `tre serve` over HTTP or WebSocket and report throughput and latency.
+    Loadtest(loadtest::Loadtest),
 }
 
 impl Command {
@@ -55,6 +58,7 @@ impl Command {
             Command::Eval(cmd) => cmd.run(),
             Command::Serve(cmd) => cmd.run(),
             Command::Client(cmd) => cmd.run(),
+            Command::Loadtest(cmd) => cmd.run(),
         }
     }
 }

@@ -1,0 +1,200 @@
+//! `tre loadtest`: open- or closed-loop load on a running `tre serve` over HTTP or WebSocket,
+//! with a text report, JSON, an SVG latency plot, a comparison with an earlier run and rate
+//! sweeps that find the knee.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{bail, Context};
+use clap::{Args, ValueEnum};
+
+use crate::loadtest::{
+    report, run, svg, sweep, FrameSource, Load, LoadConfig, Protocol, Report, SweepReport,
+};
+
+/// Interface to load.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ProtocolArg {
+    /// `POST /v1/roughness`, one frame per request.
+    Http,
+    /// `GET /v1/stream` (WebSocket, protobuf frames).
+    Ws,
+}
+
+/// Load a running `tre serve` and report throughput and latency (coordinated omission
+/// corrected in open loop).
+///
+/// Open loop (`--rate`): requests at constant intended times, latency counted from the intended
+/// time. Closed loop (no `--rate`): `--connections` clients that each wait for their answer.
+/// Safety: only loopback addresses are loaded unless you give the address yourself in `--url`;
+/// a host name that resolves to a non-loopback address is refused unless `--allow-remote`.
+#[derive(Debug, Args)]
+pub struct Loadtest {
+    /// Base URL of the service. Only loopback unless you write the address here yourself; host
+    /// names must resolve to loopback unless --allow-remote.
+    #[arg(long, env = "TRE_LOADTEST_URL", default_value = "http://127.0.0.1:8080")]
+    pub url: String,
+    /// Allow a host name in --url that resolves to a non-loopback address (load a remote
+    /// service on purpose).
+    #[arg(long, env = "TRE_LOADTEST_ALLOW_REMOTE")]
+    pub allow_remote: bool,
+    /// Interface to load.
+    #[arg(long, env = "TRE_LOADTEST_PROTOCOL", value_enum, default_value = "http")]
+    pub protocol: ProtocolArg,
+    /// A PNG or JPEG frame to send (repeat for several, cycled). Default: a synthetic 256×256
+    /// terrain frame rendered in memory.
+    #[arg(long = "frame", env = "TRE_LOADTEST_FRAME", conflicts_with = "frames")]
+    pub frame: Vec<PathBuf>,
+    /// A folder whose .png/.jpg/.jpeg files are sent, cycled in name order.
+    #[arg(long, env = "TRE_LOADTEST_FRAMES")]
+    pub frames: Option<PathBuf>,
+    /// Side of the synthetic square frame, pixels (when no --frame or --frames).
+    #[arg(long, env = "TRE_LOADTEST_SYNTH_SIZE", default_value_t = 256)]
+    pub synth_size: usize,
+    /// Open loop: requests per second at constant intended send times. Without it: closed loop.
+    #[arg(long, env = "TRE_LOADTEST_RATE", conflicts_with = "sweep")]
+    pub rate: Option<f64>,
+    /// Closed loop: concurrent clients. WebSocket open loop: connections, used round robin.
+    #[arg(long, env = "TRE_LOADTEST_CONNECTIONS", default_value_t = 1)]
+    pub connections: usize,
+    /// Open loop: most requests outstanding; a request due beyond it is not sent and counts as
+    /// client_saturated.
+    #[arg(long, env = "TRE_LOADTEST_MAX_IN_FLIGHT", default_value_t = 256)]
+    pub max_in_flight: usize,
+    /// Measured seconds (per rate with --sweep). Default 10 unless --requests is given.
+    #[arg(long, env = "TRE_LOADTEST_DURATION")]
+    pub duration: Option<f64>,
+    /// Measured requests; the run stops at --duration or --requests, whichever comes first.
+    #[arg(long, env = "TRE_LOADTEST_REQUESTS")]
+    pub requests: Option<u64>,
+    /// Seconds of load before the measured window, left out of every number.
+    #[arg(long, env = "TRE_LOADTEST_WARMUP", default_value_t = 0.0)]
+    pub warmup: f64,
+    /// Time one request may take before it counts as a timeout error, milliseconds.
+    #[arg(long, env = "TRE_LOADTEST_TIMEOUT_MS", default_value_t = 30_000)]
+    pub timeout_ms: u64,
+    /// Open-loop rates to run one after the other (e.g. 5,10,15), each for --duration; prints a
+    /// row per rate and the knee.
+    #[arg(long, env = "TRE_LOADTEST_SWEEP", value_delimiter = ',')]
+    pub sweep: Vec<f64>,
+    /// Objective on the p99 latency of results, milliseconds (the sweep's knee).
+    #[arg(long, env = "TRE_LOADTEST_SLO_MS", default_value_t = 150.0)]
+    pub slo_ms: f64,
+    /// Write the report (or the sweep) as JSON to this file.
+    #[arg(long, env = "TRE_LOADTEST_JSON")]
+    pub json: Option<PathBuf>,
+    /// Write an SVG latency plot to this file.
+    #[arg(long, env = "TRE_LOADTEST_PLOT")]
+    pub plot: Option<PathBuf>,
+    /// Compare with an earlier run's --json report: key numbers side by side with ratios.
+    #[arg(long, env = "TRE_LOADTEST_COMPARE")]
+    pub compare: Option<PathBuf>,
+}
+
+fn seconds(name: &str, s: f64) -> anyhow::Result<Duration> {
+    Duration::try_from_secs_f64(s).with_context(|| format!("--{name} {s}: not a duration"))
+}
+
+impl Loadtest {
+    /// The checked configuration.
+    pub fn config(&self) -> anyhow::Result<LoadConfig> {
+        let frames = if let Some(dir) = &self.frames {
+            FrameSource::Dir(dir.clone())
+        } else if !self.frame.is_empty() {
+            FrameSource::Files(self.frame.clone())
+        } else {
+            FrameSource::Synthetic {
+                size: (self.synth_size, self.synth_size),
+            }
+        };
+        let duration = match (self.duration, self.requests) {
+            (None, None) => Some(Duration::from_secs(10)),
+            (d, _) => d.map(|d| seconds("duration", d)).transpose()?,
+        };
+        let cfg = LoadConfig {
+            url: self.url.clone(),
+            allow_remote: self.allow_remote,
+            protocol: match self.protocol {
+                ProtocolArg::Http => Protocol::Http,
+                ProtocolArg::Ws => Protocol::Ws,
+            },
+            load: self
+                .rate
+                .map_or(Load::Closed, |rate_per_s| Load::Open { rate_per_s }),
+            connections: self.connections,
+            max_in_flight: self.max_in_flight,
+            duration,
+            requests: self.requests,
+            warmup: seconds("warmup", self.warmup)?,
+            timeout: Duration::from_millis(self.timeout_ms),
+            frames,
+        };
+        cfg.validate()?;
+        if !self.sweep.is_empty() && self.compare.is_some() {
+            bail!("--compare works on a single run, not with --sweep");
+        }
+        Ok(cfg)
+    }
+
+    /// Runs the load, prints the report and writes the files asked for.
+    pub fn run(self) -> anyhow::Result<()> {
+        let cfg = self.config()?;
+        let old = self.compare.as_deref().map(read_report).transpose()?;
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .thread_name("tre-loadtest")
+            .enable_all()
+            .build()
+            .context("starting the async runtime")?;
+        if self.sweep.is_empty() {
+            let r = runtime.block_on(run(&cfg))?;
+            print!("{}", report::text(&r));
+            if let Some(old) = &old {
+                println!("\ncompared with {}:", self.compare_path());
+                print!("{}", report::compare(old, &r));
+            }
+            self.write(&r.to_json(), || svg::plot_run(&r))
+        } else {
+            println!("{}", report::sweep_header());
+            let sw: SweepReport = runtime.block_on(sweep(&cfg, &self.sweep, self.slo_ms, |r| {
+                println!("{}", report::sweep_row(r));
+            }))?;
+            print!("{}", report::sweep_summary(&sw));
+            self.write(&sw.to_json(), || svg::plot_sweep(&sw))
+        }
+    }
+
+    fn compare_path(&self) -> String {
+        self.compare
+            .as_deref()
+            .map_or_else(String::new, |p| p.display().to_string())
+    }
+
+    /// Writes the JSON and the plot if asked for.
+    fn write(&self, json: &str, plot: impl FnOnce() -> String) -> anyhow::Result<()> {
+        if let Some(path) = &self.json {
+            write_file(path, json)?;
+        }
+        if let Some(path) = &self.plot {
+            write_file(path, &plot())?;
+        }
+        Ok(())
+    }
+}
+
+fn write_file(path: &Path, text: &str) -> anyhow::Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+fn read_report(path: &Path) -> anyhow::Result<Report> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    Report::from_json(&text).with_context(|| {
+        format!(
+            "{}: not a tre loadtest --json report of a single run",
+            path.display()
+        )
+    })
+}

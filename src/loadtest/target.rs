@@ -1,0 +1,211 @@
+//! The service under test: its URL checked and resolved once, with the safety rule that a host
+//! name must resolve to loopback unless remote targets are allowed.
+
+use std::net::{IpAddr, SocketAddr};
+use std::time::Duration;
+
+use reqwest::Url;
+
+use super::LoadError;
+
+/// Time the start-up probe waits for a TCP connection.
+const PROBE_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// A resolved service address.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Target {
+    /// The host as written in the URL (sent as `Host`).
+    pub host: String,
+    /// The address connected to (resolved once, so the check and the load meet the same host).
+    pub addr: SocketAddr,
+    /// Base path without a trailing slash (`""` for the root).
+    pub base_path: String,
+}
+
+/// What the host part of a URL is.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum HostKind {
+    /// An IP address written out: the user chose it, loopback or not.
+    Ip(IpAddr),
+    /// A name to resolve: allowed only if every address is loopback, or with `allow_remote`.
+    Name(String),
+}
+
+/// Splits `url` into its host, port and base path; only `http://` and `ws://` are accepted.
+pub fn parse(url: &str) -> Result<(HostKind, u16, String), LoadError> {
+    let bad = |why: &str| LoadError::Url {
+        url: url.into(),
+        why: why.into(),
+    };
+    let parsed = Url::parse(url).map_err(|e| bad(&e.to_string()))?;
+    let default_port = match parsed.scheme() {
+        "http" | "ws" => 80,
+        "https" | "wss" => {
+            return Err(bad(
+                "TLS is not supported; load the service's plain http:// port",
+            ))
+        }
+        _ => return Err(bad("expected http://host:port")),
+    };
+    if parsed.query().is_some() || parsed.fragment().is_some() {
+        return Err(bad("no query or fragment, only http://host:port[/prefix]"));
+    }
+    let host = match parsed.host_str() {
+        None | Some("") => return Err(bad("no host")),
+        Some(h) => {
+            let bare = h.trim_start_matches('[').trim_end_matches(']');
+            bare.parse::<IpAddr>()
+                .map_or_else(|_| HostKind::Name(h.to_owned()), HostKind::Ip)
+        }
+    };
+    let port = parsed.port().unwrap_or(default_port);
+    let base = parsed.path().trim_end_matches('/').to_owned();
+    Ok((host, port, base))
+}
+
+/// Whether every address in `addrs` is loopback.
+pub fn all_loopback(addrs: &[SocketAddr]) -> bool {
+    !addrs.is_empty() && addrs.iter().all(|a| a.ip().is_loopback())
+}
+
+impl Target {
+    /// Parses `url`, resolves its host and connects once to check that something listens.
+    /// A host name that resolves to any non-loopback address is refused unless
+    /// `allow_remote`; an IP address written in the URL is taken as given.
+    pub async fn resolve(url: &str, allow_remote: bool) -> Result<Self, LoadError> {
+        let (host, port, base_path) = parse(url)?;
+        let (host, addrs) = match host {
+            HostKind::Ip(ip) => (ip_host(ip), vec![SocketAddr::new(ip, port)]),
+            HostKind::Name(name) => {
+                let addrs: Vec<SocketAddr> = tokio::net::lookup_host((name.as_str(), port))
+                    .await
+                    .map_err(|source| LoadError::Resolve {
+                        host: name.clone(),
+                        source,
+                    })?
+                    .collect();
+                if !allow_remote && !all_loopback(&addrs) {
+                    return Err(LoadError::Remote {
+                        host: name,
+                        addrs: list(&addrs),
+                    });
+                }
+                (name, addrs)
+            }
+        };
+        let addr = first_listening(&addrs).await?;
+        Ok(Self {
+            host,
+            addr,
+            base_path,
+        })
+    }
+
+    /// A target at `addr` without probing it (tests, or a caller that checked it).
+    pub fn at(addr: SocketAddr) -> Self {
+        Self {
+            host: ip_host(addr.ip()),
+            addr,
+            base_path: String::new(),
+        }
+    }
+
+    /// `Host` value with the port.
+    pub fn authority(&self) -> String {
+        format!("{}:{}", self.host, self.addr.port())
+    }
+
+    /// URL of `POST /v1/roughness`.
+    pub fn roughness_url(&self) -> String {
+        format!("http://{}{}/v1/roughness", self.authority(), self.base_path)
+    }
+
+    /// URL of the stream.
+    pub fn stream_url(&self) -> String {
+        format!("ws://{}{}/v1/stream", self.authority(), self.base_path)
+    }
+}
+
+/// An IP as a URL host (`[::1]` for IPv6).
+fn ip_host(ip: IpAddr) -> String {
+    match ip {
+        IpAddr::V4(v4) => v4.to_string(),
+        IpAddr::V6(v6) => format!("[{v6}]"),
+    }
+}
+
+fn list(addrs: &[SocketAddr]) -> String {
+    addrs
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The first of `addrs` that accepts a TCP connection.
+async fn first_listening(addrs: &[SocketAddr]) -> Result<SocketAddr, LoadError> {
+    let mut last = std::io::Error::new(std::io::ErrorKind::NotFound, "no address");
+    for &addr in addrs {
+        match tokio::time::timeout(PROBE_TIMEOUT, tokio::net::TcpStream::connect(addr)).await {
+            Ok(Ok(_)) => return Ok(addr),
+            Ok(Err(e)) => last = e,
+            Err(_) => last = std::io::Error::new(std::io::ErrorKind::TimedOut, "timed out"),
+        }
+    }
+    Err(LoadError::Connect {
+        addrs: list(addrs),
+        source: last,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn urls_split_into_host_port_and_prefix() {
+        let (h, p, b) = parse("http://127.0.0.1:8080").expect("parses");
+        assert_eq!(h, HostKind::Ip(IpAddr::from([127, 0, 0, 1])));
+        assert_eq!((p, b.as_str()), (8080, ""));
+        let (h, p, b) = parse("http://localhost/tre/").expect("parses");
+        assert_eq!(h, HostKind::Name("localhost".into()));
+        assert_eq!((p, b.as_str()), (80, "/tre"));
+        let (h, _, _) = parse("ws://[::1]:9000").expect("parses");
+        assert_eq!(h, HostKind::Ip("::1".parse().expect("ip")));
+        for bad in [
+            "https://127.0.0.1",
+            "ftp://x",
+            "127.0.0.1:80",
+            "http://127.0.0.1/?a=1",
+        ] {
+            assert!(parse(bad).is_err(), "{bad} should be refused");
+        }
+    }
+
+    #[test]
+    fn only_loopback_sets_pass_the_check() {
+        let a = |s: &str| s.parse::<SocketAddr>().expect("addr");
+        assert!(all_loopback(&[a("127.0.0.1:1"), a("[::1]:1")]));
+        assert!(!all_loopback(&[a("127.0.0.1:1"), a("10.0.0.1:1")]));
+        assert!(!all_loopback(&[]));
+    }
+
+    #[tokio::test]
+    async fn a_name_resolving_to_loopback_is_accepted_and_a_dead_port_is_an_error() {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+            .await
+            .expect("bind");
+        let port = listener.local_addr().expect("addr").port();
+        let t = Target::resolve(&format!("http://localhost:{port}"), false)
+            .await
+            .expect("localhost is loopback");
+        assert!(t.addr.ip().is_loopback());
+        assert_eq!(
+            t.roughness_url(),
+            format!("http://localhost:{port}/v1/roughness")
+        );
+        drop(listener);
+        let e = Target::resolve(&format!("http://127.0.0.1:{port}"), false).await;
+        assert!(matches!(e, Err(LoadError::Connect { .. })), "{e:?}");
+    }
+}
