@@ -3,7 +3,8 @@
 //! Layers depend downward only: [`geometry`] and [`roughness`] are pure and synchronous;
 //! [`io`] reads and writes the on-disk formats; [`model`] owns ONNX Runtime and the manifest;
 //! [`pipeline`] runs one frame through every stage; [`server`] serves it over HTTP and a
-//! WebSocket stream and [`client`] is the robot's end of that stream; the CLI sits on top.
+//! WebSocket stream, [`client`] is the robot's end of that stream and [`loadtest`] measures a
+//! running service; the CLI sits on top.
 pub mod cli;
 pub mod client;
 pub mod geometry;

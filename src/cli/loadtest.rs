@@ -32,14 +32,23 @@ pub enum ProtocolArg {
 pub struct Loadtest {
     /// Base URL of the service. Only loopback unless you write the address here yourself; host
     /// names must resolve to loopback unless --allow-remote.
-    #[arg(long, env = "TRE_LOADTEST_URL", default_value = "http://127.0.0.1:8080")]
+    #[arg(
+        long,
+        env = "TRE_LOADTEST_URL",
+        default_value = "http://127.0.0.1:8080"
+    )]
     pub url: String,
     /// Allow a host name in --url that resolves to a non-loopback address (load a remote
     /// service on purpose).
     #[arg(long, env = "TRE_LOADTEST_ALLOW_REMOTE")]
     pub allow_remote: bool,
     /// Interface to load.
-    #[arg(long, env = "TRE_LOADTEST_PROTOCOL", value_enum, default_value = "http")]
+    #[arg(
+        long,
+        env = "TRE_LOADTEST_PROTOCOL",
+        value_enum,
+        default_value = "http"
+    )]
     pub protocol: ProtocolArg,
     /// A PNG or JPEG frame to send (repeat for several, cycled). Default: a synthetic 256×256
     /// terrain frame rendered in memory.

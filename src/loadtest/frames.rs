@@ -202,7 +202,10 @@ mod tests {
 
     #[test]
     fn frames_cycle_and_bad_files_are_named() {
-        let f = Frames::from_bytes(vec![b"\x89PNG\r\n\x1a\n1".to_vec(), vec![0xFF, 0xD8, 0xFF]], "two");
+        let f = Frames::from_bytes(
+            vec![b"\x89PNG\r\n\x1a\n1".to_vec(), vec![0xFF, 0xD8, 0xFF]],
+            "two",
+        );
         assert_eq!(f.get(0).content_type, "image/png");
         assert_eq!(f.get(3).content_type, "image/jpeg");
         let dir = tempfile::tempdir().expect("tempdir");

@@ -40,9 +40,7 @@ impl SweepReport {
     /// The sweep over `rows` (ascending offered rates) against a p99 objective of `slo_ms`.
     pub fn new(rows: Vec<Report>, slo_ms: f64) -> Self {
         let rate = |r: &Report| r.offered_rate_per_s.unwrap_or(0.0);
-        let knee_at = rows
-            .iter()
-            .position(|r| !breaches(r, slo_ms).is_empty());
+        let knee_at = rows.iter().position(|r| !breaches(r, slo_ms).is_empty());
         let knee = knee_at.map(|i| Knee {
             rate_per_s: rate(&rows[i]),
             reasons: breaches(&rows[i], slo_ms),
@@ -130,6 +128,7 @@ pub fn text(r: &Report) -> String {
     let mut s = String::new();
     let offered = match r.offered_rate_per_s {
         Some(rate) => format!("open loop at {}/s", fmt_rate(rate)),
+        None if r.connections == 1 => "closed loop, 1 client".into(),
         None => format!("closed loop, {} clients", r.connections),
     };
     let _ = writeln!(
@@ -146,8 +145,8 @@ pub fn text(r: &Report) -> String {
         .map_or_else(|| "-".into(), |v| format!("{v:.2}/s"));
     let _ = writeln!(
         s,
-        "requests {}   offered {rate}   achieved {:.2} ok/s\n",
-        r.requests, r.throughput_ok_per_s
+        "requests {}   offered {rate}   achieved {:.2} ok/s   (last answer {:.2} s into the window)\n",
+        r.requests, r.throughput_ok_per_s, r.answered_s
     );
     let share = |n: u64| {
         if r.requests == 0 {
@@ -289,20 +288,14 @@ fn ratio(old: f64, new: f64) -> String {
 /// Side-by-side key numbers of two runs with `new / old` ratios.
 pub fn compare(old: &Report, new: &Report) -> String {
     let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "{:<18} {:>12} {:>12} {:>9}",
-        "", "old", "new", "new/old"
-    );
-    let _ = writeln!(
-        s,
-        "{:<18} {:>12} {:>12}",
-        "run",
-        old.label(),
-        new.label()
-    );
+    let _ = writeln!(s, "{:<18} {:>12} {:>12} {:>9}", "", "old", "new", "new/old");
+    let _ = writeln!(s, "{:<18} {:>12} {:>12}", "run", old.label(), new.label());
     let num_rows = [
-        ("throughput ok/s", old.throughput_ok_per_s, new.throughput_ok_per_s),
+        (
+            "throughput ok/s",
+            old.throughput_ok_per_s,
+            new.throughput_ok_per_s,
+        ),
         ("p50 ms", old.latency_ms.p50_ms, new.latency_ms.p50_ms),
         ("p90 ms", old.latency_ms.p90_ms, new.latency_ms.p90_ms),
         ("p99 ms", old.latency_ms.p99_ms, new.latency_ms.p99_ms),
@@ -330,7 +323,11 @@ pub fn compare(old: &Report, new: &Report) -> String {
         ("refused", old.refused, new.refused),
         ("errors", old.errors, new.errors),
         ("dropped", old.dropped, new.dropped),
-        ("client_saturated", old.client_saturated, new.client_saturated),
+        (
+            "client_saturated",
+            old.client_saturated,
+            new.client_saturated,
+        ),
     ];
     for (name, o, n) in count_rows {
         let _ = writeln!(
@@ -366,6 +363,7 @@ pub(crate) mod tests {
             max_in_flight: 256,
             warmup_s: 0.0,
             window_s: 10.0,
+            answered_s: 10.0,
             requests: ok + refused,
             ok,
             refused,
@@ -434,7 +432,10 @@ pub(crate) mod tests {
         let old = report(10.0, 100, 100, 0);
         let new = report(10.0, 100, 200, 0);
         let c = compare(&old, &new);
-        let p50 = c.lines().find(|l| l.starts_with("p50 ms")).expect("p50 row");
+        let p50 = c
+            .lines()
+            .find(|l| l.starts_with("p50 ms"))
+            .expect("p50 row");
         assert!(p50.ends_with("2.00×"), "{p50}");
         let thr = c
             .lines()

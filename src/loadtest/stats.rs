@@ -129,7 +129,9 @@ pub fn histogram() -> Histogram<u64> {
 
 /// Records `d` in `h` (microseconds, at least 1, at most one hour).
 pub fn record(h: &mut Histogram<u64>, d: Duration) {
-    let us = u64::try_from(d.as_micros()).unwrap_or(MAX_US).clamp(1, MAX_US);
+    let us = u64::try_from(d.as_micros())
+        .unwrap_or(MAX_US)
+        .clamp(1, MAX_US);
     h.saturating_record(us);
 }
 
@@ -221,7 +223,10 @@ impl Recorder {
 
     /// End of the last measured answer.
     pub fn last_done(&self) -> Option<Instant> {
-        self.tally.lock().unwrap_or_else(|p| p.into_inner()).last_done
+        self.tally
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .last_done
     }
 
     /// The report over a measured window of `window_s` seconds.
@@ -230,6 +235,10 @@ impl Recorder {
         let refused = t.refused.len();
         let errors: u64 = t.errors_by_kind.values().sum();
         let ok = t.ok.len();
+        let answered_s = t.last_done.map_or(0.0, |d| {
+            d.saturating_duration_since(self.measure_from).as_secs_f64()
+        });
+        let span_s = window_s.max(answered_s);
         let mut samples = t.samples.clone();
         samples.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
         Report {
@@ -250,8 +259,9 @@ impl Recorder {
             client_saturated: t.client_saturated,
             refused_by_code: t.refused_by_code.clone(),
             errors_by_kind: t.errors_by_kind.clone(),
-            throughput_ok_per_s: if window_s > 0.0 {
-                ok as f64 / window_s
+            answered_s,
+            throughput_ok_per_s: if span_s > 0.0 {
+                ok as f64 / span_s
             } else {
                 0.0
             },
@@ -268,15 +278,15 @@ impl Tally {
     /// Keeps every `sample_every`-th sample; when full, thins to every other one.
     fn sample(&mut self, s: Sample) {
         self.seen += 1;
-        if self.seen % self.sample_every != 0 {
+        if !self.seen.is_multiple_of(self.sample_every) {
             return;
         }
         self.samples.push(s);
         if self.samples.len() >= MAX_SAMPLES {
-            let mut i = 0;
+            let mut i = 0u32;
             self.samples.retain(|_| {
                 i += 1;
-                i % 2 == 0
+                i.is_multiple_of(2)
             });
             self.sample_every *= 2;
         }
@@ -341,7 +351,11 @@ pub struct Report {
     pub refused_by_code: BTreeMap<String, u64>,
     /// Errors by kind.
     pub errors_by_kind: BTreeMap<String, u64>,
-    /// Results per second of window.
+    /// From the start of the window to the last answer, seconds (beyond `window_s` when the
+    /// service was behind).
+    pub answered_s: f64,
+    /// Results per second, over the window or until the last answer if that came later (so an
+    /// overloaded service is not credited with the offered rate).
     pub throughput_ok_per_s: f64,
     /// Latency of results, from the intended send time.
     pub latency_ms: Percentiles,
@@ -410,7 +424,9 @@ mod tests {
         assert_relative_eq!(p.mean_ms, 500.5, max_relative = 1e-3);
         let s = spectrum(&h);
         assert_eq!(s.first().map(|p| p[0]), Some(0.0));
-        assert!(s.windows(2).all(|w| w[0][0] < w[1][0] && w[0][1] <= w[1][1]));
+        assert!(s
+            .windows(2)
+            .all(|w| w[0][0] < w[1][0] && w[0][1] <= w[1][1]));
         assert_relative_eq!(s[s.len() - 2][0], 99.99, max_relative = 1e-9);
     }
 
@@ -436,7 +452,11 @@ mod tests {
         rec.record(t0, t0 + ms(5), Outcome::Ok);
         rec.record(from, from + ms(100), Outcome::Ok);
         rec.record(from, from + ms(2), Outcome::Refused("overloaded".into()));
-        rec.record(from, from + ms(2), Outcome::Error("http 422 bad_image".into()));
+        rec.record(
+            from,
+            from + ms(2),
+            Outcome::Error("http 422 bad_image".into()),
+        );
         rec.record(from, from, Outcome::ClientSaturated);
         rec.record(from, from + ms(2), Outcome::Dropped);
         let info = RunInfo {
@@ -465,6 +485,7 @@ mod tests {
         assert_relative_eq!(r.refusal_latency_ms.max_ms, 2.0, max_relative = 1e-3);
         assert_eq!(r.errors_by_kind.get("http 422 bad_image"), Some(&1));
         assert_relative_eq!(r.throughput_ok_per_s, 0.5);
+        assert_relative_eq!(r.answered_s, 0.1, max_relative = 1e-6);
         assert_eq!(r.samples.len(), 4);
     }
 

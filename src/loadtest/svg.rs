@@ -367,7 +367,10 @@ pub fn plot_run(r: &Report) -> String {
         series,
         hline: None,
     };
-    svg(&[spectrum, over_time], &format!("{title}; frames: {}", r.frames))
+    svg(
+        &[spectrum, over_time],
+        &format!("{title}; frames: {}", r.frames),
+    )
 }
 
 /// The plot of a sweep: one spectrum per rate, and p50/p90/p99 against the offered rate with
@@ -407,9 +410,11 @@ pub fn plot_sweep(sw: &SweepReport) -> String {
             100.0 * r.refused as f64 / r.requests.max(1) as f64
         }),
     ];
-    let (lo, hi) = sw.rows.iter().map(rate).fold((f64::MAX, 0.0f64), |(a, b), v| {
-        (a.min(v), b.max(v))
-    });
+    let (lo, hi) = sw
+        .rows
+        .iter()
+        .map(rate)
+        .fold((f64::MAX, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
     let knee = sw.knee.as_ref().map_or_else(
         || "knee: not reached".into(),
         |k| format!("knee at {}/s", fmt_rate(k.rate_per_s)),
@@ -426,7 +431,12 @@ pub fn plot_sweep(sw: &SweepReport) -> String {
         hline: Some((sw.slo_ms, format!("SLO p99 {} ms", fmt_rate(sw.slo_ms)))),
     };
     let footer = sw.rows.first().map_or_else(String::new, |r| {
-        format!("tre loadtest sweep: {} {}; frames: {}", r.protocol.as_str(), r.url, r.frames)
+        format!(
+            "tre loadtest sweep: {} {}; frames: {}",
+            r.protocol.as_str(),
+            r.url,
+            r.frames
+        )
     });
     svg(&[spectrum, by_rate], &footer)
 }
@@ -450,7 +460,9 @@ mod tests {
             for (k, _) in text.match_indices('&') {
                 let ent = &text[k..];
                 assert!(
-                    ["&amp;", "&lt;", "&gt;", "&quot;"].iter().any(|e| ent.starts_with(e)),
+                    ["&amp;", "&lt;", "&gt;", "&quot;"]
+                        .iter()
+                        .any(|e| ent.starts_with(e)),
                     "bare & in {text:?}"
                 );
             }
@@ -525,7 +537,12 @@ mod tests {
         ];
         let svg = plot_sweep(&SweepReport::new(rows, 150.0));
         check_well_formed(&svg);
-        for label in ["knee at 8/s", "SLO p99 150 ms", "offered rate (requests/s)", "4/s ok"] {
+        for label in [
+            "knee at 8/s",
+            "SLO p99 150 ms",
+            "offered rate (requests/s)",
+            "4/s ok",
+        ] {
             assert!(svg.contains(label), "{label:?} missing");
         }
     }

@@ -230,7 +230,12 @@ async fn open_loop(run: &Arc<Run>, sockets: Vec<Socket>, rate_per_s: f64, max_in
         let (tx, rx) = mpsc::channel(WRITER_QUEUE);
         let pending = Pending::default();
         writers.spawn(write(sink, rx, run.clone()));
-        readers.spawn(read(stream, pending.clone(), in_flight.clone(), run.clone()));
+        readers.spawn(read(
+            stream,
+            pending.clone(),
+            in_flight.clone(),
+            run.clone(),
+        ));
         conns.push(Conn { tx, pending });
     }
     for i in 0u64.. {
@@ -265,7 +270,8 @@ async fn open_loop(run: &Arc<Run>, sockets: Vec<Socket>, rate_per_s: f64, max_in
     let now = Instant::now();
     for conn in &conns {
         for (_, intended) in lock(&conn.pending).drain() {
-            run.rec.record(intended, now, Outcome::Error("timeout".into()));
+            run.rec
+                .record(intended, now, Outcome::Error("timeout".into()));
         }
     }
     drop(conns);
@@ -316,7 +322,8 @@ async fn read(
     let lost: Vec<Instant> = lock(&pending).drain().map(|(_, t)| t).collect();
     in_flight.fetch_sub(lost.len(), Ordering::Relaxed);
     for intended in lost {
-        run.rec.record(intended, now, Outcome::Error("ws closed".into()));
+        run.rec
+            .record(intended, now, Outcome::Error("ws closed".into()));
     }
 }
 
@@ -334,7 +341,8 @@ async fn closed_loop(mut ws: Socket, run: Arc<Run>) {
         }
         let seq = sequence(run.next.fetch_add(1, Ordering::Relaxed));
         if ws.send(frame(seq, &run.frames)).await.is_err() {
-            run.rec.record(sent, Instant::now(), Outcome::Error("ws closed".into()));
+            run.rec
+                .record(sent, Instant::now(), Outcome::Error("ws closed".into()));
             break;
         }
         let outcome = match tokio::time::timeout(run.timeout, answer_for(&mut ws, seq)).await {

@@ -1,0 +1,525 @@
+//! `tre loadtest` against fake services (a raw TCP server with a fixed service time and one long
+//! stall; scripted answers) and against the real `tre serve`: coordinated-omission correction,
+//! outcome classification, client saturation, JSON round trip and compare, the CLI's files, and
+//! overload answered fast by the real service.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use tre::loadtest::{
+    report, run_on, FrameSource, Frames, Load, LoadConfig, Protocol, Report, Target,
+};
+
+/// The tests here measure time: one at a time, so that they do not load each other.
+fn serial() -> MutexGuard<'static, ()> {
+    static LOCK: Mutex<()> = Mutex::new(());
+    LOCK.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn block_on<F: std::future::Future>(f: F) -> F::Output {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime")
+        .block_on(f)
+}
+
+/// A tiny one-at-a-time HTTP service: each request holds the service for `service`, except the
+/// first one handled `stall_after` after the first request, which holds it for `stall`.
+/// `answer(n)` gives the status and body of request `n`.
+struct Fake {
+    service: Duration,
+    stall: Option<(Duration, Duration)>,
+    answer: fn(u64) -> (u16, &'static str),
+}
+
+struct FakeState {
+    first: Option<Instant>,
+    stalled: bool,
+    n: u64,
+}
+
+impl Fake {
+    fn start(self) -> SocketAddr {
+        let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+        let addr = listener.local_addr().expect("addr");
+        let fake = Arc::new(self);
+        let state = Arc::new(Mutex::new(FakeState {
+            first: None,
+            stalled: false,
+            n: 0,
+        }));
+        std::thread::Builder::new()
+            .name("fake-accept".into())
+            .spawn(move || {
+                for conn in listener.incoming().flatten() {
+                    let (fake, state) = (fake.clone(), state.clone());
+                    let _ = std::thread::Builder::new()
+                        .name("fake-conn".into())
+                        .spawn(move || fake.serve(conn, &state));
+                }
+            })
+            .expect("thread");
+        addr
+    }
+
+    /// Serves the keep-alive requests of one connection.
+    fn serve(&self, conn: TcpStream, state: &Mutex<FakeState>) {
+        let mut reader = BufReader::new(conn.try_clone().expect("clone"));
+        let mut conn = conn;
+        loop {
+            let mut length = 0usize;
+            let mut line = String::new();
+            let mut first_line = true;
+            loop {
+                line.clear();
+                match reader.read_line(&mut line) {
+                    Ok(0) | Err(_) => return,
+                    Ok(_) => {}
+                }
+                if line == "\r\n" && !first_line {
+                    break;
+                }
+                first_line = false;
+                let lower = line.to_ascii_lowercase();
+                if let Some(v) = lower.strip_prefix("content-length:") {
+                    length = v.trim().parse().expect("length");
+                }
+            }
+            let mut body = vec![0; length];
+            if reader.read_exact(&mut body).is_err() {
+                return;
+            }
+            let n = {
+                let mut s = state.lock().expect("state");
+                let first = *s.first.get_or_insert_with(Instant::now);
+                let hold = match self.stall {
+                    Some((after, stall)) if !s.stalled && first.elapsed() >= after => {
+                        s.stalled = true;
+                        stall
+                    }
+                    _ => self.service,
+                };
+                std::thread::sleep(hold);
+                s.n += 1;
+                s.n - 1
+            };
+            let (status, text) = (self.answer)(n);
+            let resp = format!(
+                "HTTP/1.1 {status} X\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{text}",
+                text.len()
+            );
+            if conn.write_all(resp.as_bytes()).is_err() {
+                return;
+            }
+        }
+    }
+}
+
+fn ok(_: u64) -> (u16, &'static str) {
+    (200, "ok")
+}
+
+fn frames() -> Frames {
+    Frames::from_bytes(vec![b"\x89PNG\r\n\x1a\nnot really".to_vec()], "fake PNG")
+}
+
+fn cfg(load: Load) -> LoadConfig {
+    LoadConfig {
+        load,
+        duration: Some(Duration::from_secs(2)),
+        timeout: Duration::from_secs(10),
+        ..LoadConfig::default()
+    }
+}
+
+#[test]
+fn open_loop_latency_includes_the_queueing_behind_a_stall_closed_loop_hides_it() {
+    let _serial = serial();
+    let fake = || Fake {
+        service: Duration::from_millis(5),
+        stall: Some((Duration::from_millis(700), Duration::from_millis(500))),
+        answer: ok,
+    };
+    let open = block_on(run_on(
+        &cfg(Load::Open { rate_per_s: 100.0 }),
+        &Target::at(fake().start()),
+        &frames(),
+    ))
+    .expect("open loop runs");
+    let naive = block_on(run_on(
+        &cfg(Load::Closed),
+        &Target::at(fake().start()),
+        &frames(),
+    ))
+    .expect("closed loop runs");
+    println!("open loop:\n{}", report::text(&open));
+    println!("closed loop:\n{}", report::text(&naive));
+    assert_eq!((open.errors, open.client_saturated), (0, 0));
+    assert!(open.ok >= 190, "{} results", open.ok);
+    // About 50 of the 200 requests were due during the 500 ms stall: each waited for it.
+    assert!(
+        open.latency_ms.p99_ms > 300.0,
+        "open p99 {}",
+        open.latency_ms.p99_ms
+    );
+    assert!(
+        open.latency_ms.p90_ms > 100.0,
+        "open p90 {}",
+        open.latency_ms.p90_ms
+    );
+    // The closed loop sent nothing while it waited: one slow sample among hundreds.
+    assert!(
+        naive.latency_ms.max_ms > 400.0,
+        "closed max {}",
+        naive.latency_ms.max_ms
+    );
+    assert!(
+        naive.latency_ms.p99_ms < 100.0,
+        "closed p99 {}",
+        naive.latency_ms.p99_ms
+    );
+}
+
+#[test]
+fn answers_are_counted_as_ok_refused_or_errors_by_code() {
+    let _serial = serial();
+    fn scripted(n: u64) -> (u16, &'static str) {
+        match n % 3 {
+            0 => (200, "png"),
+            1 => (
+                503,
+                r#"{"error":{"code":"overloaded","message":"queue full"}}"#,
+            ),
+            _ => (
+                422,
+                r#"{"error":{"code":"bad_image","message":"truncated"}}"#,
+            ),
+        }
+    }
+    let addr = Fake {
+        service: Duration::from_millis(1),
+        stall: None,
+        answer: scripted,
+    }
+    .start();
+    let c = LoadConfig {
+        requests: Some(9),
+        duration: None,
+        ..cfg(Load::Closed)
+    };
+    let r = block_on(run_on(&c, &Target::at(addr), &frames())).expect("runs");
+    assert_eq!((r.requests, r.ok, r.refused, r.errors), (9, 3, 3, 3));
+    assert_eq!(r.refused_by_code.get("overloaded"), Some(&3));
+    assert_eq!(r.errors_by_kind.get("http 422 bad_image"), Some(&3));
+    assert_eq!(r.refusal_latency_ms.count, 3);
+}
+
+#[test]
+fn beyond_max_in_flight_requests_count_as_client_saturated_not_late() {
+    let _serial = serial();
+    let addr = Fake {
+        service: Duration::from_millis(300),
+        stall: None,
+        answer: ok,
+    }
+    .start();
+    let c = LoadConfig {
+        max_in_flight: 2,
+        duration: Some(Duration::from_secs(1)),
+        ..cfg(Load::Open { rate_per_s: 40.0 })
+    };
+    let r = block_on(run_on(&c, &Target::at(addr), &frames())).expect("runs");
+    assert_eq!(r.requests, 40);
+    assert!(r.client_saturated >= 30, "{}", r.client_saturated);
+    assert!(r.ok >= 2 && r.ok + r.client_saturated == 40, "{r:?}");
+    assert!(report::text(&r).contains("client_saturated"));
+}
+
+#[test]
+fn a_connection_refused_is_an_error_kind_not_a_crash() {
+    let _serial = serial();
+    let addr = TcpListener::bind("127.0.0.1:0")
+        .expect("bind")
+        .local_addr()
+        .expect("addr");
+    let c = LoadConfig {
+        requests: Some(3),
+        duration: None,
+        ..cfg(Load::Closed)
+    };
+    let r = block_on(run_on(&c, &Target::at(addr), &frames())).expect("runs");
+    assert_eq!((r.errors, r.ok), (3, 0));
+    assert_eq!(r.errors_by_kind.get("connect"), Some(&3), "{r:?}");
+}
+
+#[test]
+fn the_json_report_round_trips_and_compares_equal_to_itself() {
+    let _serial = serial();
+    let addr = Fake {
+        service: Duration::from_millis(2),
+        stall: None,
+        answer: ok,
+    }
+    .start();
+    let c = LoadConfig {
+        duration: Some(Duration::from_millis(500)),
+        ..cfg(Load::Open { rate_per_s: 50.0 })
+    };
+    let r = block_on(run_on(&c, &Target::at(addr), &frames())).expect("runs");
+    let back = Report::from_json(&r.to_json()).expect("parses");
+    assert_eq!(
+        (
+            back.ok,
+            back.requests,
+            back.protocol,
+            back.offered_rate_per_s
+        ),
+        (r.ok, r.requests, Protocol::Http, Some(50.0))
+    );
+    assert_eq!(back.latency_ms.count, r.latency_ms.count);
+    assert!((back.latency_ms.p99_ms - r.latency_ms.p99_ms).abs() < 1e-9);
+    assert_eq!(back.samples.len(), r.samples.len());
+    assert_eq!(back.spectrum_ok.len(), r.spectrum_ok.len());
+    let cmp = report::compare(&r, &back);
+    for key in ["throughput ok/s", "p50 ms", "p99 ms", "p99.9 ms"] {
+        let row = cmp.lines().find(|l| l.starts_with(key)).expect("row");
+        assert!(row.ends_with("1.00×"), "{row}");
+    }
+}
+
+#[test]
+fn a_sweep_finds_the_knee_where_p99_leaves_the_objective() {
+    let _serial = serial();
+    let addr = Fake {
+        service: Duration::from_millis(10),
+        stall: None,
+        answer: ok,
+    }
+    .start();
+    let c = LoadConfig {
+        url: format!("http://localhost:{}", addr.port()),
+        duration: Some(Duration::from_millis(600)),
+        ..cfg(Load::Closed)
+    };
+    let mut seen = 0;
+    let sw = block_on(tre::loadtest::sweep(&c, &[300.0, 20.0], 50.0, |_| {
+        seen += 1
+    }))
+    .expect("sweep runs");
+    assert_eq!(seen, 2);
+    println!("{}", report::sweep_text(&sw));
+    let rates: Vec<_> = sw.rows.iter().map(|r| r.offered_rate_per_s).collect();
+    assert_eq!(rates, [Some(20.0), Some(300.0)], "ascending");
+    // 300/s is three times what a 10 ms one-at-a-time service can do: the queue grows.
+    assert_eq!(sw.knee.as_ref().map(|k| k.rate_per_s), Some(300.0));
+    assert_eq!(sw.sustained_rate_per_s, Some(20.0));
+    assert_eq!(sw.first_slo_breach_rate_per_s, Some(300.0));
+    assert_eq!(sw.first_refusal_rate_per_s, None);
+    let over = &sw.rows[1];
+    assert!(
+        over.throughput_ok_per_s < 150.0,
+        "the service does 100/s at most, not the offered 300/s: {}",
+        over.throughput_ok_per_s
+    );
+}
+
+fn tre() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_tre"))
+}
+
+#[test]
+fn the_cli_writes_json_and_svg_and_compares_with_an_earlier_run() {
+    let _serial = serial();
+    let addr = Fake {
+        service: Duration::from_millis(2),
+        stall: None,
+        answer: ok,
+    }
+    .start();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let json = dir.path().join("run.json");
+    let svg = dir.path().join("run.svg");
+    let frame = dir.path().join("f.png");
+    std::fs::write(&frame, b"\x89PNG\r\n\x1a\nfake").expect("write");
+    let url = format!("http://{addr}");
+    let out = tre()
+        .args(["loadtest", "--url", &url, "--rate", "20", "--duration", "1"])
+        .arg("--frame")
+        .arg(&frame)
+        .arg("--json")
+        .arg(&json)
+        .arg("--plot")
+        .arg(&svg)
+        .output()
+        .expect("runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("open loop at 20/s") && stdout.contains("p99.9"),
+        "{stdout}"
+    );
+    let plot = std::fs::read_to_string(&svg).expect("svg written");
+    assert!(plot.starts_with("<svg") && plot.contains("percentile (log scale of nines)"));
+    let out = tre()
+        .args(["loadtest", "--url", &url, "--requests", "5"])
+        .arg("--frame")
+        .arg(&frame)
+        .arg("--compare")
+        .arg(&json)
+        .output()
+        .expect("runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("compared with") && stdout.contains("new/old"),
+        "{stdout}"
+    );
+    let help = tre().args(["loadtest", "--help"]).output().expect("runs");
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(
+        help.contains("--allow-remote") && help.contains("loopback"),
+        "{help}"
+    );
+    let bad = tre()
+        .args(["loadtest", "--url", "https://127.0.0.1:1"])
+        .output()
+        .expect("runs");
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("TLS"));
+}
+
+/// `tre serve` on a free loopback port, killed on drop.
+struct Server {
+    child: Child,
+    url: String,
+}
+
+impl Server {
+    fn start(extra: &[&str]) -> Self {
+        let models = concat!(env!("CARGO_MANIFEST_DIR"), "/models");
+        let mut child = tre()
+            .args(["serve", "--addr", "127.0.0.1:0", "--models", models])
+            .args(extra)
+            .env("TRE_LOG", "warn")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("tre serve starts");
+        let stdout = child.stdout.take().expect("stdout");
+        let mut line = String::new();
+        BufReader::new(stdout)
+            .read_line(&mut line)
+            .expect("reads the address");
+        let url = line
+            .trim()
+            .strip_prefix("listening on ")
+            .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
+            .to_owned();
+        let server = Self { child, url };
+        server.wait_ready();
+        server
+    }
+
+    fn wait_ready(&self) {
+        let addr = self.url.trim_start_matches("http://");
+        let deadline = Instant::now() + Duration::from_secs(300);
+        while Instant::now() < deadline {
+            if let Ok(mut s) = TcpStream::connect(addr) {
+                let _ =
+                    s.write_all(b"GET /readyz HTTP/1.1\r\nHost: t\r\nConnection: close\r\n\r\n");
+                let mut resp = String::new();
+                let _ = s.read_to_string(&mut resp);
+                if resp.starts_with("HTTP/1.1 200") {
+                    return;
+                }
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        panic!("tre serve at {} not ready within 300 s", self.url);
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+#[test]
+fn the_real_service_refuses_excess_load_fast_and_streams_a_result_for_every_frame() {
+    let _serial = serial();
+    let server = Server::start(&["--workers", "1", "--queue", "1"]);
+    let frames = Frames::load(&FrameSource::default()).expect("synthetic frame");
+    let target = block_on(Target::resolve(&server.url, false)).expect("loopback target");
+    let http = LoadConfig {
+        load: Load::Open { rate_per_s: 40.0 },
+        duration: Some(Duration::from_secs(3)),
+        warmup: Duration::from_millis(500),
+        timeout: Duration::from_secs(30),
+        ..LoadConfig::default()
+    };
+    let r = block_on(run_on(&http, &target, &frames)).expect("http load runs");
+    println!("{}", report::text(&r));
+    assert!(r.ok > 0, "some requests succeed");
+    assert!(r.refused > r.ok, "most of 40/s is beyond one worker: {r:?}");
+    assert_eq!(
+        (r.errors, r.client_saturated),
+        (0, 0),
+        "{:?}",
+        r.errors_by_kind
+    );
+    assert!(
+        r.refused_by_code
+            .keys()
+            .all(|c| c == "overloaded" || c == "too_many_requests"),
+        "{:?}",
+        r.refused_by_code
+    );
+    let refusal_p99 = r.refusal_latency_ms.p99_ms;
+    assert!(refusal_p99 < 50.0, "refusals take {refusal_p99} ms at p99");
+    assert!(
+        refusal_p99 < r.latency_ms.p50_ms,
+        "refusals ({refusal_p99} ms) should come back well before results ({} ms)",
+        r.latency_ms.p50_ms
+    );
+    let ws = LoadConfig {
+        protocol: Protocol::Ws,
+        load: Load::Closed,
+        connections: 1,
+        requests: Some(4),
+        duration: None,
+        timeout: Duration::from_secs(30),
+        ..LoadConfig::default()
+    };
+    let r = block_on(run_on(&ws, &target, &frames)).expect("ws load runs");
+    println!("{}", report::text(&r));
+    assert_eq!((r.requests, r.ok), (4, 4), "{r:?}");
+    assert_eq!((r.dropped, r.refused, r.errors), (0, 0, 0));
+    // Open loop on one stream, faster than one worker: the latest frame wins, the rest are
+    // reported dropped, and every frame is answered one way or the other.
+    let ws_open = LoadConfig {
+        load: Load::Open { rate_per_s: 20.0 },
+        duration: Some(Duration::from_secs(1)),
+        requests: None,
+        ..ws
+    };
+    let r = block_on(run_on(&ws_open, &target, &frames)).expect("ws open loop runs");
+    println!("{}", report::text(&r));
+    assert!(r.ok > 0 && r.dropped > 0, "{r:?}");
+    assert_eq!(r.errors + r.client_saturated, 0, "{:?}", r.errors_by_kind);
+    assert_eq!(r.ok + r.dropped + r.refused, r.requests);
+}
