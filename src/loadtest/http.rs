@@ -74,6 +74,7 @@ pub(super) async fn drive(
         connections: cfg.connections,
         max_in_flight: cfg.max_in_flight,
         warmup_s: cfg.warmup.as_secs_f64(),
+        window_start_unix_s: shared.plan.window_start_unix_s(),
     };
     Ok(shared.rec.report(info, window_s))
 }

@@ -62,6 +62,17 @@ impl Plan {
         Some(true)
     }
 
+    /// Start of the measured window, seconds since the Unix epoch (to line runs up with other
+    /// records of the machine).
+    pub fn window_start_unix_s(&self) -> f64 {
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        let ahead = self.measure_from.saturating_duration_since(Instant::now());
+        let behind = Instant::now().saturating_duration_since(self.measure_from);
+        now + ahead.as_secs_f64() - behind.as_secs_f64()
+    }
+
     /// Measured requests admitted.
     pub fn measured(&self) -> u64 {
         self.measured.load(Ordering::Relaxed)

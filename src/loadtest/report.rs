@@ -30,6 +30,13 @@ pub struct SweepReport {
     pub sustained_rate_per_s: Option<f64>,
     /// Results per second achieved at that rate.
     pub sustained_ok_per_s: Option<f64>,
+    /// The highest rate before the first refusal, error or saturated client, whatever its
+    /// latency: the most the service took without turning anything away.
+    #[serde(default)]
+    pub clean_rate_per_s: Option<f64>,
+    /// p99 of results at that rate, milliseconds.
+    #[serde(default)]
+    pub clean_p99_ms: Option<f64>,
     /// The first rate at which the service refused requests.
     pub first_refusal_rate_per_s: Option<f64>,
     /// The first rate whose p99 exceeded the objective.
@@ -50,9 +57,17 @@ impl SweepReport {
             Some(i) => Some(&rows[i - 1]),
             None => rows.last(),
         };
+        let dirty = |r: &Report| r.refused + r.errors + r.client_saturated > 0 || r.ok == 0;
+        let clean = match rows.iter().position(dirty) {
+            Some(0) => None,
+            Some(i) => Some(&rows[i - 1]),
+            None => rows.last(),
+        };
         Self {
             slo_ms,
             knee,
+            clean_rate_per_s: clean.map(rate),
+            clean_p99_ms: clean.map(|r| r.latency_ms.p99_ms),
             sustained_rate_per_s: below.map(rate),
             sustained_ok_per_s: below.map(|r| r.throughput_ok_per_s),
             first_refusal_rate_per_s: rows.iter().find(|r| r.refused > 0).map(rate),
@@ -262,6 +277,13 @@ pub fn sweep_summary(sw: &SweepReport) -> String {
             let _ = writeln!(s, "sustained: none of the rates met p99 ≤ {slo} ms cleanly");
         }
     }
+    if let (Some(rate), Some(p99)) = (sw.clean_rate_per_s, sw.clean_p99_ms) {
+        let _ = writeln!(
+            s,
+            "clean (no refusal or error) up to: {}/s, p99 {p99:.1} ms",
+            fmt_rate(rate)
+        );
+    }
     let at = |r: Option<f64>| r.map_or_else(|| "none".into(), |v| format!("{}/s", fmt_rate(v)));
     let _ = writeln!(
         s,
@@ -362,6 +384,7 @@ pub(crate) mod tests {
             connections: 1,
             max_in_flight: 256,
             warmup_s: 0.0,
+            window_start_unix_s: 0.0,
             window_s: 10.0,
             answered_s: 10.0,
             requests: ok + refused,
@@ -400,6 +423,8 @@ pub(crate) mod tests {
         assert_eq!(sw.sustained_rate_per_s, Some(6.0));
         assert_eq!(sw.first_refusal_rate_per_s, Some(10.0));
         assert_eq!(sw.first_slo_breach_rate_per_s, Some(8.0));
+        assert_eq!(sw.clean_rate_per_s, Some(8.0));
+        assert!(sw.clean_p99_ms.is_some_and(|p| (p - 200.0).abs() < 1.0));
         let text = sweep_text(&sw);
         assert!(text.contains("knee: 8/s"), "{text}");
         assert!(text.contains("first refusals at: 10/s"), "{text}");

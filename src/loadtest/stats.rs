@@ -250,6 +250,7 @@ impl Recorder {
             connections: meta.connections,
             max_in_flight: meta.max_in_flight,
             warmup_s: meta.warmup_s,
+            window_start_unix_s: meta.window_start_unix_s,
             window_s,
             requests: ok + refused + t.dropped + errors + t.client_saturated,
             ok,
@@ -312,6 +313,8 @@ pub struct RunInfo {
     pub max_in_flight: usize,
     /// Warm-up, seconds.
     pub warmup_s: f64,
+    /// Start of the measured window, seconds since the Unix epoch.
+    pub window_start_unix_s: f64,
 }
 
 /// The result of one run: what was offered, what came back and how fast.
@@ -333,6 +336,9 @@ pub struct Report {
     pub max_in_flight: usize,
     /// Warm-up before the measured window, seconds (not in any number below).
     pub warmup_s: f64,
+    /// Start of the measured window, seconds since the Unix epoch.
+    #[serde(default)]
+    pub window_start_unix_s: f64,
     /// Measured window, seconds (open loop: the span of intended send times).
     pub window_s: f64,
     /// Requests due in the window (every outcome, `client_saturated` included).
@@ -468,6 +474,7 @@ mod tests {
             connections: 1,
             max_in_flight: 1,
             warmup_s: 1.0,
+            window_start_unix_s: 0.0,
         };
         let r = rec.report(info, 2.0);
         assert_eq!(
@@ -506,6 +513,7 @@ mod tests {
             connections: 1,
             max_in_flight: 1,
             warmup_s: 0.0,
+            window_start_unix_s: 0.0,
         };
         let r = rec.report(info, 1.0);
         assert!(r.samples.len() < MAX_SAMPLES && r.samples.len() > MAX_SAMPLES / 4);

@@ -218,7 +218,7 @@ fn draw_series(out: &mut String, s: &Series, px: &dyn Fn(f64) -> f64, py: &dyn F
         );
     }
     if matches!(s.style, Style::Dots | Style::LineDots) || pts.len() == 1 {
-        let r = if s.style == Style::Dots { 1.8 } else { 3.0 };
+        let r = if s.style == Style::Dots { 2.4 } else { 3.2 };
         let _ = writeln!(out, r#"<g fill="{}" fill-opacity="0.7">"#, s.colour);
         for (x, y) in &pts {
             let _ = writeln!(out, r#"<circle cx="{x:.1}" cy="{y:.1}" r="{r}"/>"#);

@@ -190,6 +190,7 @@ pub(super) async fn drive(
         connections: cfg.connections,
         max_in_flight: cfg.max_in_flight,
         warmup_s: cfg.warmup.as_secs_f64(),
+        window_start_unix_s: run.plan.window_start_unix_s(),
     };
     Ok(run.rec.report(info, window_s))
 }
