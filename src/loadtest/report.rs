@@ -37,6 +37,10 @@ pub struct SweepReport {
     /// p99 of results at that rate, milliseconds.
     #[serde(default)]
     pub clean_p99_ms: Option<f64>,
+    /// Every rate that was clean and had p99 within the objective (whether or not a lower
+    /// rate broke it: near the service time, p99 is noisy).
+    #[serde(default)]
+    pub within_slo_rates_per_s: Vec<f64>,
     /// The first rate at which the service refused requests.
     pub first_refusal_rate_per_s: Option<f64>,
     /// The first rate whose p99 exceeded the objective.
@@ -66,6 +70,11 @@ impl SweepReport {
         Self {
             slo_ms,
             knee,
+            within_slo_rates_per_s: rows
+                .iter()
+                .filter(|r| breaches(r, slo_ms).is_empty())
+                .map(rate)
+                .collect(),
             clean_rate_per_s: clean.map(rate),
             clean_p99_ms: clean.map(|r| r.latency_ms.p99_ms),
             sustained_rate_per_s: below.map(rate),
@@ -277,6 +286,20 @@ pub fn sweep_summary(sw: &SweepReport) -> String {
             let _ = writeln!(s, "sustained: none of the rates met p99 ≤ {slo} ms cleanly");
         }
     }
+    let within: Vec<String> = sw
+        .within_slo_rates_per_s
+        .iter()
+        .map(|r| format!("{}/s", fmt_rate(*r)))
+        .collect();
+    let _ = writeln!(
+        s,
+        "rates with p99 ≤ {slo} ms and nothing refused: {}",
+        if within.is_empty() {
+            "none".into()
+        } else {
+            within.join(", ")
+        }
+    );
     if let (Some(rate), Some(p99)) = (sw.clean_rate_per_s, sw.clean_p99_ms) {
         let _ = writeln!(
             s,
@@ -424,8 +447,10 @@ pub(crate) mod tests {
         assert_eq!(sw.first_refusal_rate_per_s, Some(10.0));
         assert_eq!(sw.first_slo_breach_rate_per_s, Some(8.0));
         assert_eq!(sw.clean_rate_per_s, Some(8.0));
+        assert_eq!(sw.within_slo_rates_per_s, [4.0, 6.0]);
         assert!(sw.clean_p99_ms.is_some_and(|p| (p - 200.0).abs() < 1.0));
         let text = sweep_text(&sw);
+        assert!(text.contains("nothing refused: 4/s, 6/s"), "{text}");
         assert!(text.contains("knee: 8/s"), "{text}");
         assert!(text.contains("first refusals at: 10/s"), "{text}");
         let clean = SweepReport::new(vec![report(4.0, 40, 100, 0)], 150.0);
