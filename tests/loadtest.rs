@@ -3,9 +3,11 @@
 //! outcome classification, client saturation, JSON round trip and compare, the CLI's files, and
 //! overload answered fast by the real service.
 
+mod common;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -401,70 +403,12 @@ fn the_cli_writes_json_and_svg_and_compares_with_an_earlier_run() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("TLS"));
 }
 
-/// `tre serve` on a free loopback port, killed on drop.
-struct Server {
-    child: Child,
-    url: String,
-}
-
-impl Server {
-    fn start(extra: &[&str]) -> Self {
-        let models = concat!(env!("CARGO_MANIFEST_DIR"), "/models");
-        let mut child = tre()
-            .args(["serve", "--addr", "127.0.0.1:0", "--models", models])
-            .args(extra)
-            .env("TRE_LOG", "warn")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("tre serve starts");
-        let stdout = child.stdout.take().expect("stdout");
-        let mut line = String::new();
-        BufReader::new(stdout)
-            .read_line(&mut line)
-            .expect("reads the address");
-        let url = line
-            .trim()
-            .strip_prefix("listening on ")
-            .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
-            .to_owned();
-        let server = Self { child, url };
-        server.wait_ready();
-        server
-    }
-
-    fn wait_ready(&self) {
-        let addr = self.url.trim_start_matches("http://");
-        let deadline = Instant::now() + Duration::from_secs(300);
-        while Instant::now() < deadline {
-            if let Ok(mut s) = TcpStream::connect(addr) {
-                let _ =
-                    s.write_all(b"GET /readyz HTTP/1.1\r\nHost: t\r\nConnection: close\r\n\r\n");
-                let mut resp = String::new();
-                let _ = s.read_to_string(&mut resp);
-                if resp.starts_with("HTTP/1.1 200") {
-                    return;
-                }
-            }
-            std::thread::sleep(Duration::from_millis(200));
-        }
-        panic!("tre serve at {} not ready within 300 s", self.url);
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
 #[test]
 fn the_real_service_refuses_excess_load_fast_and_streams_a_result_for_every_frame() {
     let _serial = serial();
-    let server = Server::start(&["--workers", "1", "--queue", "1"]);
+    let server = common::Server::start(&["--workers", "1", "--queue", "1"]);
     let frames = Frames::load(&FrameSource::default()).expect("synthetic frame");
-    let target = block_on(Target::resolve(&server.url, false)).expect("loopback target");
+    let target = block_on(Target::resolve(&server.url(), false)).expect("loopback target");
     let http = LoadConfig {
         load: Load::Open { rate_per_s: 40.0 },
         duration: Some(Duration::from_secs(3)),
