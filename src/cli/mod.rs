@@ -45,6 +45,13 @@ pub enum Command {
     /// write the roughness maps that come back.
     Client(client::Client),
     /// Load a running `tre serve` over HTTP or WebSocket and report throughput and latency.
+    ///
+    /// Open loop (`--rate`): requests at constant intended times, latency counted from the
+    /// intended time (coordinated omission corrected). Closed loop (no `--rate`):
+    /// `--connections` clients that each wait for their answer. `--sweep` runs several rates
+    /// and finds the knee. Safety: only loopback addresses are loaded unless you write the
+    /// address yourself in `--url`; a host name that resolves to a non-loopback address is
+    /// refused unless `--allow-remote` is given.
     Loadtest(loadtest::Loadtest),
 }
 

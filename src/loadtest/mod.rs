@@ -182,20 +182,20 @@ pub enum LoadError {
         addrs: String,
     },
     /// The host name does not resolve.
-    #[error("cannot resolve {host}: {source}")]
+    #[error("cannot resolve {host}: {error}")]
     Resolve {
         /// The host name.
         host: String,
         /// Why.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// No address of the target accepts connections.
-    #[error("cannot connect to {addrs}: {source}")]
+    #[error("cannot connect to {addrs}: {error}")]
     Connect {
         /// The addresses tried.
         addrs: String,
         /// The last failure.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A frame file cannot be read or is not a PNG or JPEG.
     #[error("frame {path}: {why}")]

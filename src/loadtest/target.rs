@@ -68,6 +68,22 @@ pub fn all_loopback(addrs: &[SocketAddr]) -> bool {
     !addrs.is_empty() && addrs.iter().all(|a| a.ip().is_loopback())
 }
 
+/// The safety rule for a host name: every address it resolves to must be loopback, unless
+/// `allow_remote`.
+pub fn check_resolved(
+    host: &str,
+    addrs: &[SocketAddr],
+    allow_remote: bool,
+) -> Result<(), LoadError> {
+    if allow_remote || all_loopback(addrs) {
+        return Ok(());
+    }
+    Err(LoadError::Remote {
+        host: host.into(),
+        addrs: list(addrs),
+    })
+}
+
 impl Target {
     /// Parses `url`, resolves its host and connects once to check that something listens.
     /// A host name that resolves to any non-loopback address is refused unless
@@ -79,17 +95,12 @@ impl Target {
             HostKind::Name(name) => {
                 let addrs: Vec<SocketAddr> = tokio::net::lookup_host((name.as_str(), port))
                     .await
-                    .map_err(|source| LoadError::Resolve {
+                    .map_err(|error| LoadError::Resolve {
                         host: name.clone(),
-                        source,
+                        error,
                     })?
                     .collect();
-                if !allow_remote && !all_loopback(&addrs) {
-                    return Err(LoadError::Remote {
-                        host: name,
-                        addrs: list(&addrs),
-                    });
-                }
+                check_resolved(&name, &addrs, allow_remote)?;
                 (name, addrs)
             }
         };
@@ -154,7 +165,7 @@ async fn first_listening(addrs: &[SocketAddr]) -> Result<SocketAddr, LoadError> 
     }
     Err(LoadError::Connect {
         addrs: list(addrs),
-        source: last,
+        error: last,
     })
 }
 
@@ -188,6 +199,15 @@ mod tests {
         assert!(all_loopback(&[a("127.0.0.1:1"), a("[::1]:1")]));
         assert!(!all_loopback(&[a("127.0.0.1:1"), a("10.0.0.1:1")]));
         assert!(!all_loopback(&[]));
+        let remote = [a("127.0.0.1:80"), a("203.0.113.7:80")];
+        let e = check_resolved("robots.example", &remote, false).expect_err("refused");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("203.0.113.7:80") && msg.contains("--allow-remote"),
+            "{msg}"
+        );
+        assert!(check_resolved("robots.example", &remote, true).is_ok());
+        assert!(check_resolved("localhost", &[a("[::1]:80")], false).is_ok());
     }
 
     #[tokio::test]
