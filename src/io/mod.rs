@@ -150,15 +150,7 @@ pub fn read_depth(path: &Path, units_per_m: f64) -> Result<Grid<f64>, IoError> {
         return read_npy_grid(path);
     }
     match read_image(path)? {
-        DynamicImage::ImageLuma16(img) => {
-            let (w, h) = (img.width() as usize, img.height() as usize);
-            let data = img
-                .into_raw()
-                .into_iter()
-                .map(|v| f64::from(v) / units_per_m)
-                .collect();
-            Ok(Grid::from_vec(w, h, data).expect("decoder sizes agree; this is a bug"))
-        }
+        DynamicImage::ImageLuma16(img) => Ok(depth_from_luma16(img, units_per_m)),
         other => Err(IoError::ImageKind {
             path: path.to_owned(),
             reason: format!(
@@ -167,6 +159,20 @@ pub fn read_depth(path: &Path, units_per_m: f64) -> Result<Grid<f64>, IoError> {
             ),
         }),
     }
+}
+
+/// Depth in metres from a decoded 16-bit grey image at `units_per_m` (0 = no data).
+pub fn depth_from_luma16(
+    img: ImageBuffer<image::Luma<u16>, Vec<u16>>,
+    units_per_m: f64,
+) -> Grid<f64> {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let data = img
+        .into_raw()
+        .into_iter()
+        .map(|v| f64::from(v) / units_per_m)
+        .collect();
+    Grid::from_vec(w, h, data).expect("decoder sizes agree; this is a bug")
 }
 
 /// Reads labels: an 8- or 16-bit grey PNG or an integer `.npy` (0 = void).

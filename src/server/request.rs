@@ -209,15 +209,7 @@ pub fn decode_depth(
         return Grid::from_vec(w, h, a.data).map_err(|e| bad(e.to_string()));
     }
     match decode_image("depth", bytes, limits)? {
-        DynamicImage::ImageLuma16(img) => {
-            let (w, h) = (img.width() as usize, img.height() as usize);
-            let data = img
-                .into_raw()
-                .into_iter()
-                .map(|v| f64::from(v) / units_per_m)
-                .collect();
-            Grid::from_vec(w, h, data).map_err(|e| bad(e.to_string()))
-        }
+        DynamicImage::ImageLuma16(img) => Ok(io::depth_from_luma16(img, units_per_m)),
         other => Err(bad(format!(
             "must be a 16-bit grey PNG or a float .npy, got {:?}",
             other.color()
