@@ -332,3 +332,42 @@ async fn run(ws: &mut Ws, image: &[u8], from: u64, to: u64) {
         }
     }
 }
+
+#[test]
+fn streams_over_the_limit_are_refused_at_once() {
+    let server = Server::start(&["--workers", "1", "--max-streams", "1"]);
+    rt().block_on(async {
+        let mut first = connect(&server).await;
+        handshake(&mut first, pb::Format::Png16, pb::Mode::Rgb).await;
+        let url = format!("ws://{}/v1/stream", server.addr);
+        match tokio_tungstenite::connect_async(url.clone()).await {
+            Err(tokio_tungstenite::tungstenite::Error::Http(resp)) => {
+                assert_eq!(resp.status().as_u16(), 429);
+                assert_eq!(resp.headers()["retry-after"], "1");
+                let body: serde_json::Value =
+                    serde_json::from_slice(resp.body().as_deref().unwrap()).unwrap();
+                assert_eq!(body["error"]["code"], "too_many_requests");
+            }
+            other => panic!("expected a 429, got {:?}", other.map(|_| ())),
+        }
+        // Once the first stream closes, a new one is accepted.
+        first.close(None).await.unwrap();
+        while first.next().await.is_some() {}
+        let mut accepted = None;
+        for _ in 0..50 {
+            if let Ok((ws, _)) = tokio_tungstenite::connect_async(url.clone()).await {
+                accepted = Some(ws);
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        handshake(
+            accepted
+                .as_mut()
+                .expect("no stream accepted after the first closed"),
+            pb::Format::Png16,
+            pb::Mode::Rgb,
+        )
+        .await;
+    });
+}

@@ -68,6 +68,9 @@ pub struct Serve {
     /// see the README's accuracy and speed tables). Requests override it with `normals=`.
     #[arg(long, env = "TRE_NORMALS", value_enum, default_value = "dsac")]
     pub normals: NormalsArg,
+    /// WebSocket streams open at once; beyond, the upgrade gets 429 at once.
+    #[arg(long, env = "TRE_MAX_STREAMS", default_value_t = 64)]
+    pub max_streams: usize,
     /// Seconds in-flight work may take to finish after SIGTERM or Ctrl-C.
     #[arg(long, env = "TRE_SHUTDOWN_GRACE_S", default_value_t = 30)]
     pub shutdown_grace_s: u64,
@@ -91,8 +94,9 @@ impl Serve {
             || self.max_pixels == 0
             || self.max_concurrent == 0
             || self.ws_max_message_bytes == 0
+            || self.max_streams == 0
         {
-            bail!("--max-body-bytes, --max-pixels, --max-concurrent and --ws-max-message-bytes must be positive");
+            bail!("--max-body-bytes, --max-pixels, --max-concurrent, --ws-max-message-bytes and --max-streams must be positive");
         }
         Ok(ServeConfig {
             addr: self.addr,
@@ -113,6 +117,7 @@ impl Serve {
             max_concurrent: self.max_concurrent,
             request_timeout: Duration::from_millis(self.request_timeout_ms.max(1)),
             ws_max_message_bytes: self.ws_max_message_bytes,
+            max_streams: self.max_streams,
             shutdown_grace: Duration::from_secs(self.shutdown_grace_s),
             normals: match self.normals {
                 NormalsArg::Dsac => NormalsMethod::Dsac,

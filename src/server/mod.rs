@@ -60,6 +60,8 @@ pub struct ServeConfig {
     pub request_timeout: Duration,
     /// Largest WebSocket message, bytes.
     pub ws_max_message_bytes: usize,
+    /// WebSocket streams open at once; more get 429.
+    pub max_streams: usize,
     /// Time in-flight work may take to finish after SIGTERM.
     pub shutdown_grace: Duration,
     /// Initial normals of frames that do not choose (DSAC: the paper's method).
@@ -83,6 +85,7 @@ impl Default for ServeConfig {
             max_concurrent: 64,
             request_timeout: Duration::from_secs(30),
             ws_max_message_bytes: 16 << 20,
+            max_streams: 64,
             shutdown_grace: Duration::from_secs(30),
             normals: NormalsMethod::Dsac,
         }
@@ -100,6 +103,8 @@ pub struct AppState {
     pub metrics: Arc<Metrics>,
     /// Permits for concurrent HTTP requests.
     pub concurrency: Arc<Semaphore>,
+    /// Permits for open streams.
+    pub streams: Arc<Semaphore>,
     /// The manifest, as served by `/v1/models`.
     pub manifest_json: String,
     /// Model names, for the stream's Ready.
@@ -165,6 +170,7 @@ pub async fn serve(
     let (stop_tx, stop_rx) = watch::channel(false);
     let state = Arc::new(AppState {
         concurrency: Arc::new(Semaphore::new(cfg.max_concurrent)),
+        streams: Arc::new(Semaphore::new(cfg.max_streams)),
         cfg: cfg.clone(),
         workers,
         metrics,

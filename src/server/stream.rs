@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
 use axum::extract::State;
-use axum::response::Response;
+use axum::response::{IntoResponse, Response};
 use tokio::sync::oneshot;
 
 use super::error::{ApiError, ErrorCode};
@@ -24,8 +24,17 @@ const IDLE_LIMIT: Duration = Duration::from_secs(60);
 /// error and the stream goes on; larger ones close the connection (1009).
 const HARD_LIMIT_FACTOR: usize = 4;
 
-/// Upgrades the connection.
+/// Upgrades the connection, unless `--max-streams` are open already (429 at once).
 pub async fn stream(State(app): State<Arc<AppState>>, ws: WebSocketUpgrade) -> Response {
+    let Ok(permit) = app.streams.clone().try_acquire_owned() else {
+        app.metrics
+            .request("stream", ErrorCode::TooManyRequests.as_str(), None);
+        let why = format!(
+            "{} streams are open, the limit; retry later",
+            app.cfg.max_streams
+        );
+        return ApiError::new(ErrorCode::TooManyRequests, why).into_response();
+    };
     let hard = app
         .cfg
         .ws_max_message_bytes
@@ -36,7 +45,16 @@ pub async fn stream(State(app): State<Arc<AppState>>, ws: WebSocketUpgrade) -> R
             app.metrics.stream_open(true);
             Connection::new(app.clone(), socket).run().await;
             app.metrics.stream_open(false);
+            drop(permit);
         })
+}
+
+/// Whether a read failed because the message was over the hard size limit.
+fn is_too_big(e: axum::Error) -> bool {
+    use tokio_tungstenite::tungstenite::Error as WsError;
+    e.into_inner()
+        .downcast_ref::<WsError>()
+        .is_some_and(|e| matches!(e, WsError::Capacity(_)))
 }
 
 /// A frame being run by a worker.
@@ -99,9 +117,7 @@ impl Connection {
                 }
                 Event::Message(Some(Err(e))) => {
                     tracing::debug!(error = %e, "stream read failed; closing");
-                    if e.to_string().to_ascii_lowercase().contains("too long")
-                        || e.to_string().to_ascii_lowercase().contains("size")
-                    {
+                    if is_too_big(e) {
                         self.close(1009, "message too big").await;
                     }
                     false
