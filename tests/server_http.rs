@@ -441,7 +441,18 @@ fn operational_endpoints() {
     ] {
         assert!(text.contains(name), "{name} missing from /metrics");
     }
-    assert_eq!(get(server.addr, "/nope").0, 404);
+    let (s, body) = get(server.addr, "/nope");
+    assert_eq!(s, 404);
+    let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(v["error"]["code"], "not_found");
+    let (s, body) = get(server.addr, "/v1/roughness");
+    assert_eq!(s, 405);
+    let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(v["error"]["code"], "method_not_allowed");
+    let (s, body) = get(server.addr, "/v1/stream");
+    assert_eq!(s, 400, "a plain GET of the stream");
+    let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(v["error"]["code"], "bad_request");
 }
 
 #[test]

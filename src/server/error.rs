@@ -11,8 +11,12 @@ use crate::pipeline::PipelineError;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ErrorCode {
-    /// Malformed request: query, multipart, missing part (400).
+    /// Malformed request: query, multipart, missing part, not a WebSocket upgrade (400).
     BadRequest,
+    /// No such route (404).
+    NotFound,
+    /// A route that exists, with another method (405).
+    MethodNotAllowed,
     /// Body or WebSocket message larger than the limit, or an image with too many pixels (413).
     TooLarge,
     /// Not a PNG or JPEG (415).
@@ -42,6 +46,8 @@ impl ErrorCode {
     pub fn status(self) -> StatusCode {
         match self {
             Self::BadRequest => StatusCode::BAD_REQUEST,
+            Self::NotFound => StatusCode::NOT_FOUND,
+            Self::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
             Self::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             Self::UnsupportedMedia => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             Self::BadImage | Self::BadDepth | Self::BadCamera | Self::BadInput => {
@@ -57,6 +63,8 @@ impl ErrorCode {
     pub fn as_str(self) -> &'static str {
         match self {
             Self::BadRequest => "bad_request",
+            Self::NotFound => "not_found",
+            Self::MethodNotAllowed => "method_not_allowed",
             Self::TooLarge => "too_large",
             Self::UnsupportedMedia => "unsupported_media",
             Self::BadImage => "bad_image",
@@ -80,8 +88,10 @@ impl ErrorCode {
     }
 
     /// Every code, for metrics and documentation.
-    pub const ALL: [ErrorCode; 12] = [
+    pub const ALL: [ErrorCode; 14] = [
         Self::BadRequest,
+        Self::NotFound,
+        Self::MethodNotAllowed,
         Self::TooLarge,
         Self::UnsupportedMedia,
         Self::BadImage,

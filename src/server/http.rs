@@ -345,6 +345,21 @@ fn reply_response(reply: FrameReply) -> Response {
     (StatusCode::OK, headers, body).into_response()
 }
 
+/// Any other path: a JSON 404.
+pub async fn not_found(uri: axum::http::Uri) -> Response {
+    let why = format!("no route {}; see /openapi.json", uri.path());
+    ApiError::new(ErrorCode::NotFound, why).into_response()
+}
+
+/// A known path with another method: a JSON 405.
+pub async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) -> Response {
+    let why = format!(
+        "{method} is not allowed on {}; see /openapi.json",
+        uri.path()
+    );
+    ApiError::new(ErrorCode::MethodNotAllowed, why).into_response()
+}
+
 /// `GET /healthz`: the process is up.
 pub async fn healthz() -> impl IntoResponse {
     (

@@ -138,6 +138,8 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/v1/models", get(http::models))
         .route("/v1/roughness", post(http::roughness))
         .route("/v1/stream", get(stream::stream))
+        .fallback(http::not_found)
+        .method_not_allowed_fallback(http::method_not_allowed)
         .layer(DefaultBodyLimit::disable())
         .with_state(state)
 }

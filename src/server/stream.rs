@@ -6,6 +6,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
 use axum::extract::State;
 use axum::response::{IntoResponse, Response};
@@ -25,7 +26,17 @@ const IDLE_LIMIT: Duration = Duration::from_secs(60);
 const HARD_LIMIT_FACTOR: usize = 4;
 
 /// Upgrades the connection, unless `--max-streams` are open already (429 at once).
-pub async fn stream(State(app): State<Arc<AppState>>, ws: WebSocketUpgrade) -> Response {
+pub async fn stream(
+    State(app): State<Arc<AppState>>,
+    ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
+) -> Response {
+    let ws = match ws {
+        Ok(ws) => ws,
+        Err(e) => {
+            let why = format!("/v1/stream is a WebSocket: {}", e.body_text());
+            return ApiError::new(ErrorCode::BadRequest, why).into_response();
+        }
+    };
     let Ok(permit) = app.streams.clone().try_acquire_owned() else {
         app.metrics
             .request("stream", ErrorCode::TooManyRequests.as_str(), None);
