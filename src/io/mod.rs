@@ -227,13 +227,17 @@ fn is_npy(path: &Path) -> bool {
 }
 
 fn read_npy_grid(path: &Path) -> Result<Grid<f64>, IoError> {
-    let a = npy::read_npy(BufReader::new(open(path)?))?;
+    npy_grid(npy::read_npy(BufReader::new(open(path)?))?)
+        .map_err(|why| IoError::Npy(format!("{}: {why}", path.display())))
+}
+
+/// A 2-D `(H, W)` array as a grid; for any other shape, why not.
+pub fn npy_grid(a: npy::NpyArray) -> Result<Grid<f64>, String> {
     let [h, w] = a.shape[..] else {
-        return Err(IoError::Npy(format!(
-            "{}: expected a 2-D array (H, W), got shape {:?}",
-            path.display(),
+        return Err(format!(
+            "expected a 2-D array (H, W), got shape {:?}",
             a.shape
-        )));
+        ));
     };
     Ok(Grid::from_vec(w, h, a.data).expect("shape checked; this is a bug"))
 }

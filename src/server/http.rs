@@ -210,8 +210,7 @@ async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiErro
     let (parts, body) = req.into_parts();
     let bytes = to_bytes(body, limit).await.map_err(|e| {
         let too_large = std::error::Error::source(&e)
-            .is_some_and(|s| s.is::<http_body_util::LengthLimitError>())
-            || e.to_string().contains("length limit");
+            .is_some_and(|s| s.is::<http_body_util::LengthLimitError>());
         if too_large {
             ApiError::new(
                 ErrorCode::TooLarge,

@@ -155,7 +155,7 @@ pub async fn serve(
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> Result<(), ServeError> {
     let manifest = Manifest::read(&cfg.models)?;
-    let manifest_json = std::fs::read_to_string(cfg.models.join("manifest.json"))?;
+    let manifest_json = serde_json::to_string_pretty(&manifest).map_err(std::io::Error::other)?;
     let model_names = manifest.models.keys().cloned().collect();
     let metrics = Arc::new(Metrics::default());
     let pool = PoolConfig {

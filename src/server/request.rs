@@ -190,13 +190,9 @@ pub fn decode_depth(
 ) -> Result<Grid<f64>, ApiError> {
     let bad = |m: String| ApiError::new(ErrorCode::BadDepth, format!("depth: {m}"));
     if bytes.starts_with(b"\x93NUMPY") {
-        let a = io::npy::read_npy(Cursor::new(bytes)).map_err(|e| bad(e.to_string()))?;
-        let [h, w] = a.shape[..] else {
-            return Err(bad(format!(
-                "expected a 2-D array (H, W), got shape {:?}",
-                a.shape
-            )));
-        };
+        let array = io::npy::read_npy(Cursor::new(bytes)).map_err(|e| bad(e.to_string()))?;
+        let grid = io::npy_grid(array).map_err(bad)?;
+        let (w, h) = grid.size();
         if w * h > limits.max_pixels {
             return Err(ApiError::new(
                 ErrorCode::TooLarge,
@@ -206,7 +202,7 @@ pub fn decode_depth(
                 ),
             ));
         }
-        return Grid::from_vec(w, h, a.data).map_err(|e| bad(e.to_string()));
+        return Ok(grid);
     }
     match decode_image("depth", bytes, limits)? {
         DynamicImage::ImageLuma16(img) => Ok(io::depth_from_luma16(img, units_per_m)),

@@ -134,7 +134,7 @@ impl Connection {
                     false
                 }
                 Event::Message(None) => false,
-                Event::Done(done) => self.on_done(done).await,
+                Event::Done(done) => self.answer(done).await && self.start_waiting().await,
                 Event::WorkerGone => {
                     let frame = self.in_flight.take().map(|f| f.frame.sequence);
                     let e =
@@ -255,11 +255,12 @@ impl Connection {
         }
     }
 
-    async fn on_done(&mut self, (result, _queued): (JobResult, Duration)) -> bool {
+    /// Sends the answer of the frame in flight.
+    async fn answer(&mut self, (result, _queued): (JobResult, Duration)) -> bool {
         let Some(done) = self.in_flight.take() else {
             return true;
         };
-        let sent = match result {
+        match result {
             Ok(reply) => {
                 let latency = done.arrived.elapsed();
                 self.app.metrics.request("stream", "ok", Some(latency));
@@ -273,8 +274,7 @@ impl Connection {
                 self.send(msg).await
             }
             Err(e) => self.refuse(Some(done.frame.sequence), &e).await,
-        };
-        sent && self.start_waiting().await
+        }
     }
 
     /// On shutdown: waits for the frame in flight and sends its result; the waiting one is
@@ -282,7 +282,7 @@ impl Connection {
     async fn finish_in_flight(&mut self) {
         if let Some(f) = self.in_flight.as_mut() {
             if let Ok(done) = (&mut f.rx).await {
-                let _ = self.on_done_no_restart(done).await;
+                let _ = self.answer(done).await;
             }
         }
         if let Some((frame, _)) = self.waiting.take() {
@@ -291,12 +291,5 @@ impl Connection {
                 .send(proto::dropped(frame.sequence, self.dropped_total))
                 .await;
         }
-    }
-
-    async fn on_done_no_restart(&mut self, done: (JobResult, Duration)) -> bool {
-        let waiting = self.waiting.take();
-        let ok = self.on_done(done).await;
-        self.waiting = waiting;
-        ok
     }
 }
