@@ -65,14 +65,38 @@ impl Mounting {
         self.gravity_from_cam() * p_cam + Vector3::new(0.0, 0.0, self.height_m)
     }
 
+    /// Gravity's up axis in the camera frame (the last row of
+    /// [`gravity_from_cam`](Self::gravity_from_cam)).
+    ///
+    /// ```
+    /// let m = tre::geometry::Mounting::default();
+    /// let up = m.up_in_cam();
+    /// assert!((m.gravity_from_cam() * up - nalgebra::Vector3::z()).norm() < 1e-12);
+    /// ```
+    pub fn up_in_cam(&self) -> Vec3 {
+        let (s, c) = self.pitch_rad.sin_cos();
+        Vector3::new(0.0, -c, -s)
+    }
+
     /// Slope of a camera-frame surface normal: its angle to gravity's up, radians in [0, π/2]
     /// (the normal's sign does not matter).
+    ///
+    /// ```
+    /// let m = tre::geometry::Mounting::default();
+    /// let flat = m.slope_rad(&-m.up_in_cam());
+    /// assert!(flat.abs() < 1e-7);
+    /// ```
     pub fn slope_rad(&self, normal_cam: &Vec3) -> f64 {
-        let n = self.gravity_from_cam() * normal_cam;
-        let len = n.norm();
-        if len == 0.0 || !len.is_finite() {
-            return f64::NAN;
-        }
-        (n.z.abs() / len).min(1.0).acos()
+        slope_from_up(&self.up_in_cam(), normal_cam)
     }
+}
+
+/// The angle between the line of `normal` and the unit vector `up`, radians in [0, π/2]; NaN
+/// for a zero or non-finite normal.
+pub fn slope_from_up(up: &Vec3, normal: &Vec3) -> f64 {
+    let len = normal.norm();
+    if len == 0.0 || !len.is_finite() {
+        return f64::NAN;
+    }
+    (up.dot(normal).abs() / len).min(1.0).acos()
 }

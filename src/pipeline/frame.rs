@@ -46,15 +46,25 @@ pub struct FrameOutput {
     /// Unit normals in the camera frame, facing the camera (NaN: none); `None` for the
     /// end-to-end baseline.
     pub normals: Option<Grid<Vec3>>,
-    /// Slope of the normals in the gravity frame, radians (NaN: none); `None` for the
-    /// end-to-end baseline.
-    pub slope_rad: Option<Grid<f64>>,
+    /// Gravity's up axis in the camera frame (from the frame's mounting), for
+    /// [`slope_rad`](Self::slope_rad).
+    pub up_in_cam: Vec3,
     /// Roughness and slope within the thresholds (roughness only for the end-to-end baseline).
     pub traversable: Grid<bool>,
     /// The size the stages ran at, `(width, height)`.
     pub working_size: (usize, usize),
     /// Wall time of each stage, in order.
     pub timings: StageTimings,
+}
+
+impl FrameOutput {
+    /// Slope of the normals in the gravity frame, radians (NaN: none), computed when asked
+    /// for; `None` for the end-to-end baseline.
+    pub fn slope_rad(&self) -> Option<Grid<f64>> {
+        self.normals
+            .as_ref()
+            .map(|n| super::centroid::slopes(n, &self.up_in_cam))
+    }
 }
 
 /// Wall time per named stage, in the order the stages ran.

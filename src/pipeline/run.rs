@@ -4,11 +4,11 @@
 
 use ndarray::Array4;
 
-use super::centroid::{net_centroids, roughness_into, slopes, traversable};
+use super::centroid::{net_centroids, roughness_into, traversable};
 use super::depth::{prior_depth_into, MAX_PRIOR_DEPTH_M};
 use super::frame::{FrameInput, FrameOutput, StageTimings, DEFAULT_HFOV_DEG};
 use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
-use super::resize::{resize_nearest, resize_rgb};
+use super::resize::{resize_nearest, resize_nearest_owned, resize_rgb};
 use super::tensors::{depth_from_tensor, points_tensors, rgb_tensor, scalar_tensor};
 use super::{
     CentroidMethod, Method, Mode, NormalsMethod, PipelineConfig, PipelineError, MAX_WORKING_SIDE,
@@ -242,14 +242,14 @@ impl Pipeline {
         let roughness_m = depth_from_tensor(&r).map(|&v| v.max(0.0));
         timings.add("end_to_end", start.elapsed());
         let start = std::time::Instant::now();
-        let roughness_m = resize_nearest(&roughness_m, size.0, size.1, f64::NAN);
+        let roughness_m = resize_nearest_owned(roughness_m, size.0, size.1, f64::NAN);
         let traversable = traversable(&roughness_m, None, &cfg.traversability);
         timings.add("outputs", start.elapsed());
         Ok(FrameOutput {
             roughness_m,
             depth_m: None,
             normals: None,
-            slope_rad: None,
+            up_in_cam: input.mounting.up_in_cam(),
             traversable,
             working_size: work.size,
             timings,
@@ -390,14 +390,18 @@ impl WorkingMaps {
         (w, h): (usize, usize),
         working_size: (usize, usize),
     ) -> FrameOutput {
-        let slope = slopes(&self.normals, &input.mounting);
-        let ok = traversable(&self.roughness_m, Some(&slope), &cfg.traversability);
+        let up_in_cam = input.mounting.up_in_cam();
+        let ok = traversable(
+            &self.roughness_m,
+            Some((&self.normals, &up_in_cam)),
+            &cfg.traversability,
+        );
         FrameOutput {
-            roughness_m: resize_nearest(&self.roughness_m, w, h, f64::NAN),
-            depth_m: Some(resize_nearest(&self.depth_m, w, h, 0.0)),
-            normals: Some(resize_nearest(&self.normals, w, h, INVALID_POINT)),
-            slope_rad: Some(resize_nearest(&slope, w, h, f64::NAN)),
-            traversable: resize_nearest(&ok, w, h, false),
+            roughness_m: resize_nearest_owned(self.roughness_m, w, h, f64::NAN),
+            depth_m: Some(resize_nearest_owned(self.depth_m, w, h, 0.0)),
+            normals: Some(resize_nearest_owned(self.normals, w, h, INVALID_POINT)),
+            up_in_cam,
+            traversable: resize_nearest_owned(ok, w, h, false),
             working_size,
             timings: StageTimings::default(),
         }

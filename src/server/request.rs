@@ -335,7 +335,7 @@ pub fn encode_reply(out: FrameOutput, opts: &FrameOptions) -> Result<FrameReply,
             bytes: npy(&[h, w, 3], &data)?,
         });
     }
-    if let (true, Some(s)) = (e.slope, &out.slope_rad) {
+    if let (true, Some(s)) = (e.slope, &out.slope_rad()) {
         let data: Vec<f32> = s.as_slice().iter().map(|&v| v as f32).collect();
         extras.push(Part {
             name: "slope",
