@@ -57,7 +57,8 @@ fn configs() -> Vec<(&'static str, PipelineConfig)> {
     ]
 }
 
-/// Mean milliseconds per stage over `n` runs, and their total.
+/// Mean milliseconds per stage over `n` runs, their total, and the share of the total spent
+/// outside ONNX Runtime (resize, tensor packing, geometry, outputs).
 fn stage_split(
     pipeline: &mut Pipeline,
     input: &FrameInput,
@@ -65,15 +66,22 @@ fn stage_split(
     n: u32,
 ) -> String {
     let mut sums: BTreeMap<String, f64> = BTreeMap::new();
+    let mut onnx = 0.0;
     for _ in 0..n {
         let out = pipeline.run(input, cfg).expect("the frame runs");
         for (name, took) in out.timings.iter() {
             *sums.entry(name.to_owned()).or_default() += took.as_secs_f64() * 1e3 / f64::from(n);
         }
+        onnx += out.timings.onnx_runtime().as_secs_f64() * 1e3 / f64::from(n);
     }
     let total: f64 = sums.values().sum();
     let parts: Vec<String> = sums.iter().map(|(k, v)| format!("{k} {v:.1}")).collect();
-    format!("total {total:.1} ms = {}", parts.join(", "))
+    format!(
+        "total {total:.1} ms = {}; inside ONNX Runtime {onnx:.1} ms, outside {:.1} ms ({:.0}%)",
+        parts.join(", "),
+        total - onnx,
+        100.0 * (total - onnx) / total
+    )
 }
 
 fn pipeline(c: &mut Criterion) {

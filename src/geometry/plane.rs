@@ -113,19 +113,20 @@ impl Moments {
 
     /// The covariance matrix of the points.
     pub fn covariance(&self) -> Matrix3<f64> {
-        let n = self.count.max(1) as f64;
-        let m = self.sum / n;
-        let s = &self.sum_sq;
+        let inv_n = 1.0 / f64::from(self.count.max(1));
+        let m = self.sum * inv_n;
+        let s = self.sum_sq.map(|v| v * inv_n);
+        let (xy, xz, yz) = (s[1] - m.x * m.y, s[2] - m.x * m.z, s[4] - m.y * m.z);
         Matrix3::new(
-            s[0] / n - m.x * m.x,
-            s[1] / n - m.x * m.y,
-            s[2] / n - m.x * m.z,
-            s[1] / n - m.x * m.y,
-            s[3] / n - m.y * m.y,
-            s[4] / n - m.y * m.z,
-            s[2] / n - m.x * m.z,
-            s[4] / n - m.y * m.z,
-            s[5] / n - m.z * m.z,
+            s[0] - m.x * m.x,
+            xy,
+            xz,
+            xy,
+            s[3] - m.y * m.y,
+            yz,
+            xz,
+            yz,
+            s[5] - m.z * m.z,
         )
     }
 

@@ -2,6 +2,7 @@
 //! (NCHW float32 in, NCHW float32 out). One `Models` is owned by one worker thread.
 
 use std::path::Path;
+use std::time::Duration;
 
 use ndarray::{Array4, ArrayView4};
 
@@ -55,6 +56,15 @@ impl Models {
             end_to_end,
             manifest,
         })
+    }
+
+    /// Wall time spent inside ONNX Runtime so far, over all models and runs.
+    pub fn onnx_runtime_time(&self) -> Duration {
+        [&self.depth, &self.neighbour, &self.refiner, &self.centroid]
+            .into_iter()
+            .chain(&self.end_to_end)
+            .map(ModelSession::onnx_runtime_time)
+            .sum()
     }
 
     /// The manifest the models were checked against.

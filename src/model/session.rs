@@ -3,6 +3,7 @@
 //! arrays.
 
 use std::path::Path;
+use std::time::{Duration, Instant};
 
 use ndarray::{Array4, ArrayView4, Ix4};
 use ort::session::builder::GraphOptimizationLevel;
@@ -86,6 +87,8 @@ pub struct ModelSession {
     entry: ModelEntry,
     stride: usize,
     session: Session,
+    /// Wall time spent inside ONNX Runtime's `run`, over the session's life.
+    busy: Duration,
 }
 
 impl ModelSession {
@@ -114,12 +117,19 @@ impl ModelSession {
             entry: entry.clone(),
             stride,
             session,
+            busy: Duration::ZERO,
         })
     }
 
     /// The model's name in the manifest.
     pub fn name(&self) -> &str {
         &self.name
+    }
+
+    /// Wall time spent inside ONNX Runtime's `run` so far, over all runs (input checks and
+    /// the handling of outputs are not counted).
+    pub fn onnx_runtime_time(&self) -> Duration {
+        self.busy
     }
 
     /// The model's manifest entry.
@@ -162,7 +172,10 @@ impl ModelSession {
             values.push((spec.name.as_str(), tensor));
         }
         let out_spec = &self.entry.outputs[0];
-        let outputs = self.session.run(values).map_err(ort_err)?;
+        let start = Instant::now();
+        let outputs = self.session.run(values);
+        self.busy += start.elapsed();
+        let outputs = outputs.map_err(ort_err)?;
         let y = outputs[out_spec.name.as_str()]
             .try_extract_array::<f32>()
             .map_err(ort_err)?;

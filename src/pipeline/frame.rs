@@ -71,6 +71,7 @@ impl FrameOutput {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct StageTimings {
     stages: Vec<(&'static str, Duration)>,
+    onnx_runtime: Duration,
 }
 
 impl StageTimings {
@@ -114,6 +115,17 @@ impl StageTimings {
     /// Every stage that ran, in order.
     pub fn iter(&self) -> impl Iterator<Item = (&'static str, Duration)> + '_ {
         self.stages.iter().copied()
+    }
+
+    /// Of [`total`](Self::total), the time spent inside ONNX Runtime's session runs (the
+    /// rest is decoding, resizing, tensor packing, geometry and outputs).
+    pub fn onnx_runtime(&self) -> Duration {
+        self.onnx_runtime
+    }
+
+    /// Sets the time spent inside ONNX Runtime.
+    pub fn set_onnx_runtime(&mut self, took: Duration) {
+        self.onnx_runtime = took;
     }
 
     /// The sum over stages.

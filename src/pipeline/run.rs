@@ -2,6 +2,8 @@
 //! maps back to the frame's size. It owns the models and the tensors it reuses across frames;
 //! like [`Models`], it belongs to one worker thread.
 
+use std::time::Duration;
+
 use ndarray::Array4;
 
 use super::centroid::{net_centroids, roughness_into, traversable};
@@ -97,6 +99,26 @@ impl Pipeline {
     /// or has depth of another size than its RGB; for a configuration whose networks are not
     /// loaded or whose working size is bad; and when a stage fails.
     pub fn run(
+        &mut self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+    ) -> Result<FrameOutput, PipelineError> {
+        let before = self.onnx_runtime_time();
+        let mut out = self.run_stages(input, cfg)?;
+        let onnx = self.onnx_runtime_time().saturating_sub(before);
+        out.timings.set_onnx_runtime(onnx);
+        Ok(out)
+    }
+
+    /// Time spent inside ONNX Runtime by the loaded models so far.
+    fn onnx_runtime_time(&self) -> Duration {
+        self.models
+            .as_ref()
+            .map_or(Duration::ZERO, Models::onnx_runtime_time)
+    }
+
+    /// [`run`](Self::run) without the ONNX Runtime tally.
+    fn run_stages(
         &mut self,
         input: &FrameInput,
         cfg: &PipelineConfig,
