@@ -102,6 +102,20 @@ impl Models {
         self.depth.run(&[rgb, prior_depth_m])
     }
 
+    /// The depth net like [`Models::depth`], its output handed to `consume` without a copy.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`ModelSession::run`].
+    pub fn depth_with<R>(
+        &mut self,
+        rgb: ArrayView4<'_, f32>,
+        prior_depth_m: ArrayView4<'_, f32>,
+        consume: impl FnOnce(ArrayView4<'_, f32>) -> R,
+    ) -> Result<R, ModelError> {
+        self.depth.run_with(&[rgb, prior_depth_m], consume)
+    }
+
     /// Neighbour net: RGB, camera-frame points (N×3×H×W, 0 where invalid) and validity (N×1×H×W,
     /// 1/0) → 49 logits per pixel over its 7×7 window (N×49×H×W).
     ///
@@ -149,6 +163,20 @@ impl Models {
         self.refiner.run(&[rgb, points_m, valid, normals_init])
     }
 
+    /// The refiner like [`Models::refine_normals`], its output handed to `consume` without a
+    /// copy.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`ModelSession::run`].
+    pub fn refine_normals_with<R>(
+        &mut self,
+        inputs: [ArrayView4<'_, f32>; 4],
+        consume: impl FnOnce(ArrayView4<'_, f32>) -> R,
+    ) -> Result<R, ModelError> {
+        self.refiner.run_with(&inputs, consume)
+    }
+
     /// Centroid net: RGB, points, validity and normals → local-plane centroids in metres
     /// (N×3×H×W).
     ///
@@ -163,6 +191,20 @@ impl Models {
         normals: ArrayView4<'_, f32>,
     ) -> Result<Array4<f32>, ModelError> {
         self.centroid.run(&[rgb, points_m, valid, normals])
+    }
+
+    /// The centroid net like [`Models::centroids`], its output handed to `consume` without a
+    /// copy.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`ModelSession::run`].
+    pub fn centroids_with<R>(
+        &mut self,
+        inputs: [ArrayView4<'_, f32>; 4],
+        consume: impl FnOnce(ArrayView4<'_, f32>) -> R,
+    ) -> Result<R, ModelError> {
+        self.centroid.run_with(&inputs, consume)
     }
 
     /// End-to-end baseline: RGB and the flat-ground prior → roughness in metres (N×1×H×W).

@@ -24,13 +24,13 @@ pub fn net_centroids(
     normals_t: &mut Array4<f32>,
 ) -> Result<PointMap, PipelineError> {
     vectors_tensor(normals, normals_t);
-    let out = models.centroids(
+    let inputs = [
         net.rgb.view(),
         net.points_m.view(),
         net.valid.view(),
         normals_t.view(),
-    )?;
-    Ok(vectors_from_tensor(&out, points, false))
+    ];
+    Ok(models.centroids_with(inputs, |c| vectors_from_tensor(c, points, false))?)
 }
 
 /// Eq. 1 at every pixel into `out` (same size): `|n·(p − c)|`, NaN where the point, the normal

@@ -81,11 +81,11 @@ pub fn refine(
     normals_t: &mut Array4<f32>,
 ) -> Result<Grid<Vec3>, PipelineError> {
     vectors_tensor(initial, normals_t);
-    let out = models.refine_normals(
+    let inputs = [
         net.rgb.view(),
         net.points_m.view(),
         net.valid.view(),
         normals_t.view(),
-    )?;
-    Ok(vectors_from_tensor(&out, points, true))
+    ];
+    Ok(models.refine_normals_with(inputs, |n| vectors_from_tensor(n, points, true))?)
 }

@@ -232,8 +232,8 @@ impl Pipeline {
         }
         self.prior_tensor(work, input);
         let models = loaded(&mut self.models)?;
-        let depth = models.depth(self.scratch.rgb.view(), self.scratch.prior.view())?;
-        Ok(depth_from_tensor(&depth))
+        let (rgb, prior) = (self.scratch.rgb.view(), self.scratch.prior.view());
+        Ok(models.depth_with(rgb, prior, depth_from_tensor)?)
     }
 
     /// The flat-ground prior depth at the working size into the prior tensor (both buffers
@@ -261,7 +261,7 @@ impl Pipeline {
         self.prior_tensor(work, input);
         let models = loaded(&mut self.models)?;
         let r = models.end_to_end(self.scratch.rgb.view(), self.scratch.prior.view())?;
-        let roughness_m = depth_from_tensor(&r).map(|&v| v.max(0.0));
+        let roughness_m = depth_from_tensor(r.view()).map(|&v| v.max(0.0));
         timings.add("end_to_end", start.elapsed());
         let start = std::time::Instant::now();
         let roughness_m = resize_nearest_owned(roughness_m, size.0, size.1, f64::NAN);

@@ -4,7 +4,8 @@
 //! frames, filled plane by plane with rows in parallel.
 
 use image::RgbImage;
-use ndarray::Array4;
+use nalgebra::Vector3;
+use ndarray::{s, Array4, ArrayView4};
 use rayon::prelude::*;
 
 use crate::geometry::{is_valid_point, Grid, PointMap, Vec3, INVALID_POINT};
@@ -56,60 +57,98 @@ pub fn points_tensors(points: &PointMap, points_t: &mut Array4<f32>, valid_t: &m
     let (w, h) = points.size();
     ensure_shape(points_t, 3, h, w);
     ensure_shape(valid_t, 1, h, w);
-    fill(points_t, |x, y, c| {
-        let p = &points[(x, y)];
-        if is_valid_point(p) {
-            p[c] as f32
-        } else {
-            0.0
-        }
-    });
-    fill(valid_t, |x, y, _| {
-        f32::from(u8::from(is_valid_point(&points[(x, y)])))
-    });
+    let valid = valid_t
+        .as_slice_mut()
+        .expect("tensors made by ensure_shape are contiguous; this is a bug");
+    let [p0, p1, p2] = plane_rows(points_t);
+    p0.zip(p1)
+        .zip(p2)
+        .zip(valid.par_chunks_mut(w.max(1)))
+        .enumerate()
+        .for_each(|(y, (((r0, r1), r2), rv))| {
+            for (x, p) in points.row(y).iter().enumerate() {
+                let keep = is_valid_point(p);
+                let v = if keep {
+                    p.map(|c| c as f32)
+                } else {
+                    Vector3::zeros()
+                };
+                (r0[x], r1[x], r2[x]) = (v.x, v.y, v.z);
+                rv[x] = f32::from(u8::from(keep));
+            }
+        });
 }
 
 /// Vectors (normals) as `1 × 3 × H × W`, 0 where a vector is not finite.
 pub fn vectors_tensor(vectors: &Grid<Vec3>, t: &mut Array4<f32>) {
     let (w, h) = vectors.size();
     ensure_shape(t, 3, h, w);
-    fill(t, |x, y, c| {
-        let v = &vectors[(x, y)];
-        if v.iter().all(|c| c.is_finite()) {
-            v[c] as f32
-        } else {
-            0.0
-        }
-    });
+    let [p0, p1, p2] = plane_rows(t);
+    p0.zip(p1)
+        .zip(p2)
+        .enumerate()
+        .for_each(|(y, ((r0, r1), r2))| {
+            for (x, v) in vectors.row(y).iter().enumerate() {
+                let keep = v.iter().all(|c| c.is_finite());
+                let v = if keep {
+                    v.map(|c| c as f32)
+                } else {
+                    Vector3::zeros()
+                };
+                (r0[x], r1[x], r2[x]) = (v.x, v.y, v.z);
+            }
+        });
+}
+
+/// The rows (in parallel) of the three planes of a `1 × 3 × H × W` tensor whose size is set.
+fn plane_rows(t: &mut Array4<f32>) -> [rayon::slice::ChunksMut<'_, f32>; 3] {
+    let (_, _, h, w) = t.dim();
+    let data = t
+        .as_slice_mut()
+        .expect("tensors made by ensure_shape are contiguous; this is a bug");
+    let (p0, rest) = data.split_at_mut(h * w);
+    let (p1, p2) = rest.split_at_mut(h * w);
+    [p0, p1, p2].map(|p| p.par_chunks_mut(w.max(1)))
 }
 
 /// Channel 0 of a `1 × 1 × H × W` depth tensor as metres; non-positive or non-finite: 0.
-pub fn depth_from_tensor(t: &Array4<f32>) -> Grid<f64> {
+pub fn depth_from_tensor(t: ArrayView4<'_, f32>) -> Grid<f64> {
     let (_, _, h, w) = t.dim();
-    Grid::par_from_fn(w, h, |x, y| {
-        let d = f64::from(t[(0, 0, y, x)]);
-        if d > 0.0 && d.is_finite() {
-            d
-        } else {
-            0.0
-        }
-    })
+    let plane = t.slice(s![0, 0, .., ..]);
+    let mut out = Grid::new(w, h, 0.0);
+    out.as_mut_slice()
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (d, &v) in row.iter_mut().zip(plane.row(y)) {
+                let v = f64::from(v);
+                *d = if v > 0.0 && v.is_finite() { v } else { 0.0 };
+            }
+        });
+    out
 }
 
 /// Channels 0..3 of a `1 × 3 × H × W` tensor as vectors where `points` is valid, NaN elsewhere;
 /// `unit` normalises them (a zero or non-finite vector becomes NaN).
-pub fn vectors_from_tensor(t: &Array4<f32>, points: &PointMap, unit: bool) -> Grid<Vec3> {
+pub fn vectors_from_tensor(t: ArrayView4<'_, f32>, points: &PointMap, unit: bool) -> Grid<Vec3> {
     let (w, h) = points.size();
-    Grid::par_from_fn(w, h, |x, y| {
-        if !is_valid_point(&points[(x, y)]) {
-            return INVALID_POINT;
-        }
-        let v = Vec3::from_fn(|c, _| f64::from(t[(0, c, y, x)]));
-        let v = if unit { v / v.norm() } else { v };
-        if v.iter().all(|c| c.is_finite()) {
-            v
-        } else {
-            INVALID_POINT
-        }
-    })
+    let planes = [0, 1, 2].map(|c| t.slice_move(s![0, c, .., ..]));
+    let mut out = Grid::new(w, h, INVALID_POINT);
+    out.as_mut_slice()
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            let src = planes.each_ref().map(|p| p.row(y));
+            for (x, (n, p)) in row.iter_mut().zip(points.row(y)).enumerate() {
+                if !is_valid_point(p) {
+                    continue;
+                }
+                let v = Vec3::new(src[0][x].into(), src[1][x].into(), src[2][x].into());
+                let v = if unit { v / v.norm() } else { v };
+                if v.iter().all(|c| c.is_finite()) {
+                    *n = v;
+                }
+            }
+        });
+    out
 }
