@@ -67,9 +67,9 @@
 //! The hypotheses' searches run in lockstep. ρ that is negative or not finite (possible only
 //! through [`sample_triple`]) falls back to the scan itself.
 //!
-//! Scoring stops early for a hypothesis that provably cannot beat the best one so far (its
-//! partial sum plus one per candidate still to come, with a margin for rounding, is not above
-//! the best score); each batch of hypotheses finishes first the one leading after two blocks,
+//! Scoring stops early for a hypothesis that provably cannot beat the best one so far: its
+//! partial sum plus, per valid candidate still to come, the most one candidate can add (the
+//! value at distance 0), with a margin for rounding, is not above the best score. Each batch of hypotheses finishes first the one leading after two blocks,
 //! to raise that bar early. The chosen hypothesis, and so the result, are those of the full
 //! computation, which [`pixel_hypotheses`] performs.
 
@@ -458,6 +458,8 @@ struct Hyp32 {
     n: [f32; 3],
     o: f32,
     tau: f32,
+    /// An upper bound of what one candidate adds to the score ([`Scorer::most`]).
+    most: f32,
 }
 
 /// Blocks scored for every hypothesis of a batch before the leading one is finished.
@@ -469,14 +471,21 @@ struct Scorer {
     gain: f64,
     /// `f32(min(β · log₂e · τ, 120))`.
     tau: f32,
+    /// An upper bound of one candidate's soft inlier value: the value at distance 0,
+    /// `recip_one_plus_exp2(−τ″)`, raised by 4e-6 (relative). `y = |s| − τ″ ≥ −τ″` for every
+    /// candidate, 1/(1 + 2ʸ) decreases, and the approximation is within 7e-7 (relative) of it,
+    /// so no candidate adds more.
+    most: f32,
 }
 
 impl Scorer {
     fn new(cfg: &DsacConfig) -> Self {
         let gain = cfg.softness / cfg.inlier_threshold_m * std::f64::consts::LOG2_E;
+        let tau = (gain * cfg.inlier_threshold_m).min(120.0) as f32;
         Self {
             gain,
-            tau: (gain * cfg.inlier_threshold_m).min(120.0) as f32,
+            tau,
+            most: (f64::from(recip_one_plus_exp2(-tau)) * (1.0 + 4e-6)) as f32,
         }
     }
 }
@@ -573,7 +582,7 @@ struct Window<'a> {
     rel: [[f32; LANES]; 3],
     /// All bits set for valid candidates, 0 otherwise.
     valid: [u32; LANES],
-    /// After block `b`: the valid candidates in later blocks plus [`PRUNE_MARGIN`].
+    /// After block `b`: the number of valid candidates in later blocks.
     to_come: [f32; BLOCKS],
     /// The centre point (the camera origin if the centre is invalid).
     origin: Vec3,
@@ -608,7 +617,7 @@ impl<'a> Window<'a> {
                 }
             }
         }
-        let mut to_come = [PRUNE_MARGIN; BLOCKS];
+        let mut to_come = [0.0; BLOCKS];
         for b in (0..BLOCKS - 1).rev() {
             let next = &valid[(b + 1) * BLOCK..(b + 2) * BLOCK];
             to_come[b] = to_come[b + 1] + next.iter().filter(|&&v| v != 0).count() as f32;
@@ -639,6 +648,7 @@ impl<'a> Window<'a> {
             n: [m.x as f32, m.y as f32, m.z as f32],
             o: o as f32,
             tau: scorer.tau,
+            most: scorer.most,
         }
     }
 
@@ -665,12 +675,12 @@ impl<'a> Window<'a> {
     }
 
     /// The score of `h` from its accumulators after [`LEAD_BLOCKS`] blocks, or `None` once it
-    /// provably is below `floor`: the partial sum plus one per valid candidate still to come,
-    /// plus [`PRUNE_MARGIN`] for the f32 rounding of both sums (at most 56 · 10 · 2⁻²⁴
-    /// relative), bounds it from above.
+    /// provably is below `floor`: the partial sum plus [`Scorer::most`] per valid candidate
+    /// still to come, plus [`PRUNE_MARGIN`] for the f32 rounding of the sums (at most
+    /// 56 · 10 · 2⁻²⁴ relative), bounds it from above.
     fn finish_above(&self, h: &Hyp32, mut acc: [f32; BLOCK], floor: f32) -> Option<f32> {
         for b in LEAD_BLOCKS..BLOCKS {
-            if sum_block(acc) + self.to_come[b - 1] <= floor {
+            if sum_block(acc) + (self.to_come[b - 1] * h.most + PRUNE_MARGIN) <= floor {
                 return None;
             }
             self.add_blocks(h, &mut acc, b..b + 1);
@@ -975,6 +985,20 @@ mod tests {
     use super::*;
     use crate::geometry::hash::uniform;
     use proptest::prelude::*;
+
+    #[test]
+    fn no_candidate_adds_more_than_the_pruning_bound() {
+        let scorer = Scorer::new(&DsacConfig::default());
+        let tau = scorer.tau;
+        // Every f32 y within 4096 ulps above −τ″, then a fine sweep up to the clamp.
+        let ulps = (0..4096u32).map(|i| f32::from_bits((-tau).to_bits() - i));
+        let sweep = (0..200_000).map(|i| -tau + i as f32 * 1e-3);
+        for y in ulps.chain(sweep) {
+            assert!(y >= -tau);
+            assert!(recip_one_plus_exp2(y) <= scorer.most, "y = {y}");
+        }
+        assert!(scorer.most < 0.994 && scorer.most > 0.993);
+    }
 
     /// The sampler exactly as the module docs define it, by linear scans.
     fn reference_triple(
