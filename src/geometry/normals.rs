@@ -131,16 +131,17 @@ impl PackedPoints {
         for (c, buf) in self.xyz.iter_mut().enumerate() {
             buf.clear();
             buf.resize(self.stride * h, f32::NAN);
-            for y in 0..h {
-                let row = &mut buf[y * self.stride + PAD..y * self.stride + PAD + w];
-                for (dst, p) in row.iter_mut().zip(points.row(y)) {
-                    *dst = if is_valid_point(p) {
-                        p[c] as f32
-                    } else {
-                        f32::NAN
-                    };
-                }
-            }
+            buf.par_chunks_mut(self.stride.max(1))
+                .enumerate()
+                .for_each(|(y, row)| {
+                    for (dst, p) in row[PAD..PAD + w].iter_mut().zip(points.row(y)) {
+                        *dst = if is_valid_point(p) {
+                            p[c] as f32
+                        } else {
+                            f32::NAN
+                        };
+                    }
+                });
         }
     }
 

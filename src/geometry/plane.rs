@@ -163,22 +163,27 @@ pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
 /// Lanes of [`smallest_eigenvectors`].
 pub const EIGEN_LANES: usize = 4;
 
-/// [`smallest_eigenvector`] for four matrices at once: the Halley iterations run a fixed
-/// number of times over lane arrays (so they vectorise and overlap); a lane that has not
-/// converged by then is finished by the scalar solver. Same results up to rounding.
+/// [`smallest_eigenvector`] for four matrices at once: the Halley iterations run over lane
+/// arrays (so they vectorise and overlap) until every lane has converged, at most six times; a
+/// lane that has not converged by then is finished by the scalar solver. Same results up to
+/// rounding.
 pub fn smallest_eigenvectors(covs: &[Matrix3<f64>; EIGEN_LANES]) -> [Option<Vec3>; EIGEN_LANES] {
     let scale = covs.map(|a| a.abs().max());
     let a: [Matrix3<f64>; EIGEN_LANES] = std::array::from_fn(|l| covs[l] * (1.0 / scale[l]));
     let c = a.map(|a| char_poly(&a));
     let (mut l, mut step) = ([0.0f64; EIGEN_LANES], [0.0f64; EIGEN_LANES]);
+    let converged = |step: f64, l: f64| step.abs() <= 1e-13 * (1.0 + l.abs());
     for _ in 0..6 {
         for i in 0..EIGEN_LANES {
             step[i] = halley_step(&c[i], l[i]);
             l[i] -= step[i];
         }
+        if (0..EIGEN_LANES).all(|i| converged(step[i], l[i])) {
+            break;
+        }
     }
     std::array::from_fn(|i| {
-        let converged = step[i].abs() <= 1e-13 * (1.0 + l[i].abs());
+        let converged = converged(step[i], l[i]);
         if !(scale[i] > 0.0) || !scale[i].is_finite() {
             None
         } else if converged {
