@@ -127,7 +127,7 @@ fn every_mode_runs_on_a_synthetic_frame() -> TestResult {
         let out = pipeline.run(&frame, &cfg)?;
         let label = cfg.label();
         assert_eq!(out.roughness_m.size(), (64, 64), "{label}");
-        assert_eq!(out.traversable.size(), (64, 64), "{label}");
+        assert_eq!(out.traversable().size(), (64, 64), "{label}");
         assert!(
             out.roughness_m
                 .as_slice()
@@ -136,7 +136,7 @@ fn every_mode_runs_on_a_synthetic_frame() -> TestResult {
             "{label}"
         );
         if cfg.method == Method::EndToEnd {
-            assert!(out.normals.is_none() && out.timings.get("end_to_end").is_some());
+            assert!(out.normals().is_none() && out.timings.get("end_to_end").is_some());
             continue;
         }
         assert!(out.timings.get("normals").is_some() && out.timings.get("centroid").is_some());
@@ -149,7 +149,7 @@ fn every_mode_runs_on_a_synthetic_frame() -> TestResult {
             // Given depth: every pixel with depth has a point, and nearly all a roughness.
             assert!(finite(&out.roughness_m) + 20 >= valid_depth, "{label}");
         }
-        let normals = out.normals.as_ref().ok_or("normals")?;
+        let normals = out.normals().ok_or("normals")?;
         let unit = normals
             .as_slice()
             .iter()
@@ -229,7 +229,7 @@ fn odd_sizes_work() -> TestResult {
         for mode in [Mode::Rgb, Mode::Rgbd, Mode::Geometric] {
             let out = pipeline.run(&frame, &small(mode))?;
             assert_eq!(out.roughness_m.size(), (w, h), "{mode:?} {w}×{h}");
-            assert_eq!(out.depth_m.as_ref().map(Grid::size), Some((w, h)));
+            assert_eq!(out.depth_m().as_ref().map(Grid::size), Some((w, h)));
         }
         let native = pipeline.run(&frame, &PipelineConfig::for_mode(Mode::Geometric))?;
         assert_eq!(native.working_size, (w, h));
@@ -275,7 +275,7 @@ fn the_same_seed_gives_the_same_output() -> TestResult {
     let b = pipeline.run(&frame, &cfg)?;
     let bits = |g: &Grid<f64>| g.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&a.roughness_m), bits(&b.roughness_m));
-    let (na, nb) = (a.normals.ok_or("normals")?, b.normals.ok_or("normals")?);
+    let (na, nb) = (a.normals().ok_or("normals")?, b.normals().ok_or("normals")?);
     assert!(na
         .as_slice()
         .iter()

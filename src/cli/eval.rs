@@ -218,11 +218,11 @@ fn score_frame(
     score
         .roughness
         .add(&out.roughness_m, &frame.roughness_m, &frame.boundary)?;
-    if let Some(normals) = &out.normals {
+    if let Some(normals) = &out.normals() {
         score.normals.add(normals, &frame.normals)?;
         score.has_normals = true;
     }
-    if let (Some(depth), crate::pipeline::Mode::Rgb) = (&out.depth_m, spec.cfg.mode) {
+    if let (Some(depth), crate::pipeline::Mode::Rgb) = (&out.depth_m(), spec.cfg.mode) {
         score.depth.add(depth, &frame.depth_m)?;
         score.has_depth = true;
     }

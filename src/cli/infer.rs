@@ -145,7 +145,7 @@ fn preview_path(out: &Path) -> PathBuf {
 fn print_summary(out: &FrameOutput, label: &str) {
     let valid = super::finite_sorted(&out.roughness_m);
     let median_cm = valid.get(valid.len() / 2).map_or(f64::NAN, |r| 100.0 * r);
-    let traversable = out.traversable.as_slice().iter().filter(|&&t| t).count();
+    let traversable = out.traversable().as_slice().iter().filter(|&&t| t).count();
     let (w, h) = out.working_size;
     println!(
         "{label} at {w}×{h}: {} px with roughness, median {median_cm:.3} cm, {traversable} px traversable",

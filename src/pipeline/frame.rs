@@ -4,7 +4,10 @@ use std::time::Duration;
 
 use image::RgbImage;
 
-use crate::geometry::{Grid, Intrinsics, Mounting, Vec3};
+use super::centroid::{slopes, traversable};
+use super::resize::resize_nearest;
+use super::Traversability;
+use crate::geometry::{Grid, Intrinsics, Mounting, Vec3, INVALID_POINT};
 
 /// Horizontal field of view assumed when a frame comes without intrinsics, degrees.
 pub const DEFAULT_HFOV_DEG: f64 = 60.0;
@@ -35,35 +38,97 @@ impl FrameInput {
     }
 }
 
-/// The maps of one frame, all at the input frame's size (nearest-neighbour from the working
-/// size, so no value is blended across an edge).
+/// The maps of one frame. Roughness comes at the input frame's size; the other maps stay at the
+/// working size and are brought to the frame's size (nearest-neighbour, so no value is blended
+/// across an edge) only when asked for, by the methods below.
 #[derive(Debug, Clone)]
 pub struct FrameOutput {
     /// Roughness (Eq. 1), metres; NaN where there is no data.
     pub roughness_m: Grid<f64>,
-    /// Depth used, metres (0: none); `None` for the end-to-end baseline.
-    pub depth_m: Option<Grid<f64>>,
-    /// Unit normals in the camera frame, facing the camera (NaN: none); `None` for the
-    /// end-to-end baseline.
-    pub normals: Option<Grid<Vec3>>,
-    /// Gravity's up axis in the camera frame (from the frame's mounting), for
-    /// [`slope_rad`](Self::slope_rad).
-    pub up_in_cam: Vec3,
-    /// Roughness and slope within the thresholds (roughness only for the end-to-end baseline).
-    pub traversable: Grid<bool>,
     /// The size the stages ran at, `(width, height)`.
     pub working_size: (usize, usize),
     /// Wall time of each stage, in order.
     pub timings: StageTimings,
+    working: WorkingMaps,
+}
+
+/// The maps behind a [`FrameOutput`]'s methods, at the working size.
+#[derive(Debug, Clone)]
+struct WorkingMaps {
+    /// Roughness at the working size; `None` when the frame is at the working size.
+    roughness_m: Option<Grid<f64>>,
+    depth_m: Option<Grid<f64>>,
+    normals: Option<Grid<Vec3>>,
+    up_in_cam: Vec3,
+    limits: Traversability,
 }
 
 impl FrameOutput {
-    /// Slope of the normals in the gravity frame, radians (NaN: none), computed when asked
-    /// for; `None` for the end-to-end baseline.
+    /// The output of a frame of `size` from maps at the working size: roughness (always),
+    /// depth and normals (`None` for the end-to-end baseline), gravity's up axis in the camera
+    /// frame and the traversability thresholds.
+    pub(crate) fn new(
+        size: (usize, usize),
+        roughness_m: Grid<f64>,
+        maps: (Option<Grid<f64>>, Option<Grid<Vec3>>),
+        up_in_cam: Vec3,
+        limits: Traversability,
+    ) -> Self {
+        let working_size = roughness_m.size();
+        let (depth_m, normals) = maps;
+        let (roughness_m, working_roughness) = if working_size == size {
+            (roughness_m, None)
+        } else {
+            let full = resize_nearest(&roughness_m, size.0, size.1, f64::NAN);
+            (full, Some(roughness_m))
+        };
+        Self {
+            roughness_m,
+            working_size,
+            timings: StageTimings::default(),
+            working: WorkingMaps {
+                roughness_m: working_roughness,
+                depth_m,
+                normals,
+                up_in_cam,
+                limits,
+            },
+        }
+    }
+
+    /// `map` (at the working size) at the frame's size.
+    fn full_size<T: Clone + Send + Sync>(&self, map: &Grid<T>, fill: T) -> Grid<T> {
+        let (w, h) = self.roughness_m.size();
+        resize_nearest(map, w, h, fill)
+    }
+
+    /// Depth used, metres (0: none); `None` for the end-to-end baseline.
+    pub fn depth_m(&self) -> Option<Grid<f64>> {
+        let d = self.working.depth_m.as_ref()?;
+        Some(self.full_size(d, 0.0))
+    }
+
+    /// Unit normals in the camera frame, facing the camera (NaN: none); `None` for the
+    /// end-to-end baseline.
+    pub fn normals(&self) -> Option<Grid<Vec3>> {
+        let n = self.working.normals.as_ref()?;
+        Some(self.full_size(n, INVALID_POINT))
+    }
+
+    /// Slope of the normals in the gravity frame, radians (NaN: none); `None` for the
+    /// end-to-end baseline.
     pub fn slope_rad(&self) -> Option<Grid<f64>> {
-        self.normals
-            .as_ref()
-            .map(|n| super::centroid::slopes(n, &self.up_in_cam))
+        let n = self.working.normals.as_ref()?;
+        Some(self.full_size(&slopes(n, &self.working.up_in_cam), f64::NAN))
+    }
+
+    /// Pixels whose roughness and slope are within the thresholds (roughness only for the
+    /// end-to-end baseline; no data is not traversable).
+    pub fn traversable(&self) -> Grid<bool> {
+        let w = &self.working;
+        let roughness = w.roughness_m.as_ref().unwrap_or(&self.roughness_m);
+        let tilt = w.normals.as_ref().map(|n| (n, &w.up_in_cam));
+        self.full_size(&traversable(roughness, tilt, &w.limits), false)
     }
 }
 
@@ -131,5 +196,56 @@ impl StageTimings {
     /// The sum over stages.
     pub fn total(&self) -> Duration {
         self.stages.iter().map(|(_, d)| *d).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 2×2 working-size result for a 4×2 frame: left column rough, bottom-right too steep.
+    fn output() -> FrameOutput {
+        let up = Mounting::default().up_in_cam();
+        let roughness = Grid::from_fn(2, 2, |x, _| if x == 0 { 0.2 } else { 0.01 });
+        let normals = Grid::from_fn(2, 2, |x, y| {
+            if (x, y) == (1, 1) {
+                Vec3::new(1.0, 0.0, 0.0)
+            } else {
+                -up
+            }
+        });
+        let depth = Grid::from_fn(2, 2, |x, y| 1.0 + x as f64 + 2.0 * y as f64);
+        let maps = (Some(depth), Some(normals));
+        FrameOutput::new((4, 2), roughness, maps, up, Traversability::default())
+    }
+
+    #[test]
+    fn maps_come_at_the_frame_size_when_asked_for() {
+        let out = output();
+        assert_eq!(out.working_size, (2, 2));
+        assert_eq!(out.roughness_m.size(), (4, 2));
+        assert_eq!(out.roughness_m.row(0), &[0.2, 0.2, 0.01, 0.01]);
+        let depth = out.depth_m().expect("depth");
+        assert_eq!(depth.row(1), &[3.0, 3.0, 4.0, 4.0]);
+        let ok = out.traversable();
+        assert_eq!(ok.row(0), &[false, false, true, true]);
+        assert_eq!(ok.row(1), &[false, false, false, false]);
+        let slope = out.slope_rad().expect("slope");
+        assert!(slope[(3, 0)].abs() < 1e-7);
+        assert!(slope[(3, 1)] > 20f64.to_radians());
+        assert_eq!(out.normals().expect("normals").size(), (4, 2));
+    }
+
+    #[test]
+    fn the_end_to_end_baseline_has_only_roughness_and_traversability() {
+        let out = FrameOutput::new(
+            (2, 2),
+            Grid::new(2, 2, 0.01),
+            (None, None),
+            Vec3::z(),
+            Traversability::default(),
+        );
+        assert!(out.depth_m().is_none() && out.normals().is_none() && out.slope_rad().is_none());
+        assert!(out.traversable().as_slice().iter().all(|&t| t));
     }
 }

@@ -6,16 +6,16 @@ use std::time::Duration;
 
 use ndarray::Array4;
 
-use super::centroid::{net_centroids, roughness_into, traversable};
+use super::centroid::{net_centroids, roughness_into};
 use super::depth::{prior_depth_into, MAX_PRIOR_DEPTH_M};
 use super::frame::{FrameInput, FrameOutput, StageTimings, DEFAULT_HFOV_DEG};
 use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
-use super::resize::{resize_nearest, resize_nearest_owned, resize_rgb};
+use super::resize::{resize_nearest, resize_rgb};
 use super::tensors::{depth_from_tensor, points_tensors, rgb_tensor, scalar_tensor};
 use super::{
     CentroidMethod, Method, Mode, NormalsMethod, PipelineConfig, PipelineError, MAX_WORKING_SIDE,
 };
-use crate::geometry::{window_centroids, Grid, Intrinsics, PointMap, Vec3, INVALID_POINT};
+use crate::geometry::{window_centroids, Grid, Intrinsics, PointMap, Vec3};
 use crate::model::Models;
 
 /// Working size when no models are loaded, `(width, height)`.
@@ -155,7 +155,7 @@ impl Pipeline {
             normals,
             roughness_m,
         };
-        let mut out = timings.time("outputs", || maps.into_output(input, cfg, size, work.size));
+        let mut out = timings.time("outputs", || maps.into_output(input, cfg, size));
         out.timings = timings;
         Ok(out)
     }
@@ -263,19 +263,12 @@ impl Pipeline {
         let r = models.end_to_end(self.scratch.rgb.view(), self.scratch.prior.view())?;
         let roughness_m = depth_from_tensor(r.view()).map(|&v| v.max(0.0));
         timings.add("end_to_end", start.elapsed());
-        let start = std::time::Instant::now();
-        let roughness_m = resize_nearest_owned(roughness_m, size.0, size.1, f64::NAN);
-        let traversable = traversable(&roughness_m, None, &cfg.traversability);
-        timings.add("outputs", start.elapsed());
-        Ok(FrameOutput {
-            roughness_m,
-            depth_m: None,
-            normals: None,
-            up_in_cam: input.mounting.up_in_cam(),
-            traversable,
-            working_size: work.size,
-            timings,
-        })
+        let mut out = timings.time("outputs", || {
+            let (up, limits) = (input.mounting.up_in_cam(), cfg.traversability);
+            FrameOutput::new(size, roughness_m, (None, None), up, limits)
+        });
+        out.timings = timings;
+        Ok(out)
     }
 
     /// Fails when `cfg` runs networks that are not loaded.
@@ -404,28 +397,20 @@ struct WorkingMaps {
 }
 
 impl WorkingMaps {
-    /// Slope and traversability, then every map at the frame's size (nearest-neighbour).
+    /// The frame's output: roughness at the frame's size, the rest kept for the output's
+    /// methods.
     fn into_output(
         self,
         input: &FrameInput,
         cfg: &PipelineConfig,
-        (w, h): (usize, usize),
-        working_size: (usize, usize),
+        size: (usize, usize),
     ) -> FrameOutput {
-        let up_in_cam = input.mounting.up_in_cam();
-        let ok = traversable(
-            &self.roughness_m,
-            Some((&self.normals, &up_in_cam)),
-            &cfg.traversability,
-        );
-        FrameOutput {
-            roughness_m: resize_nearest_owned(self.roughness_m, w, h, f64::NAN),
-            depth_m: Some(resize_nearest_owned(self.depth_m, w, h, 0.0)),
-            normals: Some(resize_nearest_owned(self.normals, w, h, INVALID_POINT)),
-            up_in_cam,
-            traversable: resize_nearest_owned(ok, w, h, false),
-            working_size,
-            timings: StageTimings::default(),
-        }
+        FrameOutput::new(
+            size,
+            self.roughness_m,
+            (Some(self.depth_m), Some(self.normals)),
+            input.mounting.up_in_cam(),
+            cfg.traversability,
+        )
     }
 }

@@ -314,15 +314,15 @@ pub fn encode_reply(out: FrameOutput, opts: &FrameOptions) -> Result<FrameReply,
     };
     let mut extras = Vec::new();
     let e = opts.extras;
-    if let (true, Some(d)) = (e.depth, &out.depth_m) {
+    if let Some(d) = e.depth.then(|| out.depth_m()).flatten() {
         extras.push(Part {
             name: "depth",
             content_type: "image/png",
             filename: "depth.png",
-            bytes: png(&DynamicImage::ImageLuma16(io::depth_png16(d)))?,
+            bytes: png(&DynamicImage::ImageLuma16(io::depth_png16(&d)))?,
         });
     }
-    if let (true, Some(n)) = (e.normals, &out.normals) {
+    if let Some(n) = e.normals.then(|| out.normals()).flatten() {
         let data: Vec<f32> = n
             .as_slice()
             .iter()
@@ -335,7 +335,7 @@ pub fn encode_reply(out: FrameOutput, opts: &FrameOptions) -> Result<FrameReply,
             bytes: npy(&[h, w, 3], &data)?,
         });
     }
-    if let (true, Some(s)) = (e.slope, &out.slope_rad()) {
+    if let Some(s) = e.slope.then(|| out.slope_rad()).flatten() {
         let data: Vec<f32> = s.as_slice().iter().map(|&v| v as f32).collect();
         extras.push(Part {
             name: "slope",
@@ -344,8 +344,9 @@ pub fn encode_reply(out: FrameOutput, opts: &FrameOptions) -> Result<FrameReply,
             bytes: npy(&[h, w], &data)?,
         });
     }
-    if e.traversable {
-        let mask = out.traversable.map(|&t| if t { 255u8 } else { 0 });
+    let ok = (e.traversable || opts.traversable_bytes).then(|| out.traversable());
+    if let (true, Some(ok)) = (e.traversable, &ok) {
+        let mask = ok.map(|&t| if t { 255u8 } else { 0 });
         extras.push(Part {
             name: "traversable",
             content_type: "image/png",
@@ -353,14 +354,9 @@ pub fn encode_reply(out: FrameOutput, opts: &FrameOptions) -> Result<FrameReply,
             bytes: png(&DynamicImage::ImageLuma8(io::gray8(&mask)))?,
         });
     }
-    let traversable = if opts.traversable_bytes {
-        out.traversable
-            .as_slice()
-            .iter()
-            .map(|&t| u8::from(t))
-            .collect()
-    } else {
-        Vec::new()
+    let traversable = match (opts.traversable_bytes, &ok) {
+        (true, Some(ok)) => ok.as_slice().iter().map(|&t| u8::from(t)).collect(),
+        _ => Vec::new(),
     };
     Ok(FrameReply {
         size: (w, h),
