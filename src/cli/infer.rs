@@ -46,7 +46,7 @@ pub struct Infer {
     /// Pipeline switches and models.
     #[command(flatten)]
     pub stages: StageArgs,
-    /// Output roughness file; the preview goes beside it as <stem>_preview.png.
+    /// Output roughness file; the preview goes beside it as `<stem>_preview.png`.
     #[arg(long, short)]
     pub out: PathBuf,
     /// Output format.

@@ -240,7 +240,7 @@ pub struct LocalPlanes {
     /// Mean of the neighbourhood's points (invalid where the pixel is invalid).
     pub centroid: PointMap,
     /// Unit LS normal oriented towards the camera (NaN where none can be fitted, see
-    /// [`Neighbourhood::normal`]).
+    /// [`normal_from_moments`]).
     pub normal: Grid<Vec3>,
 }
 
