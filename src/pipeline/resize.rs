@@ -182,20 +182,6 @@ pub fn resize_nearest<T: Clone + Send + Sync>(
     out
 }
 
-/// Like [`resize_nearest`], but takes `src` and hands it back unchanged when it already has the
-/// size (no copy).
-pub fn resize_nearest_owned<T: Clone + Send + Sync>(
-    src: Grid<T>,
-    width: usize,
-    height: usize,
-    fill: T,
-) -> Grid<T> {
-    if src.size() == (width, height) {
-        return src;
-    }
-    resize_nearest(&src, width, height, fill)
-}
-
 #[cfg(test)]
 mod rgb_tests {
     use super::*;
