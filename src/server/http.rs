@@ -171,14 +171,16 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
         )
     })?;
     let query = match req.uri().query() {
-        None => RoughnessQuery::default(),
+        None => Ok(RoughnessQuery::default()),
         Some(q) => Query::<RoughnessQuery>::try_from_uri(req.uri())
             .map(|Query(q)| q)
-            .map_err(|e| bad(format!("query {q:?}: {}", e.body_text())))?,
+            .map_err(|e| bad(format!("query {q:?}: {}", e.body_text()))),
     };
-    let options = query.options()?;
+    // The body is read before a bad query is answered: a client still sending it would
+    // otherwise meet a closed connection instead of the error.
     let mut frame = read_body(app, req).await?;
-    frame.options = options;
+    let query = query?;
+    frame.options = query.options()?;
     if frame.camera.is_none() {
         frame.camera = query.camera()?;
     }
