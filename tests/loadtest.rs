@@ -278,8 +278,8 @@ fn the_json_report_round_trips_and_compares_equal_to_itself() {
         (
             back.ok,
             back.requests,
-            back.protocol,
-            back.offered_rate_per_s
+            back.run.protocol,
+            back.run.offered_rate_per_s
         ),
         (r.ok, r.requests, Protocol::Http, Some(50.0))
     );
@@ -315,7 +315,7 @@ fn a_sweep_finds_the_knee_where_p99_leaves_the_objective() {
     .expect("sweep runs");
     assert_eq!(seen, 2);
     println!("{}", report::sweep_text(&sw));
-    let rates: Vec<_> = sw.rows.iter().map(|r| r.offered_rate_per_s).collect();
+    let rates: Vec<_> = sw.rows.iter().map(|r| r.run.offered_rate_per_s).collect();
     assert_eq!(rates, [Some(20.0), Some(300.0)], "ascending");
     // 300/s is three times what a 10 ms one-at-a-time service can do: the queue grows.
     assert_eq!(sw.knee.as_ref().map(|k| k.rate_per_s), Some(300.0));

@@ -50,7 +50,7 @@ pub struct SweepReport {
 impl SweepReport {
     /// The sweep over `rows` (ascending offered rates) against a p99 objective of `slo_ms`.
     pub fn new(rows: Vec<Report>, slo_ms: f64) -> Self {
-        let rate = |r: &Report| r.offered_rate_per_s.unwrap_or(0.0);
+        let rate = |r: &Report| r.run.offered_rate_per_s.unwrap_or(0.0);
         let knee_at = rows.iter().position(|r| !breaches(r, slo_ms).is_empty());
         let knee = knee_at.map(|i| Knee {
             rate_per_s: rate(&rows[i]),
@@ -150,21 +150,22 @@ fn percentile_row(name: &str, p: &Percentiles) -> String {
 /// The text table of one run.
 pub fn text(r: &Report) -> String {
     let mut s = String::new();
-    let offered = match r.offered_rate_per_s {
+    let offered = match r.run.offered_rate_per_s {
         Some(rate) => format!("open loop at {}/s", fmt_rate(rate)),
-        None if r.connections == 1 => "closed loop, 1 client".into(),
-        None => format!("closed loop, {} clients", r.connections),
+        None if r.run.connections == 1 => "closed loop, 1 client".into(),
+        None => format!("closed loop, {} clients", r.run.connections),
     };
     let _ = writeln!(
         s,
         "{} {offered}, {:.1} s measured (+{:.1} s warm-up) → {}",
-        r.protocol.as_str(),
+        r.run.protocol.as_str(),
         r.window_s,
-        r.warmup_s,
-        r.url
+        r.run.warmup_s,
+        r.run.url
     );
-    let _ = writeln!(s, "frames: {}", r.frames);
+    let _ = writeln!(s, "frames: {}", r.run.frames);
     let rate = r
+        .run
         .offered_rate_per_s
         .map_or_else(|| "-".into(), |v| format!("{v:.2}/s"));
     let _ = writeln!(
@@ -230,7 +231,7 @@ pub fn sweep_row(r: &Report) -> String {
     let c = p.count;
     format!(
         "{:>7} {:>7.2} {:>6} {:>7} {:>6} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9}",
-        fmt_rate(r.offered_rate_per_s.unwrap_or(0.0)),
+        fmt_rate(r.run.offered_rate_per_s.unwrap_or(0.0)),
         r.throughput_ok_per_s,
         r.ok,
         r.refused,
@@ -388,7 +389,7 @@ pub fn compare(old: &Report, new: &Report) -> String {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::loadtest::stats::{histogram, record, spectrum};
+    use crate::loadtest::stats::{histogram, record, spectrum, RunInfo};
     use crate::loadtest::Protocol;
     use std::time::Duration;
 
@@ -399,15 +400,17 @@ pub(crate) mod tests {
             record(&mut h, Duration::from_millis(ms));
         }
         Report {
-            protocol: Protocol::Http,
-            load: "open".into(),
-            url: "http://127.0.0.1:1/v1/roughness".into(),
-            frames: "synthetic".into(),
-            offered_rate_per_s: Some(rate),
-            connections: 1,
-            max_in_flight: 256,
-            warmup_s: 0.0,
-            window_start_unix_s: 0.0,
+            run: RunInfo {
+                protocol: Protocol::Http,
+                load: "open".into(),
+                url: "http://127.0.0.1:1/v1/roughness".into(),
+                frames: "synthetic".into(),
+                offered_rate_per_s: Some(rate),
+                connections: 1,
+                max_in_flight: 256,
+                warmup_s: 0.0,
+                window_start_unix_s: 0.0,
+            },
             window_s: 10.0,
             answered_s: 10.0,
             requests: ok + refused,

@@ -242,15 +242,7 @@ impl Recorder {
         let mut samples = t.samples.clone();
         samples.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
         Report {
-            protocol: meta.protocol,
-            load: meta.load,
-            url: meta.url,
-            frames: meta.frames,
-            offered_rate_per_s: meta.offered_rate_per_s,
-            connections: meta.connections,
-            max_in_flight: meta.max_in_flight,
-            warmup_s: meta.warmup_s,
-            window_start_unix_s: meta.window_start_unix_s,
+            run: meta,
             window_s,
             requests: ok + refused + t.dropped + errors + t.client_saturated,
             ok,
@@ -295,31 +287,8 @@ impl Tally {
 }
 
 /// What a run was, for its report.
-#[derive(Debug, Clone)]
-pub struct RunInfo {
-    /// HTTP or WebSocket.
-    pub protocol: Protocol,
-    /// `open` or `closed`.
-    pub load: String,
-    /// Endpoint loaded.
-    pub url: String,
-    /// Frames sent.
-    pub frames: String,
-    /// Open loop: intended requests per second.
-    pub offered_rate_per_s: Option<f64>,
-    /// Connections (closed loop: clients).
-    pub connections: usize,
-    /// Open loop: cap on outstanding requests.
-    pub max_in_flight: usize,
-    /// Warm-up, seconds.
-    pub warmup_s: f64,
-    /// Start of the measured window, seconds since the Unix epoch.
-    pub window_start_unix_s: f64,
-}
-
-/// The result of one run: what was offered, what came back and how fast.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Report {
+pub struct RunInfo {
     /// HTTP or WebSocket.
     pub protocol: Protocol,
     /// `open` or `closed` loop.
@@ -334,11 +303,19 @@ pub struct Report {
     pub connections: usize,
     /// Open loop: cap on outstanding requests.
     pub max_in_flight: usize,
-    /// Warm-up before the measured window, seconds (not in any number below).
+    /// Warm-up before the measured window, seconds (not in any number of the report).
     pub warmup_s: f64,
     /// Start of the measured window, seconds since the Unix epoch.
     #[serde(default)]
     pub window_start_unix_s: f64,
+}
+
+/// The result of one run: what was offered, what came back and how fast.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    /// What the run was (its fields sit at the top level of the JSON).
+    #[serde(flatten)]
+    pub run: RunInfo,
     /// Measured window, seconds (open loop: the span of intended send times).
     pub window_s: f64,
     /// Requests due in the window (every outcome, `client_saturated` included).
@@ -388,13 +365,14 @@ impl Report {
 
     /// A short name: `http open 10/s` or `ws closed ×2`.
     pub fn label(&self) -> String {
-        match self.offered_rate_per_s {
-            Some(r) => format!("{} {} {}/s", self.protocol.as_str(), self.load, fmt_rate(r)),
+        let run = &self.run;
+        match run.offered_rate_per_s {
+            Some(r) => format!("{} {} {}/s", run.protocol.as_str(), run.load, fmt_rate(r)),
             None => format!(
                 "{} {} ×{}",
-                self.protocol.as_str(),
-                self.load,
-                self.connections
+                run.protocol.as_str(),
+                run.load,
+                run.connections
             ),
         }
     }

@@ -369,7 +369,7 @@ pub fn plot_run(r: &Report) -> String {
     };
     svg(
         &[spectrum, over_time],
-        &format!("{title}; frames: {}", r.frames),
+        &format!("{title}; frames: {}", r.run.frames),
     )
 }
 
@@ -381,7 +381,7 @@ pub fn plot_sweep(sw: &SweepReport) -> String {
         .iter()
         .enumerate()
         .flat_map(|(i, r)| {
-            let name = format!("{}/s", fmt_rate(r.offered_rate_per_s.unwrap_or(0.0)));
+            let name = format!("{}/s", fmt_rate(r.run.offered_rate_per_s.unwrap_or(0.0)));
             spectrum_series(r, &name, PALETTE[i % PALETTE.len()], false)
         })
         .collect();
@@ -390,7 +390,7 @@ pub fn plot_sweep(sw: &SweepReport) -> String {
         series,
         Some(sw.slo_ms),
     );
-    let rate = |r: &Report| r.offered_rate_per_s.unwrap_or(0.0);
+    let rate = |r: &Report| r.run.offered_rate_per_s.unwrap_or(0.0);
     let line = |name: &str, colour, f: fn(&Report) -> f64| Series {
         name: name.into(),
         colour,
@@ -433,9 +433,9 @@ pub fn plot_sweep(sw: &SweepReport) -> String {
     let footer = sw.rows.first().map_or_else(String::new, |r| {
         format!(
             "tre loadtest sweep: {} {}; frames: {}",
-            r.protocol.as_str(),
-            r.url,
-            r.frames
+            r.run.protocol.as_str(),
+            r.run.url,
+            r.run.frames
         )
     });
     svg(&[spectrum, by_rate], &footer)
@@ -513,7 +513,7 @@ mod tests {
                 kind: SampleKind::Refused,
             },
         ];
-        r.frames = "a <weird> & \"frame\"".into();
+        r.run.frames = "a <weird> & \"frame\"".into();
         let svg = plot_run(&r);
         check_well_formed(&svg);
         for label in [
