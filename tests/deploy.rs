@@ -263,22 +263,9 @@ fn dockerfile_text() -> String {
 }
 
 fn dockerfile() -> Vec<Instruction> {
-    let text = dockerfile_text();
     let mut out = Vec::new();
-    let mut pending = String::new();
     let mut stage = None::<usize>;
-    for line in text.lines() {
-        let trimmed = line.trim();
-        if trimmed.starts_with('#') || (trimmed.is_empty() && pending.is_empty()) {
-            continue;
-        }
-        if let Some(head) = trimmed.strip_suffix('\\') {
-            pending.push_str(head);
-            pending.push(' ');
-            continue;
-        }
-        pending.push_str(trimmed);
-        let full = std::mem::take(&mut pending);
+    for full in logical_lines(&dockerfile_text(), &['#']) {
         let (keyword, args) = full.split_once(char::is_whitespace).unwrap_or((&full, ""));
         let keyword = keyword.to_ascii_uppercase();
         if keyword == "FROM" {
@@ -336,30 +323,40 @@ fn versions_after(text: &str, marker: &str) -> Vec<String> {
         .collect()
 }
 
+/// The logical lines of a Dockerfile or unit file: trimmed, a line ending in `\\` joined to the
+/// next with a space, blank lines and lines starting with one of `comments` left out.
+fn logical_lines(text: &str, comments: &[char]) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut pending = String::new();
+    for line in text.lines().map(str::trim) {
+        if line.is_empty() || line.starts_with(comments) {
+            continue;
+        }
+        match line.strip_suffix('\\') {
+            Some(head) => {
+                pending.push_str(head);
+                pending.push(' ');
+            }
+            None => {
+                pending.push_str(line);
+                out.push(std::mem::take(&mut pending));
+            }
+        }
+    }
+    out
+}
+
 // ---- systemd ---------------------------------------------------------------------------------
 
 /// `[Service]` settings of the unit, in order, continuation lines joined.
 fn unit_service() -> Vec<(String, String)> {
-    let text = read("deploy/systemd/tre.service");
     let mut out = Vec::new();
     let mut section = String::new();
-    let mut pending = String::new();
-    for line in text.lines() {
-        let trimmed = line.trim();
-        if trimmed.starts_with('#') || trimmed.starts_with(';') || trimmed.is_empty() {
+    for full in logical_lines(&read("deploy/systemd/tre.service"), &['#', ';']) {
+        if full.starts_with('[') {
+            section = full;
             continue;
         }
-        if trimmed.starts_with('[') {
-            section = trimmed.to_owned();
-            continue;
-        }
-        if let Some(head) = trimmed.strip_suffix('\\') {
-            pending.push_str(head);
-            pending.push(' ');
-            continue;
-        }
-        pending.push_str(trimmed);
-        let full = std::mem::take(&mut pending);
         let (key, value) = full.split_once('=').expect("unit lines are Key=value");
         if section == "[Service]" {
             out.push((key.trim().to_owned(), value.trim().to_owned()));

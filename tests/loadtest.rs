@@ -334,6 +334,18 @@ fn tre() -> Command {
     Command::new(env!("CARGO_BIN_EXE_tre"))
 }
 
+/// Runs `cmd`, asserts that it succeeded (showing its output if not) and returns its stdout.
+fn succeeds(cmd: &mut Command) -> String {
+    let out = cmd.output().expect("runs");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
 #[test]
 fn the_cli_writes_json_and_svg_and_compares_with_an_earlier_run() {
     let _serial = serial();
@@ -349,21 +361,15 @@ fn the_cli_writes_json_and_svg_and_compares_with_an_earlier_run() {
     let frame = dir.path().join("f.png");
     std::fs::write(&frame, b"\x89PNG\r\n\x1a\nfake").expect("write");
     let url = format!("http://{addr}");
-    let out = tre()
-        .args(["loadtest", "--url", &url, "--rate", "20", "--duration", "1"])
-        .arg("--frame")
-        .arg(&frame)
-        .arg("--json")
-        .arg(&json)
-        .arg("--plot")
-        .arg(&svg)
-        .output()
-        .expect("runs");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&out.stderr)
+    let stdout = succeeds(
+        tre()
+            .args(["loadtest", "--url", &url, "--rate", "20", "--duration", "1"])
+            .arg("--frame")
+            .arg(&frame)
+            .arg("--json")
+            .arg(&json)
+            .arg("--plot")
+            .arg(&svg),
     );
     assert!(
         stdout.contains("open loop at 20/s") && stdout.contains("p99.9"),
@@ -371,19 +377,13 @@ fn the_cli_writes_json_and_svg_and_compares_with_an_earlier_run() {
     );
     let plot = std::fs::read_to_string(&svg).expect("svg written");
     assert!(plot.starts_with("<svg") && plot.contains("percentile (log scale of nines)"));
-    let out = tre()
-        .args(["loadtest", "--url", &url, "--requests", "5"])
-        .arg("--frame")
-        .arg(&frame)
-        .arg("--compare")
-        .arg(&json)
-        .output()
-        .expect("runs");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&out.stderr)
+    let stdout = succeeds(
+        tre()
+            .args(["loadtest", "--url", &url, "--requests", "5"])
+            .arg("--frame")
+            .arg(&frame)
+            .arg("--compare")
+            .arg(&json),
     );
     assert!(
         stdout.contains("compared with") && stdout.contains("new/old"),
