@@ -117,22 +117,8 @@ impl Models {
     }
 
     /// Neighbour net: RGB, camera-frame points (N×3×H×W, 0 where invalid) and validity (N×1×H×W,
-    /// 1/0) → 49 logits per pixel over its 7×7 window (N×49×H×W).
-    ///
-    /// # Errors
-    ///
-    /// Those of [`ModelSession::run`].
-    pub fn neighbour_logits(
-        &mut self,
-        rgb: ArrayView4<'_, f32>,
-        points_m: ArrayView4<'_, f32>,
-        valid: ArrayView4<'_, f32>,
-    ) -> Result<Array4<f32>, ModelError> {
-        self.neighbour.run(&[rgb, points_m, valid])
-    }
-
-    /// The neighbour net like [`Models::neighbour_logits`], its logits handed to `consume`
-    /// without a copy.
+    /// 1/0) → 49 logits per pixel over its 7×7 window (N×49×H×W), handed to `consume` without a
+    /// copy (12.8 MB at 256×256).
     ///
     /// # Errors
     ///
@@ -148,23 +134,7 @@ impl Models {
     }
 
     /// Normal refiner: RGB, points, validity and initial normals (N×3×H×W, 0 where none) →
-    /// unit normals (N×3×H×W).
-    ///
-    /// # Errors
-    ///
-    /// Those of [`ModelSession::run`].
-    pub fn refine_normals(
-        &mut self,
-        rgb: ArrayView4<'_, f32>,
-        points_m: ArrayView4<'_, f32>,
-        valid: ArrayView4<'_, f32>,
-        normals_init: ArrayView4<'_, f32>,
-    ) -> Result<Array4<f32>, ModelError> {
-        self.refiner.run(&[rgb, points_m, valid, normals_init])
-    }
-
-    /// The refiner like [`Models::refine_normals`], its output handed to `consume` without a
-    /// copy.
+    /// unit normals (N×3×H×W), handed to `consume` without a copy.
     ///
     /// # Errors
     ///
@@ -178,23 +148,7 @@ impl Models {
     }
 
     /// Centroid net: RGB, points, validity and normals → local-plane centroids in metres
-    /// (N×3×H×W).
-    ///
-    /// # Errors
-    ///
-    /// Those of [`ModelSession::run`].
-    pub fn centroids(
-        &mut self,
-        rgb: ArrayView4<'_, f32>,
-        points_m: ArrayView4<'_, f32>,
-        valid: ArrayView4<'_, f32>,
-        normals: ArrayView4<'_, f32>,
-    ) -> Result<Array4<f32>, ModelError> {
-        self.centroid.run(&[rgb, points_m, valid, normals])
-    }
-
-    /// The centroid net like [`Models::centroids`], its output handed to `consume` without a
-    /// copy.
+    /// (N×3×H×W), handed to `consume` without a copy.
     ///
     /// # Errors
     ///
