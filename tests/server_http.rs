@@ -147,7 +147,7 @@ fn formats_and_extra_outputs() {
         assert_eq!(a.shape, vec![64, 96]);
 
         let url = format!(
-            "{}/v1/roughness?format=color&outputs=depth,traversable,slope,normals",
+            "{}/v1/roughness?format=color&outputs=depth,traversable,slope,normals,boundary",
             server.url()
         );
         let resp = post(&url, "image/png", frame).await;
@@ -156,7 +156,14 @@ fn formats_and_extra_outputs() {
         assert!(ct.starts_with("multipart/mixed; boundary="), "{ct}");
         let body = resp.bytes().await.unwrap();
         let text = String::from_utf8_lossy(&body);
-        for name in ["roughness", "depth", "traversable", "slope", "normals"] {
+        for name in [
+            "roughness",
+            "depth",
+            "traversable",
+            "slope",
+            "normals",
+            "boundary",
+        ] {
             assert!(
                 text.contains(&format!("name=\"{name}\"")),
                 "part {name} missing"

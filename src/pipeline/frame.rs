@@ -7,7 +7,9 @@ use image::RgbImage;
 use super::centroid::{slopes, traversable};
 use super::resize::resize_nearest;
 use super::Traversability;
-use crate::geometry::{Grid, Intrinsics, Mounting, Vec3, INVALID_POINT};
+use crate::geometry::{Grid, Intrinsics, Mounting, PointMap, Vec3, INVALID_POINT};
+use crate::roughness::annotate::{boundary_mask, segment};
+use crate::roughness::AnnotateConfig;
 
 /// Horizontal field of view assumed when a frame comes without intrinsics, degrees.
 pub const DEFAULT_HFOV_DEG: f64 = 60.0;
@@ -57,25 +59,32 @@ pub struct FrameOutput {
 struct WorkingMaps {
     /// Roughness at the working size; `None` when the frame is at the working size.
     roughness_m: Option<Grid<f64>>,
-    depth_m: Option<Grid<f64>>,
-    normals: Option<Grid<Vec3>>,
+    /// `None` for the end-to-end baseline.
+    stages: Option<StageMaps>,
     up_in_cam: Vec3,
     limits: Traversability,
 }
 
+/// The staged pipeline's depth, points and final normals at the working size.
+#[derive(Debug, Clone)]
+pub(crate) struct StageMaps {
+    pub(crate) depth_m: Grid<f64>,
+    pub(crate) points: PointMap,
+    pub(crate) normals: Grid<Vec3>,
+}
+
 impl FrameOutput {
-    /// The output of a frame of `size` from maps at the working size: roughness (always),
-    /// depth and normals (`None` for the end-to-end baseline), gravity's up axis in the camera
-    /// frame and the traversability thresholds.
+    /// The output of a frame of `size` from maps at the working size: roughness (always), the
+    /// stages' maps (`None` for the end-to-end baseline), gravity's up axis in the camera frame
+    /// and the traversability thresholds.
     pub(crate) fn new(
         size: (usize, usize),
         roughness_m: Grid<f64>,
-        maps: (Option<Grid<f64>>, Option<Grid<Vec3>>),
+        stages: Option<StageMaps>,
         up_in_cam: Vec3,
         limits: Traversability,
     ) -> Self {
         let working_size = roughness_m.size();
-        let (depth_m, normals) = maps;
         let (roughness_m, working_roughness) = if working_size == size {
             (roughness_m, None)
         } else {
@@ -88,8 +97,7 @@ impl FrameOutput {
             timings: StageTimings::default(),
             working: WorkingMaps {
                 roughness_m: working_roughness,
-                depth_m,
-                normals,
+                stages,
                 up_in_cam,
                 limits,
             },
@@ -104,22 +112,31 @@ impl FrameOutput {
 
     /// Depth used, metres (0: none); `None` for the end-to-end baseline.
     pub fn depth_m(&self) -> Option<Grid<f64>> {
-        let d = self.working.depth_m.as_ref()?;
+        let d = &self.working.stages.as_ref()?.depth_m;
         Some(self.full_size(d, 0.0))
     }
 
     /// Unit normals in the camera frame, facing the camera (NaN: none); `None` for the
     /// end-to-end baseline.
     pub fn normals(&self) -> Option<Grid<Vec3>> {
-        let n = self.working.normals.as_ref()?;
+        let n = &self.working.stages.as_ref()?.normals;
         Some(self.full_size(n, INVALID_POINT))
     }
 
     /// Slope of the normals in the gravity frame, radians (NaN: none); `None` for the
     /// end-to-end baseline.
     pub fn slope_rad(&self) -> Option<Grid<f64>> {
-        let n = self.working.normals.as_ref()?;
+        let n = &self.working.stages.as_ref()?.normals;
         Some(self.full_size(&slopes(n, &self.working.up_in_cam), f64::NAN))
+    }
+
+    /// Boundary pixels by annotation spec v1, steps 2 and 3, on the pipeline's own points and
+    /// normals (one label): valid pixels with a valid 8-neighbour in another smooth segment,
+    /// i.e. depth steps and creases. `None` for the end-to-end baseline.
+    pub fn boundary(&self) -> Option<Grid<bool>> {
+        let m = self.working.stages.as_ref()?;
+        let segments = segment(&m.points, &m.normals, None, &AnnotateConfig::default());
+        Some(self.full_size(&boundary_mask(&m.points, &segments), false))
     }
 
     /// Pixels whose roughness and slope are within the thresholds (roughness only for the
@@ -127,7 +144,7 @@ impl FrameOutput {
     pub fn traversable(&self) -> Grid<bool> {
         let w = &self.working;
         let roughness = w.roughness_m.as_ref().unwrap_or(&self.roughness_m);
-        let tilt = w.normals.as_ref().map(|n| (n, &w.up_in_cam));
+        let tilt = w.stages.as_ref().map(|m| (&m.normals, &w.up_in_cam));
         self.full_size(&traversable(roughness, tilt, &w.limits), false)
     }
 }
@@ -214,9 +231,14 @@ mod tests {
                 -up
             }
         });
-        let depth = Grid::from_fn(2, 2, |x, y| 1.0 + x as f64 + 2.0 * y as f64);
-        let maps = (Some(depth), Some(normals));
-        FrameOutput::new((4, 2), roughness, maps, up, Traversability::default())
+        let depth_m = Grid::from_fn(2, 2, |x, y| 1.0 + x as f64 + 2.0 * y as f64);
+        let points = Grid::new(2, 2, Vec3::new(0.0, 0.0, 1.0));
+        let maps = StageMaps {
+            depth_m,
+            points,
+            normals,
+        };
+        FrameOutput::new((4, 2), roughness, Some(maps), up, Traversability::default())
     }
 
     #[test]
@@ -237,15 +259,42 @@ mod tests {
     }
 
     #[test]
+    fn boundary_marks_both_sides_of_a_depth_step() {
+        let points = Grid::from_fn(6, 2, |x, y| {
+            let z = if x < 3 { 1.0 } else { 1.2 };
+            Vec3::new(0.01 * x as f64, 0.01 * y as f64, z)
+        });
+        let maps = StageMaps {
+            depth_m: points.map(|p| p.z),
+            normals: Grid::new(6, 2, Vec3::new(0.0, 0.0, -1.0)),
+            points,
+        };
+        let up = Mounting::default().up_in_cam();
+        let out = FrameOutput::new(
+            (12, 2),
+            Grid::new(6, 2, 0.0),
+            Some(maps),
+            up,
+            Traversability::default(),
+        );
+        let b = out.boundary().expect("boundary");
+        assert_eq!(b.size(), (12, 2));
+        let row: Vec<bool> = (0..12).map(|x| b[(x, 0)]).collect();
+        let expect: Vec<bool> = (0..12).map(|x| (4..8).contains(&x)).collect();
+        assert_eq!(row, expect);
+    }
+
+    #[test]
     fn the_end_to_end_baseline_has_only_roughness_and_traversability() {
         let out = FrameOutput::new(
             (2, 2),
             Grid::new(2, 2, 0.01),
-            (None, None),
+            None,
             Vec3::z(),
             Traversability::default(),
         );
         assert!(out.depth_m().is_none() && out.normals().is_none() && out.slope_rad().is_none());
+        assert!(out.boundary().is_none());
         assert!(out.traversable().as_slice().iter().all(|&t| t));
     }
 }

@@ -8,7 +8,7 @@ use ndarray::Array4;
 
 use super::centroid::{net_centroids, roughness_into};
 use super::depth::{prior_depth_into, MAX_PRIOR_DEPTH_M};
-use super::frame::{FrameInput, FrameOutput, StageTimings, DEFAULT_HFOV_DEG};
+use super::frame::{FrameInput, FrameOutput, StageMaps, StageTimings, DEFAULT_HFOV_DEG};
 use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
 use super::resize::{resize_nearest, resize_rgb};
 use super::tensors::{depth_from_tensor, points_tensors, rgb_tensor, scalar_tensor};
@@ -150,12 +150,15 @@ impl Pipeline {
         timings.time("roughness", || {
             roughness_into(&points, &normals, &centroids, &mut roughness_m);
         });
-        let maps = WorkingMaps {
+        let maps = StageMaps {
             depth_m,
+            points,
             normals,
-            roughness_m,
         };
-        let mut out = timings.time("outputs", || maps.into_output(input, cfg, size));
+        let mut out = timings.time("outputs", || {
+            let up = input.mounting.up_in_cam();
+            FrameOutput::new(size, roughness_m, Some(maps), up, cfg.traversability)
+        });
         out.timings = timings;
         Ok(out)
     }
@@ -265,7 +268,7 @@ impl Pipeline {
         timings.add("end_to_end", start.elapsed());
         let mut out = timings.time("outputs", || {
             let (up, limits) = (input.mounting.up_in_cam(), cfg.traversability);
-            FrameOutput::new(size, roughness_m, (None, None), up, limits)
+            FrameOutput::new(size, roughness_m, None, up, limits)
         });
         out.timings = timings;
         Ok(out)
@@ -387,30 +390,4 @@ pub fn check_input(
         });
     }
     Ok(size)
-}
-
-/// The stage outputs at the working size.
-struct WorkingMaps {
-    depth_m: Grid<f64>,
-    normals: Grid<Vec3>,
-    roughness_m: Grid<f64>,
-}
-
-impl WorkingMaps {
-    /// The frame's output: roughness at the frame's size, the rest kept for the output's
-    /// methods.
-    fn into_output(
-        self,
-        input: &FrameInput,
-        cfg: &PipelineConfig,
-        size: (usize, usize),
-    ) -> FrameOutput {
-        FrameOutput::new(
-            size,
-            self.roughness_m,
-            (Some(self.depth_m), Some(self.normals)),
-            input.mounting.up_in_cam(),
-            cfg.traversability,
-        )
-    }
 }

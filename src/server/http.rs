@@ -31,7 +31,7 @@ pub struct RoughnessQuery {
     normals: Option<String>,
     /// Top of the colour scale, centimetres.
     preview_max_cm: Option<f64>,
-    /// Extra maps, comma-separated: `depth,normals,slope,traversable`.
+    /// Extra maps, comma-separated: `depth,normals,slope,traversable,boundary`.
     outputs: Option<String>,
     fx: Option<f64>,
     fy: Option<f64>,
@@ -88,11 +88,10 @@ impl RoughnessQuery {
                 "normals" => extras.normals = true,
                 "slope" => extras.slope = true,
                 "traversable" => extras.traversable = true,
-                other => {
-                    return Err(bad(format!(
-                        "outputs: unknown map {other:?} (depth, normals, slope, traversable)"
-                    )))
-                }
+                "boundary" => extras.boundary = true,
+                other => return Err(bad(format!(
+                    "outputs: unknown map {other:?} (depth, normals, slope, traversable, boundary)"
+                ))),
             }
         }
         if let Some(cm) = self.preview_max_cm.filter(|c| !(c.is_finite() && *c > 0.0)) {

@@ -46,12 +46,14 @@ pub struct Extras {
     pub slope: bool,
     /// Traversability mask, 8-bit grey PNG (255 = traversable).
     pub traversable: bool,
+    /// Boundary mask (depth steps and creases), 8-bit grey PNG (255 = boundary).
+    pub boundary: bool,
 }
 
 impl Extras {
     /// Whether any extra map is asked for.
     pub fn any(self) -> bool {
-        self.depth || self.normals || self.slope || self.traversable
+        self.depth || self.normals || self.slope || self.traversable || self.boundary
     }
 }
 
@@ -97,7 +99,7 @@ pub struct DecodeLimits {
 /// One extra output map, encoded.
 #[derive(Debug, Clone)]
 pub struct Part {
-    /// `depth`, `normals`, `slope` or `traversable`.
+    /// `depth`, `normals`, `slope`, `traversable` or `boundary`.
     pub name: &'static str,
     /// Its MIME type.
     pub content_type: &'static str,
@@ -291,6 +293,21 @@ fn npy<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Result<Vec<u8>, A
     Ok(out)
 }
 
+/// A mask as PNG part `name` (file `filename`): 8-bit grey, 255 where set.
+fn mask_part(
+    name: &'static str,
+    filename: &'static str,
+    mask: &Grid<bool>,
+) -> Result<Part, ApiError> {
+    let grey = mask.map(|&m| if m { 255u8 } else { 0 });
+    Ok(Part {
+        name,
+        content_type: "image/png",
+        filename,
+        bytes: png(&DynamicImage::ImageLuma8(io::gray8(&grey)))?,
+    })
+}
+
 /// Encodes the pipeline's output as the options ask.
 pub fn encode_reply(out: FrameOutput, opts: &FrameOptions) -> Result<FrameReply, ApiError> {
     let r = &out.roughness_m;
@@ -346,13 +363,10 @@ pub fn encode_reply(out: FrameOutput, opts: &FrameOptions) -> Result<FrameReply,
     }
     let ok = (e.traversable || opts.traversable_bytes).then(|| out.traversable());
     if let (true, Some(ok)) = (e.traversable, &ok) {
-        let mask = ok.map(|&t| if t { 255u8 } else { 0 });
-        extras.push(Part {
-            name: "traversable",
-            content_type: "image/png",
-            filename: "traversable.png",
-            bytes: png(&DynamicImage::ImageLuma8(io::gray8(&mask)))?,
-        });
+        extras.push(mask_part("traversable", "traversable.png", ok)?);
+    }
+    if let Some(b) = e.boundary.then(|| out.boundary()).flatten() {
+        extras.push(mask_part("boundary", "boundary.png", &b)?);
     }
     let traversable = match (opts.traversable_bytes, &ok) {
         (true, Some(ok)) => ok.as_slice().iter().map(|&t| u8::from(t)).collect(),
