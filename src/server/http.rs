@@ -89,9 +89,10 @@ impl RoughnessQuery {
                 "slope" => extras.slope = true,
                 "traversable" => extras.traversable = true,
                 "boundary" => extras.boundary = true,
-                other => return Err(bad(format!(
-                    "outputs: unknown map {other:?} (depth, normals, slope, traversable, boundary)"
-                ))),
+                other => {
+                    let known = "depth, normals, slope, traversable, boundary";
+                    return Err(bad(format!("outputs: unknown map {other:?} ({known})")));
+                }
             }
         }
         if let Some(cm) = self.preview_max_cm.filter(|c| !(c.is_finite() && *c > 0.0)) {
