@@ -110,17 +110,14 @@ impl Intrinsics {
     pub fn back_project_map(&self, depth_m: &Grid<f64>) -> PointMap {
         let (w, h) = depth_m.size();
         let mut out = Grid::new(w, h, INVALID_POINT);
-        out.as_mut_slice()
-            .par_chunks_mut(w.max(1))
-            .enumerate()
-            .for_each(|(y, row)| {
-                for (x, p) in row.iter_mut().enumerate() {
-                    let z = depth_m[(x, y)];
-                    if z > 0.0 && z.is_finite() {
-                        *p = self.back_project(x as f64, y as f64, z);
-                    }
+        out.par_rows_mut().for_each(|(y, row)| {
+            for (x, p) in row.iter_mut().enumerate() {
+                let z = depth_m[(x, y)];
+                if z > 0.0 && z.is_finite() {
+                    *p = self.back_project(x as f64, y as f64, z);
                 }
-            });
+            }
+        });
         out
     }
 }

@@ -69,9 +69,10 @@
 //!
 //! Scoring stops early for a hypothesis that provably cannot beat the best one so far: its
 //! partial sum plus, per valid candidate still to come, the most one candidate can add (the
-//! value at distance 0), with a margin for rounding, is not above the best score. Each batch of hypotheses finishes first the one leading after two blocks,
-//! to raise that bar early. The chosen hypothesis, and so the result, are those of the full
-//! computation, which [`pixel_hypotheses`] performs.
+//! value at distance 0), with a margin for rounding, is not above the best score. Each batch
+//! of hypotheses finishes first the one leading after two blocks, to raise that bar early. The
+//! chosen hypothesis, and so the result, are those of the full computation, which
+//! [`pixel_hypotheses`] performs.
 
 use std::hint::select_unpredictable;
 
@@ -298,16 +299,13 @@ pub fn dsac_normals(
         cfg,
     };
     let mut out = Grid::new(w, h, INVALID_POINT);
-    out.as_mut_slice()
-        .par_chunks_mut(w.max(1))
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (x, n) in row.iter_mut().enumerate() {
-                if let Some(normal) = frame.pixel_normal(x, y) {
-                    *n = normal;
-                }
+    out.par_rows_mut().for_each(|(y, row)| {
+        for (x, n) in row.iter_mut().enumerate() {
+            if let Some(normal) = frame.pixel_normal(x, y) {
+                *n = normal;
             }
-        });
+        }
+    });
     Ok(out)
 }
 
@@ -391,7 +389,7 @@ fn best_hypothesis(
                     }
                 }
             }
-            None => best_of_batch(window, &hyps[..count], base, &mut best),
+            None => best_of_batch(window, &hyps[..count], base, scorer.most, &mut best),
         }
         first += count as u32;
     }
@@ -399,11 +397,12 @@ fn best_hypothesis(
 }
 
 /// Offers the hypotheses of a batch (indices from `base`) to `best`, the one leading after
-/// [`LEAD_BLOCKS`] blocks first, the others with pruning.
+/// [`LEAD_BLOCKS`] blocks first, the others with pruning (`most`: [`Scorer::most`]).
 fn best_of_batch(
     window: &Window<'_>,
     hyps: &[Option<(Plane, Hyp32)>],
     base: usize,
+    most: f32,
     best: &mut Best,
 ) {
     let mut leads = [[0.0; BLOCK]; BATCH];
@@ -421,7 +420,7 @@ fn best_of_batch(
     let rest = (0..hyps.len()).filter(|&j| lead.is_none_or(|(l, _)| l != j));
     for j in order.chain(rest) {
         if let Some((plane, h)) = hyps[j] {
-            if let Some(score) = window.finish_above(&h, leads[j], best.score()) {
+            if let Some(score) = window.finish_above(&h, leads[j], best.score(), most) {
                 best.offer(base + j, score, plane);
             }
         }
@@ -458,8 +457,6 @@ struct Hyp32 {
     n: [f32; 3],
     o: f32,
     tau: f32,
-    /// An upper bound of what one candidate adds to the score ([`Scorer::most`]).
-    most: f32,
 }
 
 /// Blocks scored for every hypothesis of a batch before the leading one is finished.
@@ -648,7 +645,6 @@ impl<'a> Window<'a> {
             n: [m.x as f32, m.y as f32, m.z as f32],
             o: o as f32,
             tau: scorer.tau,
-            most: scorer.most,
         }
     }
 
@@ -675,12 +671,12 @@ impl<'a> Window<'a> {
     }
 
     /// The score of `h` from its accumulators after [`LEAD_BLOCKS`] blocks, or `None` once it
-    /// provably is below `floor`: the partial sum plus [`Scorer::most`] per valid candidate
-    /// still to come, plus [`PRUNE_MARGIN`] for the f32 rounding of the sums (at most
+    /// provably is below `floor`: the partial sum plus `most` ([`Scorer::most`]) per valid
+    /// candidate still to come, plus [`PRUNE_MARGIN`] for the f32 rounding of the sums (at most
     /// 56 · 10 · 2⁻²⁴ relative), bounds it from above.
-    fn finish_above(&self, h: &Hyp32, mut acc: [f32; BLOCK], floor: f32) -> Option<f32> {
+    fn finish_above(&self, h: &Hyp32, mut acc: [f32; BLOCK], floor: f32, most: f32) -> Option<f32> {
         for b in LEAD_BLOCKS..BLOCKS {
-            if sum_block(acc) + (self.to_come[b - 1] * h.most + PRUNE_MARGIN) <= floor {
+            if sum_block(acc) + (self.to_come[b - 1] * most + PRUNE_MARGIN) <= floor {
                 return None;
             }
             self.add_blocks(h, &mut acc, b..b + 1);

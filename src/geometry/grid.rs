@@ -124,6 +124,25 @@ impl<T> Grid<T> {
         &mut self.data
     }
 
+    /// The rows as mutable slices with their `y`, for filling in parallel.
+    ///
+    /// ```
+    /// use rayon::prelude::*;
+    /// use tre::geometry::Grid;
+    /// let mut g = Grid::new(3, 2, 0usize);
+    /// g.par_rows_mut().for_each(|(y, row)| row.iter_mut().enumerate().for_each(|(x, v)| *v = x + 10 * y));
+    /// assert_eq!(g.row(1), &[10, 11, 12]);
+    /// ```
+    pub fn par_rows_mut(
+        &mut self,
+    ) -> impl rayon::iter::IndexedParallelIterator<Item = (usize, &mut [T])> + '_
+    where
+        T: Send,
+    {
+        use rayon::prelude::*;
+        self.data.par_chunks_mut(self.width.max(1)).enumerate()
+    }
+
     /// Consumes the grid and returns its row-major buffer.
     pub fn into_vec(self) -> Vec<T> {
         self.data

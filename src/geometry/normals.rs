@@ -253,11 +253,9 @@ pub fn local_planes(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> Loca
     let mut centroid = Grid::new(w, h, INVALID_POINT);
     let mut normal = Grid::new(w, h, INVALID_POINT);
     centroid
-        .as_mut_slice()
-        .par_chunks_mut(w.max(1))
-        .zip(normal.as_mut_slice().par_chunks_mut(w.max(1)))
-        .enumerate()
-        .for_each(|(y, (c_row, n_row))| {
+        .par_rows_mut()
+        .zip(normal.par_rows_mut())
+        .for_each(|((y, c_row), (_, n_row))| {
             for x0 in (0..w).step_by(EIGEN_LANES) {
                 let m: [Moments; EIGEN_LANES] = std::array::from_fn(|l| {
                     let x = x0 + l;
@@ -294,20 +292,16 @@ pub fn window_centroids(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> 
     let mut packed = PackedPoints::default();
     packed.pack(points);
     let mut centroid = Grid::new(w, h, INVALID_POINT);
-    centroid
-        .as_mut_slice()
-        .par_chunks_mut(w.max(1))
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (x, c) in row.iter_mut().enumerate() {
-                if let Some(m) = hood
-                    .moments_packed(&packed, points, fx_px, x, y)
-                    .mean(&points[(x, y)])
-                {
-                    *c = m;
-                }
+    centroid.par_rows_mut().for_each(|(y, row)| {
+        for (x, c) in row.iter_mut().enumerate() {
+            if let Some(m) = hood
+                .moments_packed(&packed, points, fx_px, x, y)
+                .mean(&points[(x, y)])
+            {
+                *c = m;
             }
-        });
+        }
+    });
     centroid
 }
 

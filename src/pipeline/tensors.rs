@@ -116,15 +116,12 @@ pub fn depth_from_tensor(t: ArrayView4<'_, f32>) -> Grid<f64> {
     let (_, _, h, w) = t.dim();
     let plane = t.slice(s![0, 0, .., ..]);
     let mut out = Grid::new(w, h, 0.0);
-    out.as_mut_slice()
-        .par_chunks_mut(w.max(1))
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (d, &v) in row.iter_mut().zip(plane.row(y)) {
-                let v = f64::from(v);
-                *d = if v > 0.0 && v.is_finite() { v } else { 0.0 };
-            }
-        });
+    out.par_rows_mut().for_each(|(y, row)| {
+        for (d, &v) in row.iter_mut().zip(plane.row(y)) {
+            let v = f64::from(v);
+            *d = if v > 0.0 && v.is_finite() { v } else { 0.0 };
+        }
+    });
     out
 }
 
@@ -134,21 +131,18 @@ pub fn vectors_from_tensor(t: ArrayView4<'_, f32>, points: &PointMap, unit: bool
     let (w, h) = points.size();
     let planes = [0, 1, 2].map(|c| t.slice_move(s![0, c, .., ..]));
     let mut out = Grid::new(w, h, INVALID_POINT);
-    out.as_mut_slice()
-        .par_chunks_mut(w.max(1))
-        .enumerate()
-        .for_each(|(y, row)| {
-            let src = planes.each_ref().map(|p| p.row(y));
-            for (x, (n, p)) in row.iter_mut().zip(points.row(y)).enumerate() {
-                if !is_valid_point(p) {
-                    continue;
-                }
-                let v = Vec3::new(src[0][x].into(), src[1][x].into(), src[2][x].into());
-                let v = if unit { v / v.norm() } else { v };
-                if v.iter().all(|c| c.is_finite()) {
-                    *n = v;
-                }
+    out.par_rows_mut().for_each(|(y, row)| {
+        let src = planes.each_ref().map(|p| p.row(y));
+        for (x, (n, p)) in row.iter_mut().zip(points.row(y)).enumerate() {
+            if !is_valid_point(p) {
+                continue;
             }
-        });
+            let v = Vec3::new(src[0][x].into(), src[1][x].into(), src[2][x].into());
+            let v = if unit { v / v.norm() } else { v };
+            if v.iter().all(|c| c.is_finite()) {
+                *n = v;
+            }
+        }
+    });
     out
 }

@@ -318,17 +318,14 @@ pub fn edge_transient(edge: &Grid<f64>, points: &PointMap, sigma_px: f64) -> Gri
     let (w, h) = edge.size();
     let reach = (3.0 * sigma_px).floor() as isize;
     let mut out = Grid::new(w, h, 0.0);
-    out.as_mut_slice()
-        .par_chunks_mut(w.max(1))
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (x, o) in row.iter_mut().enumerate() {
-                if !is_valid_point(&points[(x, y)]) {
-                    continue;
-                }
-                *o = transient_at(edge, x, y, reach, sigma_px);
+    out.par_rows_mut().for_each(|(y, row)| {
+        for (x, o) in row.iter_mut().enumerate() {
+            if !is_valid_point(&points[(x, y)]) {
+                continue;
             }
-        });
+            *o = transient_at(edge, x, y, reach, sigma_px);
+        }
+    });
     out
 }
 
