@@ -488,3 +488,57 @@ fn sigterm_finishes_in_flight_work_then_exits() {
         "the in-flight request was not finished"
     );
 }
+
+#[test]
+fn clients_that_left_give_their_queue_slots_to_new_frames() {
+    // One worker, a queue of one, and a short timeout: a frame that outlives its client's
+    // timeout must not keep the only slot from the next client while the worker is busy.
+    let server = Server::start(&[
+        "--workers",
+        "1",
+        "--queue",
+        "1",
+        "--request-timeout-ms",
+        "300",
+    ]);
+    let url = format!("{}/v1/roughness", server.url());
+    let small = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    // A slow frame: 4000×3000, every output map brought back to that size.
+    let big = {
+        let rgb = image::open(real("slambook2_ch7/1.png")).unwrap().to_rgb8();
+        let up = image::imageops::resize(&rgb, 4000, 3000, image::imageops::FilterType::Nearest);
+        let mut out = std::io::Cursor::new(Vec::new());
+        up.write_to(&mut out, image::ImageFormat::Jpeg).unwrap();
+        out.into_inner()
+    };
+    let rt = rt();
+    let slow_url = format!("{url}?outputs=depth,normals,slope,traversable,boundary");
+    let mut slow = rt.spawn(async move {
+        let resp = post(&slow_url, "image/jpeg", big).await;
+        (resp.status(), resp.text().await.unwrap())
+    });
+    let start = std::time::Instant::now();
+    while !String::from_utf8(get(server.addr, "/metrics").1)
+        .unwrap_or_default()
+        .contains("tre_batch_size_count 1")
+    {
+        assert!(
+            !slow.is_finished() && start.elapsed() < std::time::Duration::from_secs(20),
+            "the slow frame never started: {:?}",
+            slow.is_finished().then(|| rt.block_on(&mut slow))
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    rt.block_on(async {
+        // Queued behind the slow frame; its client's timeout ends before the worker is free.
+        let (s, code, message) = error_of(post(&url, "image/png", small.clone()).await).await;
+        assert_eq!((s, code.as_str()), (503, "timeout"), "{message}");
+        // Its job is still queued, but its client is gone: the next frame takes the slot.
+        let resp = post(&url, "image/png", small).await;
+        if resp.status().as_u16() != 200 {
+            let (s, code, message) = error_of(resp).await;
+            assert_eq!((s, code.as_str()), (503, "timeout"), "{message}");
+        }
+    });
+    rt.block_on(slow).unwrap();
+}

@@ -147,7 +147,14 @@ impl Workers {
             reply,
             enqueued: Instant::now(),
         };
-        match tx.try_send(job) {
+        let sent = match tx.try_send(job) {
+            Err(TrySendError::Full(job)) => {
+                self.drop_abandoned(tx);
+                tx.try_send(job)
+            }
+            sent => sent,
+        };
+        match sent {
             Ok(()) => Ok(rx),
             Err(TrySendError::Full(_)) => Err(ApiError::new(
                 ErrorCode::Overloaded,
@@ -160,6 +167,38 @@ impl Workers {
                 ErrorCode::NotReady,
                 "the workers have stopped",
             )),
+        }
+    }
+
+    /// Takes the jobs whose clients have left (timed out or disconnected) out of a full queue,
+    /// so that their slots go to new frames instead of waiting for a worker to skip them. The
+    /// others go back in their order; `tx` is the sender under the lock [`Workers::submit`]
+    /// holds, so no new job can come between them.
+    fn drop_abandoned(&self, tx: &Sender<Job>) {
+        let mut kept = Vec::with_capacity(self.capacity);
+        let mut abandoned = 0usize;
+        for _ in 0..self.capacity {
+            let Ok(job) = self.rx_probe.try_recv() else {
+                break;
+            };
+            if job.reply.is_closed() {
+                abandoned += 1;
+            } else {
+                kept.push(job);
+            }
+        }
+        for job in kept {
+            // Fewer jobs go back than came out, and nothing else can send meanwhile, so this
+            // cannot fail; if it did, the client hears why instead of waiting.
+            if let Err(e) = tx.try_send(job) {
+                let job = e.into_inner();
+                let error =
+                    ApiError::new(ErrorCode::Overloaded, "the queue could not keep the frame");
+                let _ = job.reply.send((Err(error), job.enqueued.elapsed()));
+            }
+        }
+        if abandoned > 0 {
+            tracing::debug!(abandoned, "freed the queue slots of clients that left");
         }
     }
 
