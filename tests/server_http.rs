@@ -542,3 +542,27 @@ fn clients_that_left_give_their_queue_slots_to_new_frames() {
     });
     rt.block_on(slow).unwrap();
 }
+
+#[test]
+fn a_client_that_sends_a_whole_oversize_body_first_still_reads_the_413() {
+    // Like Python's http.client: write the whole request, then read the answer. 30 MB against
+    // an 8 MB limit is more than loopback's socket buffers hold, so the server must read the
+    // rest of the body rather than close on it.
+    let server = Server::start(&["--workers", "1", "--max-body-bytes", "8000000"]);
+    let body = vec![0u8; 30_000_000];
+    let mut s = TcpStream::connect(server.addr).unwrap();
+    s.set_read_timeout(Some(std::time::Duration::from_secs(60)))
+        .unwrap();
+    let head = format!(
+        "POST /v1/roughness HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+        body.len()
+    );
+    s.write_all(head.as_bytes()).unwrap();
+    s.write_all(&body)
+        .expect("the server stopped reading before the body ended");
+    let mut answer = String::new();
+    std::io::Read::read_to_string(&mut s, &mut answer).unwrap();
+    assert!(answer.starts_with("HTTP/1.1 413"), "{answer}");
+    assert!(answer.contains("\"too_large\""), "{answer}");
+    rt().block_on(still_serves(&server));
+}

@@ -4,10 +4,11 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use axum::body::{to_bytes, Body};
+use axum::body::{Body, Bytes, HttpBody};
 use axum::extract::{FromRequest, Multipart, Query, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
+use http_body_util::BodyExt;
 use serde::Deserialize;
 
 use super::error::{ApiError, ErrorCode};
@@ -210,18 +211,7 @@ async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiErro
         .unwrap_or("")
         .to_ascii_lowercase();
     let (parts, body) = req.into_parts();
-    let bytes = to_bytes(body, limit).await.map_err(|e| {
-        let too_large = std::error::Error::source(&e)
-            .is_some_and(|s| s.is::<http_body_util::LengthLimitError>());
-        if too_large {
-            ApiError::new(
-                ErrorCode::TooLarge,
-                format!("the body is larger than the limit of {limit} bytes"),
-            )
-        } else {
-            bad(format!("reading the body: {e}"))
-        }
-    })?;
+    let bytes = read_within(body, limit).await?;
     if content_type.starts_with("multipart/form-data") {
         let req = Request::from_parts(parts, Body::from(bytes));
         let multipart = Multipart::from_request(req, &())
@@ -247,6 +237,49 @@ async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiErro
         rgb: Some(bytes.to_vec()),
         ..FrameRequest::default()
     })
+}
+
+/// An over-limit body is still read, and thrown away, up to this many times the limit, so that a
+/// client that sends its whole request before reading the answer (Python's `http.client`, for
+/// one) reads the 413 instead of failing on a closed connection. Beyond it the connection closes.
+const DRAIN_FACTOR: usize = 4;
+
+/// The body, if it has at most `limit` bytes; a 413 otherwise, once the rest has been read (up to
+/// [`DRAIN_FACTOR`] × `limit`) and discarded, or at once when the declared length is beyond that.
+async fn read_within(mut body: Body, limit: usize) -> Result<Bytes, ApiError> {
+    // The declared length, if any, sizes the buffer once (never beyond the limit).
+    let declared = usize::try_from(body.size_hint().lower()).unwrap_or(usize::MAX);
+    let too_large = || {
+        ApiError::new(
+            ErrorCode::TooLarge,
+            format!("the body is larger than the limit of {limit} bytes"),
+        )
+    };
+    if declared > limit.saturating_mul(DRAIN_FACTOR) {
+        // Too large to be worth reading: answer at once.
+        return Err(too_large());
+    }
+    let mut kept = Vec::with_capacity(declared.min(limit));
+    let mut seen = 0usize;
+    while let Some(frame) = body.frame().await {
+        let frame = frame.map_err(|e| bad(format!("reading the body: {e}")))?;
+        let Ok(data) = frame.into_data() else {
+            continue;
+        };
+        seen = seen.saturating_add(data.len());
+        if seen <= limit {
+            kept.extend_from_slice(&data);
+        } else {
+            kept = Vec::new();
+            if seen > limit.saturating_mul(DRAIN_FACTOR) {
+                break;
+            }
+        }
+    }
+    if seen > limit {
+        return Err(too_large());
+    }
+    Ok(Bytes::from(kept))
 }
 
 async fn read_multipart(mut m: Multipart) -> Result<FrameRequest, ApiError> {
