@@ -14,7 +14,7 @@ use serde::Deserialize;
 use super::error::{ApiError, ErrorCode};
 use super::metrics::Gauges;
 use super::request::{Extras, Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
-use super::AppState;
+use super::{AppState, OVERSIZE_READ_FACTOR};
 use crate::io::CameraFile;
 use crate::pipeline::{Mode, NormalsMethod};
 
@@ -239,29 +239,28 @@ async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiErro
     })
 }
 
-/// An over-limit body is still read, and thrown away, up to this many times the limit, so that a
-/// client that sends its whole request before reading the answer (Python's `http.client`, for
-/// one) reads the 413 instead of failing on a closed connection. Beyond it the connection closes.
-const DRAIN_FACTOR: usize = 4;
-
 /// The body, if it has at most `limit` bytes; a 413 otherwise, once the rest has been read (up to
-/// [`DRAIN_FACTOR`] × `limit`) and discarded, or at once when the declared length is beyond that.
+/// [`OVERSIZE_READ_FACTOR`] × `limit`) and discarded, or at once when the declared length is
+/// beyond that.
 async fn read_within(mut body: Body, limit: usize) -> Result<Bytes, ApiError> {
-    // The declared length, if any, sizes the buffer once (never beyond the limit).
-    let declared = usize::try_from(body.size_hint().lower()).unwrap_or(usize::MAX);
+    let most = limit.saturating_mul(OVERSIZE_READ_FACTOR);
     let too_large = || {
         ApiError::new(
             ErrorCode::TooLarge,
             format!("the body is larger than the limit of {limit} bytes"),
         )
     };
-    if declared > limit.saturating_mul(DRAIN_FACTOR) {
-        // Too large to be worth reading: answer at once.
+    // The declared length, if any, sizes the buffer once (never beyond the limit).
+    let declared = usize::try_from(body.size_hint().lower()).unwrap_or(usize::MAX);
+    if declared > most {
         return Err(too_large());
     }
     let mut kept = Vec::with_capacity(declared.min(limit));
     let mut seen = 0usize;
-    while let Some(frame) = body.frame().await {
+    while seen <= most {
+        let Some(frame) = body.frame().await else {
+            break;
+        };
         let frame = frame.map_err(|e| bad(format!("reading the body: {e}")))?;
         let Ok(data) = frame.into_data() else {
             continue;
@@ -269,11 +268,6 @@ async fn read_within(mut body: Body, limit: usize) -> Result<Bytes, ApiError> {
         seen = seen.saturating_add(data.len());
         if seen <= limit {
             kept.extend_from_slice(&data);
-        } else {
-            kept = Vec::new();
-            if seen > limit.saturating_mul(DRAIN_FACTOR) {
-                break;
-            }
         }
     }
     if seen > limit {

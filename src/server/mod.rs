@@ -37,6 +37,12 @@ use metrics::Metrics;
 use request::DecodeLimits;
 use workers::{PoolConfig, Workers};
 
+/// How far past its limit an oversize input (an HTTP body, a WebSocket message) is still read
+/// and answered with a `too_large` error: up to this many times the limit. Reading it through
+/// lets a client that sends everything before reading (Python's `http.client`, for one) see the
+/// error, and keeps a stream open; beyond it the connection closes.
+pub(crate) const OVERSIZE_READ_FACTOR: usize = 4;
+
 /// Settings of the service; every field has a `tre serve` option.
 #[derive(Debug, Clone)]
 pub struct ServeConfig {

@@ -15,15 +15,12 @@ use tokio::sync::oneshot;
 use super::error::{ApiError, ErrorCode};
 use super::proto::{self, Incoming, StreamFrame, StreamSettings};
 use super::workers::JobResult;
-use super::AppState;
+use super::{AppState, OVERSIZE_READ_FACTOR};
 
 /// Interval of the server's pings.
 const PING_EVERY: Duration = Duration::from_secs(15);
 /// A client silent for this long (no message, no pong) is disconnected.
 const IDLE_LIMIT: Duration = Duration::from_secs(60);
-/// Frames larger than the message limit but below this multiple of it are answered with an
-/// error and the stream goes on; larger ones close the connection (1009).
-const HARD_LIMIT_FACTOR: usize = 4;
 
 /// Upgrades the connection, unless `--max-streams` are open already (429 at once).
 pub async fn stream(
@@ -46,10 +43,12 @@ pub async fn stream(
         );
         return ApiError::new(ErrorCode::TooManyRequests, why).into_response();
     };
+    // Frames over the message limit but within this are answered with an error and the stream
+    // goes on; larger ones close the connection (1009).
     let hard = app
         .cfg
         .ws_max_message_bytes
-        .saturating_mul(HARD_LIMIT_FACTOR);
+        .saturating_mul(OVERSIZE_READ_FACTOR);
     ws.max_message_size(hard)
         .max_frame_size(hard)
         .on_upgrade(move |socket| async move {

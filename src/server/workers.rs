@@ -47,6 +47,13 @@ struct Job {
     enqueued: Instant,
 }
 
+impl Job {
+    /// Whether its client has left (timed out or disconnected): nobody waits for the answer.
+    fn abandoned(&self) -> bool {
+        self.reply.is_closed()
+    }
+}
+
 /// Start-up state of the workers.
 #[derive(Debug, Default)]
 struct Startup {
@@ -181,7 +188,7 @@ impl Workers {
             let Ok(job) = self.rx_probe.try_recv() else {
                 break;
             };
-            if job.reply.is_closed() {
+            if job.abandoned() {
                 abandoned += 1;
             } else {
                 kept.push(job);
@@ -251,7 +258,7 @@ fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, met
     );
     while let Ok(job) = rx.recv() {
         let queued = job.enqueued.elapsed();
-        if job.reply.is_closed() {
+        if job.abandoned() {
             tracing::debug!(worker = i, "client gone before its frame started; skipped");
             continue;
         }
