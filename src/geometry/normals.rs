@@ -5,7 +5,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::camera::{is_valid_point, PointMap, INVALID_POINT};
-use super::plane::{orient_towards_camera, smallest_eigenvectors, Moments, EIGEN_LANES};
+use super::plane::{covariance_lanes, orient_towards_camera, smallest_eigenvectors, Moments};
 use super::{Grid, Vec3};
 
 /// The neighbourhood of a pixel: the valid points within `radius_m` of it, searched in a pixel
@@ -57,24 +57,30 @@ impl Neighbourhood {
         window_moments(points, x, y, h, self.radius_m * self.radius_m)
     }
 
-    /// Moments of the neighbourhood of `(x, y)` from packed points (windows up to 7 px; wider
-    /// ones take the f64 path).
-    fn moments_packed(
+    /// Moments of the neighbourhoods of the pixels `(x0 + l, y)`, `l < GROUP`, from packed
+    /// points (empty for invalid pixels and past the row's end; windows wider than 7 px take
+    /// the f64 path).
+    fn group_moments(
         &self,
         packed: &PackedPoints,
         points: &PointMap,
         fx_px: f64,
-        x: usize,
+        x0: usize,
         y: usize,
-    ) -> Moments {
-        let p = points[(x, y)];
-        if !is_valid_point(&p) {
-            return Moments::default();
+    ) -> [Moments; GROUP] {
+        let mut half = [0; GROUP];
+        for (l, h) in half.iter_mut().enumerate() {
+            if let Some(p) = points.row(y).get(x0 + l).filter(|p| is_valid_point(p)) {
+                *h = self.half_width(fx_px, p.z);
+            }
         }
-        match self.half_width(fx_px, p.z) {
-            h if h <= 7 => packed.window_moments(x, y, h, self.radius_m),
-            h => window_moments(points, x, y, h, self.radius_m * self.radius_m),
-        }
+        let packed_half = half.map(|h| if h <= MAX_PACKED_HALF { h } else { 0 });
+        let acc = packed.group_moments(x0, y, &packed_half, self.radius_m);
+        std::array::from_fn(|l| match half[l] {
+            0 => Moments::default(),
+            h if h <= MAX_PACKED_HALF => lane_moments(&acc, l),
+            h => window_moments(points, x0 + l, y, h, self.radius_m * self.radius_m),
+        })
     }
 }
 
@@ -108,10 +114,15 @@ fn window_moments(points: &PointMap, x: usize, y: usize, h: usize, r2: f64) -> M
     m
 }
 
-/// Lanes per chunk of the vectorised window kernel.
-const LANES: usize = 8;
-/// Columns of padding (invalid points) on each side of a row of [`PackedPoints`].
-const PAD: usize = 8;
+/// Pixels per group of the window kernel: one lane per pixel.
+pub const GROUP: usize = 8;
+/// Columns of invalid padding left of each packed row: a window reaches 7 columns left.
+const PAD_LEFT: usize = 8;
+/// Columns of invalid padding right of each packed row: a group's last pixel (7 columns after
+/// its first) plus the 7 columns its window reaches, rounded up.
+const PAD_RIGHT: usize = 16;
+/// Widest half-width the packed kernel handles; wider windows take the f64 path.
+const MAX_PACKED_HALF: usize = 7;
 
 /// Points as f32 structure-of-arrays rows padded with invalid (NaN) columns, so that the window
 /// kernel reads fixed 8-lane chunks that LLVM vectorises, with no bounds special cases.
@@ -123,18 +134,22 @@ pub struct PackedPoints {
     xyz: [Vec<f32>; 3],
 }
 
+/// The moments of [`GROUP`] neighbourhoods in f32 lanes, one pixel per lane: count, Σd (x, y,
+/// z), then Σddᵀ (xx, xy, xz, yy, yz, zz).
+pub type GroupMoments = [[f32; GROUP]; 10];
+
 impl PackedPoints {
     /// Packs `points` (reusing this buffer's allocations).
     pub fn pack(&mut self, points: &PointMap) {
         let (w, h) = points.size();
-        (self.width, self.height, self.stride) = (w, h, w + 2 * PAD);
+        (self.width, self.height, self.stride) = (w, h, PAD_LEFT + w + PAD_RIGHT);
         for (c, buf) in self.xyz.iter_mut().enumerate() {
             buf.clear();
             buf.resize(self.stride * h, f32::NAN);
             buf.par_chunks_mut(self.stride.max(1))
                 .enumerate()
                 .for_each(|(y, row)| {
-                    for (dst, p) in row[PAD..PAD + w].iter_mut().zip(points.row(y)) {
+                    for (dst, p) in row[PAD_LEFT..PAD_LEFT + w].iter_mut().zip(points.row(y)) {
                         *dst = if is_valid_point(p) {
                             p[c] as f32
                         } else {
@@ -145,63 +160,90 @@ impl PackedPoints {
         }
     }
 
-    /// Moments about point `(x, y)` of the valid points within `radius_m` of it in the window
-    /// of half-width `h` (at most 7), accumulated in f32 lanes and returned in f64.
-    pub fn window_moments(&self, x: usize, y: usize, h: usize, radius_m: f64) -> Moments {
-        let h = h.min(7);
-        let centre = self.stride * y + PAD + x;
-        let p = [0, 1, 2].map(|c| self.xyz[c][centre]);
+    /// Moments of the neighbourhoods of the pixels `(x0 + l, y)` for the lanes `l` of a group:
+    /// about each pixel's point, the valid points within `radius_m` of it in its window of
+    /// half-width `half[l]` (at most 7; 0 for a lane that needs nothing). Lanes past the row's
+    /// end and invalid pixels get empty moments.
+    ///
+    /// Each lane is one pixel, so a window offset `(dx, dy)` is one 8-lane step for the whole
+    /// group, and the lanes come out as the group's moments with no reduction across lanes.
+    pub fn group_moments(
+        &self,
+        x0: usize,
+        y: usize,
+        half: &[usize; GROUP],
+        radius_m: f64,
+    ) -> GroupMoments {
+        let mut acc = [[0f32; GROUP]; 10];
+        let reach = half.iter().copied().max().unwrap_or(0).min(MAX_PACKED_HALF);
+        if y >= self.height || x0 >= self.width {
+            return acc;
+        }
         let r2 = (radius_m * radius_m) as f32;
-        // Columns x − 3 … x + 4 (one chunk) or x − 7 … x + 8 (two chunks).
-        let (first_dx, chunks) = if h <= 3 { (-3isize, 1) } else { (-7isize, 2) };
-        let mut acc = [[0f32; LANES]; 10];
-        // Per lane of each chunk, the largest squared distance kept: r² inside the window
-        // (|dx| ≤ h), −1 (nothing) outside it.
-        let limit: [[f32; LANES]; 2] = std::array::from_fn(|c| {
-            std::array::from_fn(|l| {
-                let inside = (first_dx + (c * LANES + l) as isize).abs() <= h as isize;
-                if inside {
-                    r2
-                } else {
-                    -1.0
-                }
-            })
-        });
-        for yy in y.saturating_sub(h)..(y + h + 1).min(self.height) {
-            let row_start = self.stride * yy + PAD + x;
-            for (c, limit) in limit.iter().enumerate().take(chunks) {
-                let start = (row_start as isize + first_dx) as usize + c * LANES;
-                accumulate_chunk(&mut acc, self.chunk(start), p, limit);
+        let mut count = [0u32; GROUP];
+        let centre = self.stride * y + PAD_LEFT + x0;
+        let p = [0, 1, 2].map(|c| *lanes(&self.xyz[c], centre));
+        // Per ring of window offsets (Chebyshev distance c = max(|dx|, |dy|)) and lane, the
+        // largest squared distance kept: r² inside the lane's window, −1 (nothing) outside it.
+        let limit: [[f32; GROUP]; MAX_PACKED_HALF + 1] =
+            std::array::from_fn(|c| std::array::from_fn(|l| if c <= half[l] { r2 } else { -1.0 }));
+        for yy in y.saturating_sub(reach)..(y + reach + 1).min(self.height) {
+            let dy = yy.abs_diff(y);
+            // Columns x0 − reach … x0 + reach + 7 of row yy, inside the padding.
+            let first = self.stride * yy + PAD_LEFT + x0 - reach;
+            let span = 2 * reach + GROUP;
+            let rows = [0, 1, 2].map(|c| &self.xyz[c][first..first + span]);
+            for dx in 0..=2 * reach {
+                let q = [0, 1, 2].map(|c| lanes(rows[c], dx));
+                accumulate(
+                    &mut count,
+                    &mut acc,
+                    q,
+                    &p,
+                    &limit[dy.max(dx.abs_diff(reach))],
+                );
             }
         }
-        reduce(&acc)
+        acc[0] = count.map(|c| c as f32);
+        acc
     }
 
-    fn chunk(&self, start: usize) -> [&[f32; LANES]; 3] {
-        let lanes = |c: usize| {
-            self.xyz[c][start..]
-                .first_chunk::<LANES>()
-                .expect("padded rows hold whole chunks; this is a bug")
-        };
-        [lanes(0), lanes(1), lanes(2)]
+    /// Moments about point `(x, y)` of the valid points within `radius_m` of it in the window
+    /// of half-width `h` (at most 7): one lane of [`Self::group_moments`].
+    pub fn window_moments(&self, x: usize, y: usize, h: usize, radius_m: f64) -> Moments {
+        let mut half = [0; GROUP];
+        half[0] = h.min(MAX_PACKED_HALF);
+        lane_moments(&self.group_moments(x, y, &half, radius_m), 0)
     }
 }
 
-/// Adds one 8-lane chunk of a window row to the lane accumulators (count, Σd, Σddᵀ).
+/// The 8 values of `v` from `start`.
 #[inline(always)]
-fn accumulate_chunk(
-    acc: &mut [[f32; LANES]; 10],
-    q: [&[f32; LANES]; 3],
-    p: [f32; 3],
-    limit: &[f32; LANES],
+fn lanes(v: &[f32], start: usize) -> &[f32; GROUP] {
+    v[start..]
+        .first_chunk::<GROUP>()
+        .expect("padded rows hold whole groups; this is a bug")
+}
+
+/// Adds one window offset to the lane accumulators (count, Σd, Σddᵀ): lane `l` takes `q[l]`
+/// relative to `p[l]` if its squared distance is at most `limit[l]`.
+#[inline(always)]
+fn accumulate(
+    count: &mut [u32; GROUP],
+    acc: &mut GroupMoments,
+    q: [&[f32; GROUP]; 3],
+    p: &[[f32; GROUP]; 3],
+    limit: &[f32; GROUP],
 ) {
-    for l in 0..LANES {
-        let (dx, dy, dz) = (q[0][l] - p[0], q[1][l] - p[1], q[2][l] - p[2]);
+    for l in 0..GROUP {
+        let (dx, dy, dz) = (q[0][l] - p[0][l], q[1][l] - p[1][l], q[2][l] - p[2][l]);
         // NaN (invalid) points fail the comparison; rejected lanes add zeros.
         let keep = mul_add(dz, dz, mul_add(dy, dy, dx * dx)) <= limit[l];
         let mask = if keep { u32::MAX } else { 0 };
-        let [dx, dy, dz, one] = [dx, dy, dz, 1.0].map(|v| f32::from_bits(v.to_bits() & mask));
-        acc[0][l] += one;
+        let [dx, dy, dz] = [dx, dy, dz].map(|v| f32::from_bits(v.to_bits() & mask));
+        // The count in integer lanes (the mask is −1 where kept) saves a register over adding
+        // a masked 1.0.
+        count[l] = count[l].wrapping_sub(mask);
         acc[1][l] += dx;
         acc[2][l] += dy;
         acc[3][l] += dz;
@@ -225,12 +267,13 @@ fn mul_add(a: f32, b: f32, c: f32) -> f32 {
     }
 }
 
-fn reduce(acc: &[[f32; LANES]; 10]) -> Moments {
-    let sum = |i: usize| acc[i].iter().map(|&v| f64::from(v)).sum::<f64>();
+/// Lane `l` of a group's moments, in f64.
+fn lane_moments(acc: &GroupMoments, l: usize) -> Moments {
+    let v = |i: usize| f64::from(acc[i][l]);
     Moments {
-        count: sum(0) as u32,
-        sum: Vec3::new(sum(1), sum(2), sum(3)),
-        sum_sq: [sum(4), sum(5), sum(6), sum(7), sum(8), sum(9)],
+        count: acc[0][l] as u32,
+        sum: Vec3::new(v(1), v(2), v(3)),
+        sum_sq: [v(4), v(5), v(6), v(7), v(8), v(9)],
     }
 }
 
@@ -256,23 +299,17 @@ pub fn local_planes(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> Loca
         .par_rows_mut()
         .zip(normal.par_rows_mut())
         .for_each(|((y, c_row), (_, n_row))| {
-            for x0 in (0..w).step_by(EIGEN_LANES) {
-                let m: [Moments; EIGEN_LANES] = std::array::from_fn(|l| {
+            for x0 in (0..w).step_by(GROUP) {
+                let group = hood.group_moments(&packed, points, fx_px, x0, y);
+                let fits = smallest_eigenvectors(&covariance_lanes(&group));
+                for (l, (m, fit)) in group.iter().zip(fits).enumerate() {
                     let x = x0 + l;
-                    if x < w {
-                        hood.moments_packed(&packed, points, fx_px, x, y)
-                    } else {
-                        Moments::default()
-                    }
-                });
-                let fits = smallest_eigenvectors(&m.map(|m| m.covariance()));
-                for l in 0..EIGEN_LANES.min(w - x0) {
-                    let (x, p) = (x0 + l, points[(x0 + l, y)]);
-                    let Some(c) = m[l].mean(&p) else { continue };
+                    let Some(p) = points.row(y).get(x) else { break };
+                    let Some(c) = m.mean(p) else { continue };
                     c_row[x] = c;
-                    let n = match fits[l] {
-                        Some(n) if m[l].count >= 3 => Some(orient_towards_camera(&n, &p)),
-                        _ => normal_from_moments(points, &m[l], x, y),
+                    let n = match fit {
+                        Some(n) if m.count >= 3 => Some(orient_towards_camera(&n, p)),
+                        _ => normal_from_moments(points, m, x, y),
                     };
                     n_row[x] = n.unwrap_or(INVALID_POINT);
                 }
@@ -293,12 +330,12 @@ pub fn window_centroids(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> 
     packed.pack(points);
     let mut centroid = Grid::new(w, h, INVALID_POINT);
     centroid.par_rows_mut().for_each(|(y, row)| {
-        for (x, c) in row.iter_mut().enumerate() {
-            if let Some(m) = hood
-                .moments_packed(&packed, points, fx_px, x, y)
-                .mean(&points[(x, y)])
-            {
-                *c = m;
+        for (x0, cells) in (0..w).step_by(GROUP).zip(row.chunks_mut(GROUP)) {
+            let group = hood.group_moments(&packed, points, fx_px, x0, y);
+            for ((c, m), p) in cells.iter_mut().zip(&group).zip(&points.row(y)[x0..]) {
+                if let Some(mean) = m.mean(p) {
+                    *c = mean;
+                }
             }
         }
     });
@@ -308,6 +345,59 @@ pub fn window_centroids(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Asserts that packed moments `a` match the f64 reference `b`.
+    fn assert_close(a: &Moments, b: &Moments, what: &str) {
+        assert_eq!(a.count, b.count, "{what}");
+        // f32 coordinates carry ~1e-7 m of rounding; means agree to well under 1e-6 m.
+        let n = f64::from(a.count.max(1));
+        assert!((a.sum - b.sum).norm() / n < 5e-7, "{what}");
+        for (p, q) in a.sum_sq.iter().zip(b.sum_sq) {
+            assert!((p - q).abs() / n < 1e-8, "{what}");
+        }
+    }
+
+    #[test]
+    fn group_lanes_match_the_f64_reference_with_a_half_width_each() {
+        // A dense bumpy surface 3 m away: every point of a 15 × 15 window lies within R, so a
+        // lane adds 225 points.
+        let (w, h) = (37, 21);
+        let pts = Grid::from_fn(w, h, |x, y| {
+            if (x * 5 + y * 3) % 13 == 0 {
+                INVALID_POINT
+            } else {
+                let (u, v) = (x as f64 * 0.003, y as f64 * 0.003);
+                Vec3::new(u - 0.05, v + 0.4, 3.0 + 0.004 * (u * 300.0).sin() + 0.2 * v)
+            }
+        });
+        let mut packed = PackedPoints::default();
+        packed.pack(&pts);
+        let mut full_lanes = 0;
+        for x0 in [0, 3, 16, w - 5, w - 1] {
+            for y in [0, 2, 10, h - 1] {
+                let half: [usize; GROUP] = std::array::from_fn(|l| (l + x0 + y) % GROUP);
+                let group = packed.group_moments(x0, y, &half, 0.05);
+                for (l, &hl) in half.iter().enumerate() {
+                    let a = lane_moments(&group, l);
+                    let x = x0 + l;
+                    let b = if x < w && hl > 0 {
+                        window_moments(&pts, x, y, hl, 0.05 * 0.05)
+                    } else if x < w {
+                        // Half-width 0: the pixel's own point only.
+                        window_moments(&pts, x, y, 0, 0.05 * 0.05)
+                    } else {
+                        Moments::default()
+                    };
+                    full_lanes += usize::from(b.count > 200);
+                    assert_close(&a, &b, &format!("({x}, {y}) h {hl}"));
+                }
+            }
+        }
+        assert!(
+            full_lanes > 0,
+            "some lane must add most of a 15 × 15 window"
+        );
+    }
 
     #[test]
     fn packed_kernel_matches_the_f64_reference() {
@@ -330,13 +420,7 @@ mod tests {
                 }
                 let a = packed.window_moments(x, y, half, 0.05);
                 let b = window_moments(&pts, x, y, half, 0.05 * 0.05);
-                assert_eq!(a.count, b.count, "({x}, {y}) h {half}");
-                // f32 coordinates carry ~1e-7 m of rounding; means agree to well under 1e-6 m.
-                let n = f64::from(a.count);
-                assert!((a.sum - b.sum).norm() / n < 5e-7, "({x}, {y}) h {half}");
-                for (p, q) in a.sum_sq.iter().zip(b.sum_sq) {
-                    assert!((p - q).abs() / n < 1e-8);
-                }
+                assert_close(&a, &b, &format!("({x}, {y}) h {half}"));
             }
         }
     }

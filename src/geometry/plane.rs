@@ -160,37 +160,105 @@ pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
     eigenvector_for(&a, l_min, l_mid)
 }
 
-/// Lanes of [`smallest_eigenvectors`].
-pub const EIGEN_LANES: usize = 4;
+/// Symmetric 3×3 matrices in lanes (structure of arrays): the entries xx, xy, xz, yy, yz, zz,
+/// each an array over the lanes.
+pub type SymLanes<const N: usize> = [[f64; N]; 6];
 
-/// [`smallest_eigenvector`] for four matrices at once: the Halley iterations run over lane
-/// arrays (so they vectorise and overlap) until every lane has converged, at most six times; a
-/// lane that has not converged by then is finished by the scalar solver. Same results up to
-/// rounding.
-pub fn smallest_eigenvectors(covs: &[Matrix3<f64>; EIGEN_LANES]) -> [Option<Vec3>; EIGEN_LANES] {
-    let scale = covs.map(|a| a.abs().max());
-    let a: [Matrix3<f64>; EIGEN_LANES] = std::array::from_fn(|l| covs[l] * (1.0 / scale[l]));
-    let c = a.map(|a| char_poly(&a));
-    let (mut l, mut step) = ([0.0f64; EIGEN_LANES], [0.0f64; EIGEN_LANES]);
+/// The covariance matrices of `m` in lanes: [`Moments::covariance`] for every lane at once.
+pub fn covariance_lanes<const N: usize>(m: &[Moments; N]) -> SymLanes<N> {
+    let inv_n: [f64; N] = std::array::from_fn(|l| 1.0 / f64::from(m[l].count.max(1)));
+    let mean: [[f64; N]; 3] =
+        std::array::from_fn(|a| std::array::from_fn(|l| m[l].sum[a] * inv_n[l]));
+    // (entry, first axis, second axis) for xx, xy, xz, yy, yz, zz.
+    const AXES: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+    std::array::from_fn(|e| {
+        let (i, j) = AXES[e];
+        std::array::from_fn(|l| m[l].sum_sq[e] * inv_n[l] - mean[i][l] * mean[j][l])
+    })
+}
+
+/// [`smallest_eigenvector`] for `N` matrices at once: scaling, the characteristic cubic and the
+/// Halley iterations run over lane arrays (so they vectorise and overlap) until every lane has
+/// converged, at most six times; a lane that has not converged by then is finished by the
+/// scalar solver. Same results up to rounding.
+pub fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3>; N] {
+    let mut scale = [0.0f64; N];
+    for e in covs {
+        for (s, v) in scale.iter_mut().zip(e) {
+            *s = s.max(v.abs());
+        }
+    }
+    let inv: [f64; N] = std::array::from_fn(|l| 1.0 / scale[l]);
+    let a: SymLanes<N> = std::array::from_fn(|e| std::array::from_fn(|l| covs[e][l] * inv[l]));
+    let [axx, axy, axz, ayy, ayz, azz] = &a;
+    let c: [[f64; 3]; N] = std::array::from_fn(|l| {
+        let (xx, xy, xz, yy, yz, zz) = (axx[l], axy[l], axz[l], ayy[l], ayz[l], azz[l]);
+        let c1 = (xx * yy - xy * xy) + (xx * zz - xz * xz) + (yy * zz - yz * yz);
+        let det = xx * (yy * zz - yz * yz) - xy * (xy * zz - yz * xz) + xz * (xy * yz - yy * xz);
+        [xx + yy + zz, c1, det]
+    });
+    let (mut l, mut step) = ([0.0f64; N], [0.0f64; N]);
     let converged = |step: f64, l: f64| step.abs() <= 1e-13 * (1.0 + l.abs());
     for _ in 0..6 {
-        for i in 0..EIGEN_LANES {
+        for i in 0..N {
             step[i] = halley_step(&c[i], l[i]);
             l[i] -= step[i];
         }
-        if (0..EIGEN_LANES).all(|i| converged(step[i], l[i])) {
+        if (0..N).all(|i| converged(step[i], l[i])) {
             break;
         }
     }
+    let l_mid: [f64; N] = std::array::from_fn(|i| next_root(&c[i], l[i]));
+    let vectors = eigenvectors_for(&a, &l, &l_mid);
     std::array::from_fn(|i| {
-        let converged = converged(step[i], l[i]);
         if !(scale[i] > 0.0) || !scale[i].is_finite() {
             None
-        } else if converged {
-            eigenvector_for(&a[i], l[i], next_root(&c[i], l[i]))
+        } else if converged(step[i], l[i]) {
+            vectors[i]
         } else {
-            smallest_eigenvector(&covs[i])
+            let [xx, xy, xz, yy, yz, zz] = covs.each_ref().map(|e| e[i]);
+            smallest_eigenvector(&Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz))
         }
+    })
+}
+
+/// [`eigenvector_for`] over lanes: the lanes' unit eigenvectors of eigenvalues `l_min` of the
+/// normalised matrices `a`, given their next eigenvalues `l_mid`.
+fn eigenvectors_for<const N: usize>(
+    a: &SymLanes<N>,
+    l_min: &[f64; N],
+    l_mid: &[f64; N],
+) -> [Option<Vec3>; N] {
+    let [xx, xy, xz, yy, yz, zz] = a;
+    let mut best = [[0.0f64; N]; 3];
+    let mut len = [0.0f64; N];
+    for i in 0..N {
+        let r0 = [xx[i] - l_min[i], xy[i], xz[i]];
+        let r1 = [xy[i], yy[i] - l_min[i], yz[i]];
+        let r2 = [xz[i], yz[i], zz[i] - l_min[i]];
+        let cross = |u: [f64; 3], v: [f64; 3]| {
+            [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ]
+        };
+        let norm2 = |v: [f64; 3]| v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+        let mut b = cross(r0, r1);
+        for c in [cross(r0, r2), cross(r1, r2)] {
+            if norm2(c) > norm2(b) {
+                b = c;
+            }
+        }
+        len[i] = norm2(b).sqrt();
+        for (axis, v) in best.iter_mut().zip(b) {
+            axis[i] = v / len[i];
+        }
+    }
+    std::array::from_fn(|i| {
+        let separated = l_mid[i] - l_min[i] > 1e-6;
+        (separated && len[i] > 0.0 && len[i].is_finite())
+            .then(|| Vec3::new(best[0][i], best[1][i], best[2][i]))
     })
 }
 
@@ -286,7 +354,7 @@ mod tests {
     }
 
     #[test]
-    fn four_lane_solver_matches_the_scalar_one() {
+    fn lane_solver_matches_the_scalar_one() {
         let r = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 0.7);
         let covs = [
             r.matrix()
@@ -299,7 +367,11 @@ mod tests {
                 * r.matrix().transpose()
                 * 1e-4,
         ];
-        let batch = smallest_eigenvectors(&covs);
+        let lanes: SymLanes<4> = std::array::from_fn(|e| {
+            let (i, j) = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)][e];
+            covs.map(|c| c[(i, j)])
+        });
+        let batch = smallest_eigenvectors(&lanes);
         for (c, b) in covs.iter().zip(batch) {
             match (smallest_eigenvector(c), b) {
                 (Some(s), Some(b)) => assert_relative_eq!(s.dot(&b).abs(), 1.0, epsilon = 1e-12),
