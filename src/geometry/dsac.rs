@@ -44,8 +44,10 @@
 //! 5. **Best and refit** (float64). The best hypothesis is the first one with the largest score
 //!    (−∞ never wins). The inliers of its plane are the valid `k` with
 //!    `plane.distance(q_k) < τ` ([`Plane::distance`], Eq. 1); their [`Moments`] of `q_k − p`,
-//!    added in `k` order, give the LS plane `Moments::fit(p)`, or, if that is degenerate, the
-//!    hypothesis plane is kept. Its normal is flipped if `n · p > 0` (towards the camera).
+//!    added in `k` order, give the LS normal: the smallest eigenvector of their covariance
+//!    ([`Moments::covariance`], [`smallest_eigenvectors`]), or, with fewer than 3 inliers or
+//!    no unique plane, the hypothesis' normal. It is flipped if `n · p > 0` (towards the
+//!    camera).
 //!
 //! *Lane sums* (float32) add 56 lanes, the candidates `0..49` then seven zeros, as seven blocks of
 //! eight: accumulator `a_l = ((0 + v_l) + v_{8+l}) + … + v_{48+l}` for `l = 0..8`, then
@@ -73,6 +75,10 @@
 //! of hypotheses finishes first the one leading after two blocks, to raise that bar early. The
 //! chosen hypothesis, and so the result, are those of the full computation, which
 //! [`pixel_hypotheses`] performs.
+//!
+//! The refits run eight pixels of a row at a time once their best hypotheses are known: the
+//! inlier moments over four f64 lanes (one pixel each, outliers adding zeros, so every sum is
+//! the one-pixel sum bit for bit) and the eigen-solves over eight.
 
 use std::hint::select_unpredictable;
 
@@ -82,7 +88,9 @@ use serde::{Deserialize, Serialize};
 use super::camera::{is_valid_point, PointMap, INVALID_POINT};
 use super::fastmath::{self, recip_one_plus_exp2, sum_block, BLOCK};
 use super::hash::splitmix64;
-use super::plane::{orient_towards_camera, Moments, Plane};
+use super::plane::{
+    covariance_lanes, orient_towards_camera, smallest_eigenvectors, Moments, Plane,
+};
 use super::{GeometryError, Grid, Vec3};
 
 /// Side of the candidate window.
@@ -265,7 +273,9 @@ pub fn pixel_hypotheses(
         triples,
         scores,
         best: best.map(|(j, _)| j),
-        normal: best.map(|(_, plane)| window.refit(&plane, cfg.inlier_threshold_m)),
+        normal: best.and_then(|(_, plane)| {
+            finish_refits(&[Some(window.refit_input(&plane, cfg.inlier_threshold_m))])[0]
+        }),
     }
 }
 
@@ -300,9 +310,11 @@ pub fn dsac_normals(
     };
     let mut out = Grid::new(w, h, INVALID_POINT);
     out.par_rows_mut().for_each(|(y, row)| {
-        for (x, n) in row.iter_mut().enumerate() {
-            if let Some(normal) = frame.pixel_normal(x, y) {
-                *n = normal;
+        for (x0, cells) in (0..w).step_by(REFIT_LANES).zip(row.chunks_mut(REFIT_LANES)) {
+            for (n, normal) in cells.iter_mut().zip(frame.group_normals(x0, y)) {
+                if let Some(normal) = normal {
+                    *n = normal;
+                }
             }
         }
     });
@@ -333,8 +345,9 @@ struct Frame<'a> {
 }
 
 impl Frame<'_> {
-    /// The DSAC normal of pixel `(x, y)`, or `None` (invalid pixel, or no usable hypothesis).
-    fn pixel_normal(&self, x: usize, y: usize) -> Option<Vec3> {
+    /// The best hypothesis plane of pixel `(x, y)` and the pixel's point, or `None` (invalid
+    /// pixel, or no usable hypothesis).
+    fn pixel_best(&self, x: usize, y: usize) -> Option<(Plane, Vec3)> {
         if !self.points.is_valid(x, y) {
             return None;
         }
@@ -348,7 +361,53 @@ impl Frame<'_> {
         let cdf = Cdf::from_softmax(&softmax(&lanes, &window.valid));
         let stream = pixel_stream(self.seed_key, i as u64);
         let (_, plane) = best_hypothesis(&window, &cdf, stream, self.cfg, None)?;
-        Some(window.refit(&plane, self.cfg.inlier_threshold_m))
+        Some((plane, window.origin))
+    }
+
+    /// The DSAC normals of the pixels `(x0 + l, y)`, `l < REFIT_LANES` (`None` past the row's
+    /// end, for invalid pixels and where no hypothesis is usable): best hypotheses pixel by
+    /// pixel, then the refits' inlier moments and eigen-solves over the lanes.
+    fn group_normals(&self, x0: usize, y: usize) -> [Option<Vec3>; REFIT_LANES] {
+        let best: [Option<(Plane, Vec3)>; REFIT_LANES] =
+            std::array::from_fn(|l| (x0 + l < self.width).then(|| self.pixel_best(x0 + l, y))?);
+        let base = y * self.points.stride + x0;
+        let tau = self.cfg.inlier_threshold_m;
+        let moments: [Moments; REFIT_LANES] = if x0 + REFIT_LANES <= self.width {
+            // Lanes without a plane get NaN ones: no inliers, and their moments are not used.
+            let none = Plane {
+                centroid: INVALID_POINT,
+                normal: INVALID_POINT,
+            };
+            let planes = best.map(|b| b.map_or(none, |(p, _)| p));
+            let origins = best.map(|b| b.map_or(INVALID_POINT, |(_, o)| o));
+            // Four f64 lanes at a time, one AVX2 vector per sum: eight would not fit the registers.
+            let mut moments = [Moments::default(); REFIT_LANES];
+            for (h, m) in moments.chunks_exact_mut(MOMENT_LANES).enumerate() {
+                let lanes = h * MOMENT_LANES..(h + 1) * MOMENT_LANES;
+                m.copy_from_slice(&inlier_moments::<MOMENT_LANES>(
+                    &self.points,
+                    base + h * MOMENT_LANES,
+                    planes[lanes.clone()].try_into().expect("whole chunks"),
+                    origins[lanes].try_into().expect("whole chunks"),
+                    tau,
+                ));
+            }
+            moments
+        } else {
+            // The row's last, partial group: its windows would reach past the padding.
+            std::array::from_fn(|l| match best[l] {
+                Some((p, o)) => inlier_moments(&self.points, base + l, &[p], &[o], tau)[0],
+                None => Moments::default(),
+            })
+        };
+        let refits = std::array::from_fn(|l| {
+            best[l].map(|(plane, origin)| Refit {
+                moments: moments[l],
+                hypothesis: plane.normal,
+                origin,
+            })
+        });
+        finish_refits(&refits)
     }
 }
 
@@ -684,24 +743,112 @@ impl<'a> Window<'a> {
         Some(sum_block(acc))
     }
 
-    /// LS refit on the inliers (distance < `tau_m`) of `plane`, oriented towards the camera;
-    /// the hypothesis' own normal if the refit is degenerate.
-    fn refit(&self, plane: &Plane, tau_m: f64) -> Vec3 {
-        let mut m = Moments::default();
-        let [xs, ys, zs] = &self.points.planes;
-        for r in 0..WINDOW {
-            let row =
-                self.base + r * self.points.stride..self.base + r * self.points.stride + WINDOW;
-            for ((&x, &y), &z) in xs[row.clone()].iter().zip(&ys[row.clone()]).zip(&zs[row]) {
-                let q = Vec3::new(x, y, z);
-                if plane.distance(&q) < tau_m {
-                    m.add(&(q - self.origin));
-                }
-            }
+    /// What the LS refit on the inliers of `plane` needs ([`inlier_moments`]).
+    fn refit_input(&self, plane: &Plane, tau_m: f64) -> Refit {
+        let [moments] = inlier_moments(self.points, self.base, &[*plane], &[self.origin], tau_m);
+        Refit {
+            moments,
+            hypothesis: plane.normal,
+            origin: self.origin,
         }
-        let n = m.fit(&self.origin).map_or(plane.normal, |p| p.normal);
-        orient_towards_camera(&n, &self.origin)
     }
+}
+
+/// The moments, about `origins[l]`, of the inliers (distance < `tau_m`) of `planes[l]` among
+/// the candidates of the window whose candidate 0 is at `base + l` in the padded planes, for
+/// each lane `l`: adjacent pixels of a row, solved together. Each lane adds its inliers in `k`
+/// order, with the operations of [`Plane::distance`] and [`Moments::add`]; outliers add zeros
+/// instead of branching, which leaves every sum unchanged bit for bit (`x + 0.0 = x`, and no
+/// sum is −0). So a lane's moments do not depend on `N` or on the other lanes.
+fn inlier_moments<const N: usize>(
+    points: &PaddedPoints,
+    base: usize,
+    planes: &[Plane; N],
+    origins: &[Vec3; N],
+    tau_m: f64,
+) -> [Moments; N] {
+    let lanes = |v: &dyn Fn(usize) -> f64| -> [f64; N] { std::array::from_fn(v) };
+    let n = [0, 1, 2].map(|a| lanes(&|l| planes[l].normal[a]));
+    let c = [0, 1, 2].map(|a| lanes(&|l| planes[l].centroid[a]));
+    let o = [0, 1, 2].map(|a| lanes(&|l| origins[l][a]));
+    let mut count = [0u64; N];
+    // Σd (x, y, z), then Σddᵀ (xx, xy, xz, yy, yz, zz).
+    let mut acc = [[0.0f64; N]; 9];
+    for k in 0..CANDIDATES {
+        let i = base + (k / WINDOW) * points.stride + k % WINDOW;
+        let q = points.planes.each_ref().map(|p| {
+            p[i..]
+                .first_chunk::<N>()
+                .expect("the lanes' windows lie inside the padded planes; this is a bug")
+        });
+        add_inliers(&mut count, &mut acc, q, [&n, &c, &o], tau_m);
+    }
+    std::array::from_fn(|l| Moments {
+        count: count[l] as u32,
+        sum: Vec3::new(acc[0][l], acc[1][l], acc[2][l]),
+        sum_sq: std::array::from_fn(|e| acc[3 + e][l]),
+    })
+}
+
+/// Adds candidate points `q` (one per lane) to the lanes' inlier moments: [`inlier_moments`].
+#[inline(always)]
+fn add_inliers<const N: usize>(
+    count: &mut [u64; N],
+    acc: &mut [[f64; N]; 9],
+    q: [&[f64; N]; 3],
+    [n, c, o]: [&[[f64; N]; 3]; 3],
+    tau_m: f64,
+) {
+    for l in 0..N {
+        let [qx, qy, qz] = [q[0][l], q[1][l], q[2][l]];
+        let dist = ((n[0][l] * (qx - c[0][l]) + n[1][l] * (qy - c[1][l]))
+            + n[2][l] * (qz - c[2][l]))
+            .abs();
+        let mask = if dist < tau_m { u64::MAX } else { 0 };
+        // The count in integer lanes (the mask is −1 where kept).
+        count[l] = count[l].wrapping_sub(mask);
+        let [dx, dy, dz] =
+            [qx - o[0][l], qy - o[1][l], qz - o[2][l]].map(|d| f64::from_bits(d.to_bits() & mask));
+        acc[0][l] += dx;
+        acc[1][l] += dy;
+        acc[2][l] += dz;
+        acc[3][l] += dx * dx;
+        acc[4][l] += dx * dy;
+        acc[5][l] += dx * dz;
+        acc[6][l] += dy * dy;
+        acc[7][l] += dy * dz;
+        acc[8][l] += dz * dz;
+    }
+}
+
+/// A pixel's LS refit before its eigen-solve: the inliers' moments, the best hypothesis' normal
+/// (kept if the refit is degenerate) and the centre point.
+#[derive(Clone, Copy)]
+struct Refit {
+    moments: Moments,
+    hypothesis: Vec3,
+    origin: Vec3,
+}
+
+/// Pixels whose refits are solved together.
+const REFIT_LANES: usize = 8;
+/// Lanes of one [`inlier_moments`] call in a group.
+const MOMENT_LANES: usize = 4;
+
+/// Finishes the refits of up to `N` pixels: the LS plane of each one's inliers (the smallest
+/// eigenvector of their covariance, solved over lanes), or the hypothesis' normal when there
+/// are fewer than 3 inliers or no unique plane; oriented towards the camera. Each lane's
+/// result depends only on its own refit.
+fn finish_refits<const N: usize>(refits: &[Option<Refit>; N]) -> [Option<Vec3>; N] {
+    let moments = refits.map(|r| r.map_or(Moments::default(), |r| r.moments));
+    let fits = smallest_eigenvectors(&covariance_lanes(&moments));
+    std::array::from_fn(|l| {
+        let r = refits[l]?;
+        let n = fits[l]
+            .filter(|_| r.moments.count >= 3)
+            .unwrap_or(r.hypothesis);
+        Some(orient_towards_camera(&n, &r.origin))
+    })
 }
 
 /// Bits `0..k` of a candidate mask.
@@ -1202,7 +1349,8 @@ mod tests {
 
     #[test]
     fn pixel_hypotheses_agree_with_dsac_normals() {
-        let (w, h) = (16, 12);
+        // 19 columns: two whole groups of refits and a partial one.
+        let (w, h) = (19, 12);
         let points = bumpy(w, h);
         let logits: Vec<f32> = (0..CANDIDATES * w * h)
             .map(|i| ((i * 2_654_435_761usize) % 1000) as f32 / 250.0)

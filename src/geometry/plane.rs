@@ -180,7 +180,8 @@ pub fn covariance_lanes<const N: usize>(m: &[Moments; N]) -> SymLanes<N> {
 /// [`smallest_eigenvector`] for `N` matrices at once: scaling, the characteristic cubic and the
 /// Halley iterations run over lane arrays (so they vectorise and overlap) until every lane has
 /// converged, at most six times; a lane that has not converged by then is finished by the
-/// scalar solver. Same results up to rounding.
+/// scalar solver. Same results as the scalar solver up to rounding, and each lane's result
+/// depends on its own matrix only, bit for bit, whatever the other lanes hold.
 pub fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3>; N] {
     let mut scale = [0.0f64; N];
     for e in covs {
@@ -197,14 +198,17 @@ pub fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3
         let det = xx * (yy * zz - yz * yz) - xy * (xy * zz - yz * xz) + xz * (xy * yz - yy * xz);
         [xx + yy + zz, c1, det]
     });
-    let (mut l, mut step) = ([0.0f64; N], [0.0f64; N]);
-    let converged = |step: f64, l: f64| step.abs() <= 1e-13 * (1.0 + l.abs());
+    let (mut l, mut done) = ([0.0f64; N], [false; N]);
     for _ in 0..6 {
         for i in 0..N {
-            step[i] = halley_step(&c[i], l[i]);
-            l[i] -= step[i];
+            // A lane that has converged stays as it is, so its result does not depend on the
+            // other lanes.
+            let step = halley_step(&c[i], l[i]);
+            let next = if done[i] { l[i] } else { l[i] - step };
+            done[i] = done[i] || step.abs() <= 1e-13 * (1.0 + next.abs());
+            l[i] = next;
         }
-        if (0..N).all(|i| converged(step[i], l[i])) {
+        if done.iter().all(|&d| d) {
             break;
         }
     }
@@ -213,7 +217,7 @@ pub fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3
     std::array::from_fn(|i| {
         if !(scale[i] > 0.0) || !scale[i].is_finite() {
             None
-        } else if converged(step[i], l[i]) {
+        } else if done[i] {
             vectors[i]
         } else {
             let [xx, xy, xz, yy, yz, zz] = covs.each_ref().map(|e| e[i]);
@@ -379,6 +383,38 @@ mod tests {
             }
         }
         assert!(batch[2].is_none());
+    }
+
+    #[test]
+    fn a_lane_gives_the_same_bits_whatever_the_other_lanes_hold() {
+        // Random covariances of points near planes, with spreads from isotropic to flat.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let covs: Vec<Matrix3<f64>> = (0..256)
+            .map(|_| {
+                let r = nalgebra::Rotation3::from_euler_angles(next() * 6.3, next() * 6.3, next());
+                let d = Vector3::new(1.0, 0.2 + next(), next().powi(6));
+                r.matrix() * Matrix3::from_diagonal(&d) * r.matrix().transpose() * next()
+            })
+            .collect();
+        let lanes = |m: &[Matrix3<f64>]| -> SymLanes<8> {
+            std::array::from_fn(|e| {
+                let (i, j) = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)][e];
+                std::array::from_fn(|l| m[l][(i, j)])
+            })
+        };
+        for batch in covs.chunks_exact(8) {
+            let together = smallest_eigenvectors(&lanes(batch));
+            for (l, c) in batch.iter().enumerate() {
+                let alone = smallest_eigenvectors(&lanes(&[*c; 8]))[0];
+                assert_eq!(alone, together[l]);
+            }
+        }
     }
 
     #[test]
