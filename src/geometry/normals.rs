@@ -380,13 +380,10 @@ mod tests {
                 for (l, &hl) in half.iter().enumerate() {
                     let a = lane_moments(&group, l);
                     let x = x0 + l;
-                    let b = if x < w && hl > 0 {
-                        window_moments(&pts, x, y, hl, 0.05 * 0.05)
-                    } else if x < w {
-                        // Half-width 0: the pixel's own point only.
-                        window_moments(&pts, x, y, 0, 0.05 * 0.05)
-                    } else {
-                        Moments::default()
+                    // Half-width 0 is the pixel's own point only; past the row, nothing.
+                    let b = match x < w {
+                        true => window_moments(&pts, x, y, hl, 0.05 * 0.05),
+                        false => Moments::default(),
                     };
                     full_lanes += usize::from(b.count > 200);
                     assert_close(&a, &b, &format!("({x}, {y}) h {hl}"));
