@@ -767,10 +767,10 @@ fn inlier_moments<const N: usize>(
     origins: &[Vec3; N],
     tau_m: f64,
 ) -> [Moments; N] {
-    let lanes = |v: &dyn Fn(usize) -> f64| -> [f64; N] { std::array::from_fn(v) };
-    let n = [0, 1, 2].map(|a| lanes(&|l| planes[l].normal[a]));
-    let c = [0, 1, 2].map(|a| lanes(&|l| planes[l].centroid[a]));
-    let o = [0, 1, 2].map(|a| lanes(&|l| origins[l][a]));
+    let by_axis = |v: [Vec3; N]| -> [[f64; N]; 3] { std::array::from_fn(|a| v.map(|v| v[a])) };
+    let n = by_axis(planes.map(|p| p.normal));
+    let c = by_axis(planes.map(|p| p.centroid));
+    let o = by_axis(*origins);
     let mut count = [0u64; N];
     // Σd (x, y, z), then Σddᵀ (xx, xy, xz, yy, yz, zz).
     let mut acc = [[0.0f64; N]; 9];

@@ -207,14 +207,6 @@ impl PackedPoints {
         acc[0] = count.map(|c| c as f32);
         acc
     }
-
-    /// Moments about point `(x, y)` of the valid points within `radius_m` of it in the window
-    /// of half-width `h` (at most 7): one lane of [`Self::group_moments`].
-    pub fn window_moments(&self, x: usize, y: usize, h: usize, radius_m: f64) -> Moments {
-        let mut half = [0; GROUP];
-        half[0] = h.min(MAX_PACKED_HALF);
-        lane_moments(&self.group_moments(x, y, &half, radius_m), 0)
-    }
 }
 
 /// The 8 values of `v` from `start`.
@@ -415,7 +407,10 @@ mod tests {
                 if !is_valid_point(&pts[(x, y)]) {
                     continue;
                 }
-                let a = packed.window_moments(x, y, half, 0.05);
+                // The pixel alone in lane 0 of its group.
+                let mut halves = [0; GROUP];
+                halves[0] = half;
+                let a = lane_moments(&packed.group_moments(x, y, &halves, 0.05), 0);
                 let b = window_moments(&pts, x, y, half, 0.05 * 0.05);
                 assert_close(&a, &b, &format!("({x}, {y}) h {half}"));
             }

@@ -113,21 +113,7 @@ impl Moments {
 
     /// The covariance matrix of the points.
     pub fn covariance(&self) -> Matrix3<f64> {
-        let inv_n = 1.0 / f64::from(self.count.max(1));
-        let m = self.sum * inv_n;
-        let s = self.sum_sq.map(|v| v * inv_n);
-        let (xy, xz, yz) = (s[1] - m.x * m.y, s[2] - m.x * m.z, s[4] - m.y * m.z);
-        Matrix3::new(
-            s[0] - m.x * m.x,
-            xy,
-            xz,
-            xy,
-            s[3] - m.y * m.y,
-            yz,
-            xz,
-            yz,
-            s[5] - m.z * m.z,
-        )
+        sym_matrix(&covariance_lanes(&[*self]), 0)
     }
 
     /// The least-squares plane (normal = smallest eigenvector of the covariance), or `None` for
@@ -155,24 +141,36 @@ pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
     if !(scale > 0.0) || !scale.is_finite() {
         return None;
     }
-    let a = a * (1.0 / scale);
+    let a = sym_lanes(&[a * (1.0 / scale)]);
     let (l_min, l_mid) = smallest_two_eigenvalues(&a);
-    eigenvector_for(&a, l_min, l_mid)
+    eigenvectors_for(&a, &[l_min], &[l_mid])[0]
 }
 
 /// Symmetric 3×3 matrices in lanes (structure of arrays): the entries xx, xy, xz, yy, yz, zz,
 /// each an array over the lanes.
 pub type SymLanes<const N: usize> = [[f64; N]; 6];
 
-/// The covariance matrices of `m` in lanes: [`Moments::covariance`] for every lane at once.
+/// The (row, column) of each entry of [`SymLanes`]: xx, xy, xz, yy, yz, zz.
+const SYM_AXES: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+
+/// Symmetric matrices `m` in lanes.
+fn sym_lanes<const N: usize>(m: &[Matrix3<f64>; N]) -> SymLanes<N> {
+    std::array::from_fn(|e| m.map(|m| m[SYM_AXES[e]]))
+}
+
+/// Lane `l` of `a` as a matrix.
+fn sym_matrix<const N: usize>(a: &SymLanes<N>, l: usize) -> Matrix3<f64> {
+    let [xx, xy, xz, yy, yz, zz] = a.each_ref().map(|e| e[l]);
+    Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz)
+}
+
+/// The covariance matrices of `m` in lanes ([`Moments::covariance`] is one lane of it).
 pub fn covariance_lanes<const N: usize>(m: &[Moments; N]) -> SymLanes<N> {
     let inv_n: [f64; N] = std::array::from_fn(|l| 1.0 / f64::from(m[l].count.max(1)));
     let mean: [[f64; N]; 3] =
         std::array::from_fn(|a| std::array::from_fn(|l| m[l].sum[a] * inv_n[l]));
-    // (entry, first axis, second axis) for xx, xy, xz, yy, yz, zz.
-    const AXES: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
     std::array::from_fn(|e| {
-        let (i, j) = AXES[e];
+        let (i, j) = SYM_AXES[e];
         std::array::from_fn(|l| m[l].sum_sq[e] * inv_n[l] - mean[i][l] * mean[j][l])
     })
 }
@@ -191,13 +189,7 @@ pub fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3
     }
     let inv: [f64; N] = std::array::from_fn(|l| 1.0 / scale[l]);
     let a: SymLanes<N> = std::array::from_fn(|e| std::array::from_fn(|l| covs[e][l] * inv[l]));
-    let [axx, axy, axz, ayy, ayz, azz] = &a;
-    let c: [[f64; 3]; N] = std::array::from_fn(|l| {
-        let (xx, xy, xz, yy, yz, zz) = (axx[l], axy[l], axz[l], ayy[l], ayz[l], azz[l]);
-        let c1 = (xx * yy - xy * xy) + (xx * zz - xz * xz) + (yy * zz - yz * yz);
-        let det = xx * (yy * zz - yz * yz) - xy * (xy * zz - yz * xz) + xz * (xy * yz - yy * xz);
-        [xx + yy + zz, c1, det]
-    });
+    let c: [[f64; 3]; N] = std::array::from_fn(|l| char_poly(&a, l));
     let (mut l, mut done) = ([0.0f64; N], [false; N]);
     for _ in 0..6 {
         for i in 0..N {
@@ -220,14 +212,14 @@ pub fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3
         } else if done[i] {
             vectors[i]
         } else {
-            let [xx, xy, xz, yy, yz, zz] = covs.each_ref().map(|e| e[i]);
-            smallest_eigenvector(&Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz))
+            smallest_eigenvector(&sym_matrix(covs, i))
         }
     })
 }
 
-/// [`eigenvector_for`] over lanes: the lanes' unit eigenvectors of eigenvalues `l_min` of the
-/// normalised matrices `a`, given their next eigenvalues `l_mid`.
+/// The lanes' unit eigenvectors of eigenvalues `l_min` of the normalised matrices `a`, given
+/// their next eigenvalues `l_mid`: the largest cross product of two rows of `A − λI`; `None`
+/// unless `l_min` and `l_mid` are separated by 1e-6.
 fn eigenvectors_for<const N: usize>(
     a: &SymLanes<N>,
     l_min: &[f64; N],
@@ -266,27 +258,9 @@ fn eigenvectors_for<const N: usize>(
     })
 }
 
-/// The unit eigenvector of eigenvalue `l_min` of the normalised matrix `a`, given the next
-/// eigenvalue `l_mid` (`None` unless they are separated by 1e-6).
-fn eigenvector_for(a: &Matrix3<f64>, l_min: f64, l_mid: f64) -> Option<Vec3> {
-    if !(l_mid - l_min > 1e-6) {
-        return None;
-    }
-    let row = |i: usize| Vec3::new(a[(i, 0)], a[(i, 1)], a[(i, 2)]) - Vec3::ith(i, l_min);
-    let (r0, r1, r2) = (row(0), row(1), row(2));
-    let mut best = r0.cross(&r1);
-    for c in [r0.cross(&r2), r1.cross(&r2)] {
-        if c.norm_squared() > best.norm_squared() {
-            best = c;
-        }
-    }
-    let len = best.norm();
-    (len > 0.0 && len.is_finite()).then(|| best / len)
-}
-
 /// The two smallest eigenvalues (ascending) of a symmetric PSD 3×3 matrix.
-fn smallest_two_eigenvalues(a: &Matrix3<f64>) -> (f64, f64) {
-    let c = char_poly(a);
+fn smallest_two_eigenvalues(a: &SymLanes<1>) -> (f64, f64) {
+    let c = char_poly(a, 0);
     // Halley's method from 0: cubic convergence, and monotone like Newton's on this side of
     // the smallest root (f > 0, f' < 0, f'' > 0 there).
     let mut l = 0.0f64;
@@ -300,14 +274,14 @@ fn smallest_two_eigenvalues(a: &Matrix3<f64>) -> (f64, f64) {
     (l, next_root(&c, l))
 }
 
-/// `[c2, c1, c0]` of `det(A − λI) = −λ³ + c2·λ² − c1·λ + c0`.
+/// `[c2, c1, c0]` of `det(A − λI) = −λ³ + c2·λ² − c1·λ + c0` for lane `l` of `a` (the
+/// trace, the sum of the principal 2×2 minors and the determinant, with nalgebra's operations).
 #[inline(always)]
-fn char_poly(a: &Matrix3<f64>) -> [f64; 3] {
-    let c1 = a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)] + a[(0, 0)] * a[(2, 2)]
-        - a[(0, 2)] * a[(2, 0)]
-        + a[(1, 1)] * a[(2, 2)]
-        - a[(1, 2)] * a[(2, 1)];
-    [a.trace(), c1, a.determinant()]
+fn char_poly<const N: usize>(a: &SymLanes<N>, l: usize) -> [f64; 3] {
+    let [xx, xy, xz, yy, yz, zz] = a.each_ref().map(|e| e[l]);
+    let c1 = xx * yy - xy * xy + xx * zz - xz * xz + yy * zz - yz * yz;
+    let det = xx * (yy * zz - yz * yz) - xy * (xy * zz - xz * yz) + xz * (xy * yz - xz * yy);
+    [xx + yy + zz, c1, det]
 }
 
 /// One Halley step for the characteristic cubic at `l` (0 where it is flat).
@@ -371,11 +345,7 @@ mod tests {
                 * r.matrix().transpose()
                 * 1e-4,
         ];
-        let lanes: SymLanes<4> = std::array::from_fn(|e| {
-            let (i, j) = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)][e];
-            covs.map(|c| c[(i, j)])
-        });
-        let batch = smallest_eigenvectors(&lanes);
+        let batch = smallest_eigenvectors(&sym_lanes(&covs));
         for (c, b) in covs.iter().zip(batch) {
             match (smallest_eigenvector(c), b) {
                 (Some(s), Some(b)) => assert_relative_eq!(s.dot(&b).abs(), 1.0, epsilon = 1e-12),
@@ -402,16 +372,11 @@ mod tests {
                 r.matrix() * Matrix3::from_diagonal(&d) * r.matrix().transpose() * next()
             })
             .collect();
-        let lanes = |m: &[Matrix3<f64>]| -> SymLanes<8> {
-            std::array::from_fn(|e| {
-                let (i, j) = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)][e];
-                std::array::from_fn(|l| m[l][(i, j)])
-            })
-        };
         for batch in covs.chunks_exact(8) {
-            let together = smallest_eigenvectors(&lanes(batch));
+            let batch: &[Matrix3<f64>; 8] = batch.try_into().expect("whole chunks");
+            let together = smallest_eigenvectors(&sym_lanes(batch));
             for (l, c) in batch.iter().enumerate() {
-                let alone = smallest_eigenvectors(&lanes(&[*c; 8]))[0];
+                let alone = smallest_eigenvectors(&sym_lanes(&[*c; 8]))[0];
                 assert_eq!(alone, together[l]);
             }
         }
