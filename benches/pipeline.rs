@@ -1,15 +1,25 @@
 //! Criterion benches of one frame through the whole pipeline, per mode, for synthetic frames of
 //! 256×256 and 512×512 (the networks run at 256 on the long side either way), with the split by
-//! stage printed after each bench from the pipeline's own stage timings.
+//! stage printed after each bench from the pipeline's own stage timings; the same at 256×256 as
+//! a server worker does it (PNG bytes decoded, the pipeline, the 16-bit roughness PNG encoded);
+//! and the LS normals alone against the same right after a net run.
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use image::DynamicImage;
+use ndarray::Array4;
+use tre::geometry::{local_planes, Neighbourhood};
+use tre::io::{depth_png16, encode_png, CameraFile};
 use tre::model::{Models, SessionConfig};
 use tre::pipeline::{
     CentroidMethod, FrameInput, Method, Mode, NormalsMethod, Pipeline, PipelineConfig,
+};
+use tre::server::request::{
+    config_for, decode_frame, encode_reply, DecodeLimits, FrameOptions, FrameRequest,
 };
 use tre::synth::dataset::{build_scene, scene_views, view_conditions};
 use tre::synth::{render, SynthConfig};
@@ -105,5 +115,166 @@ fn pipeline(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, pipeline);
+/// `frame` as a client sends it: PNG bytes (RGB; depth as 16-bit millimetres when `depth`) and
+/// the camera as JSON fields.
+fn request(frame: &FrameInput, depth: bool, normals: NormalsMethod) -> FrameRequest {
+    let png = |img: &DynamicImage| {
+        let mut out = Vec::new();
+        encode_png(img, &mut out).expect("encodes");
+        out
+    };
+    let k = frame
+        .intrinsics
+        .expect("the synthetic frame has intrinsics");
+    let depth_m = frame
+        .depth_m
+        .as_ref()
+        .expect("the synthetic frame has depth");
+    FrameRequest {
+        rgb: frame
+            .rgb
+            .clone()
+            .map(|rgb| png(&DynamicImage::ImageRgb8(rgb))),
+        depth: depth.then(|| png(&DynamicImage::ImageLuma16(depth_png16(depth_m)))),
+        camera: Some(CameraFile {
+            fx: k.fx_px,
+            fy: k.fy_px,
+            cx: k.cx_px,
+            cy: k.cy_px,
+            width: None,
+            height: None,
+            depth_scale: Some(1000.0),
+            pitch_deg: Some(frame.mounting.pitch_rad.to_degrees()),
+            height_m: Some(frame.mounting.height_m),
+        }),
+        options: FrameOptions {
+            normals: Some(normals),
+            ..FrameOptions::default()
+        },
+    }
+}
+
+const LIMITS: DecodeLimits = DecodeLimits {
+    max_pixels: 50_000_000,
+};
+
+/// What a server worker does with one request (`run_job`): decode, choose the configuration,
+/// run, encode; the split adds decode and encode to the pipeline's stages.
+fn serve_one(pipeline: &mut Pipeline, req: &FrameRequest, split: &mut Split) {
+    let t = Instant::now();
+    let frame = decode_frame(req, LIMITS).expect("decodes");
+    let cfg = config_for(&frame, &req.options, LIMITS.max_pixels, NormalsMethod::Dsac);
+    let decoded = t.elapsed();
+    let out = pipeline.run(&frame, &cfg).expect("the frame runs");
+    let t = Instant::now();
+    let reply = encode_reply(out, &req.options).expect("encodes");
+    split.add("decode", decoded);
+    split.add("encode", t.elapsed());
+    for (name, took) in reply.timings.iter() {
+        split.add(name, took);
+    }
+    split.onnx += reply.timings.onnx_runtime();
+    split.runs += 1;
+}
+
+/// Stage times summed over runs.
+#[derive(Default)]
+struct Split {
+    sums: BTreeMap<&'static str, Duration>,
+    onnx: Duration,
+    runs: u32,
+}
+
+impl Split {
+    fn add(&mut self, name: &'static str, took: Duration) {
+        *self.sums.entry(name).or_default() += took;
+    }
+
+    /// Mean milliseconds per stage and the share outside ONNX Runtime.
+    fn report(&self) -> String {
+        let ms = |d: Duration| d.as_secs_f64() * 1e3 / f64::from(self.runs);
+        let total: f64 = self.sums.values().map(|&d| ms(d)).sum();
+        let onnx = ms(self.onnx);
+        let parts: Vec<String> = self
+            .sums
+            .iter()
+            .map(|(k, &v)| format!("{k} {:.1}", ms(v)))
+            .collect();
+        format!(
+            "total {total:.1} ms = {}; inside ONNX Runtime {onnx:.1} ms, outside {:.1} ms ({:.0}%)",
+            parts.join(", "),
+            total - onnx,
+            100.0 * (total - onnx) / total
+        )
+    }
+}
+
+fn requests(c: &mut Criterion) {
+    let models_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    let models = Models::load(&models_dir, &SessionConfig::default()).expect("models load");
+    let mut pipeline = Pipeline::new(Some(models));
+    let input = frame(256);
+    // (name, with RGB, with depth, initial normals)
+    let cases = [
+        ("rgb", true, false, NormalsMethod::Dsac),
+        ("rgb_ls", true, false, NormalsMethod::Ls),
+        ("rgbd", true, true, NormalsMethod::Dsac),
+        ("geometric", false, true, NormalsMethod::Ls),
+    ];
+    let mut group = c.benchmark_group("request");
+    group.sample_size(20);
+    for (name, rgb, depth, normals) in cases {
+        let mut req = request(&input, depth, normals);
+        if !rgb {
+            req.rgb = None;
+        }
+        group.bench_function(format!("{name}_256"), |b| {
+            b.iter(|| serve_one(&mut pipeline, &req, &mut Split::default()))
+        });
+        let mut split = Split::default();
+        for _ in 0..10 {
+            serve_one(&mut pipeline, &req, &mut split);
+        }
+        eprintln!("request/{name}_256 by stage: {}", split.report());
+    }
+    group.finish();
+}
+
+/// LS normals and window centroids of the depth net's points at 256×256 (`rgb_ls`'s normals
+/// stage), timed alone (after the same call) and right after a depth-net run, which leaves the
+/// caches holding the net's activations.
+fn ls_after_net(c: &mut Criterion) {
+    let models_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    let mut models = Models::load(&models_dir, &SessionConfig::default()).expect("models load");
+    let input = frame(256);
+    let k = input
+        .intrinsics
+        .expect("the synthetic frame has intrinsics");
+    let points = k.back_project_map(input.depth_m.as_ref().expect("depth"));
+    let rgb = Array4::<f32>::from_elem((1, 3, 256, 256), 0.5);
+    let prior = Array4::<f32>::from_elem((1, 1, 256, 256), 1.5);
+    let hood = Neighbourhood::default();
+    let mut group = c.benchmark_group("ls_normals_256");
+    group.sample_size(30);
+    group.bench_function("alone", |b| {
+        b.iter(|| local_planes(&points, k.fx_px, &hood))
+    });
+    group.bench_function("after_depth_net", |b| {
+        b.iter_custom(|iters| {
+            let mut took = Duration::ZERO;
+            for _ in 0..iters {
+                models
+                    .depth(rgb.view(), prior.view())
+                    .expect("the net runs");
+                let t = Instant::now();
+                std::hint::black_box(local_planes(&points, k.fx_px, &hood));
+                took += t.elapsed();
+            }
+            took
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, pipeline, requests, ls_after_net);
 criterion_main!(benches);
