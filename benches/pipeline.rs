@@ -16,7 +16,7 @@ use tre::geometry::{local_planes, Neighbourhood};
 use tre::io::{depth_png16, encode_png, CameraFile};
 use tre::model::{Models, SessionConfig};
 use tre::pipeline::{
-    CentroidMethod, FrameInput, Method, Mode, NormalsMethod, Pipeline, PipelineConfig,
+    CentroidMethod, FrameInput, Method, Mode, NormalsMethod, Pipeline, PipelineConfig, StageTimings,
 };
 use tre::server::request::{
     config_for, decode_frame, encode_reply, DecodeLimits, FrameOptions, FrameRequest,
@@ -75,23 +75,12 @@ fn stage_split(
     cfg: &PipelineConfig,
     n: u32,
 ) -> String {
-    let mut sums: BTreeMap<String, f64> = BTreeMap::new();
-    let mut onnx = 0.0;
+    let mut split = Split::default();
     for _ in 0..n {
         let out = pipeline.run(input, cfg).expect("the frame runs");
-        for (name, took) in out.timings.iter() {
-            *sums.entry(name.to_owned()).or_default() += took.as_secs_f64() * 1e3 / f64::from(n);
-        }
-        onnx += out.timings.onnx_runtime().as_secs_f64() * 1e3 / f64::from(n);
+        split.add_timings(&out.timings);
     }
-    let total: f64 = sums.values().sum();
-    let parts: Vec<String> = sums.iter().map(|(k, v)| format!("{k} {v:.1}")).collect();
-    format!(
-        "total {total:.1} ms = {}; inside ONNX Runtime {onnx:.1} ms, outside {:.1} ms ({:.0}%)",
-        parts.join(", "),
-        total - onnx,
-        100.0 * (total - onnx) / total
-    )
+    split.report()
 }
 
 fn pipeline(c: &mut Criterion) {
@@ -170,11 +159,7 @@ fn serve_one(pipeline: &mut Pipeline, req: &FrameRequest, split: &mut Split) {
     let reply = encode_reply(out, &req.options).expect("encodes");
     split.add("decode", decoded);
     split.add("encode", t.elapsed());
-    for (name, took) in reply.timings.iter() {
-        split.add(name, took);
-    }
-    split.onnx += reply.timings.onnx_runtime();
-    split.runs += 1;
+    split.add_timings(&reply.timings);
 }
 
 /// Stage times summed over runs.
@@ -188,6 +173,15 @@ struct Split {
 impl Split {
     fn add(&mut self, name: &'static str, took: Duration) {
         *self.sums.entry(name).or_default() += took;
+    }
+
+    /// Adds one run's stage timings and ONNX Runtime time, and counts the run.
+    fn add_timings(&mut self, timings: &StageTimings) {
+        for (name, took) in timings.iter() {
+            self.add(name, took);
+        }
+        self.onnx += timings.onnx_runtime();
+        self.runs += 1;
     }
 
     /// Mean milliseconds per stage and the share outside ONNX Runtime.
