@@ -45,7 +45,7 @@
 //!    (−∞ never wins). The inliers of its plane are the valid `k` with
 //!    `plane.distance(q_k) < τ` ([`Plane::distance`], Eq. 1); their [`Moments`] of `q_k − p`,
 //!    added in `k` order, give the LS normal: the smallest eigenvector of their covariance
-//!    ([`Moments::covariance`], [`smallest_eigenvectors`]), or, with fewer than 3 inliers or
+//!    ([`Moments::covariance`], [`fit_normals`]), or, with fewer than 3 inliers or
 //!    no unique plane, the hypothesis' normal. It is flipped if `n · p > 0` (towards the
 //!    camera).
 //!
@@ -88,9 +88,7 @@ use serde::{Deserialize, Serialize};
 use super::camera::{is_valid_point, PointMap, INVALID_POINT};
 use super::fastmath::{self, recip_one_plus_exp2, sum_block, BLOCK};
 use super::hash::splitmix64;
-use super::plane::{
-    covariance_lanes, orient_towards_camera, smallest_eigenvectors, Moments, Plane,
-};
+use super::plane::{fit_normals, orient_towards_camera, Moments, Plane};
 use super::{GeometryError, Grid, Vec3};
 
 /// Side of the candidate window.
@@ -840,13 +838,10 @@ const MOMENT_LANES: usize = 4;
 /// are fewer than 3 inliers or no unique plane; oriented towards the camera. Each lane's
 /// result depends only on its own refit.
 fn finish_refits<const N: usize>(refits: &[Option<Refit>; N]) -> [Option<Vec3>; N] {
-    let moments = refits.map(|r| r.map_or(Moments::default(), |r| r.moments));
-    let fits = smallest_eigenvectors(&covariance_lanes(&moments));
+    let fits = fit_normals(&refits.map(|r| r.map_or(Moments::default(), |r| r.moments)));
     std::array::from_fn(|l| {
         let r = refits[l]?;
-        let n = fits[l]
-            .filter(|_| r.moments.count >= 3)
-            .unwrap_or(r.hypothesis);
+        let n = fits[l].unwrap_or(r.hypothesis);
         Some(orient_towards_camera(&n, &r.origin))
     })
 }

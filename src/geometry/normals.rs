@@ -5,7 +5,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::camera::{is_valid_point, PointMap, INVALID_POINT};
-use super::plane::{covariance_lanes, orient_towards_camera, smallest_eigenvectors, Moments};
+use super::plane::{fit_normals, orient_towards_camera, Moments};
 use super::{Grid, Vec3};
 
 /// The neighbourhood of a pixel: the valid points within `radius_m` of it, searched in a pixel
@@ -293,15 +293,15 @@ pub fn local_planes(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> Loca
         .for_each(|((y, c_row), (_, n_row))| {
             for x0 in (0..w).step_by(GROUP) {
                 let group = hood.group_moments(&packed, points, fx_px, x0, y);
-                let fits = smallest_eigenvectors(&covariance_lanes(&group));
+                let fits = fit_normals(&group);
                 for (l, (m, fit)) in group.iter().zip(fits).enumerate() {
                     let x = x0 + l;
                     let Some(p) = points.row(y).get(x) else { break };
                     let Some(c) = m.mean(p) else { continue };
                     c_row[x] = c;
                     let n = match fit {
-                        Some(n) if m.count >= 3 => Some(orient_towards_camera(&n, p)),
-                        _ => normal_from_moments(points, m, x, y),
+                        Some(n) => Some(orient_towards_camera(&n, p)),
+                        None => normal_from_moments(points, m, x, y),
                     };
                     n_row[x] = n.unwrap_or(INVALID_POINT);
                 }

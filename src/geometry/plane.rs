@@ -175,6 +175,14 @@ pub fn covariance_lanes<const N: usize>(m: &[Moments; N]) -> SymLanes<N> {
     })
 }
 
+/// The normals of [`Moments::fit`] for `N` sets of moments at once, solved over lanes
+/// ([`covariance_lanes`], [`smallest_eigenvectors`]): `None` with fewer than 3 points or no
+/// unique plane. Same normals as [`Moments::fit`] up to rounding.
+pub fn fit_normals<const N: usize>(m: &[Moments; N]) -> [Option<Vec3>; N] {
+    let fits = smallest_eigenvectors(&covariance_lanes(m));
+    std::array::from_fn(|l| fits[l].filter(|_| m[l].count >= 3))
+}
+
 /// [`smallest_eigenvector`] for `N` matrices at once: scaling, the characteristic cubic and the
 /// Halley iterations run over lane arrays (so they vectorise and overlap) until every lane has
 /// converged, at most six times; a lane that has not converged by then is finished by the
