@@ -1,14 +1,16 @@
 //! Criterion benches of the geometry kernels: LS normals on a real 640×480 Kinect frame, DSAC
-//! normals (K = 12) at 256×256 and 512×512, and the whole annotator.
+//! normals (K = 12) at 256×256 and 512×512 (each also into buffers reused from the call before,
+//! as the pipeline runs them), and the whole annotator.
 
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use std::path::Path;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use tre::geometry::dsac::{dsac_normals, DsacConfig, CANDIDATES};
+use tre::geometry::dsac::{dsac_normals, dsac_normals_into, DsacConfig, DsacScratch, CANDIDATES};
+use tre::geometry::normals::{local_planes_into, PackedPoints};
 use tre::geometry::raycast::{render_depth, MarchConfig};
-use tre::geometry::{ls_normals, Grid, Intrinsics, Mounting, Neighbourhood, PointMap};
+use tre::geometry::{ls_normals, Grid, Intrinsics, LocalPlanes, Mounting, Neighbourhood, PointMap};
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 
 fn kinect_frame() -> (Grid<f64>, Intrinsics) {
@@ -40,8 +42,14 @@ fn terrain_points(size: usize) -> PointMap {
 fn ls(c: &mut Criterion) {
     let (depth, k) = kinect_frame();
     let pts = k.back_project_map(&depth);
+    let hood = Neighbourhood::default();
     c.bench_function("ls_normals/640x480_kinect", |b| {
-        b.iter(|| ls_normals(&pts, k.fx_px, &Neighbourhood::default()))
+        b.iter(|| ls_normals(&pts, k.fx_px, &hood))
+    });
+    // As the pipeline runs it frame after frame: into buffers kept from the call before.
+    let (mut packed, mut planes) = (PackedPoints::default(), LocalPlanes::default());
+    c.bench_function("ls_normals/640x480_kinect_reused", |b| {
+        b.iter(|| local_planes_into(&pts, k.fx_px, &hood, &mut packed, &mut planes))
     });
 }
 
@@ -60,6 +68,17 @@ fn dsac(c: &mut Criterion) {
             BenchmarkId::from_parameter(format!("{size}x{size}")),
             &size,
             |b, _| b.iter(|| dsac_normals(&pts, &logits, &cfg).expect("sizes match")),
+        );
+        let (mut scratch, mut out) = (DsacScratch::default(), Grid::default());
+        g.bench_with_input(
+            BenchmarkId::from_parameter(format!("{size}x{size}_reused")),
+            &size,
+            |b, _| {
+                b.iter(|| {
+                    dsac_normals_into(&pts, &logits, &cfg, &mut scratch, &mut out)
+                        .expect("sizes match")
+                })
+            },
         );
     }
     g.finish();

@@ -12,7 +12,8 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, criterion_main, Criterion};
 use image::DynamicImage;
 use ndarray::Array4;
-use tre::geometry::{local_planes, Neighbourhood};
+use tre::geometry::normals::{local_planes_into, PackedPoints};
+use tre::geometry::{LocalPlanes, Neighbourhood};
 use tre::io::{depth_png16, encode_png, CameraFile};
 use tre::model::{Models, SessionConfig};
 use tre::pipeline::{
@@ -79,6 +80,7 @@ fn stage_split(
     for _ in 0..n {
         let out = pipeline.run(input, cfg).expect("the frame runs");
         split.add_timings(&out.timings);
+        pipeline.recycle(out);
     }
     split.report()
 }
@@ -93,7 +95,10 @@ fn pipeline(c: &mut Criterion) {
         let input = frame(side);
         for (name, cfg) in configs() {
             group.bench_function(format!("{name}_{side}"), |b| {
-                b.iter(|| pipeline.run(&input, &cfg).expect("the frame runs"))
+                b.iter(|| {
+                    let out = pipeline.run(&input, &cfg).expect("the frame runs");
+                    pipeline.recycle(out);
+                })
             });
             eprintln!(
                 "pipeline/{name}_{side} by stage: {}",
@@ -156,7 +161,8 @@ fn serve_one(pipeline: &mut Pipeline, req: &FrameRequest, split: &mut Split) {
     let decoded = t.elapsed();
     let out = pipeline.run(&frame, &cfg).expect("the frame runs");
     let t = Instant::now();
-    let reply = encode_reply(out, &req.options).expect("encodes");
+    let reply = encode_reply(&out, &req.options).expect("encodes");
+    pipeline.recycle(out);
     split.add("decode", decoded);
     split.add("encode", t.elapsed());
     split.add_timings(&reply.timings);
@@ -235,8 +241,9 @@ fn requests(c: &mut Criterion) {
 }
 
 /// LS normals and window centroids of the depth net's points at 256×256 (`rgb_ls`'s normals
-/// stage), timed alone (after the same call) and right after a depth-net run, which leaves the
-/// caches holding the net's activations.
+/// stage, into buffers reused across calls as the pipeline does), timed alone (after the same
+/// call) and right after a depth-net run, which leaves the caches holding the net's
+/// activations.
 fn ls_after_net(c: &mut Criterion) {
     let models_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
     let mut models = Models::load(&models_dir, &SessionConfig::default()).expect("models load");
@@ -248,11 +255,14 @@ fn ls_after_net(c: &mut Criterion) {
     let rgb = Array4::<f32>::from_elem((1, 3, 256, 256), 0.5);
     let prior = Array4::<f32>::from_elem((1, 1, 256, 256), 1.5);
     let hood = Neighbourhood::default();
+    let (mut packed, mut planes) = (PackedPoints::default(), LocalPlanes::default());
+    let mut ls = move || {
+        local_planes_into(&points, k.fx_px, &hood, &mut packed, &mut planes);
+        std::hint::black_box(&planes);
+    };
     let mut group = c.benchmark_group("ls_normals_256");
     group.sample_size(30);
-    group.bench_function("alone", |b| {
-        b.iter(|| local_planes(&points, k.fx_px, &hood))
-    });
+    group.bench_function("alone", |b| b.iter(&mut ls));
     group.bench_function("after_depth_net", |b| {
         b.iter_custom(|iters| {
             let mut took = Duration::ZERO;
@@ -261,7 +271,7 @@ fn ls_after_net(c: &mut Criterion) {
                     .depth(rgb.view(), prior.view())
                     .expect("the net runs");
                 let t = Instant::now();
-                std::hint::black_box(local_planes(&points, k.fx_px, &hood));
+                ls();
                 took += t.elapsed();
             }
             took

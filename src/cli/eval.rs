@@ -229,6 +229,7 @@ fn score_frame(
     for (name, took) in out.timings.iter() {
         *score.total_ms.entry(name.to_owned()).or_default() += took.as_secs_f64() * 1e3;
     }
+    pipeline.recycle(out);
     Ok(())
 }
 

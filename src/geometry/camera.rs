@@ -108,8 +108,26 @@ impl Intrinsics {
     /// Back-projects an organised depth map (metres; 0, negative or non-finite = no data)
     /// into a point map of the same size. Invalid pixels stay invalid.
     pub fn back_project_map(&self, depth_m: &Grid<f64>) -> PointMap {
+        let mut out = PointMap::default();
+        self.back_project_map_into(depth_m, &mut out);
+        out
+    }
+
+    /// [`back_project_map`](Self::back_project_map) into `out`, which takes the depth map's size
+    /// and keeps its buffer (for maps reused from frame to frame).
+    ///
+    /// ```
+    /// use tre::geometry::{is_valid_point, Grid, Intrinsics, PointMap};
+    /// let k = Intrinsics::from_hfov(4, 3, 60.0).unwrap();
+    /// let mut points = PointMap::default();
+    /// k.back_project_map_into(&Grid::new(4, 3, 2.0), &mut points);
+    /// k.back_project_map_into(&Grid::new(2, 2, 0.0), &mut points);
+    /// assert_eq!(points.size(), (2, 2));
+    /// assert!(!points.as_slice().iter().any(is_valid_point));
+    /// ```
+    pub fn back_project_map_into(&self, depth_m: &Grid<f64>, out: &mut PointMap) {
         let (w, h) = depth_m.size();
-        let mut out = Grid::new(w, h, INVALID_POINT);
+        out.reset(w, h, INVALID_POINT);
         out.par_rows_mut().for_each(|(y, row)| {
             for (x, p) in row.iter_mut().enumerate() {
                 let z = depth_m[(x, y)];
@@ -118,7 +136,6 @@ impl Intrinsics {
                 }
             }
         });
-        out
     }
 }
 

@@ -292,6 +292,41 @@ pub fn dsac_normals(
     logits: &[f32],
     cfg: &DsacConfig,
 ) -> Result<Grid<Vec3>, GeometryError> {
+    let mut out = Grid::default();
+    dsac_normals_into(points, logits, cfg, &mut DsacScratch::default(), &mut out)?;
+    Ok(out)
+}
+
+/// Buffers of [`dsac_normals_into`] kept from frame to frame: the padded copy of the points.
+#[derive(Debug, Default)]
+pub struct DsacScratch {
+    points: PaddedPoints,
+}
+
+/// [`dsac_normals`] into `out` (resized to the size of `points`), with the padded copy of the
+/// points in `scratch`: both keep their buffers, so a caller that reuses them from frame to
+/// frame allocates nothing once they have reached the frame's size. The result is the same.
+///
+/// ```
+/// use tre::geometry::dsac::{dsac_normals, dsac_normals_into, DsacScratch};
+/// use tre::geometry::{DsacConfig, Grid, Vec3};
+/// let points = Grid::from_fn(9, 9, |x, y| Vec3::new(0.01 * x as f64, 0.01 * y as f64, 1.0));
+/// let logits = vec![0.0; 49 * 81];
+/// let (mut scratch, mut out) = (DsacScratch::default(), Grid::default());
+/// dsac_normals_into(&points, &logits, &DsacConfig::default(), &mut scratch, &mut out).unwrap();
+/// assert_eq!(out, dsac_normals(&points, &logits, &DsacConfig::default()).unwrap());
+/// ```
+///
+/// # Errors
+///
+/// [`GeometryError::LogitsSize`] when `logits` does not hold 49 × H × W values.
+pub fn dsac_normals_into(
+    points: &PointMap,
+    logits: &[f32],
+    cfg: &DsacConfig,
+    scratch: &mut DsacScratch,
+    out: &mut Grid<Vec3>,
+) -> Result<(), GeometryError> {
     let (w, h) = points.size();
     if logits.len() != CANDIDATES * w * h {
         return Err(GeometryError::LogitsSize {
@@ -299,14 +334,15 @@ pub fn dsac_normals(
             got: logits.len(),
         });
     }
+    scratch.points.pack(points);
     let frame = Frame {
-        points: PaddedPoints::new(points),
+        points: &scratch.points,
         logits,
         width: w,
         seed_key: splitmix64(cfg.seed),
         cfg,
     };
-    let mut out = Grid::new(w, h, INVALID_POINT);
+    out.reset(w, h, INVALID_POINT);
     out.par_rows_mut().for_each(|(y, row)| {
         for (x0, cells) in (0..w).step_by(REFIT_LANES).zip(row.chunks_mut(REFIT_LANES)) {
             for (n, normal) in cells.iter_mut().zip(frame.group_normals(x0, y)) {
@@ -316,7 +352,7 @@ pub fn dsac_normals(
             }
         }
     });
-    Ok(out)
+    Ok(())
 }
 
 /// The per-pixel random stream: `splitmix64(seed_key ^ pixel)` with `seed_key =
@@ -335,7 +371,7 @@ fn stream_uniform(stream: u64, hypothesis: u32, draw: u32) -> f64 {
 
 /// Everything the per-pixel kernel reads, shared by all rows.
 struct Frame<'a> {
-    points: PaddedPoints,
+    points: &'a PaddedPoints,
     logits: &'a [f32],
     width: usize,
     seed_key: u64,
@@ -349,7 +385,7 @@ impl Frame<'_> {
         if !self.points.is_valid(x, y) {
             return None;
         }
-        let window = Window::new(&self.points, x, y);
+        let window = Window::new(self.points, x, y);
         let i = y * self.width + x;
         let plane_len = self.logits.len() / CANDIDATES;
         let mut lanes = [0.0; LANES];
@@ -383,7 +419,7 @@ impl Frame<'_> {
             for (h, m) in moments.chunks_exact_mut(MOMENT_LANES).enumerate() {
                 let lanes = h * MOMENT_LANES..(h + 1) * MOMENT_LANES;
                 m.copy_from_slice(&inlier_moments::<MOMENT_LANES>(
-                    &self.points,
+                    self.points,
                     base + h * MOMENT_LANES,
                     planes[lanes.clone()].try_into().expect("whole chunks"),
                     origins[lanes].try_into().expect("whole chunks"),
@@ -394,7 +430,7 @@ impl Frame<'_> {
         } else {
             // The row's last, partial group: its windows would reach past the padding.
             std::array::from_fn(|l| match best[l] {
-                Some((p, o)) => inlier_moments(&self.points, base + l, &[p], &[o], tau)[0],
+                Some((p, o)) => inlier_moments(self.points, base + l, &[p], &[o], tau)[0],
                 None => Moments::default(),
             })
         };
@@ -589,6 +625,7 @@ fn lane_sum(v: &[f32; LANES]) -> f32 {
 /// The point map as three coordinate planes padded by [`RADIUS`] invalid pixels on every side,
 /// so that every window is read without bounds checks; invalid points are NaN, so that a point
 /// is valid exactly when its z is positive.
+#[derive(Debug, Default)]
 struct PaddedPoints {
     stride: usize,
     planes: [Vec<f64>; 3],
@@ -596,10 +633,19 @@ struct PaddedPoints {
 
 impl PaddedPoints {
     fn new(points: &PointMap) -> Self {
+        let mut padded = Self::default();
+        padded.pack(points);
+        padded
+    }
+
+    /// Copies `points` in, reusing this buffer's allocations.
+    fn pack(&mut self, points: &PointMap) {
         let (w, h) = points.size();
-        let stride = w + 2 * RADIUS;
-        let planes = [0, 1, 2].map(|a| {
-            let mut plane = vec![f64::NAN; stride * (h + 2 * RADIUS)];
+        self.stride = w + 2 * RADIUS;
+        let stride = self.stride;
+        for (a, plane) in self.planes.iter_mut().enumerate() {
+            plane.clear();
+            plane.resize(stride * (h + 2 * RADIUS), f64::NAN);
             plane
                 .par_chunks_mut(stride)
                 .skip(RADIUS)
@@ -610,9 +656,7 @@ impl PaddedPoints {
                         *dst = if is_valid_point(p) { p[a] } else { f64::NAN };
                     }
                 });
-            plane
-        });
-        Self { stride, planes }
+        }
     }
 
     /// A 7 × 7 map holding `cands`, whose window at `(RADIUS, RADIUS)` is theirs.

@@ -38,6 +38,25 @@ impl<T: Clone> Grid<T> {
             data: vec![value; width * height],
         }
     }
+
+    /// Makes this grid `width × height` and fills it with `value`, keeping its buffer: a grid
+    /// reused from frame to frame allocates only when it grows past its largest size so far.
+    ///
+    /// ```
+    /// use tre::geometry::Grid;
+    /// let mut g = Grid::new(4, 4, 1.0);
+    /// let buffer = g.as_slice().as_ptr();
+    /// g.reset(3, 2, f64::NAN);
+    /// assert_eq!(g.size(), (3, 2));
+    /// assert!(g.as_slice().iter().all(|v| v.is_nan()));
+    /// assert_eq!(g.as_slice().as_ptr(), buffer);
+    /// ```
+    pub fn reset(&mut self, width: usize, height: usize, value: T) {
+        self.data.clear();
+        self.data.resize(width * height, value);
+        self.width = width;
+        self.height = height;
+    }
 }
 
 impl<T> Grid<T> {

@@ -270,7 +270,7 @@ fn lane_moments(acc: &GroupMoments, l: usize) -> Moments {
 }
 
 /// Per-pixel local planes: the neighbourhood's mean point and its LS normal.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct LocalPlanes {
     /// Mean of the neighbourhood's points (invalid where the pixel is invalid).
     pub centroid: PointMap,
@@ -282,17 +282,44 @@ pub struct LocalPlanes {
 /// Fits a local plane at every valid pixel (row-parallel; the eigen-solves of a row run four
 /// pixels at a time).
 pub fn local_planes(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> LocalPlanes {
+    let mut out = LocalPlanes::default();
+    local_planes_into(points, fx_px, hood, &mut PackedPoints::default(), &mut out);
+    out
+}
+
+/// [`local_planes`] into `out`, whose grids take the size of `points`, with `packed` as the
+/// packed copy of the points: both keep their buffers, so a caller that reuses them from frame
+/// to frame allocates nothing once they have reached the frame's size.
+///
+/// ```
+/// use tre::geometry::normals::{local_planes_into, PackedPoints};
+/// use tre::geometry::{local_planes, Grid, Intrinsics, LocalPlanes, Neighbourhood};
+/// let k = Intrinsics::from_hfov(12, 10, 60.0).unwrap();
+/// let points = k.back_project_map(&Grid::from_fn(12, 10, |x, _| 1.0 + 0.01 * x as f64));
+/// let (mut packed, mut out) = (PackedPoints::default(), LocalPlanes::default());
+/// for _ in 0..2 {
+///     local_planes_into(&points, k.fx_px, &Neighbourhood::default(), &mut packed, &mut out);
+/// }
+/// assert_eq!(out, local_planes(&points, k.fx_px, &Neighbourhood::default()));
+/// ```
+pub fn local_planes_into(
+    points: &PointMap,
+    fx_px: f64,
+    hood: &Neighbourhood,
+    packed: &mut PackedPoints,
+    out: &mut LocalPlanes,
+) {
     let (w, h) = points.size();
-    let mut packed = PackedPoints::default();
     packed.pack(points);
-    let mut centroid = Grid::new(w, h, INVALID_POINT);
-    let mut normal = Grid::new(w, h, INVALID_POINT);
-    centroid
+    let packed = &*packed;
+    out.centroid.reset(w, h, INVALID_POINT);
+    out.normal.reset(w, h, INVALID_POINT);
+    out.centroid
         .par_rows_mut()
-        .zip(normal.par_rows_mut())
+        .zip(out.normal.par_rows_mut())
         .for_each(|((y, c_row), (_, n_row))| {
             for x0 in (0..w).step_by(GROUP) {
-                let group = hood.group_moments(&packed, points, fx_px, x0, y);
+                let group = hood.group_moments(packed, points, fx_px, x0, y);
                 let fits = fit_normals(&group);
                 for (l, (m, fit)) in group.iter().zip(fits).enumerate() {
                     let x = x0 + l;
@@ -307,7 +334,6 @@ pub fn local_planes(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> Loca
                 }
             }
         });
-    LocalPlanes { centroid, normal }
 }
 
 /// LS normals oriented towards the camera (NaN where none can be fitted).
@@ -317,13 +343,37 @@ pub fn ls_normals(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> Grid<V
 
 /// Window centroids only (cheaper than [`local_planes`] when normals come from elsewhere).
 pub fn window_centroids(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> PointMap {
+    let mut out = PointMap::default();
+    window_centroids_into(points, fx_px, hood, &mut PackedPoints::default(), &mut out);
+    out
+}
+
+/// [`window_centroids`] into `out` (resized to the size of `points`), with `packed` as the
+/// packed copy of the points; both keep their buffers, as in [`local_planes_into`].
+///
+/// ```
+/// use tre::geometry::normals::{window_centroids_into, PackedPoints};
+/// use tre::geometry::{window_centroids, Grid, Intrinsics, Neighbourhood, PointMap};
+/// let k = Intrinsics::from_hfov(9, 8, 60.0).unwrap();
+/// let points = k.back_project_map(&Grid::from_fn(9, 8, |_, y| 1.0 + 0.02 * y as f64));
+/// let (mut packed, mut out) = (PackedPoints::default(), PointMap::default());
+/// window_centroids_into(&points, k.fx_px, &Neighbourhood::default(), &mut packed, &mut out);
+/// assert_eq!(out, window_centroids(&points, k.fx_px, &Neighbourhood::default()));
+/// ```
+pub fn window_centroids_into(
+    points: &PointMap,
+    fx_px: f64,
+    hood: &Neighbourhood,
+    packed: &mut PackedPoints,
+    out: &mut PointMap,
+) {
     let (w, h) = points.size();
-    let mut packed = PackedPoints::default();
     packed.pack(points);
-    let mut centroid = Grid::new(w, h, INVALID_POINT);
-    centroid.par_rows_mut().for_each(|(y, row)| {
+    let packed = &*packed;
+    out.reset(w, h, INVALID_POINT);
+    out.par_rows_mut().for_each(|(y, row)| {
         for (x0, cells) in (0..w).step_by(GROUP).zip(row.chunks_mut(GROUP)) {
-            let group = hood.group_moments(&packed, points, fx_px, x0, y);
+            let group = hood.group_moments(packed, points, fx_px, x0, y);
             for ((c, m), p) in cells.iter_mut().zip(&group).zip(&points.row(y)[x0..]) {
                 if let Some(mean) = m.mean(p) {
                     *c = mean;
@@ -331,7 +381,6 @@ pub fn window_centroids(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> 
             }
         }
     });
-    centroid
 }
 
 #[cfg(test)]

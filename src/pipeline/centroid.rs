@@ -5,13 +5,14 @@ use ndarray::Array4;
 use rayon::prelude::*;
 
 use super::normals::NetInputs;
-use super::tensors::{vectors_from_tensor, vectors_tensor};
+use super::tensors::{vectors_from_tensor_into, vectors_tensor};
 use super::{PipelineError, Traversability};
 use crate::geometry::gravity::slope_from_up;
 use crate::geometry::{is_valid_point, Grid, PointMap, Vec3};
 use crate::model::Models;
 
-/// The centroid net's centroids for `normals` (`normals_t` is scratch space).
+/// The centroid net's centroids for `normals`, written into `out` (`normals_t` is scratch
+/// space).
 ///
 /// # Errors
 ///
@@ -22,6 +23,7 @@ pub fn net_centroids(
     points: &PointMap,
     normals: &Grid<Vec3>,
     normals_t: &mut Array4<f32>,
+    mut out: PointMap,
 ) -> Result<PointMap, PipelineError> {
     vectors_tensor(normals, normals_t);
     let inputs = [
@@ -30,7 +32,10 @@ pub fn net_centroids(
         net.valid.view(),
         normals_t.view(),
     ];
-    Ok(models.centroids_with(inputs, |c| vectors_from_tensor(c, points, false))?)
+    models.centroids_with(inputs, |c| {
+        vectors_from_tensor_into(c, points, false, &mut out)
+    })?;
+    Ok(out)
 }
 
 /// Eq. 1 at every pixel into `out` (same size): `|n·(p − c)|`, NaN where the point, the normal

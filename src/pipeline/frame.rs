@@ -5,7 +5,8 @@ use std::time::Duration;
 use image::RgbImage;
 
 use super::centroid::{slopes, traversable};
-use super::resize::resize_nearest;
+use super::resize::{resize_nearest, resize_nearest_into};
+use super::spares::Spares;
 use super::Traversability;
 use crate::geometry::{Grid, Intrinsics, Mounting, PointMap, Vec3, INVALID_POINT};
 use crate::roughness::annotate::{boundary_mask, segment};
@@ -77,18 +78,23 @@ impl FrameOutput {
     /// The output of a frame of `size` from maps at the working size: roughness (always), the
     /// stages' maps (`None` for the end-to-end baseline), gravity's up axis in the camera frame
     /// and the traversability thresholds.
+    /// `spare` becomes the roughness at the frame's size when that differs from the working
+    /// size.
     pub(crate) fn new(
         size: (usize, usize),
         roughness_m: Grid<f64>,
         stages: Option<StageMaps>,
         up_in_cam: Vec3,
         limits: Traversability,
+        spare: &mut Spares,
     ) -> Self {
         let working_size = roughness_m.size();
         let (roughness_m, working_roughness) = if working_size == size {
             (roughness_m, None)
         } else {
-            let full = resize_nearest(&roughness_m, size.0, size.1, f64::NAN);
+            let mut full = spare.scalar();
+            full.reset(size.0, size.1, f64::NAN);
+            resize_nearest_into(&roughness_m, &mut full);
             (full, Some(roughness_m))
         };
         Self {
@@ -101,6 +107,24 @@ impl FrameOutput {
                 up_in_cam,
                 limits,
             },
+        }
+    }
+
+    /// Hands every map of this output to `spares`, for the next frames.
+    pub(crate) fn give_maps(self, spares: &mut Spares) {
+        spares.keep_scalar(self.roughness_m);
+        let WorkingMaps {
+            roughness_m,
+            stages,
+            ..
+        } = self.working;
+        if let Some(r) = roughness_m {
+            spares.keep_scalar(r);
+        }
+        if let Some(m) = stages {
+            spares.keep_scalar(m.depth_m);
+            spares.keep_vector(m.points);
+            spares.keep_vector(m.normals);
         }
     }
 
@@ -238,7 +262,14 @@ mod tests {
             points,
             normals,
         };
-        FrameOutput::new((4, 2), roughness, Some(maps), up, Traversability::default())
+        FrameOutput::new(
+            (4, 2),
+            roughness,
+            Some(maps),
+            up,
+            Traversability::default(),
+            &mut Spares::default(),
+        )
     }
 
     #[test]
@@ -276,6 +307,7 @@ mod tests {
             Some(maps),
             up,
             Traversability::default(),
+            &mut Spares::default(),
         );
         let b = out.boundary().expect("boundary");
         assert_eq!(b.size(), (12, 2));
@@ -292,6 +324,7 @@ mod tests {
             None,
             Vec3::z(),
             Traversability::default(),
+            &mut Spares::default(),
         );
         assert!(out.depth_m().is_none() && out.normals().is_none() && out.slope_rad().is_none());
         assert!(out.boundary().is_none());

@@ -25,6 +25,7 @@ pub mod frame;
 pub mod normals;
 pub mod resize;
 pub mod run;
+mod spares;
 pub mod tensors;
 
 pub use config::{

@@ -3,11 +3,11 @@
 
 use ndarray::Array4;
 
-use super::tensors::{vectors_from_tensor, vectors_tensor};
+use super::tensors::{vectors_from_tensor_into, vectors_tensor};
 use super::PipelineError;
-use crate::geometry::{
-    dsac_normals, local_planes, DsacConfig, Grid, Neighbourhood, PointMap, Vec3,
-};
+use crate::geometry::dsac::{dsac_normals_into, DsacScratch};
+use crate::geometry::normals::{local_planes_into, PackedPoints};
+use crate::geometry::{DsacConfig, Grid, LocalPlanes, Neighbourhood, PointMap, Vec3};
 use crate::model::Models;
 
 /// Initial normals and, for LS, the window centroids that came with them for free.
@@ -28,16 +28,24 @@ pub struct NetInputs<'a> {
     pub valid: &'a Array4<f32>,
 }
 
-/// LS normals and window centroids over `hood` (focal `fx_px` at the working size).
-pub fn ls_normals(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> InitialNormals {
-    let planes = local_planes(points, fx_px, hood);
+/// LS normals and window centroids over `hood` (focal `fx_px` at the working size), written
+/// into `planes`' grids with `packed` as scratch (all reused across frames).
+pub fn ls_normals(
+    points: &PointMap,
+    fx_px: f64,
+    hood: &Neighbourhood,
+    packed: &mut PackedPoints,
+    mut planes: LocalPlanes,
+) -> InitialNormals {
+    local_planes_into(points, fx_px, hood, packed, &mut planes);
     InitialNormals {
         normals: planes.normal,
         window_centroids: Some(planes.centroid),
     }
 }
 
-/// DSAC normals: the neighbour net's logits, then [`dsac_normals`] with the request's `seed`.
+/// DSAC normals: the neighbour net's logits, then [`dsac_normals_into`] with the request's
+/// `seed`, written into `out` with `scratch` (both reused across frames).
 ///
 /// # Errors
 ///
@@ -48,27 +56,33 @@ pub fn dsac_normals_from_net(
     net: &NetInputs<'_>,
     points: &PointMap,
     seed: u64,
+    scratch: &mut DsacScratch,
+    mut out: Grid<Vec3>,
 ) -> Result<InitialNormals, PipelineError> {
     let cfg = DsacConfig {
         seed,
         ..DsacConfig::default()
     };
-    let normals = models.neighbour_logits_with(
+    models.neighbour_logits_with(
         net.rgb.view(),
         net.points_m.view(),
         net.valid.view(),
         |logits| match logits.as_slice() {
-            Some(logits) => dsac_normals(points, logits, &cfg),
-            None => dsac_normals(points, &logits.iter().copied().collect::<Vec<_>>(), &cfg),
+            Some(logits) => dsac_normals_into(points, logits, &cfg, scratch, &mut out),
+            None => {
+                let logits = logits.iter().copied().collect::<Vec<_>>();
+                dsac_normals_into(points, &logits, &cfg, scratch, &mut out)
+            }
         },
     )??;
     Ok(InitialNormals {
-        normals,
+        normals: out,
         window_centroids: None,
     })
 }
 
-/// The refiner's unit normals from the initial ones (`normals_t` is scratch space).
+/// The refiner's unit normals from the initial ones, written into `out` (`normals_t` is
+/// scratch space).
 ///
 /// # Errors
 ///
@@ -79,6 +93,7 @@ pub fn refine(
     points: &PointMap,
     initial: &Grid<Vec3>,
     normals_t: &mut Array4<f32>,
+    mut out: Grid<Vec3>,
 ) -> Result<Grid<Vec3>, PipelineError> {
     vectors_tensor(initial, normals_t);
     let inputs = [
@@ -87,5 +102,8 @@ pub fn refine(
         net.valid.view(),
         normals_t.view(),
     ];
-    Ok(models.refine_normals_with(inputs, |n| vectors_from_tensor(n, points, true))?)
+    models.refine_normals_with(inputs, |n| {
+        vectors_from_tensor_into(n, points, true, &mut out)
+    })?;
+    Ok(out)
 }

@@ -1,6 +1,6 @@
 //! [`Pipeline`]: checks a frame, runs the stages in order at the working size, and brings the
-//! maps back to the frame's size. It owns the models and the tensors it reuses across frames;
-//! like [`Models`], it belongs to one worker thread.
+//! maps back to the frame's size. It owns the models and the tensors and maps it reuses across
+//! frames; like [`Models`], it belongs to one worker thread.
 
 use std::time::Duration;
 
@@ -10,12 +10,15 @@ use super::centroid::{net_centroids, roughness_into};
 use super::depth::{prior_depth_into, MAX_PRIOR_DEPTH_M};
 use super::frame::{FrameInput, FrameOutput, StageMaps, StageTimings, DEFAULT_HFOV_DEG};
 use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
-use super::resize::{resize_nearest, resize_rgb};
-use super::tensors::{depth_from_tensor, points_tensors, rgb_tensor, scalar_tensor};
+use super::resize::{resize_nearest_into, resize_rgb};
+use super::spares::Spares;
+use super::tensors::{depth_from_tensor_into, points_tensors, rgb_tensor, scalar_tensor};
 use super::{
     CentroidMethod, Method, Mode, NormalsMethod, PipelineConfig, PipelineError, MAX_WORKING_SIDE,
 };
-use crate::geometry::{window_centroids, Grid, Intrinsics, PointMap, Vec3};
+use crate::geometry::dsac::DsacScratch;
+use crate::geometry::normals::{window_centroids_into, PackedPoints};
+use crate::geometry::{Grid, Intrinsics, LocalPlanes, PointMap, Vec3};
 use crate::model::Models;
 
 /// Working size when no models are loaded, `(width, height)`.
@@ -53,7 +56,8 @@ pub fn fit_aspect(
     }
 }
 
-/// Tensors reused from frame to frame (reallocated only when the working size changes).
+/// Tensors and geometry buffers reused from frame to frame (reallocated only when the working
+/// size grows), and the maps of earlier frames handed back by [`Pipeline::recycle`].
 #[derive(Debug, Default)]
 struct Scratch {
     rgb: Array4<f32>,
@@ -62,6 +66,9 @@ struct Scratch {
     points: Array4<f32>,
     valid: Array4<f32>,
     normals: Array4<f32>,
+    packed: PackedPoints,
+    dsac: DsacScratch,
+    spares: Spares,
 }
 
 /// The frame at the working size, as the stages see it.
@@ -110,6 +117,14 @@ impl Pipeline {
         Ok(out)
     }
 
+    /// Takes back the maps of a frame's output once the caller is done with it, so that the
+    /// next frames write into their buffers instead of allocating new ones. Optional: a
+    /// pipeline whose outputs are simply dropped allocates its maps afresh for every frame.
+    /// The next frames' outputs are the same either way.
+    pub fn recycle(&mut self, out: FrameOutput) {
+        out.give_maps(&mut self.scratch.spares);
+    }
+
     /// Time spent inside ONNX Runtime by the loaded models so far.
     fn onnx_runtime_time(&self) -> Duration {
         self.models
@@ -139,17 +154,20 @@ impl Pipeline {
         }
         let depth_m = timings.time("depth", || self.depth(input, cfg, &work))?;
         let points = timings.time("back_project", || {
-            let points = work.k.back_project_map(&depth_m);
+            let mut points = self.scratch.spares.vector();
+            work.k.back_project_map_into(&depth_m, &mut points);
             if has_rgb && !cfg.networks().is_empty() {
                 points_tensors(&points, &mut self.scratch.points, &mut self.scratch.valid);
             }
             points
         });
         let (normals, centroids) = self.normals_and_centroids(cfg, &work, &points, &mut timings)?;
-        let mut roughness_m = Grid::new(work.size.0, work.size.1, f64::NAN);
+        let mut roughness_m = self.scratch.spares.scalar();
         timings.time("roughness", || {
+            roughness_m.reset(work.size.0, work.size.1, f64::NAN);
             roughness_into(&points, &normals, &centroids, &mut roughness_m);
         });
+        self.scratch.spares.keep_vector(centroids);
         let maps = StageMaps {
             depth_m,
             points,
@@ -157,7 +175,8 @@ impl Pipeline {
         };
         let mut out = timings.time("outputs", || {
             let up = input.mounting.up_in_cam();
-            FrameOutput::new(size, roughness_m, Some(maps), up, cfg.traversability)
+            let (limits, spares) = (cfg.traversability, &mut self.scratch.spares);
+            FrameOutput::new(size, roughness_m, Some(maps), up, limits, spares)
         });
         out.timings = timings;
         Ok(out)
@@ -178,10 +197,21 @@ impl Pipeline {
             points_m: &scratch.points,
             valid: &scratch.valid,
         };
+        let spares = &mut scratch.spares;
         let start = std::time::Instant::now();
         let initial = match normals_method {
-            NormalsMethod::Ls => ls_normals(points, work.k.fx_px, &cfg.neighbourhood),
-            NormalsMethod::Dsac => dsac_normals_from_net(loaded(models)?, &net, points, cfg.seed)?,
+            NormalsMethod::Ls => {
+                let planes = LocalPlanes {
+                    centroid: spares.vector(),
+                    normal: spares.vector(),
+                };
+                let (fx, hood) = (work.k.fx_px, &cfg.neighbourhood);
+                ls_normals(points, fx, hood, &mut scratch.packed, planes)
+            }
+            NormalsMethod::Dsac => {
+                let (models, out) = (loaded(models)?, spares.vector());
+                dsac_normals_from_net(models, &net, points, cfg.seed, &mut scratch.dsac, out)?
+            }
         };
         timings.add("normals", start.elapsed());
         let InitialNormals {
@@ -190,28 +220,35 @@ impl Pipeline {
         } = initial;
         if do_refine {
             let start = std::time::Instant::now();
-            normals = refine(
+            let out = spares.vector();
+            let refined = refine(
                 loaded(models)?,
                 &net,
                 points,
                 &normals,
                 &mut scratch.normals,
+                out,
             )?;
+            spares.keep_vector(std::mem::replace(&mut normals, refined));
             timings.add("refine", start.elapsed());
         }
         let start = std::time::Instant::now();
         let centroids = match (centroid_method, ls_centroids) {
             (CentroidMethod::Window, Some(c)) => c,
             (CentroidMethod::Window, None) => {
-                window_centroids(points, work.k.fx_px, &cfg.neighbourhood)
+                let mut out = spares.vector();
+                let (fx, hood) = (work.k.fx_px, &cfg.neighbourhood);
+                window_centroids_into(points, fx, hood, &mut scratch.packed, &mut out);
+                out
             }
-            (CentroidMethod::Net, _) => net_centroids(
-                loaded(models)?,
-                &net,
-                points,
-                &normals,
-                &mut scratch.normals,
-            )?,
+            (CentroidMethod::Net, ls_centroids) => {
+                if let Some(c) = ls_centroids {
+                    spares.keep_vector(c);
+                }
+                let out = spares.vector();
+                let models = loaded(models)?;
+                net_centroids(models, &net, points, &normals, &mut scratch.normals, out)?
+            }
         };
         timings.add("centroid", start.elapsed());
         Ok((normals, centroids))
@@ -231,12 +268,17 @@ impl Pipeline {
                 mode: "this mode",
                 input: "depth",
             })?;
-            return Ok(resize_nearest(given, w, h, 0.0));
+            let mut depth_m = self.scratch.spares.scalar();
+            depth_m.reset(w, h, 0.0);
+            resize_nearest_into(given, &mut depth_m);
+            return Ok(depth_m);
         }
         self.prior_tensor(work, input);
         let models = loaded(&mut self.models)?;
         let (rgb, prior) = (self.scratch.rgb.view(), self.scratch.prior.view());
-        Ok(models.depth_with(rgb, prior, depth_from_tensor)?)
+        let mut depth_m = self.scratch.spares.scalar();
+        models.depth_with(rgb, prior, |t| depth_from_tensor_into(t, &mut depth_m))?;
+        Ok(depth_m)
     }
 
     /// The flat-ground prior depth at the working size into the prior tensor (both buffers
@@ -264,11 +306,17 @@ impl Pipeline {
         self.prior_tensor(work, input);
         let models = loaded(&mut self.models)?;
         let r = models.end_to_end(self.scratch.rgb.view(), self.scratch.prior.view())?;
-        let roughness_m = depth_from_tensor(r.view()).map(|&v| v.max(0.0));
+        let mut roughness_m = self.scratch.spares.scalar();
+        depth_from_tensor_into(r.view(), &mut roughness_m);
+        roughness_m
+            .as_mut_slice()
+            .iter_mut()
+            .for_each(|v| *v = v.max(0.0));
         timings.add("end_to_end", start.elapsed());
         let mut out = timings.time("outputs", || {
             let (up, limits) = (input.mounting.up_in_cam(), cfg.traversability);
-            FrameOutput::new(size, roughness_m, None, up, limits)
+            let spares = &mut self.scratch.spares;
+            FrameOutput::new(size, roughness_m, None, up, limits, spares)
         });
         out.timings = timings;
         Ok(out)

@@ -113,24 +113,42 @@ fn plane_rows(t: &mut Array4<f32>) -> [rayon::slice::ChunksMut<'_, f32>; 3] {
 
 /// Channel 0 of a `1 × 1 × H × W` depth tensor as metres; non-positive or non-finite: 0.
 pub fn depth_from_tensor(t: ArrayView4<'_, f32>) -> Grid<f64> {
+    let mut out = Grid::default();
+    depth_from_tensor_into(t, &mut out);
+    out
+}
+
+/// [`depth_from_tensor`] into `out`, which takes the tensor's size and keeps its buffer.
+pub fn depth_from_tensor_into(t: ArrayView4<'_, f32>, out: &mut Grid<f64>) {
     let (_, _, h, w) = t.dim();
     let plane = t.slice(s![0, 0, .., ..]);
-    let mut out = Grid::new(w, h, 0.0);
+    out.reset(w, h, 0.0);
     out.par_rows_mut().for_each(|(y, row)| {
         for (d, &v) in row.iter_mut().zip(plane.row(y)) {
             let v = f64::from(v);
             *d = if v > 0.0 && v.is_finite() { v } else { 0.0 };
         }
     });
-    out
 }
 
 /// Channels 0..3 of a `1 × 3 × H × W` tensor as vectors where `points` is valid, NaN elsewhere;
 /// `unit` normalises them (a zero or non-finite vector becomes NaN).
 pub fn vectors_from_tensor(t: ArrayView4<'_, f32>, points: &PointMap, unit: bool) -> Grid<Vec3> {
+    let mut out = Grid::default();
+    vectors_from_tensor_into(t, points, unit, &mut out);
+    out
+}
+
+/// [`vectors_from_tensor`] into `out`, which takes the size of `points` and keeps its buffer.
+pub fn vectors_from_tensor_into(
+    t: ArrayView4<'_, f32>,
+    points: &PointMap,
+    unit: bool,
+    out: &mut Grid<Vec3>,
+) {
     let (w, h) = points.size();
     let planes = [0, 1, 2].map(|c| t.slice_move(s![0, c, .., ..]));
-    let mut out = Grid::new(w, h, INVALID_POINT);
+    out.reset(w, h, INVALID_POINT);
     out.par_rows_mut().for_each(|(y, row)| {
         let src = planes.each_ref().map(|p| p.row(y));
         for (x, (n, p)) in row.iter_mut().zip(points.row(y)).enumerate() {
@@ -144,5 +162,4 @@ pub fn vectors_from_tensor(t: ArrayView4<'_, f32>, points: &PointMap, unit: bool
             }
         }
     });
-    out
 }

@@ -308,8 +308,9 @@ fn mask_part(
     })
 }
 
-/// Encodes the pipeline's output as the options ask.
-pub fn encode_reply(out: FrameOutput, opts: &FrameOptions) -> Result<FrameReply, ApiError> {
+/// Encodes the pipeline's output as the options ask (the output stays the caller's, to hand
+/// back to [`Pipeline::recycle`](crate::pipeline::Pipeline::recycle)).
+pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply, ApiError> {
     let r = &out.roughness_m;
     let (w, h) = r.size();
     let roughness = match opts.format {
@@ -379,7 +380,7 @@ pub fn encode_reply(out: FrameOutput, opts: &FrameOptions) -> Result<FrameReply,
         format: opts.format,
         extras,
         traversable,
-        timings: out.timings,
+        timings: out.timings.clone(),
     })
 }
 

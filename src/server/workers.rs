@@ -277,7 +277,9 @@ fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> Jo
     let frame = decode_frame(req, pool.limits)?;
     let cfg = config_for(&frame, &req.options, pool.limits.max_pixels, pool.normals);
     let out = pipeline.run(&frame, &cfg)?;
-    encode_reply(out, &req.options)
+    let reply = encode_reply(&out, &req.options);
+    pipeline.recycle(out);
+    reply
 }
 
 /// Runs every mode once on a synthetic 256×192 frame, so that ONNX Runtime has allocated and
@@ -294,7 +296,8 @@ fn warm_up(pipeline: &mut Pipeline) -> Result<(), crate::pipeline::PipelineError
         ..FrameInput::default()
     };
     for mode in [Mode::Rgb, Mode::Rgbd, Mode::Geometric] {
-        pipeline.run(&frame, &PipelineConfig::for_mode(mode))?;
+        let out = pipeline.run(&frame, &PipelineConfig::for_mode(mode))?;
+        pipeline.recycle(out);
     }
     Ok(())
 }
