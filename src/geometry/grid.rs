@@ -162,6 +162,12 @@ impl<T> Grid<T> {
         self.data.par_chunks_mut(self.width.max(1)).enumerate()
     }
 
+    /// Values the grid's buffer holds room for (at least `width × height`; more after a
+    /// [`reset`](Self::reset) to a smaller size).
+    pub fn capacity(&self) -> usize {
+        self.data.capacity()
+    }
+
     /// Consumes the grid and returns its row-major buffer.
     pub fn into_vec(self) -> Vec<T> {
         self.data

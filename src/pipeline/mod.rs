@@ -14,6 +14,8 @@
 //! let frame = FrameInput { rgb: Some(rgb), ..FrameInput::default() };
 //! let out = pipeline.run(&frame, &PipelineConfig::default())?;
 //! println!("{:?}", out.timings);
+//! // Done with this frame's maps: the next frames write into their buffers.
+//! pipeline.recycle(out);
 //! # Ok(())
 //! # }
 //! ```

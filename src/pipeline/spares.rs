@@ -1,42 +1,68 @@
 //! Maps handed back by [`Pipeline::recycle`](super::Pipeline::recycle), kept for the next
 //! frames, so that a pipeline run frame after frame reuses its buffers instead of allocating
 //! (and page-faulting in) fresh megabytes for every map of every frame.
+//!
+//! What is kept is bounded, so that one huge frame does not pin its memory for good: no buffer
+//! over [`MAX_GRID_BYTES`] (glibc's own largest reuse threshold), at most [`MAX_KEPT_BYTES`] in
+//! all and [`KEEP`] grids per map type. A frame runs the same with or without spares.
 
 use crate::geometry::{Grid, Vec3};
 
-/// Spare grids kept per map type (a frame uses at most six of each).
+/// Spare grids kept per map type (a frame has at most five of each in use at once).
 const KEEP: usize = 8;
+/// Largest buffer kept, bytes (a 1280×1024 map of vectors; glibc's largest mmap threshold).
+pub(crate) const MAX_GRID_BYTES: usize = 32 << 20;
+/// Most bytes kept in all.
+pub(crate) const MAX_KEPT_BYTES: usize = 192 << 20;
 
 /// Spare scalar and vector grids, of any size: every stage resizes the grid it takes.
 #[derive(Debug, Default)]
 pub(crate) struct Spares {
     scalars: Vec<Grid<f64>>,
     vectors: Vec<Grid<Vec3>>,
+    /// Bytes of the buffers kept.
+    bytes: usize,
+}
+
+/// Bytes of `grid`'s buffer.
+fn bytes<T>(grid: &Grid<T>) -> usize {
+    grid.capacity() * std::mem::size_of::<T>()
 }
 
 impl Spares {
     /// A scalar grid to write a map into (empty when none is spare).
     pub(crate) fn scalar(&mut self) -> Grid<f64> {
-        self.scalars.pop().unwrap_or_default()
+        let grid = self.scalars.pop().unwrap_or_default();
+        self.bytes -= bytes(&grid);
+        grid
     }
 
     /// A vector grid to write a map into (empty when none is spare).
     pub(crate) fn vector(&mut self) -> Grid<Vec3> {
-        self.vectors.pop().unwrap_or_default()
+        let grid = self.vectors.pop().unwrap_or_default();
+        self.bytes -= bytes(&grid);
+        grid
     }
 
-    /// Keeps `grid` for a later [`scalar`](Self::scalar).
+    /// Keeps `grid` for a later [`scalar`](Self::scalar), within the bounds.
     pub(crate) fn keep_scalar(&mut self, grid: Grid<f64>) {
-        if self.scalars.len() < KEEP {
+        if self.scalars.len() < KEEP && self.room_for(bytes(&grid)) {
+            self.bytes += bytes(&grid);
             self.scalars.push(grid);
         }
     }
 
-    /// Keeps `grid` for a later [`vector`](Self::vector).
+    /// Keeps `grid` for a later [`vector`](Self::vector), within the bounds.
     pub(crate) fn keep_vector(&mut self, grid: Grid<Vec3>) {
-        if self.vectors.len() < KEEP {
+        if self.vectors.len() < KEEP && self.room_for(bytes(&grid)) {
+            self.bytes += bytes(&grid);
             self.vectors.push(grid);
         }
+    }
+
+    /// Whether a buffer of `n` bytes may be kept.
+    fn room_for(&self, n: usize) -> bool {
+        n <= MAX_GRID_BYTES && self.bytes + n <= MAX_KEPT_BYTES
     }
 }
 
@@ -45,7 +71,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn keeps_grids_up_to_the_limit_and_hands_them_back() {
+    fn keeps_grids_up_to_the_limits_and_hands_them_back() {
         let mut spares = Spares::default();
         assert_eq!(spares.scalar().size(), (0, 0));
         for _ in 0..KEEP + 3 {
@@ -55,8 +81,30 @@ mod tests {
             .take_while(|g| g.size() == (4, 3))
             .count();
         assert_eq!(kept, KEEP);
+        assert_eq!(spares.bytes, 0);
         spares.keep_vector(Grid::new(2, 2, Vec3::zeros()));
         assert_eq!(spares.vector().size(), (2, 2));
         assert_eq!(spares.vector().size(), (0, 0));
+    }
+
+    #[test]
+    fn keeps_no_huge_buffer_and_bounds_the_total() {
+        let mut spares = Spares::default();
+        // 4096 × 4096 × 8 bytes = 128 MiB: over the per-buffer limit.
+        spares.keep_scalar(Grid::new(4096, 4096, 0.0));
+        assert_eq!(spares.scalar().size(), (0, 0));
+        // 1024 × 1024 vectors = 24 MiB each: eight would be 192 MiB, the total allows seven
+        // beside a 16 MiB scalar map.
+        spares.keep_scalar(Grid::new(2048, 1024, 0.0));
+        for _ in 0..8 {
+            spares.keep_vector(Grid::new(1024, 1024, Vec3::zeros()));
+        }
+        assert!(spares.bytes <= MAX_KEPT_BYTES);
+        let vectors = std::iter::from_fn(|| Some(spares.vector()))
+            .take_while(|g| g.size() == (1024, 1024))
+            .count();
+        assert_eq!(vectors, 7);
+        assert_eq!(spares.scalar().size(), (2048, 1024));
+        assert_eq!(spares.bytes, 0);
     }
 }
