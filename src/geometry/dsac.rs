@@ -1424,6 +1424,31 @@ mod tests {
     }
 
     #[test]
+    fn reused_buffers_give_the_same_normals_at_any_size() {
+        let cfg = DsacConfig::default();
+        let logits = |w: usize, h: usize| -> Vec<f32> {
+            (0..CANDIDATES * w * h)
+                .map(|i| ((i * 2_654_435_761) % 997) as f32 / 300.0)
+                .collect()
+        };
+        let bits = |g: &Grid<Vec3>| -> Vec<[u64; 3]> {
+            g.as_slice()
+                .iter()
+                .map(|v| [v.x, v.y, v.z].map(f64::to_bits))
+                .collect()
+        };
+        let (mut scratch, mut out) = (DsacScratch::default(), Grid::default());
+        // Larger, smaller, then larger again: stale values must never leak through.
+        for (w, h) in [(20, 16), (9, 13), (23, 11)] {
+            let (points, logits) = (bumpy(w, h), logits(w, h));
+            dsac_normals_into(&points, &logits, &cfg, &mut scratch, &mut out).unwrap();
+            let fresh = dsac_normals(&points, &logits, &cfg).unwrap();
+            assert_eq!(out.size(), (w, h));
+            assert_eq!(bits(&out), bits(&fresh), "{w}×{h}");
+        }
+    }
+
+    #[test]
     fn best_is_the_first_largest_score() {
         let points = bumpy(12, 12);
         let cands = candidates(&points, 6, 6);
