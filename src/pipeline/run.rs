@@ -191,64 +191,23 @@ impl Pipeline {
         timings: &mut StageTimings,
     ) -> Result<(Grid<Vec3>, PointMap), PipelineError> {
         let (normals_method, do_refine, centroid_method) = cfg.effective();
-        let Self { models, scratch } = self;
-        let net = NetInputs {
-            rgb: &scratch.rgb,
-            points_m: &scratch.points,
-            valid: &scratch.valid,
-        };
-        let spares = &mut scratch.spares;
+        let mut stages = Stages::new(&mut self.models, &mut self.scratch, points);
         let start = std::time::Instant::now();
-        let initial = match normals_method {
-            NormalsMethod::Ls => {
-                let planes = LocalPlanes {
-                    centroid: spares.vector(),
-                    normal: spares.vector(),
-                };
-                let (fx, hood) = (work.k.fx_px, &cfg.neighbourhood);
-                ls_normals(points, fx, hood, &mut scratch.packed, planes)
-            }
-            NormalsMethod::Dsac => {
-                let (models, out) = (loaded(models)?, spares.vector());
-                dsac_normals_from_net(models, &net, points, cfg.seed, &mut scratch.dsac, out)?
-            }
-        };
-        timings.add("normals", start.elapsed());
         let InitialNormals {
             mut normals,
-            window_centroids: ls_centroids,
-        } = initial;
+            window_centroids,
+        } = stages.initial_normals(normals_method, work.k.fx_px, cfg)?;
+        timings.add("normals", start.elapsed());
         if do_refine {
             let start = std::time::Instant::now();
-            let out = spares.vector();
-            let refined = refine(
-                loaded(models)?,
-                &net,
-                points,
-                &normals,
-                &mut scratch.normals,
-                out,
-            )?;
-            spares.keep_vector(std::mem::replace(&mut normals, refined));
+            normals = stages.refined(normals)?;
             timings.add("refine", start.elapsed());
         }
         let start = std::time::Instant::now();
-        let centroids = match (centroid_method, ls_centroids) {
+        let centroids = match (centroid_method, window_centroids) {
             (CentroidMethod::Window, Some(c)) => c,
-            (CentroidMethod::Window, None) => {
-                let mut out = spares.vector();
-                let (fx, hood) = (work.k.fx_px, &cfg.neighbourhood);
-                window_centroids_into(points, fx, hood, &mut scratch.packed, &mut out);
-                out
-            }
-            (CentroidMethod::Net, ls_centroids) => {
-                if let Some(c) = ls_centroids {
-                    spares.keep_vector(c);
-                }
-                let out = spares.vector();
-                let models = loaded(models)?;
-                net_centroids(models, &net, points, &normals, &mut scratch.normals, out)?
-            }
+            (CentroidMethod::Window, None) => stages.window_centroids(work.k.fx_px, cfg),
+            (CentroidMethod::Net, unused) => stages.net_centroids(&normals, unused)?,
         };
         timings.add("centroid", start.elapsed());
         Ok((normals, centroids))
@@ -371,6 +330,107 @@ impl Pipeline {
         };
         let k = k0.scaled(size.0 as f64 / w0 as f64, size.1 as f64 / h0 as f64)?;
         Ok(Working { size, k })
+    }
+}
+
+/// The normal and centroid stages of one frame: the models, the network inputs and the buffers
+/// they write into, borrowed from the pipeline.
+struct Stages<'a> {
+    models: &'a mut Option<Models>,
+    net: NetInputs<'a>,
+    points: &'a PointMap,
+    normals_t: &'a mut Array4<f32>,
+    packed: &'a mut PackedPoints,
+    dsac: &'a mut DsacScratch,
+    spares: &'a mut Spares,
+}
+
+impl<'a> Stages<'a> {
+    fn new(models: &'a mut Option<Models>, scratch: &'a mut Scratch, points: &'a PointMap) -> Self {
+        let Scratch {
+            rgb,
+            points: points_m,
+            valid,
+            normals,
+            packed,
+            dsac,
+            spares,
+            ..
+        } = scratch;
+        Self {
+            models,
+            net: NetInputs {
+                rgb,
+                points_m,
+                valid,
+            },
+            points,
+            normals_t: normals,
+            packed,
+            dsac,
+            spares,
+        }
+    }
+
+    /// LS normals (with their window centroids) or the neighbour net and DSAC.
+    fn initial_normals(
+        &mut self,
+        method: NormalsMethod,
+        fx_px: f64,
+        cfg: &PipelineConfig,
+    ) -> Result<InitialNormals, PipelineError> {
+        Ok(match method {
+            NormalsMethod::Ls => {
+                let planes = LocalPlanes {
+                    centroid: self.spares.vector(),
+                    normal: self.spares.vector(),
+                };
+                let hood = &cfg.neighbourhood;
+                ls_normals(self.points, fx_px, hood, self.packed, planes)
+            }
+            NormalsMethod::Dsac => {
+                let (models, out) = (loaded(self.models)?, self.spares.vector());
+                let (net, points) = (&self.net, self.points);
+                dsac_normals_from_net(models, net, points, cfg.seed, self.dsac, out)?
+            }
+        })
+    }
+
+    /// The refiner's normals from `initial`, whose buffer goes back to the spares.
+    fn refined(&mut self, initial: Grid<Vec3>) -> Result<Grid<Vec3>, PipelineError> {
+        let (out, models) = (self.spares.vector(), loaded(self.models)?);
+        let refined = refine(
+            models,
+            &self.net,
+            self.points,
+            &initial,
+            self.normals_t,
+            out,
+        )?;
+        self.spares.keep_vector(initial);
+        Ok(refined)
+    }
+
+    /// Window centroids computed alone (normals from DSAC).
+    fn window_centroids(&mut self, fx_px: f64, cfg: &PipelineConfig) -> PointMap {
+        let mut out = self.spares.vector();
+        let hood = &cfg.neighbourhood;
+        window_centroids_into(self.points, fx_px, hood, self.packed, &mut out);
+        out
+    }
+
+    /// The centroid net's centroids for `normals`; `unused` (the LS window centroids, if any)
+    /// goes back to the spares.
+    fn net_centroids(
+        &mut self,
+        normals: &Grid<Vec3>,
+        unused: Option<PointMap>,
+    ) -> Result<PointMap, PipelineError> {
+        if let Some(c) = unused {
+            self.spares.keep_vector(c);
+        }
+        let (out, models) = (self.spares.vector(), loaded(self.models)?);
+        net_centroids(models, &self.net, self.points, normals, self.normals_t, out)
     }
 }
 
