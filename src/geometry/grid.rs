@@ -11,11 +11,28 @@ use super::GeometryError;
 /// assert_eq!(g.get(2, 1), Some(&7));
 /// assert_eq!(g.row(1), &[0, 0, 7]);
 /// ```
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct Grid<T> {
     width: usize,
     height: usize,
     data: Vec<T>,
+}
+
+impl<T: Clone> Clone for Grid<T> {
+    fn clone(&self) -> Self {
+        Self {
+            width: self.width,
+            height: self.height,
+            data: self.data.clone(),
+        }
+    }
+
+    /// Copies `source` into this grid's buffer, which it keeps (allocating only to grow).
+    fn clone_from(&mut self, source: &Self) {
+        self.width = source.width;
+        self.height = source.height;
+        self.data.clone_from(&source.data);
+    }
 }
 
 impl<T> Default for Grid<T> {

@@ -5,7 +5,7 @@ use std::time::Duration;
 use image::RgbImage;
 
 use super::centroid::{slopes, traversable};
-use super::resize::{resize_nearest, resize_nearest_into};
+use super::resize::{resize_nearest, resize_nearest_reusing};
 use super::spares::Spares;
 use super::Traversability;
 use crate::geometry::{Grid, Intrinsics, Mounting, PointMap, Vec3, INVALID_POINT};
@@ -77,8 +77,7 @@ pub(crate) struct StageMaps {
 impl FrameOutput {
     /// The output of a frame of `size` from maps at the working size: roughness (always), the
     /// stages' maps (`None` for the end-to-end baseline), gravity's up axis in the camera frame
-    /// and the traversability thresholds.
-    /// `spare` becomes the roughness at the frame's size when that differs from the working
+    /// and the traversability thresholds. A grid from `spare` becomes the roughness at the frame's size when that differs from the working
     /// size.
     pub(crate) fn new(
         size: (usize, usize),
@@ -92,9 +91,8 @@ impl FrameOutput {
         let (roughness_m, working_roughness) = if working_size == size {
             (roughness_m, None)
         } else {
-            let mut full = spare.scalar();
-            full.reset(size.0, size.1, f64::NAN);
-            resize_nearest_into(&roughness_m, &mut full);
+            let mut full = spare.take();
+            resize_nearest_reusing(&roughness_m, size, f64::NAN, &mut full);
             (full, Some(roughness_m))
         };
         Self {
@@ -112,19 +110,19 @@ impl FrameOutput {
 
     /// Hands every map of this output to `spares`, for the next frames.
     pub(crate) fn give_maps(self, spares: &mut Spares) {
-        spares.keep_scalar(self.roughness_m);
+        spares.keep(self.roughness_m);
         let WorkingMaps {
             roughness_m,
             stages,
             ..
         } = self.working;
         if let Some(r) = roughness_m {
-            spares.keep_scalar(r);
+            spares.keep(r);
         }
         if let Some(m) = stages {
-            spares.keep_scalar(m.depth_m);
-            spares.keep_vector(m.points);
-            spares.keep_vector(m.normals);
+            spares.keep(m.depth_m);
+            spares.keep(m.points);
+            spares.keep(m.normals);
         }
     }
 

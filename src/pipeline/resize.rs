@@ -174,12 +174,33 @@ pub fn resize_nearest<T: Clone + Send + Sync>(
     height: usize,
     fill: T,
 ) -> Grid<T> {
-    if src.size() == (width, height) {
-        return src.clone();
-    }
-    let mut out = Grid::new(width, height, fill);
-    resize_nearest_into(src, &mut out);
+    let mut out = Grid::default();
+    resize_nearest_reusing(src, (width, height), fill, &mut out);
     out
+}
+
+/// [`resize_nearest`] into `out`, which takes the size `(width, height)` and keeps its buffer
+/// (a copy into it when the size is the same).
+///
+/// ```
+/// use tre::geometry::Grid;
+/// use tre::pipeline::resize::resize_nearest_reusing;
+/// let mut out = Grid::new(8, 8, 9.0);
+/// resize_nearest_reusing(&Grid::from_fn(2, 1, |x, _| x as f64), (4, 1), f64::NAN, &mut out);
+/// assert_eq!(out.row(0), &[0.0, 0.0, 1.0, 1.0]);
+/// ```
+pub fn resize_nearest_reusing<T: Clone + Send + Sync>(
+    src: &Grid<T>,
+    (width, height): (usize, usize),
+    fill: T,
+    out: &mut Grid<T>,
+) {
+    if src.size() == (width, height) {
+        out.clone_from(src);
+    } else {
+        out.reset(width, height, fill);
+        resize_nearest_into(src, out);
+    }
 }
 
 #[cfg(test)]

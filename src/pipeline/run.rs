@@ -10,7 +10,7 @@ use super::centroid::{net_centroids, roughness_into};
 use super::depth::{prior_depth_into, MAX_PRIOR_DEPTH_M};
 use super::frame::{FrameInput, FrameOutput, StageMaps, StageTimings, DEFAULT_HFOV_DEG};
 use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
-use super::resize::{resize_nearest_into, resize_rgb};
+use super::resize::{resize_nearest_reusing, resize_rgb};
 use super::spares::Spares;
 use super::tensors::{depth_from_tensor_into, points_tensors, rgb_tensor, scalar_tensor};
 use super::{
@@ -154,7 +154,7 @@ impl Pipeline {
         }
         let depth_m = timings.time("depth", || self.depth(input, cfg, &work))?;
         let points = timings.time("back_project", || {
-            let mut points = self.scratch.spares.vector();
+            let mut points = self.scratch.spares.take();
             work.k.back_project_map_into(&depth_m, &mut points);
             if has_rgb && !cfg.networks().is_empty() {
                 points_tensors(&points, &mut self.scratch.points, &mut self.scratch.valid);
@@ -162,12 +162,12 @@ impl Pipeline {
             points
         });
         let (normals, centroids) = self.normals_and_centroids(cfg, &work, &points, &mut timings)?;
-        let mut roughness_m = self.scratch.spares.scalar();
+        let mut roughness_m = self.scratch.spares.take();
         timings.time("roughness", || {
             roughness_m.reset(work.size.0, work.size.1, f64::NAN);
             roughness_into(&points, &normals, &centroids, &mut roughness_m);
         });
-        self.scratch.spares.keep_vector(centroids);
+        self.scratch.spares.keep(centroids);
         let maps = StageMaps {
             depth_m,
             points,
@@ -227,15 +227,14 @@ impl Pipeline {
                 mode: "this mode",
                 input: "depth",
             })?;
-            let mut depth_m = self.scratch.spares.scalar();
-            depth_m.reset(w, h, 0.0);
-            resize_nearest_into(given, &mut depth_m);
+            let mut depth_m = self.scratch.spares.take();
+            resize_nearest_reusing(given, (w, h), 0.0, &mut depth_m);
             return Ok(depth_m);
         }
         self.prior_tensor(work, input);
         let models = loaded(&mut self.models)?;
         let (rgb, prior) = (self.scratch.rgb.view(), self.scratch.prior.view());
-        let mut depth_m = self.scratch.spares.scalar();
+        let mut depth_m = self.scratch.spares.take();
         models.depth_with(rgb, prior, |t| depth_from_tensor_into(t, &mut depth_m))?;
         Ok(depth_m)
     }
@@ -265,12 +264,9 @@ impl Pipeline {
         self.prior_tensor(work, input);
         let models = loaded(&mut self.models)?;
         let r = models.end_to_end(self.scratch.rgb.view(), self.scratch.prior.view())?;
-        let mut roughness_m = self.scratch.spares.scalar();
+        // Non-positive and non-finite values read as 0: no negative roughness.
+        let mut roughness_m = self.scratch.spares.take();
         depth_from_tensor_into(r.view(), &mut roughness_m);
-        roughness_m
-            .as_mut_slice()
-            .iter_mut()
-            .for_each(|v| *v = v.max(0.0));
         timings.add("end_to_end", start.elapsed());
         let mut out = timings.time("outputs", || {
             let (up, limits) = (input.mounting.up_in_cam(), cfg.traversability);
@@ -382,14 +378,14 @@ impl<'a> Stages<'a> {
         Ok(match method {
             NormalsMethod::Ls => {
                 let planes = LocalPlanes {
-                    centroid: self.spares.vector(),
-                    normal: self.spares.vector(),
+                    centroid: self.spares.take(),
+                    normal: self.spares.take(),
                 };
                 let hood = &cfg.neighbourhood;
                 ls_normals(self.points, fx_px, hood, self.packed, planes)
             }
             NormalsMethod::Dsac => {
-                let (models, out) = (loaded(self.models)?, self.spares.vector());
+                let (models, out) = (loaded(self.models)?, self.spares.take());
                 let (net, points) = (&self.net, self.points);
                 dsac_normals_from_net(models, net, points, cfg.seed, self.dsac, out)?
             }
@@ -398,7 +394,7 @@ impl<'a> Stages<'a> {
 
     /// The refiner's normals from `initial`, whose buffer goes back to the spares.
     fn refined(&mut self, initial: Grid<Vec3>) -> Result<Grid<Vec3>, PipelineError> {
-        let (out, models) = (self.spares.vector(), loaded(self.models)?);
+        let (out, models) = (self.spares.take(), loaded(self.models)?);
         let refined = refine(
             models,
             &self.net,
@@ -407,13 +403,13 @@ impl<'a> Stages<'a> {
             self.normals_t,
             out,
         )?;
-        self.spares.keep_vector(initial);
+        self.spares.keep(initial);
         Ok(refined)
     }
 
     /// Window centroids computed alone (normals from DSAC).
     fn window_centroids(&mut self, fx_px: f64, cfg: &PipelineConfig) -> PointMap {
-        let mut out = self.spares.vector();
+        let mut out = self.spares.take();
         let hood = &cfg.neighbourhood;
         window_centroids_into(self.points, fx_px, hood, self.packed, &mut out);
         out
@@ -427,9 +423,9 @@ impl<'a> Stages<'a> {
         unused: Option<PointMap>,
     ) -> Result<PointMap, PipelineError> {
         if let Some(c) = unused {
-            self.spares.keep_vector(c);
+            self.spares.keep(c);
         }
-        let (out, models) = (self.spares.vector(), loaded(self.models)?);
+        let (out, models) = (self.spares.take(), loaded(self.models)?);
         net_centroids(models, &self.net, self.points, normals, self.normals_t, out)
     }
 }

@@ -24,45 +24,45 @@ pub(crate) struct Spares {
     bytes: usize,
 }
 
+/// A map value type with a shelf of spare grids.
+pub(crate) trait Spare: Sized {
+    /// The spare grids of this type.
+    fn shelf(spares: &mut Spares) -> &mut Vec<Grid<Self>>;
+}
+
+impl Spare for f64 {
+    fn shelf(spares: &mut Spares) -> &mut Vec<Grid<Self>> {
+        &mut spares.scalars
+    }
+}
+
+impl Spare for Vec3 {
+    fn shelf(spares: &mut Spares) -> &mut Vec<Grid<Self>> {
+        &mut spares.vectors
+    }
+}
+
 /// Bytes of `grid`'s buffer.
 fn bytes<T>(grid: &Grid<T>) -> usize {
     grid.capacity() * std::mem::size_of::<T>()
 }
 
 impl Spares {
-    /// A scalar grid to write a map into (empty when none is spare).
-    pub(crate) fn scalar(&mut self) -> Grid<f64> {
-        let grid = self.scalars.pop().unwrap_or_default();
+    /// A grid to write a map into (empty when none is spare).
+    pub(crate) fn take<T: Spare>(&mut self) -> Grid<T> {
+        let grid = T::shelf(self).pop().unwrap_or_default();
         self.bytes -= bytes(&grid);
         grid
     }
 
-    /// A vector grid to write a map into (empty when none is spare).
-    pub(crate) fn vector(&mut self) -> Grid<Vec3> {
-        let grid = self.vectors.pop().unwrap_or_default();
-        self.bytes -= bytes(&grid);
-        grid
-    }
-
-    /// Keeps `grid` for a later [`scalar`](Self::scalar), within the bounds.
-    pub(crate) fn keep_scalar(&mut self, grid: Grid<f64>) {
-        if self.scalars.len() < KEEP && self.room_for(bytes(&grid)) {
-            self.bytes += bytes(&grid);
-            self.scalars.push(grid);
+    /// Keeps `grid` for a later [`take`](Self::take), within the bounds.
+    pub(crate) fn keep<T: Spare>(&mut self, grid: Grid<T>) {
+        let n = bytes(&grid);
+        let room = n <= MAX_GRID_BYTES && self.bytes + n <= MAX_KEPT_BYTES;
+        if room && T::shelf(self).len() < KEEP {
+            self.bytes += n;
+            T::shelf(self).push(grid);
         }
-    }
-
-    /// Keeps `grid` for a later [`vector`](Self::vector), within the bounds.
-    pub(crate) fn keep_vector(&mut self, grid: Grid<Vec3>) {
-        if self.vectors.len() < KEEP && self.room_for(bytes(&grid)) {
-            self.bytes += bytes(&grid);
-            self.vectors.push(grid);
-        }
-    }
-
-    /// Whether a buffer of `n` bytes may be kept.
-    fn room_for(&self, n: usize) -> bool {
-        n <= MAX_GRID_BYTES && self.bytes + n <= MAX_KEPT_BYTES
     }
 }
 
@@ -73,38 +73,38 @@ mod tests {
     #[test]
     fn keeps_grids_up_to_the_limits_and_hands_them_back() {
         let mut spares = Spares::default();
-        assert_eq!(spares.scalar().size(), (0, 0));
+        assert_eq!(spares.take::<f64>().size(), (0, 0));
         for _ in 0..KEEP + 3 {
-            spares.keep_scalar(Grid::new(4, 3, 1.0));
+            spares.keep(Grid::new(4, 3, 1.0));
         }
-        let kept = std::iter::from_fn(|| Some(spares.scalar()))
+        let kept = std::iter::from_fn(|| Some(spares.take::<f64>()))
             .take_while(|g| g.size() == (4, 3))
             .count();
         assert_eq!(kept, KEEP);
         assert_eq!(spares.bytes, 0);
-        spares.keep_vector(Grid::new(2, 2, Vec3::zeros()));
-        assert_eq!(spares.vector().size(), (2, 2));
-        assert_eq!(spares.vector().size(), (0, 0));
+        spares.keep(Grid::new(2, 2, Vec3::zeros()));
+        assert_eq!(spares.take::<Vec3>().size(), (2, 2));
+        assert_eq!(spares.take::<Vec3>().size(), (0, 0));
     }
 
     #[test]
     fn keeps_no_huge_buffer_and_bounds_the_total() {
         let mut spares = Spares::default();
         // 4096 × 4096 × 8 bytes = 128 MiB: over the per-buffer limit.
-        spares.keep_scalar(Grid::new(4096, 4096, 0.0));
-        assert_eq!(spares.scalar().size(), (0, 0));
+        spares.keep(Grid::new(4096, 4096, 0.0));
+        assert_eq!(spares.take::<f64>().size(), (0, 0));
         // 1024 × 1024 vectors = 24 MiB each: eight would be 192 MiB, the total allows seven
         // beside a 16 MiB scalar map.
-        spares.keep_scalar(Grid::new(2048, 1024, 0.0));
+        spares.keep(Grid::new(2048, 1024, 0.0));
         for _ in 0..8 {
-            spares.keep_vector(Grid::new(1024, 1024, Vec3::zeros()));
+            spares.keep(Grid::new(1024, 1024, Vec3::zeros()));
         }
         assert!(spares.bytes <= MAX_KEPT_BYTES);
-        let vectors = std::iter::from_fn(|| Some(spares.vector()))
+        let vectors = std::iter::from_fn(|| Some(spares.take::<Vec3>()))
             .take_while(|g| g.size() == (1024, 1024))
             .count();
         assert_eq!(vectors, 7);
-        assert_eq!(spares.scalar().size(), (2048, 1024));
+        assert_eq!(spares.take::<f64>().size(), (2048, 1024));
         assert_eq!(spares.bytes, 0);
     }
 }

@@ -111,14 +111,8 @@ fn plane_rows(t: &mut Array4<f32>) -> [rayon::slice::ChunksMut<'_, f32>; 3] {
     [p0, p1, p2].map(|p| p.par_chunks_mut(w.max(1)))
 }
 
-/// Channel 0 of a `1 × 1 × H × W` depth tensor as metres; non-positive or non-finite: 0.
-pub fn depth_from_tensor(t: ArrayView4<'_, f32>) -> Grid<f64> {
-    let mut out = Grid::default();
-    depth_from_tensor_into(t, &mut out);
-    out
-}
-
-/// [`depth_from_tensor`] into `out`, which takes the tensor's size and keeps its buffer.
+/// Channel 0 of a `1 × 1 × H × W` depth tensor as metres into `out`, which takes the tensor's
+/// size and keeps its buffer; non-positive or non-finite: 0.
 pub fn depth_from_tensor_into(t: ArrayView4<'_, f32>, out: &mut Grid<f64>) {
     let (_, _, h, w) = t.dim();
     let plane = t.slice(s![0, 0, .., ..]);
@@ -131,15 +125,9 @@ pub fn depth_from_tensor_into(t: ArrayView4<'_, f32>, out: &mut Grid<f64>) {
     });
 }
 
-/// Channels 0..3 of a `1 × 3 × H × W` tensor as vectors where `points` is valid, NaN elsewhere;
-/// `unit` normalises them (a zero or non-finite vector becomes NaN).
-pub fn vectors_from_tensor(t: ArrayView4<'_, f32>, points: &PointMap, unit: bool) -> Grid<Vec3> {
-    let mut out = Grid::default();
-    vectors_from_tensor_into(t, points, unit, &mut out);
-    out
-}
-
-/// [`vectors_from_tensor`] into `out`, which takes the size of `points` and keeps its buffer.
+/// Channels 0..3 of a `1 × 3 × H × W` tensor as vectors where `points` is valid, NaN elsewhere,
+/// into `out`, which takes the size of `points` and keeps its buffer; `unit` normalises them (a
+/// zero or non-finite vector becomes NaN).
 pub fn vectors_from_tensor_into(
     t: ArrayView4<'_, f32>,
     points: &PointMap,
