@@ -77,8 +77,8 @@ pub(crate) struct StageMaps {
 impl FrameOutput {
     /// The output of a frame of `size` from maps at the working size: roughness (always), the
     /// stages' maps (`None` for the end-to-end baseline), gravity's up axis in the camera frame
-    /// and the traversability thresholds. A grid from `spare` becomes the roughness at the frame's size when that differs from the working
-    /// size.
+    /// and the traversability thresholds. A grid from `spare` becomes the roughness at the
+    /// frame's size when that differs from the working size.
     pub(crate) fn new(
         size: (usize, usize),
         roughness_m: Grid<f64>,
