@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# One open-loop HTTP run of `tre loadtest` against a fresh `tre serve` of the binary given, to
+# compare two builds back to back on the same machine (the load generator is always CLIENT):
+#
+#   docs/loadtest/ab.sh /tmp/tre-old old1 3; docs/loadtest/ab.sh /tmp/tre-new new1 3
+#
+# Arguments: server binary, label, rate per second, then any `tre serve` options. Environment:
+# CLIENT (target/release/tre), OUT (a folder, /tmp), PORT (18190), DURATION (20), WARMUP (2).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+BIN=$1 LABEL=$2 RATE=$3
+shift 3
+CLIENT=${CLIENT:-target/release/tre}
+OUT=${OUT:-/tmp}
+PORT=${PORT:-18190}
+"$BIN" serve --addr "127.0.0.1:$PORT" --models models "$@" >/dev/null \
+  2>"${TMPDIR:-/tmp}/tre-serve-ab.log" &
+PID=$!
+trap 'kill $PID 2>/dev/null; wait $PID 2>/dev/null || true' EXIT
+for _ in $(seq 1 600); do curl -sf "http://127.0.0.1:$PORT/readyz" >/dev/null && break; sleep 0.2; done
+"$CLIENT" loadtest --url "http://127.0.0.1:$PORT" --rate "$RATE" --duration "${DURATION:-20}" \
+  --warmup "${WARMUP:-2}" --json "$OUT/ab-$LABEL.json" >"$OUT/ab-$LABEL.txt"
+echo "$LABEL: $(grep -E '^ok ' "$OUT/ab-$LABEL.txt" | tail -1)"
