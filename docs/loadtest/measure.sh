@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# Measures a release `tre serve` on this machine with `tre loadtest`: an HTTP open-loop rate
-# sweep at 256×256 in rgb mode (the default for an image-only request), one HTTP and one
-# WebSocket open-loop run at the sweep's last clean rate (compared), a WebSocket closed loop, the
-# server's RSS before and after, and a CPU log that shows what else ran on the machine.
+# Measures a release `tre serve` on this machine with `tre loadtest`: one frame at a time (a
+# closed loop on one connection: what a frame alone takes on the day, to compare runs made on
+# different days), an HTTP open-loop rate sweep at 256×256 in rgb mode (the default for an
+# image-only request), one HTTP and one WebSocket open-loop run at the sweep's last clean rate
+# (compared), a WebSocket closed loop, the server's RSS before and after, and a CPU log that
+# shows what else ran on the machine.
 #
 #   cargo build --release && docs/loadtest/measure.sh [path/to/tre]
 #
@@ -58,6 +60,10 @@ env_txt=$OUT/environment.txt
   echo "server RSS when ready: $(rss)"
 } >"$env_txt"
 
+"$TRE" loadtest --url "$URL" --connections 1 --requests 20 --warmup "$WARMUP" \
+  --json "$OUT/alone.json" | tee "$OUT/alone.txt"
+echo "a frame alone (closed loop, 1 connection, 20 requests): $(grep -E '^ok ' "$OUT/alone.txt" | tail -1)" >>"$env_txt"
+
 "$TRE" loadtest --url "$URL" --sweep "$RATES" --duration "$DURATION" --warmup "$WARMUP" \
   --slo-ms 150 --json "$OUT/http-sweep.json" --plot "$OUT/http-sweep.svg" | tee "$OUT/http-sweep.txt"
 echo "server RSS after the HTTP sweep: $(rss)" >>"$env_txt"
@@ -82,7 +88,8 @@ import json, sys, pathlib
 out = pathlib.Path(sys.argv[1])
 rows = [l.split("\t") for l in (out / "cpu.tsv").read_text().splitlines()[1:]]
 cpu = [(float(t), float(m), float(s), float(o)) for t, m, s, o in rows]
-runs = json.loads((out / "http-sweep.json").read_text())["rows"]
+runs = [json.loads((out / "alone.json").read_text())]
+runs += json.loads((out / "http-sweep.json").read_text())["rows"]
 runs += [json.loads((out / f).read_text()) for f in ("http-open.json", "ws-open.json", "ws-closed.json")]
 print("cores used during each measured window (2 s samples): server / everything else")
 for r in runs:
