@@ -20,8 +20,6 @@ pub(crate) const MAX_KEPT_BYTES: usize = 192 << 20;
 pub(crate) struct Spares {
     scalars: Vec<Grid<f64>>,
     vectors: Vec<Grid<Vec3>>,
-    /// Bytes of the buffers kept.
-    bytes: usize,
 }
 
 /// A map value type with a shelf of spare grids.
@@ -43,26 +41,29 @@ impl Spare for Vec3 {
 }
 
 /// Bytes of `grid`'s buffer.
-fn bytes<T>(grid: &Grid<T>) -> usize {
+fn grid_bytes<T>(grid: &Grid<T>) -> usize {
     grid.capacity() * std::mem::size_of::<T>()
 }
 
 impl Spares {
     /// A grid to write a map into (empty when none is spare).
     pub(crate) fn take<T: Spare>(&mut self) -> Grid<T> {
-        let grid = T::shelf(self).pop().unwrap_or_default();
-        self.bytes -= bytes(&grid);
-        grid
+        T::shelf(self).pop().unwrap_or_default()
     }
 
     /// Keeps `grid` for a later [`take`](Self::take), within the bounds.
     pub(crate) fn keep<T: Spare>(&mut self, grid: Grid<T>) {
-        let n = bytes(&grid);
-        let room = n <= MAX_GRID_BYTES && self.bytes + n <= MAX_KEPT_BYTES;
+        let n = grid_bytes(&grid);
+        let room = n <= MAX_GRID_BYTES && self.bytes() + n <= MAX_KEPT_BYTES;
         if room && T::shelf(self).len() < KEEP {
-            self.bytes += n;
             T::shelf(self).push(grid);
         }
+    }
+
+    /// Bytes of the buffers kept (at most 2 × [`KEEP`] grids to add up).
+    fn bytes(&self) -> usize {
+        let scalars = self.scalars.iter().map(grid_bytes);
+        scalars.chain(self.vectors.iter().map(grid_bytes)).sum()
     }
 }
 
@@ -81,7 +82,7 @@ mod tests {
             .take_while(|g| g.size() == (4, 3))
             .count();
         assert_eq!(kept, KEEP);
-        assert_eq!(spares.bytes, 0);
+        assert_eq!(spares.bytes(), 0);
         spares.keep(Grid::new(2, 2, Vec3::zeros()));
         assert_eq!(spares.take::<Vec3>().size(), (2, 2));
         assert_eq!(spares.take::<Vec3>().size(), (0, 0));
@@ -99,12 +100,12 @@ mod tests {
         for _ in 0..8 {
             spares.keep(Grid::new(1024, 1024, Vec3::zeros()));
         }
-        assert!(spares.bytes <= MAX_KEPT_BYTES);
+        assert!(spares.bytes() <= MAX_KEPT_BYTES);
         let vectors = std::iter::from_fn(|| Some(spares.take::<Vec3>()))
             .take_while(|g| g.size() == (1024, 1024))
             .count();
         assert_eq!(vectors, 7);
         assert_eq!(spares.take::<f64>().size(), (2048, 1024));
-        assert_eq!(spares.bytes, 0);
+        assert_eq!(spares.bytes(), 0);
     }
 }
