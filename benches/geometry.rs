@@ -82,6 +82,27 @@ fn dsac(c: &mut Criterion) {
         );
     }
     g.finish();
+    // Fewer hypotheses (`--dsac-hypotheses`), into reused buffers, at the pipeline's size.
+    let mut g = c.benchmark_group("dsac_normals_256x256_reused");
+    let size = 256;
+    let pts = terrain_points(size);
+    let logits: Vec<f32> = (0..CANDIDATES * size * size)
+        .map(|i| ((i * 2654435761usize) % 997) as f32 / 300.0)
+        .collect();
+    let (mut scratch, mut out) = (DsacScratch::default(), Grid::default());
+    for k in [1u32, 2, 4, 6, 8, 12] {
+        let cfg = DsacConfig {
+            seed: 1,
+            hypotheses: k,
+            ..Default::default()
+        };
+        g.bench_with_input(BenchmarkId::new("k", k), &k, |b, _| {
+            b.iter(|| {
+                dsac_normals_into(&pts, &logits, &cfg, &mut scratch, &mut out).expect("sizes match")
+            })
+        });
+    }
+    g.finish();
 }
 
 fn annotator(c: &mut Criterion) {

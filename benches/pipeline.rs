@@ -20,7 +20,7 @@ use tre::pipeline::{
     CentroidMethod, FrameInput, Method, Mode, NormalsMethod, Pipeline, PipelineConfig, StageTimings,
 };
 use tre::server::request::{
-    config_for, decode_frame, encode_reply, DecodeLimits, FrameOptions, FrameRequest,
+    config_for, decode_frame, encode_reply, DecodeLimits, FrameDefaults, FrameOptions, FrameRequest,
 };
 use tre::synth::dataset::{build_scene, scene_views, view_conditions};
 use tre::synth::{render, SynthConfig};
@@ -157,7 +157,12 @@ const LIMITS: DecodeLimits = DecodeLimits {
 fn serve_one(pipeline: &mut Pipeline, req: &FrameRequest, split: &mut Split) {
     let t = Instant::now();
     let frame = decode_frame(req, LIMITS).expect("decodes");
-    let cfg = config_for(&frame, &req.options, LIMITS.max_pixels, NormalsMethod::Dsac);
+    let cfg = config_for(
+        &frame,
+        &req.options,
+        LIMITS.max_pixels,
+        FrameDefaults::default(),
+    );
     let decoded = t.elapsed();
     let out = pipeline.run(&frame, &cfg).expect("the frame runs");
     let t = Instant::now();

@@ -167,6 +167,35 @@ fn eval_tables_print_every_table_and_write_json() {
         .iter()
         .all(|r| r["roughness"]["rmse_cm"].as_f64().is_some()));
 
+    // Fewer hypotheses: every row that runs DSAC says so, and every table still finds it.
+    let four = tre(&[
+        "eval",
+        "--data",
+        s(data.path()),
+        "--tables",
+        "--dsac-hypotheses",
+        "4",
+    ]);
+    assert!(four.status.success(), "{}", stderr(&four));
+    let text = String::from_utf8_lossy(&four.stdout);
+    for needle in [
+        "| TRENet, RGB (DE+DSAC(K=4)+NR+ESR) |",
+        "| rgbd | DSAC(K=4)+NR+ESR |",
+        "| rgb | DSAC(K=4)+NR |",
+        "| rgbd | DSAC(K=4) |",
+        "Depth (rgb mode, rgb:DE+DSAC(K=4)+NR+ESR)",
+    ] {
+        assert!(text.contains(needle), "{needle:?} missing from {text}");
+    }
+    assert!(!text.contains("DSAC+"), "a row without K in {text}");
+    let bad = tre(&["eval", "--data", s(data.path()), "--dsac-hypotheses", "0"]);
+    assert!(!bad.status.success());
+    assert!(
+        stderr(&bad).contains("--dsac-hypotheses"),
+        "{}",
+        stderr(&bad)
+    );
+
     let one = tre(&[
         "eval",
         "--data",

@@ -284,6 +284,26 @@ fn the_same_seed_gives_the_same_output() -> TestResult {
     Ok(())
 }
 
+#[test]
+fn fewer_dsac_hypotheses_are_repeatable_and_differ_from_twelve() -> TestResult {
+    let frame = read_synth(&synth_frame().1)?;
+    let mut pipeline = Pipeline::new(Some(models()?));
+    let with = |dsac_hypotheses| PipelineConfig {
+        seed: 42,
+        dsac_hypotheses,
+        refine: false,
+        ..small(Mode::Rgbd)
+    };
+    let twelve = output_bits(&pipeline.run(&frame, &with(12))?);
+    let four = output_bits(&pipeline.run(&frame, &with(4))?);
+    assert_eq!(four, output_bits(&pipeline.run(&frame, &with(4))?));
+    assert_ne!(four, twelve);
+    assert_eq!(twelve, output_bits(&pipeline.run(&frame, &with(12))?));
+    let one = pipeline.run(&frame, &with(1))?;
+    assert!(finite(&one.roughness_m) > 0);
+    Ok(())
+}
+
 /// Every map of an output as bits (NaN included), for exact comparisons.
 fn output_bits(out: &tre::pipeline::FrameOutput) -> Vec<u64> {
     let mut bits: Vec<u64> = out
@@ -438,6 +458,19 @@ fn bad_inputs_are_clear_errors() -> TestResult {
         .run(&depth_only, &tiny_limit)
         .expect_err("too large");
     assert!(matches!(err, PipelineError::TooLarge { .. }), "{err}");
+
+    for dsac_hypotheses in [0, 65] {
+        let cfg = PipelineConfig {
+            dsac_hypotheses,
+            ..small(Mode::Geometric)
+        };
+        let err = pipeline.run(&depth_only, &cfg).expect_err("hypotheses");
+        assert!(
+            matches!(err, PipelineError::BadHypotheses { got } if got == dsac_hypotheses),
+            "{err}"
+        );
+        assert!(err.to_string().contains("1 to 64"), "{err}");
+    }
 
     let mut with_models = Pipeline::new(Some(models()?));
     let odd = PipelineConfig {

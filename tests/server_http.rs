@@ -134,6 +134,47 @@ fn answers_equal_tre_infer_in_rgb_and_rgbd() {
 }
 
 #[test]
+fn serve_dsac_hypotheses_sets_the_frames_default_and_is_checked() {
+    let server = Server::start(&["--workers", "1", "--dsac-hypotheses", "4"]);
+    let rgb_path = real("slambook2_ch7/1.png");
+    let frame = std::fs::read(&rgb_path).unwrap();
+    let served = rt().block_on(async {
+        let resp = post(
+            &format!("{}/v1/roughness", server.url()),
+            "image/png",
+            frame,
+        )
+        .await;
+        assert_eq!(resp.status().as_u16(), 200);
+        png16_values(&resp.bytes().await.unwrap())
+    });
+    let rgb = rgb_path.to_str().unwrap();
+    let four = infer_png16(&[rgb, "--mode", "rgb", "--dsac-hypotheses", "4"]);
+    assert_eq!(
+        served, four,
+        "HTTP answer with K = 4 differs from tre infer"
+    );
+    let twelve = infer_png16(&[rgb, "--mode", "rgb"]);
+    assert_ne!(four, twelve, "K = 4 and K = 12 gave the same map");
+
+    for bad in ["0", "65"] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tre"))
+            .args(["serve", "--addr", "127.0.0.1:0", "--dsac-hypotheses", bad])
+            .output()
+            .unwrap();
+        assert!(
+            !out.status.success(),
+            "--dsac-hypotheses {bad} was accepted"
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--dsac-hypotheses") && err.contains("1..=64"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
 fn formats_and_extra_outputs() {
     let server = Server::start(&["--workers", "1"]);
     rt().block_on(async {

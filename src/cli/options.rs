@@ -7,7 +7,10 @@ use anyhow::Context;
 use clap::{Args, ValueEnum};
 
 use crate::model::{Models, SessionConfig};
-use crate::pipeline::{CentroidMethod, Method, Mode, NormalsMethod, Pipeline, PipelineConfig};
+use crate::pipeline::{
+    CentroidMethod, Method, Mode, NormalsMethod, Pipeline, PipelineConfig, DEFAULT_DSAC_HYPOTHESES,
+    MAX_DSAC_HYPOTHESES,
+};
 
 /// Input mode (the paper's Table IV rows).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -84,6 +87,10 @@ pub struct StageArgs {
     /// Seed of the DSAC sampler: the same seed gives the same output.
     #[arg(long, env = "TRE_SEED", default_value_t = 0)]
     pub seed: u64,
+    /// DSAC hypotheses per pixel, 1 to 64 (12: as trained; fewer are faster, see the README).
+    #[arg(long, env = "TRE_DSAC_HYPOTHESES", default_value_t = DEFAULT_DSAC_HYPOTHESES,
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_DSAC_HYPOTHESES)))]
+    pub dsac_hypotheses: u32,
     /// Folder with manifest.json and the ONNX models (only read when a network runs).
     #[arg(long, env = "TRE_MODELS", default_value = "models")]
     pub models: PathBuf,
@@ -111,6 +118,7 @@ impl StageArgs {
                 CentroidArg::Window => CentroidMethod::Window,
             },
             seed: self.seed,
+            dsac_hypotheses: self.dsac_hypotheses,
             ..PipelineConfig::default()
         }
     }

@@ -9,7 +9,7 @@ use clap::{Args, ValueEnum};
 
 use super::options::NormalsArg;
 use crate::model::{ExecutionProvider, SessionConfig};
-use crate::pipeline::NormalsMethod;
+use crate::pipeline::{NormalsMethod, DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES};
 use crate::server::{serve, ServeConfig};
 
 /// Execution provider of the ONNX Runtime sessions.
@@ -68,6 +68,11 @@ pub struct Serve {
     /// see the README's accuracy and speed tables). Requests override it with `normals=`.
     #[arg(long, env = "TRE_NORMALS", value_enum, default_value = "dsac")]
     pub normals: NormalsArg,
+    /// DSAC hypotheses per pixel, 1 to 64: 12 as the neighbour net was trained; fewer are
+    /// faster at some cost in accuracy (see the README's table).
+    #[arg(long, env = "TRE_DSAC_HYPOTHESES", default_value_t = DEFAULT_DSAC_HYPOTHESES,
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_DSAC_HYPOTHESES)))]
+    pub dsac_hypotheses: u32,
     /// WebSocket streams open at once; beyond, the upgrade gets 429 at once.
     #[arg(long, env = "TRE_MAX_STREAMS", default_value_t = 64)]
     pub max_streams: usize,
@@ -123,6 +128,7 @@ impl Serve {
                 NormalsArg::Dsac => NormalsMethod::Dsac,
                 NormalsArg::Ls => NormalsMethod::Ls,
             },
+            dsac_hypotheses: self.dsac_hypotheses,
         })
     }
 

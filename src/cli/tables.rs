@@ -43,20 +43,28 @@ pub fn row_specs(base: &PipelineConfig) -> Vec<RowSpec> {
         .collect()
 }
 
-/// Tables II, IV and V, and the depth errors of rgb mode, as markdown.
+/// Tables II, IV and V, and the depth errors of rgb mode, as markdown. The tables name their
+/// rows with `DSAC`; rows run with another number of hypotheses are found under their own
+/// label (`DSAC(K=4)`).
 pub fn markdown(rows: &[RowResult]) -> String {
-    let find = |key: &str| rows.iter().find(|r| r.key == key);
+    let dsac = rows
+        .first()
+        .map_or_else(|| "DSAC".to_owned(), |r| r.config.dsac_label());
+    let find = |key: &str| {
+        let key = key.replace("DSAC", &dsac);
+        rows.iter().find(|r| r.key == key)
+    };
     let mut out = String::new();
-    table_ii(&mut out, &find);
+    table_ii(&mut out, &find, &dsac);
     table_iv(&mut out, rows);
-    table_v(&mut out, &find);
+    table_v(&mut out, &find, &dsac);
     depth_table(&mut out, rows);
     out
 }
 
 type Find<'a> = dyn Fn(&str) -> Option<&'a RowResult> + 'a;
 
-fn table_ii<'a>(out: &mut String, find: &Find<'a>) {
+fn table_ii<'a>(out: &mut String, find: &Find<'a>, dsac: &str) {
     out.push_str(
         "Table II: roughness (cm)\n\n| method | RMSE | B-RMSE | F-RMSE |\n|---|---|---|---|\n",
     );
@@ -70,6 +78,7 @@ fn table_ii<'a>(out: &mut String, find: &Find<'a>) {
     ];
     for (name, key) in rows {
         if let Some(r) = find(key) {
+            let name = name.replace("DSAC", dsac);
             let _ = writeln!(out, "| {name} | {} |", roughness_cells(r));
         }
     }
@@ -95,7 +104,7 @@ fn table_iv(out: &mut String, rows: &[RowResult]) {
     out.push('\n');
 }
 
-fn table_v<'a>(out: &mut String, find: &Find<'a>) {
+fn table_v<'a>(out: &mut String, find: &Find<'a>, dsac: &str) {
     out.push_str("Table V: normals\n\n| input | normals | mean ° | median ° | < 11.25° % | < 22.5° % | < 30° % | ms/frame |\n|---|---|---|---|---|---|---|---|\n");
     let variants = [
         ("LS", "LS+ESR"),
@@ -108,6 +117,7 @@ fn table_v<'a>(out: &mut String, find: &Find<'a>) {
             let key = format!("{mode}:{prefix}{stages}");
             let Some(r) = find(&key) else { continue };
             let Some(n) = &r.normals else { continue };
+            let name = name.replace("DSAC", dsac);
             let ms = ["normals", "refine"]
                 .iter()
                 .filter_map(|s| r.mean_ms.get(*s))

@@ -1394,24 +1394,36 @@ mod tests {
         let logits: Vec<f32> = (0..CANDIDATES * w * h)
             .map(|i| ((i * 2_654_435_761usize) % 1000) as f32 / 250.0)
             .collect();
-        let cfg = DsacConfig {
-            seed: 5,
-            ..Default::default()
-        };
-        let normals = dsac_normals(&points, &logits, &cfg).unwrap();
+        // One hypothesis, fewer than a batch, a batch, and two batches (pruning across them).
+        for hypotheses in [1, 4, 12, 20] {
+            let cfg = DsacConfig {
+                seed: 5,
+                hypotheses,
+                ..Default::default()
+            };
+            check_pixels_against_frame(&points, &logits, &cfg);
+        }
+    }
+
+    /// [`pixel_hypotheses`] against [`dsac_normals`] at every pixel of `points`.
+    fn check_pixels_against_frame(points: &PointMap, logits: &[f32], cfg: &DsacConfig) {
+        let (w, h) = points.size();
+        let normals = dsac_normals(points, logits, cfg).unwrap();
         for (x, y) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))) {
             let i = y * w + x;
-            let cands = candidates(&points, x, y);
+            let cands = candidates(points, x, y);
             let px_logits: [f32; CANDIDATES] = std::array::from_fn(|k| logits[k * w * h + i]);
             let rho = candidate_probabilities(&px_logits, &cands);
-            let hyp = pixel_hypotheses(&cands, &rho, i as u64, &cfg);
+            let hyp = pixel_hypotheses(&cands, &rho, i as u64, cfg);
+            assert_eq!(hyp.triples.len(), cfg.hypotheses as usize);
             let expected = match is_valid_point(&points[(x, y)]) {
                 true => hyp.normal.unwrap_or(INVALID_POINT),
                 false => INVALID_POINT,
             };
             let got = normals[(x, y)];
             let bits = |v: &Vec3| v.map(f64::to_bits);
-            assert_eq!(bits(&got), bits(&expected), "pixel ({x}, {y})");
+            let k = cfg.hypotheses;
+            assert_eq!(bits(&got), bits(&expected), "pixel ({x}, {y}), K = {k}");
             for (t, s) in hyp.triples.iter().zip(&hyp.scores) {
                 assert_eq!(
                     t.is_some_and(|[a, b, c]| {
@@ -1446,6 +1458,35 @@ mod tests {
             assert_eq!(out.size(), (w, h));
             assert_eq!(bits(&out), bits(&fresh), "{w}×{h}");
         }
+    }
+
+    #[test]
+    fn fewer_hypotheses_are_the_first_ones_of_more() {
+        let points = bumpy(12, 12);
+        let cands = candidates(&points, 6, 6);
+        let logits: [f32; CANDIDATES] = std::array::from_fn(|k| (k % 7) as f32 * 0.3);
+        let rho = candidate_probabilities(&logits, &cands);
+        let run = |hypotheses| {
+            let cfg = DsacConfig {
+                seed: 9,
+                hypotheses,
+                ..Default::default()
+            };
+            pixel_hypotheses(&cands, &rho, 77, &cfg)
+        };
+        let all = run(24);
+        let best_score = |h: &PixelHypotheses| h.best.map(|j| h.scores[j]);
+        let mut last_best = f64::NEG_INFINITY;
+        for k in [1, 2, 4, 12, 13, 24] {
+            let few = run(k);
+            assert_eq!(few.triples[..], all.triples[..k as usize], "K = {k}");
+            assert_eq!(few.scores[..], all.scores[..k as usize], "K = {k}");
+            let best = best_score(&few).unwrap();
+            assert!(best >= last_best, "K = {k}: {best} < {last_best}");
+            last_best = best;
+        }
+        // The triples differ between hypotheses: more of them are more chances.
+        assert!(all.triples.iter().any(|t| *t != all.triples[0]));
     }
 
     #[test]

@@ -74,6 +74,16 @@ pub const DEFAULT_MAX_INPUT_PIXELS: usize = 40_000_000;
 /// Largest working size accepted, pixels per side.
 pub const MAX_WORKING_SIDE: usize = 4096;
 
+/// DSAC hypotheses per pixel that the models were trained with (DESIGN.md: K = 12).
+pub const DEFAULT_DSAC_HYPOTHESES: u32 = 12;
+
+/// Most DSAC hypotheses per pixel accepted.
+pub const MAX_DSAC_HYPOTHESES: u32 = 64;
+
+fn default_dsac_hypotheses() -> u32 {
+    DEFAULT_DSAC_HYPOTHESES
+}
+
 /// Everything one run of the pipeline needs besides the frame. The default is the full
 /// pipeline on RGB: depth net, DSAC normals, refiner, centroid net.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -90,6 +100,12 @@ pub struct PipelineConfig {
     pub centroid: CentroidMethod,
     /// Seed of the DSAC sampler for this request: the same seed gives the same output.
     pub seed: u64,
+    /// DSAC hypotheses per pixel, K: 1 to [`MAX_DSAC_HYPOTHESES`]. The default,
+    /// [`DEFAULT_DSAC_HYPOTHESES`], is what the neighbour net was trained with; fewer cost
+    /// less time (the README's table gives what they cost in accuracy). With the same seed,
+    /// hypothesis `j` is the same for every K above `j`, so a larger K never scores lower.
+    #[serde(default = "default_dsac_hypotheses")]
+    pub dsac_hypotheses: u32,
     /// Size the stages run at, `(width, height)`. `None`: when any network runs, the longer
     /// side of the frame takes the manifest's working size (256 without models) and the other
     /// keeps the aspect ratio ([`fit_aspect`](super::run::fit_aspect)); in geometric mode, the
@@ -113,6 +129,7 @@ impl Default for PipelineConfig {
             refine: true,
             centroid: CentroidMethod::Net,
             seed: 0,
+            dsac_hypotheses: DEFAULT_DSAC_HYPOTHESES,
             working_size: None,
             neighbourhood: Neighbourhood::default(),
             traversability: Traversability::default(),
@@ -139,6 +156,15 @@ impl PipelineConfig {
         }
     }
 
+    /// DSAC in [`label`](Self::label): `DSAC`, or `DSAC(K=4)` with other than
+    /// [`DEFAULT_DSAC_HYPOTHESES`] hypotheses.
+    pub fn dsac_label(&self) -> String {
+        match self.dsac_hypotheses {
+            DEFAULT_DSAC_HYPOTHESES => "DSAC".to_owned(),
+            k => format!("DSAC(K={k})"),
+        }
+    }
+
     /// The networks this configuration runs, by manifest name (empty: no models needed).
     pub fn networks(&self) -> Vec<&'static str> {
         use crate::model::{CENTROID_NET, DEPTH_NET, END_TO_END, NEIGHBOUR_NET, NORMAL_REFINER};
@@ -162,7 +188,8 @@ impl PipelineConfig {
         nets
     }
 
-    /// A short name of the stages, in the paper's notation: `DE+DSAC+NR+ESR`, `LS+window`, `E2E`.
+    /// A short name of the stages, in the paper's notation: `DE+DSAC+NR+ESR`, `LS+window`, `E2E`;
+    /// DSAC with other than [`DEFAULT_DSAC_HYPOTHESES`] hypotheses reads `DSAC(K=4)`.
     pub fn label(&self) -> String {
         if self.method == Method::EndToEnd {
             return "E2E".to_owned();
@@ -172,9 +199,10 @@ impl PipelineConfig {
         if self.mode == Mode::Rgb {
             parts.push("DE");
         }
+        let dsac = self.dsac_label();
         parts.push(match normals {
             NormalsMethod::Ls => "LS",
-            NormalsMethod::Dsac => "DSAC",
+            NormalsMethod::Dsac => &dsac,
         });
         if refine {
             parts.push("NR");
@@ -207,5 +235,15 @@ mod tests {
         };
         assert!(rgbd_ls.networks().is_empty());
         assert_eq!(rgbd_ls.label(), "LS+window");
+        let fewer = PipelineConfig {
+            dsac_hypotheses: 4,
+            ..PipelineConfig::default()
+        };
+        assert_eq!(fewer.label(), "DE+DSAC(K=4)+NR+ESR");
+        let ls_fewer = PipelineConfig {
+            normals: NormalsMethod::Ls,
+            ..fewer
+        };
+        assert_eq!(ls_fewer.label(), "DE+LS+NR+ESR");
     }
 }

@@ -32,7 +32,7 @@ pub mod tensors;
 
 pub use config::{
     CentroidMethod, Method, Mode, NormalsMethod, PipelineConfig, Traversability,
-    DEFAULT_MAX_INPUT_PIXELS, MAX_WORKING_SIDE,
+    DEFAULT_DSAC_HYPOTHESES, DEFAULT_MAX_INPUT_PIXELS, MAX_DSAC_HYPOTHESES, MAX_WORKING_SIDE,
 };
 pub use depth::{prior_depth, MAX_PRIOR_DEPTH_M};
 pub use frame::{FrameInput, FrameOutput, StageTimings, DEFAULT_HFOV_DEG};
@@ -93,6 +93,12 @@ pub enum PipelineError {
         size: (usize, usize),
         /// The stride the networks need, if any run.
         stride: Option<usize>,
+    },
+    /// A number of DSAC hypotheses outside 1 to [`MAX_DSAC_HYPOTHESES`].
+    #[error("DSAC hypotheses per pixel must be 1 to {MAX_DSAC_HYPOTHESES}, not {got}")]
+    BadHypotheses {
+        /// The number asked for.
+        got: u32,
     },
     /// Bad intrinsics or mounting, or geometry inputs that do not fit.
     #[error(transparent)]

@@ -44,8 +44,9 @@ pub fn ls_normals(
     }
 }
 
-/// DSAC normals: the neighbour net's logits, then [`dsac_normals_into`] with the request's
-/// `seed`, written into `out` with `scratch` (both reused across frames).
+/// DSAC normals: the neighbour net's logits, then [`dsac_normals_into`] with `cfg` (the
+/// request's seed and hypotheses), written into `out` with `scratch` (both reused across
+/// frames).
 ///
 /// # Errors
 ///
@@ -55,23 +56,19 @@ pub fn dsac_normals_from_net(
     models: &mut Models,
     net: &NetInputs<'_>,
     points: &PointMap,
-    seed: u64,
+    cfg: &DsacConfig,
     scratch: &mut DsacScratch,
     mut out: Grid<Vec3>,
 ) -> Result<InitialNormals, PipelineError> {
-    let cfg = DsacConfig {
-        seed,
-        ..DsacConfig::default()
-    };
     models.neighbour_logits_with(
         net.rgb.view(),
         net.points_m.view(),
         net.valid.view(),
         |logits| match logits.as_slice() {
-            Some(logits) => dsac_normals_into(points, logits, &cfg, scratch, &mut out),
+            Some(logits) => dsac_normals_into(points, logits, cfg, scratch, &mut out),
             None => {
                 let logits = logits.iter().copied().collect::<Vec<_>>();
-                dsac_normals_into(points, &logits, &cfg, scratch, &mut out)
+                dsac_normals_into(points, &logits, cfg, scratch, &mut out)
             }
         },
     )??;

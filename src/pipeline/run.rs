@@ -14,11 +14,12 @@ use super::resize::{resize_nearest_reusing, resize_rgb};
 use super::spares::Spares;
 use super::tensors::{depth_from_tensor_into, points_tensors, rgb_tensor, scalar_tensor};
 use super::{
-    CentroidMethod, Method, Mode, NormalsMethod, PipelineConfig, PipelineError, MAX_WORKING_SIDE,
+    CentroidMethod, Method, Mode, NormalsMethod, PipelineConfig, PipelineError,
+    MAX_DSAC_HYPOTHESES, MAX_WORKING_SIDE,
 };
 use crate::geometry::dsac::DsacScratch;
 use crate::geometry::normals::{window_centroids_into, PackedPoints};
-use crate::geometry::{Grid, Intrinsics, LocalPlanes, PointMap, Vec3};
+use crate::geometry::{DsacConfig, Grid, Intrinsics, LocalPlanes, PointMap, Vec3};
 use crate::model::Models;
 
 /// Working size when no models are loaded, `(width, height)`.
@@ -139,6 +140,11 @@ impl Pipeline {
         cfg: &PipelineConfig,
     ) -> Result<FrameOutput, PipelineError> {
         let size = check_input(input, cfg)?;
+        if !(1..=MAX_DSAC_HYPOTHESES).contains(&cfg.dsac_hypotheses) {
+            return Err(PipelineError::BadHypotheses {
+                got: cfg.dsac_hypotheses,
+            });
+        }
         self.check_models(cfg)?;
         let work = self.working(input, cfg, size)?;
         let mut timings = StageTimings::default();
@@ -387,7 +393,12 @@ impl<'a> Stages<'a> {
             NormalsMethod::Dsac => {
                 let (models, out) = (loaded(self.models)?, self.spares.take());
                 let (net, points) = (&self.net, self.points);
-                dsac_normals_from_net(models, net, points, cfg.seed, self.dsac, out)?
+                let dsac = DsacConfig {
+                    hypotheses: cfg.dsac_hypotheses,
+                    seed: cfg.seed,
+                    ..DsacConfig::default()
+                };
+                dsac_normals_from_net(models, net, points, &dsac, self.dsac, out)?
             }
         })
     }

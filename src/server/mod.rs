@@ -32,9 +32,9 @@ use axum::Router;
 use tokio::sync::{watch, Semaphore};
 
 use crate::model::{Manifest, SessionConfig};
-use crate::pipeline::NormalsMethod;
+use crate::pipeline::{NormalsMethod, DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES};
 use metrics::Metrics;
-use request::DecodeLimits;
+use request::{DecodeLimits, FrameDefaults};
 use workers::{PoolConfig, Workers};
 
 /// How far past its limit an oversize input (an HTTP body, a WebSocket message) is still read
@@ -72,6 +72,8 @@ pub struct ServeConfig {
     pub shutdown_grace: Duration,
     /// Initial normals of frames that do not choose (DSAC: the paper's method).
     pub normals: NormalsMethod,
+    /// DSAC hypotheses per pixel, 1 to [`MAX_DSAC_HYPOTHESES`] (12: as trained).
+    pub dsac_hypotheses: u32,
 }
 
 impl Default for ServeConfig {
@@ -94,6 +96,7 @@ impl Default for ServeConfig {
             max_streams: 64,
             shutdown_grace: Duration::from_secs(30),
             normals: NormalsMethod::Dsac,
+            dsac_hypotheses: DEFAULT_DSAC_HYPOTHESES,
         }
     }
 }
@@ -122,6 +125,9 @@ pub struct AppState {
 /// Errors that keep the service from starting or serving.
 #[derive(Debug, thiserror::Error)]
 pub enum ServeError {
+    /// A setting out of its range.
+    #[error("{0}")]
+    Config(String),
     /// The manifest is missing or malformed.
     #[error(transparent)]
     Manifest(#[from] crate::model::ModelError),
@@ -160,6 +166,12 @@ pub async fn serve(
     listener: tokio::net::TcpListener,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> Result<(), ServeError> {
+    if !(1..=MAX_DSAC_HYPOTHESES).contains(&cfg.dsac_hypotheses) {
+        return Err(ServeError::Config(format!(
+            "DSAC hypotheses per pixel must be 1 to {MAX_DSAC_HYPOTHESES}, not {}",
+            cfg.dsac_hypotheses
+        )));
+    }
     let manifest = Manifest::read(&cfg.models)?;
     let manifest_json = serde_json::to_string_pretty(&manifest).map_err(std::io::Error::other)?;
     let model_names = manifest.models.keys().cloned().collect();
@@ -172,7 +184,10 @@ pub async fn serve(
         limits: DecodeLimits {
             max_pixels: cfg.max_pixels,
         },
-        normals: cfg.normals,
+        defaults: FrameDefaults {
+            normals: cfg.normals,
+            dsac_hypotheses: cfg.dsac_hypotheses,
+        },
     };
     let workers = Workers::start(&pool, metrics.clone())?;
     let (stop_tx, stop_rx) = watch::channel(false);

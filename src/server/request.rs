@@ -9,7 +9,9 @@ use image::{DynamicImage, ImageFormat, ImageReader};
 use super::error::{ApiError, ErrorCode};
 use crate::geometry::{Grid, Mounting};
 use crate::io::{self, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
-use crate::pipeline::{FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig};
+use crate::pipeline::{
+    FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, DEFAULT_DSAC_HYPOTHESES,
+};
 
 /// Encodings of the roughness map.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -256,13 +258,33 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
     })
 }
 
-/// The pipeline configuration for a frame with these inputs (`normals`: the server's default
-/// initial normals).
+/// What a frame gets for the settings it does not choose itself (`tre serve --normals`,
+/// `--dsac-hypotheses`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameDefaults {
+    /// Initial normals.
+    pub normals: NormalsMethod,
+    /// DSAC hypotheses per pixel (1 to [`MAX_DSAC_HYPOTHESES`](crate::pipeline::MAX_DSAC_HYPOTHESES)).
+    pub dsac_hypotheses: u32,
+}
+
+impl Default for FrameDefaults {
+    /// The paper's method as trained: DSAC with [`DEFAULT_DSAC_HYPOTHESES`] hypotheses.
+    fn default() -> Self {
+        Self {
+            normals: NormalsMethod::Dsac,
+            dsac_hypotheses: DEFAULT_DSAC_HYPOTHESES,
+        }
+    }
+}
+
+/// The pipeline configuration for a frame with these inputs (`defaults`: the server's settings
+/// for what the frame does not choose).
 pub fn config_for(
     frame: &FrameInput,
     opts: &FrameOptions,
     max_pixels: usize,
-    normals: NormalsMethod,
+    defaults: FrameDefaults,
 ) -> PipelineConfig {
     let mode = opts.mode.unwrap_or(match (&frame.rgb, &frame.depth_m) {
         (Some(_), Some(_)) => Mode::Rgbd,
@@ -271,7 +293,8 @@ pub fn config_for(
     });
     PipelineConfig {
         seed: opts.seed,
-        normals: opts.normals.unwrap_or(normals),
+        normals: opts.normals.unwrap_or(defaults.normals),
+        dsac_hypotheses: defaults.dsac_hypotheses,
         max_input_pixels: max_pixels,
         ..PipelineConfig::for_mode(mode)
     }

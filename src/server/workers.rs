@@ -14,11 +14,11 @@ use tokio::sync::oneshot;
 use super::error::{ApiError, ErrorCode};
 use super::metrics::Metrics;
 use super::request::{
-    config_for, decode_frame, encode_reply, DecodeLimits, FrameReply, FrameRequest,
+    config_for, decode_frame, encode_reply, DecodeLimits, FrameDefaults, FrameReply, FrameRequest,
 };
 use crate::geometry::Grid;
 use crate::model::{Models, SessionConfig};
-use crate::pipeline::{FrameInput, Mode, NormalsMethod, Pipeline, PipelineConfig};
+use crate::pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
 
 /// How the pool is built.
 #[derive(Debug, Clone)]
@@ -33,8 +33,8 @@ pub struct PoolConfig {
     pub session: SessionConfig,
     /// Decoding limits.
     pub limits: DecodeLimits,
-    /// Initial normals of frames that do not choose.
-    pub normals: NormalsMethod,
+    /// What frames get for the settings they do not choose.
+    pub defaults: FrameDefaults,
 }
 
 /// A frame's answer, or why there is none.
@@ -275,7 +275,7 @@ fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, met
 /// Decodes, runs and encodes one frame.
 fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> JobResult {
     let frame = decode_frame(req, pool.limits)?;
-    let cfg = config_for(&frame, &req.options, pool.limits.max_pixels, pool.normals);
+    let cfg = config_for(&frame, &req.options, pool.limits.max_pixels, pool.defaults);
     let out = pipeline.run(&frame, &cfg)?;
     let reply = encode_reply(&out, &req.options);
     pipeline.recycle(out);
