@@ -43,7 +43,7 @@ fn frame(side: usize) -> FrameInput {
     }
 }
 
-/// The configurations benched: (name, config).
+/// The configurations benched: (name, config); `_k4`: DSAC with 4 hypotheses instead of 12.
 fn configs() -> Vec<(&'static str, PipelineConfig)> {
     let full = |mode| PipelineConfig::for_mode(mode);
     vec![
@@ -55,7 +55,21 @@ fn configs() -> Vec<(&'static str, PipelineConfig)> {
                 ..full(Mode::Rgb)
             },
         ),
+        (
+            "rgb_k4",
+            PipelineConfig {
+                dsac_hypotheses: 4,
+                ..full(Mode::Rgb)
+            },
+        ),
         ("rgbd", full(Mode::Rgbd)),
+        (
+            "rgbd_k4",
+            PipelineConfig {
+                dsac_hypotheses: 4,
+                ..full(Mode::Rgbd)
+            },
+        ),
         ("geometric", full(Mode::Geometric)),
         (
             "end_to_end",
