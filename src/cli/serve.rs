@@ -154,10 +154,19 @@ impl Serve {
             .build()
             .context("starting the async runtime")?;
         runtime.block_on(async move {
-            let listener = tokio::net::TcpListener::bind(cfg.addr).await.with_context(|| format!("binding {}", cfg.addr))?;
+            let listener = tokio::net::TcpListener::bind(cfg.addr)
+                .await
+                .with_context(|| format!("binding {}", cfg.addr))?;
             let addr = listener.local_addr()?;
             println!("listening on http://{addr}");
-            tracing::info!(%addr, workers = cfg.workers, queue = cfg.queue, "listening; loading models");
+            tracing::info!(
+                %addr,
+                workers = cfg.workers,
+                queue = cfg.queue,
+                normals = ?cfg.normals,
+                dsac_hypotheses = cfg.dsac_hypotheses,
+                "listening; loading models"
+            );
             serve(cfg, listener, shutdown_signal()).await?;
             tracing::info!("stopped");
             Ok(())
