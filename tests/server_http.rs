@@ -156,6 +156,26 @@ fn serve_dsac_hypotheses_sets_the_frames_default_and_is_checked() {
     );
     let twelve = infer_png16(&[rgb, "--mode", "rgb"]);
     assert_ne!(four, twelve, "K = 4 and K = 12 gave the same map");
+    // A request chooses its own; a bad number is a clear error and the server goes on.
+    let url = format!("{}/v1/roughness", server.url());
+    rt().block_on(async {
+        let frame = std::fs::read(&rgb_path).unwrap();
+        let resp = post(
+            &format!("{url}?dsac_hypotheses=12"),
+            "image/png",
+            frame.clone(),
+        )
+        .await;
+        assert_eq!(resp.status().as_u16(), 200);
+        assert_eq!(png16_values(&resp.bytes().await.unwrap()), twelve);
+        for bad in ["0", "65", "many"] {
+            let bad_url = format!("{url}?dsac_hypotheses={bad}");
+            let (s, c, m) = error_of(post(&bad_url, "image/png", frame.clone()).await).await;
+            assert_eq!((s, c.as_str()), (400, "bad_request"), "{bad}: {m}");
+            assert!(m.contains("dsac_hypotheses"), "{bad}: {m}");
+        }
+        still_serves(&server).await;
+    });
 
     for bad in ["0", "65"] {
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_tre"))

@@ -81,6 +81,54 @@ async fn handshake(ws: &mut Ws, format: pb::Format, mode: pb::Mode) {
 }
 
 #[test]
+fn the_hello_chooses_dsac_hypotheses_and_a_bad_number_is_an_error() {
+    let server = Server::start(&["--workers", "1"]);
+    let path = real("slambook2_ch7/2.png");
+    let four = infer_png16(&[
+        path.to_str().unwrap(),
+        "--mode",
+        "rgb",
+        "--dsac-hypotheses",
+        "4",
+    ]);
+    let hello_with = |dsac_hypotheses| {
+        pb::ClientMessage {
+            msg: Some(pb::client_message::Msg::Hello(pb::Hello {
+                mode: pb::Mode::Rgb as i32,
+                dsac_hypotheses,
+                ..Default::default()
+            })),
+        }
+        .encode_to_vec()
+    };
+    rt().block_on(async {
+        let mut ws = connect(&server).await;
+        send(&mut ws, hello_with(65)).await;
+        match next(&mut ws).await {
+            pb::server_message::Msg::Error(e) => {
+                assert_eq!(e.code, "bad_request");
+                assert!(e.message.contains("hello.dsac_hypotheses"), "{}", e.message);
+                assert!(e.message.contains("1 to 64"), "{}", e.message);
+            }
+            other => panic!("expected an Error, got {other:?}"),
+        }
+        send(&mut ws, hello_with(4)).await;
+        assert!(matches!(
+            next(&mut ws).await,
+            pb::server_message::Msg::Ready(_)
+        ));
+        send(&mut ws, frame(1, std::fs::read(&path).unwrap())).await;
+        match next(&mut ws).await {
+            pb::server_message::Msg::Result(r) => {
+                assert_eq!(png16_values(&r.roughness), four, "K = 4 over the stream");
+            }
+            other => panic!("expected a Result, got {other:?}"),
+        }
+        ws.close(None).await.unwrap();
+    });
+}
+
+#[test]
 fn stream_results_equal_tre_infer() {
     let server = Server::start(&["--workers", "1"]);
     let path = real("slambook2_ch7/2.png");

@@ -22,7 +22,7 @@ use crate::client::{
     FrameSender, Rate, Session,
 };
 use crate::io;
-use crate::pipeline::NormalsMethod;
+use crate::pipeline::{NormalsMethod, MAX_DSAC_HYPOTHESES};
 
 /// Encoding of the maps asked of the server.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -78,6 +78,10 @@ pub struct Client {
     /// Initial normals: dsac (the paper's method) or ls (faster); default: the server's.
     #[arg(long, env = "TRE_CLIENT_NORMALS", value_enum)]
     pub normals: Option<NormalsArg>,
+    /// DSAC hypotheses per pixel, 1 to 64 (fewer are faster); default: the server's.
+    #[arg(long, env = "TRE_CLIENT_DSAC_HYPOTHESES",
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_DSAC_HYPOTHESES)))]
+    pub dsac_hypotheses: Option<u32>,
     /// Also ask for traversability, written as SEQ_NAME_traversable.png (255 = traversable).
     #[arg(long, env = "TRE_CLIENT_TRAVERSABLE")]
     pub traversable: bool,
@@ -167,6 +171,7 @@ impl Client {
                 NormalsArg::Ls => NormalsMethod::Ls,
                 NormalsArg::Dsac => NormalsMethod::Dsac,
             }),
+            dsac_hypotheses: self.dsac_hypotheses,
             want_traversable: self.traversable,
             rate: self.rate.map_or(Rate::AsFastAsResults, Rate::Fixed),
             reconnect: Backoff {

@@ -100,6 +100,9 @@ pub struct ClientConfig {
     pub seed: u64,
     /// Initial normals; `None`: the server's default (`tre serve --normals`, DSAC unless set).
     pub normals: Option<NormalsMethod>,
+    /// DSAC hypotheses per pixel, 1 to 64; `None`: the server's default
+    /// (`tre serve --dsac-hypotheses`, 12 unless set).
+    pub dsac_hypotheses: Option<u32>,
     /// Top of the colour scale of [`Format::Color`], metres; `None`: 0.05.
     pub preview_max_m: Option<f64>,
     /// Also ask for the traversability mask.
@@ -133,6 +136,7 @@ impl Default for ClientConfig {
             format: Format::Png16,
             seed: 0,
             normals: None,
+            dsac_hypotheses: None,
             preview_max_m: None,
             want_traversable: false,
             rate: Rate::AsFastAsResults,

@@ -70,6 +70,7 @@ impl From<&ClientConfig> for pb::Hello {
             preview_max_m: cfg.preview_max_m,
             want_traversable: cfg.want_traversable,
             normals: pb::Normals::from(cfg.normals) as i32,
+            dsac_hypotheses: cfg.dsac_hypotheses.unwrap_or(0),
         }
     }
 }
@@ -336,6 +337,7 @@ mod tests {
             format: Format::F32,
             seed: 42,
             normals: Some(NormalsMethod::Ls),
+            dsac_hypotheses: Some(4),
             want_traversable: true,
             ..ClientConfig::default()
         };
@@ -353,5 +355,8 @@ mod tests {
                 pb::Normals::Ls as i32
             )
         );
+        assert_eq!(h.dsac_hypotheses, 4);
+        let default = pb::Hello::from(&ClientConfig::default());
+        assert_eq!(default.dsac_hypotheses, 0, "0 leaves the server's default");
     }
 }

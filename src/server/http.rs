@@ -13,7 +13,9 @@ use serde::Deserialize;
 
 use super::error::{ApiError, ErrorCode};
 use super::metrics::Gauges;
-use super::request::{Extras, Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
+use super::request::{
+    check_dsac_hypotheses, Extras, Format, FrameOptions, FrameReply, FrameRequest, SCALE_M,
+};
 use super::{AppState, OVERSIZE_READ_FACTOR};
 use crate::io::CameraFile;
 use crate::pipeline::{Mode, NormalsMethod};
@@ -30,6 +32,8 @@ pub struct RoughnessQuery {
     seed: Option<u64>,
     /// Initial normals, `dsac` or `ls`.
     normals: Option<String>,
+    /// DSAC hypotheses per pixel, 1 to 64.
+    dsac_hypotheses: Option<u32>,
     /// Top of the colour scale, centimetres.
     preview_max_cm: Option<f64>,
     /// Extra maps, comma-separated: `depth,normals,slope,traversable,boundary`.
@@ -77,6 +81,11 @@ impl RoughnessQuery {
             Some("ls") => Some(NormalsMethod::Ls),
             Some(n) => return Err(bad(format!("normals: expected dsac or ls, got {n:?}"))),
         };
+        let dsac_hypotheses = self
+            .dsac_hypotheses
+            .map(check_dsac_hypotheses)
+            .transpose()
+            .map_err(|e| bad(format!("dsac_hypotheses: {e}")))?;
         let mut extras = Extras::default();
         for name in self
             .outputs
@@ -104,6 +113,7 @@ impl RoughnessQuery {
             format,
             seed: self.seed.unwrap_or(0),
             normals,
+            dsac_hypotheses,
             preview_max_m: self.preview_max_cm.map(|c| c / 100.0),
             extras,
             traversable_bytes: false,

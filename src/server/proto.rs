@@ -4,7 +4,9 @@
 use prost::Message;
 
 use super::error::{ApiError, ErrorCode};
-use super::request::{Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
+use super::request::{
+    check_dsac_hypotheses, Format, FrameOptions, FrameReply, FrameRequest, SCALE_M,
+};
 use crate::io::CameraFile;
 use crate::pipeline::{Mode, NormalsMethod};
 use crate::proto::v1 as pb;
@@ -112,6 +114,10 @@ impl TryFrom<pb::Hello> for StreamSettings {
             pb::Normals::Dsac => Some(NormalsMethod::Dsac),
             pb::Normals::Ls => Some(NormalsMethod::Ls),
         };
+        let dsac_hypotheses = match h.dsac_hypotheses {
+            0 => None,
+            k => Some(check_dsac_hypotheses(k).map_err(|e| bad("hello.dsac_hypotheses", e))?),
+        };
         if let Some(m) = h.preview_max_m.filter(|m| !(m.is_finite() && *m > 0.0)) {
             return Err(bad(
                 "hello.preview_max_m",
@@ -125,6 +131,7 @@ impl TryFrom<pb::Hello> for StreamSettings {
                 format,
                 seed: h.seed,
                 normals,
+                dsac_hypotheses,
                 preview_max_m: h.preview_max_m,
                 traversable_bytes: h.want_traversable,
                 ..FrameOptions::default()

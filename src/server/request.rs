@@ -11,6 +11,7 @@ use crate::geometry::{Grid, Mounting};
 use crate::io::{self, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
 use crate::pipeline::{
     FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, DEFAULT_DSAC_HYPOTHESES,
+    MAX_DSAC_HYPOTHESES,
 };
 
 /// Encodings of the roughness map.
@@ -70,6 +71,9 @@ pub struct FrameOptions {
     pub seed: u64,
     /// Initial normals; `None`: the server's default (`tre serve --normals`).
     pub normals: Option<NormalsMethod>,
+    /// DSAC hypotheses per pixel (checked: 1 to 64); `None`: the server's default
+    /// (`tre serve --dsac-hypotheses`).
+    pub dsac_hypotheses: Option<u32>,
     /// Top of the colour preview's scale, metres (default 0.05).
     pub preview_max_m: Option<f64>,
     /// Extra maps.
@@ -258,13 +262,22 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
     })
 }
 
+/// `Some(k)` for 1 ≤ k ≤ [`MAX_DSAC_HYPOTHESES`], else a message for the caller's error.
+pub fn check_dsac_hypotheses(k: u32) -> Result<u32, String> {
+    if (1..=MAX_DSAC_HYPOTHESES).contains(&k) {
+        Ok(k)
+    } else {
+        Err(format!("must be 1 to {MAX_DSAC_HYPOTHESES}, got {k}"))
+    }
+}
+
 /// What a frame gets for the settings it does not choose itself (`tre serve --normals`,
 /// `--dsac-hypotheses`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FrameDefaults {
     /// Initial normals.
     pub normals: NormalsMethod,
-    /// DSAC hypotheses per pixel (1 to [`MAX_DSAC_HYPOTHESES`](crate::pipeline::MAX_DSAC_HYPOTHESES)).
+    /// DSAC hypotheses per pixel (1 to [`MAX_DSAC_HYPOTHESES`]).
     pub dsac_hypotheses: u32,
 }
 
@@ -294,7 +307,7 @@ pub fn config_for(
     PipelineConfig {
         seed: opts.seed,
         normals: opts.normals.unwrap_or(defaults.normals),
-        dsac_hypotheses: defaults.dsac_hypotheses,
+        dsac_hypotheses: opts.dsac_hypotheses.unwrap_or(defaults.dsac_hypotheses),
         max_input_pixels: max_pixels,
         ..PipelineConfig::for_mode(mode)
     }
