@@ -39,6 +39,13 @@ fn terrain_points(size: usize) -> PointMap {
     k.back_project_map(&depth)
 }
 
+/// Neighbour-net logits for a `size`×`size` frame: a fixed pseudo-random pattern.
+fn bench_logits(size: usize) -> Vec<f32> {
+    (0..CANDIDATES * size * size)
+        .map(|i| ((i * 2654435761usize) % 997) as f32 / 300.0)
+        .collect()
+}
+
 fn ls(c: &mut Criterion) {
     let (depth, k) = kinect_frame();
     let pts = k.back_project_map(&depth);
@@ -57,9 +64,7 @@ fn dsac(c: &mut Criterion) {
     let mut g = c.benchmark_group("dsac_normals_k12");
     for size in [256usize, 512] {
         let pts = terrain_points(size);
-        let logits: Vec<f32> = (0..CANDIDATES * size * size)
-            .map(|i| ((i * 2654435761usize) % 997) as f32 / 300.0)
-            .collect();
+        let logits = bench_logits(size);
         let cfg = DsacConfig {
             seed: 1,
             ..Default::default()
@@ -86,9 +91,7 @@ fn dsac(c: &mut Criterion) {
     let mut g = c.benchmark_group("dsac_normals_256x256_reused");
     let size = 256;
     let pts = terrain_points(size);
-    let logits: Vec<f32> = (0..CANDIDATES * size * size)
-        .map(|i| ((i * 2654435761usize) % 997) as f32 / 300.0)
-        .collect();
+    let logits = bench_logits(size);
     let (mut scratch, mut out) = (DsacScratch::default(), Grid::default());
     for k in [1u32, 2, 4, 6, 8, 12] {
         let cfg = DsacConfig {

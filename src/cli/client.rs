@@ -15,14 +15,14 @@ use hdrhistogram::Histogram;
 use image::DynamicImage;
 use tokio::sync::mpsc;
 
-use super::options::{ModeArg, NormalsArg};
+use super::options::{dsac_hypotheses_arg, ModeArg, NormalsArg};
 use crate::client::source::{FrameSource, SourceFrame, SourceSpec};
 use crate::client::{
     unix_us, Backoff, ClientConfig, ClientError, Event, Events, Format, Frame, FrameResult,
     FrameSender, Rate, Session,
 };
 use crate::io;
-use crate::pipeline::{NormalsMethod, MAX_DSAC_HYPOTHESES};
+use crate::pipeline::NormalsMethod;
 
 /// Encoding of the maps asked of the server.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -80,7 +80,7 @@ pub struct Client {
     pub normals: Option<NormalsArg>,
     /// DSAC hypotheses per pixel, 1 to 64 (fewer are faster); default: the server's.
     #[arg(long, env = "TRE_CLIENT_DSAC_HYPOTHESES",
-          value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_DSAC_HYPOTHESES)))]
+          value_parser = dsac_hypotheses_arg())]
     pub dsac_hypotheses: Option<u32>,
     /// Also ask for traversability, written as SEQ_NAME_traversable.png (255 = traversable).
     #[arg(long, env = "TRE_CLIENT_TRAVERSABLE")]

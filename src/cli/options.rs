@@ -69,6 +69,12 @@ impl From<ModeArg> for Mode {
     }
 }
 
+/// Parser of `--dsac-hypotheses` (`infer`, `eval`, `serve`, `client`): 1 to
+/// [`MAX_DSAC_HYPOTHESES`].
+pub fn dsac_hypotheses_arg() -> clap::builder::RangedI64ValueParser<u32> {
+    clap::value_parser!(u32).range(1..=i64::from(MAX_DSAC_HYPOTHESES))
+}
+
 /// The pipeline's switches and models, shared by `infer` and `eval`.
 #[derive(Debug, Clone, Args)]
 pub struct StageArgs {
@@ -89,7 +95,7 @@ pub struct StageArgs {
     pub seed: u64,
     /// DSAC hypotheses per pixel, 1 to 64 (12: as trained; fewer are faster, see the README).
     #[arg(long, env = "TRE_DSAC_HYPOTHESES", default_value_t = DEFAULT_DSAC_HYPOTHESES,
-          value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_DSAC_HYPOTHESES)))]
+          value_parser = dsac_hypotheses_arg())]
     pub dsac_hypotheses: u32,
     /// Folder with manifest.json and the ONNX models (only read when a network runs).
     #[arg(long, env = "TRE_MODELS", default_value = "models")]

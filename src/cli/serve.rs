@@ -7,9 +7,10 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 
-use super::options::NormalsArg;
+use super::options::{dsac_hypotheses_arg, NormalsArg};
 use crate::model::{ExecutionProvider, SessionConfig};
-use crate::pipeline::{NormalsMethod, DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES};
+use crate::pipeline::{NormalsMethod, DEFAULT_DSAC_HYPOTHESES};
+use crate::server::request::FrameDefaults;
 use crate::server::{serve, ServeConfig};
 
 /// Execution provider of the ONNX Runtime sessions.
@@ -71,7 +72,7 @@ pub struct Serve {
     /// DSAC hypotheses per pixel, 1 to 64: 12 as the neighbour net was trained; fewer are
     /// faster at some cost in accuracy (see the README's table).
     #[arg(long, env = "TRE_DSAC_HYPOTHESES", default_value_t = DEFAULT_DSAC_HYPOTHESES,
-          value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_DSAC_HYPOTHESES)))]
+          value_parser = dsac_hypotheses_arg())]
     pub dsac_hypotheses: u32,
     /// WebSocket streams open at once; beyond, the upgrade gets 429 at once.
     #[arg(long, env = "TRE_MAX_STREAMS", default_value_t = 64)]
@@ -124,11 +125,13 @@ impl Serve {
             ws_max_message_bytes: self.ws_max_message_bytes,
             max_streams: self.max_streams,
             shutdown_grace: Duration::from_secs(self.shutdown_grace_s),
-            normals: match self.normals {
-                NormalsArg::Dsac => NormalsMethod::Dsac,
-                NormalsArg::Ls => NormalsMethod::Ls,
+            defaults: FrameDefaults {
+                normals: match self.normals {
+                    NormalsArg::Dsac => NormalsMethod::Dsac,
+                    NormalsArg::Ls => NormalsMethod::Ls,
+                },
+                dsac_hypotheses: self.dsac_hypotheses,
             },
-            dsac_hypotheses: self.dsac_hypotheses,
         })
     }
 
@@ -163,8 +166,8 @@ impl Serve {
                 %addr,
                 workers = cfg.workers,
                 queue = cfg.queue,
-                normals = ?cfg.normals,
-                dsac_hypotheses = cfg.dsac_hypotheses,
+                normals = ?cfg.defaults.normals,
+                dsac_hypotheses = cfg.defaults.dsac_hypotheses,
                 "listening; loading models"
             );
             serve(cfg, listener, shutdown_signal()).await?;

@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::PipelineError;
 use crate::geometry::Neighbourhood;
 
 /// Where depth comes from (the paper's Table IV rows).
@@ -79,6 +80,20 @@ pub const DEFAULT_DSAC_HYPOTHESES: u32 = 12;
 
 /// Most DSAC hypotheses per pixel accepted.
 pub const MAX_DSAC_HYPOTHESES: u32 = 64;
+
+/// `k` when it is a number of DSAC hypotheses the pipeline accepts (1 to
+/// [`MAX_DSAC_HYPOTHESES`]).
+///
+/// # Errors
+///
+/// [`PipelineError::BadHypotheses`] otherwise.
+pub fn check_dsac_hypotheses(k: u32) -> Result<u32, PipelineError> {
+    if (1..=MAX_DSAC_HYPOTHESES).contains(&k) {
+        Ok(k)
+    } else {
+        Err(PipelineError::BadHypotheses { got: k })
+    }
+}
 
 fn default_dsac_hypotheses() -> u32 {
     DEFAULT_DSAC_HYPOTHESES

@@ -14,8 +14,8 @@ use super::resize::{resize_nearest_reusing, resize_rgb};
 use super::spares::Spares;
 use super::tensors::{depth_from_tensor_into, points_tensors, rgb_tensor, scalar_tensor};
 use super::{
-    CentroidMethod, Method, Mode, NormalsMethod, PipelineConfig, PipelineError,
-    MAX_DSAC_HYPOTHESES, MAX_WORKING_SIDE,
+    check_dsac_hypotheses, CentroidMethod, Method, Mode, NormalsMethod, PipelineConfig,
+    PipelineError, MAX_WORKING_SIDE,
 };
 use crate::geometry::dsac::DsacScratch;
 use crate::geometry::normals::{window_centroids_into, PackedPoints};
@@ -140,11 +140,7 @@ impl Pipeline {
         cfg: &PipelineConfig,
     ) -> Result<FrameOutput, PipelineError> {
         let size = check_input(input, cfg)?;
-        if !(1..=MAX_DSAC_HYPOTHESES).contains(&cfg.dsac_hypotheses) {
-            return Err(PipelineError::BadHypotheses {
-                got: cfg.dsac_hypotheses,
-            });
-        }
+        check_dsac_hypotheses(cfg.dsac_hypotheses)?;
         self.check_models(cfg)?;
         let work = self.working(input, cfg, size)?;
         let mut timings = StageTimings::default();

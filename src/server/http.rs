@@ -13,12 +13,10 @@ use serde::Deserialize;
 
 use super::error::{ApiError, ErrorCode};
 use super::metrics::Gauges;
-use super::request::{
-    check_dsac_hypotheses, Extras, Format, FrameOptions, FrameReply, FrameRequest, SCALE_M,
-};
+use super::request::{Extras, Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
 use super::{AppState, OVERSIZE_READ_FACTOR};
 use crate::io::CameraFile;
-use crate::pipeline::{Mode, NormalsMethod};
+use crate::pipeline::{check_dsac_hypotheses, Mode, NormalsMethod};
 
 /// Query of `POST /v1/roughness`.
 #[derive(Debug, Default, Deserialize)]

@@ -32,7 +32,7 @@ use axum::Router;
 use tokio::sync::{watch, Semaphore};
 
 use crate::model::{Manifest, SessionConfig};
-use crate::pipeline::{NormalsMethod, DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES};
+use crate::pipeline::check_dsac_hypotheses;
 use metrics::Metrics;
 use request::{DecodeLimits, FrameDefaults};
 use workers::{PoolConfig, Workers};
@@ -70,10 +70,9 @@ pub struct ServeConfig {
     pub max_streams: usize,
     /// Time in-flight work may take to finish after SIGTERM.
     pub shutdown_grace: Duration,
-    /// Initial normals of frames that do not choose (DSAC: the paper's method).
-    pub normals: NormalsMethod,
-    /// DSAC hypotheses per pixel, 1 to [`MAX_DSAC_HYPOTHESES`] (12: as trained).
-    pub dsac_hypotheses: u32,
+    /// What frames get for the settings they do not choose: initial normals (DSAC, the paper's
+    /// method) and DSAC hypotheses per pixel (12, as trained).
+    pub defaults: FrameDefaults,
 }
 
 impl Default for ServeConfig {
@@ -95,8 +94,7 @@ impl Default for ServeConfig {
             ws_max_message_bytes: 16 << 20,
             max_streams: 64,
             shutdown_grace: Duration::from_secs(30),
-            normals: NormalsMethod::Dsac,
-            dsac_hypotheses: DEFAULT_DSAC_HYPOTHESES,
+            defaults: FrameDefaults::default(),
         }
     }
 }
@@ -166,12 +164,8 @@ pub async fn serve(
     listener: tokio::net::TcpListener,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> Result<(), ServeError> {
-    if !(1..=MAX_DSAC_HYPOTHESES).contains(&cfg.dsac_hypotheses) {
-        return Err(ServeError::Config(format!(
-            "DSAC hypotheses per pixel must be 1 to {MAX_DSAC_HYPOTHESES}, not {}",
-            cfg.dsac_hypotheses
-        )));
-    }
+    check_dsac_hypotheses(cfg.defaults.dsac_hypotheses)
+        .map_err(|e| ServeError::Config(e.to_string()))?;
     let manifest = Manifest::read(&cfg.models)?;
     let manifest_json = serde_json::to_string_pretty(&manifest).map_err(std::io::Error::other)?;
     let model_names = manifest.models.keys().cloned().collect();
@@ -184,10 +178,7 @@ pub async fn serve(
         limits: DecodeLimits {
             max_pixels: cfg.max_pixels,
         },
-        defaults: FrameDefaults {
-            normals: cfg.normals,
-            dsac_hypotheses: cfg.dsac_hypotheses,
-        },
+        defaults: cfg.defaults,
     };
     let workers = Workers::start(&pool, metrics.clone())?;
     let (stop_tx, stop_rx) = watch::channel(false);

@@ -4,11 +4,9 @@
 use prost::Message;
 
 use super::error::{ApiError, ErrorCode};
-use super::request::{
-    check_dsac_hypotheses, Format, FrameOptions, FrameReply, FrameRequest, SCALE_M,
-};
+use super::request::{Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
 use crate::io::CameraFile;
-use crate::pipeline::{Mode, NormalsMethod};
+use crate::pipeline::{check_dsac_hypotheses, Mode, NormalsMethod};
 use crate::proto::v1 as pb;
 
 /// A stream's settings from its Hello.
@@ -116,7 +114,10 @@ impl TryFrom<pb::Hello> for StreamSettings {
         };
         let dsac_hypotheses = match h.dsac_hypotheses {
             0 => None,
-            k => Some(check_dsac_hypotheses(k).map_err(|e| bad("hello.dsac_hypotheses", e))?),
+            k => Some(
+                check_dsac_hypotheses(k)
+                    .map_err(|e| bad("hello.dsac_hypotheses", e.to_string()))?,
+            ),
         };
         if let Some(m) = h.preview_max_m.filter(|m| !(m.is_finite() && *m > 0.0)) {
             return Err(bad(

@@ -11,7 +11,6 @@ use crate::geometry::{Grid, Mounting};
 use crate::io::{self, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
 use crate::pipeline::{
     FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, DEFAULT_DSAC_HYPOTHESES,
-    MAX_DSAC_HYPOTHESES,
 };
 
 /// Encodings of the roughness map.
@@ -262,22 +261,13 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
     })
 }
 
-/// `Some(k)` for 1 ≤ k ≤ [`MAX_DSAC_HYPOTHESES`], else a message for the caller's error.
-pub fn check_dsac_hypotheses(k: u32) -> Result<u32, String> {
-    if (1..=MAX_DSAC_HYPOTHESES).contains(&k) {
-        Ok(k)
-    } else {
-        Err(format!("must be 1 to {MAX_DSAC_HYPOTHESES}, got {k}"))
-    }
-}
-
 /// What a frame gets for the settings it does not choose itself (`tre serve --normals`,
 /// `--dsac-hypotheses`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FrameDefaults {
     /// Initial normals.
     pub normals: NormalsMethod,
-    /// DSAC hypotheses per pixel (1 to [`MAX_DSAC_HYPOTHESES`]).
+    /// DSAC hypotheses per pixel (1 to [`MAX_DSAC_HYPOTHESES`](crate::pipeline::MAX_DSAC_HYPOTHESES)).
     pub dsac_hypotheses: u32,
 }
 
