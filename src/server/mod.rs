@@ -123,9 +123,9 @@ pub struct AppState {
 /// Errors that keep the service from starting or serving.
 #[derive(Debug, thiserror::Error)]
 pub enum ServeError {
-    /// A setting out of its range.
-    #[error("{0}")]
-    Config(String),
+    /// A setting out of its range (the frames' default DSAC hypotheses).
+    #[error(transparent)]
+    Config(crate::pipeline::PipelineError),
     /// The manifest is missing or malformed.
     #[error(transparent)]
     Manifest(#[from] crate::model::ModelError),
@@ -164,8 +164,7 @@ pub async fn serve(
     listener: tokio::net::TcpListener,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> Result<(), ServeError> {
-    check_dsac_hypotheses(cfg.defaults.dsac_hypotheses)
-        .map_err(|e| ServeError::Config(e.to_string()))?;
+    check_dsac_hypotheses(cfg.defaults.dsac_hypotheses).map_err(ServeError::Config)?;
     let manifest = Manifest::read(&cfg.models)?;
     let manifest_json = serde_json::to_string_pretty(&manifest).map_err(std::io::Error::other)?;
     let model_names = manifest.models.keys().cloned().collect();
