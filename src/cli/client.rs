@@ -22,7 +22,6 @@ use crate::client::{
     FrameSender, Rate, Session,
 };
 use crate::io;
-use crate::pipeline::NormalsMethod;
 
 /// Encoding of the maps asked of the server.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -167,10 +166,7 @@ impl Client {
                 FormatArg::F32 => Format::F32,
             },
             seed: self.seed,
-            normals: self.normals.map(|n| match n {
-                NormalsArg::Ls => NormalsMethod::Ls,
-                NormalsArg::Dsac => NormalsMethod::Dsac,
-            }),
+            normals: self.normals.map(Into::into),
             dsac_hypotheses: self.dsac_hypotheses,
             want_traversable: self.traversable,
             rate: self.rate.map_or(Rate::AsFastAsResults, Rate::Fixed),

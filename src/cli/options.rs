@@ -69,6 +69,15 @@ impl From<ModeArg> for Mode {
     }
 }
 
+impl From<NormalsArg> for NormalsMethod {
+    fn from(n: NormalsArg) -> Self {
+        match n {
+            NormalsArg::Ls => NormalsMethod::Ls,
+            NormalsArg::Dsac => NormalsMethod::Dsac,
+        }
+    }
+}
+
 /// Parser of `--dsac-hypotheses` (`infer`, `eval`, `serve`, `client`): 1 to
 /// [`MAX_DSAC_HYPOTHESES`].
 pub fn dsac_hypotheses_arg() -> clap::builder::RangedI64ValueParser<u32> {
@@ -114,10 +123,7 @@ impl StageArgs {
                 MethodArg::Pipeline => Method::Pipeline,
                 MethodArg::EndToEnd => Method::EndToEnd,
             },
-            normals: match self.normals {
-                NormalsArg::Ls => NormalsMethod::Ls,
-                NormalsArg::Dsac => NormalsMethod::Dsac,
-            },
+            normals: self.normals.into(),
             refine: self.refine == Switch::On,
             centroid: match self.centroid {
                 CentroidArg::Net => CentroidMethod::Net,

@@ -9,7 +9,7 @@ use clap::{Args, ValueEnum};
 
 use super::options::{dsac_hypotheses_arg, NormalsArg};
 use crate::model::{ExecutionProvider, SessionConfig};
-use crate::pipeline::{NormalsMethod, DEFAULT_DSAC_HYPOTHESES};
+use crate::pipeline::DEFAULT_DSAC_HYPOTHESES;
 use crate::server::request::FrameDefaults;
 use crate::server::{serve, ServeConfig};
 
@@ -126,10 +126,7 @@ impl Serve {
             max_streams: self.max_streams,
             shutdown_grace: Duration::from_secs(self.shutdown_grace_s),
             defaults: FrameDefaults {
-                normals: match self.normals {
-                    NormalsArg::Dsac => NormalsMethod::Dsac,
-                    NormalsArg::Ls => NormalsMethod::Ls,
-                },
+                normals: self.normals.into(),
                 dsac_hypotheses: self.dsac_hypotheses,
             },
         })
