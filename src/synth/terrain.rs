@@ -105,7 +105,7 @@ impl Rng {
 
 impl Terrain {
     /// A random terrain for scene `scene` of a dataset seeded with `seed`: 8 regions within
-    /// `reach_m` of the robot (plus 4 beyond), with every category present among the nearest six.
+    /// `reach_m` of the robot (plus 4 beyond), with every category present among those 8.
     pub fn random(seed: u64, scene: u64, reach_m: f64) -> Self {
         let mut rng = Rng(splitmix64(seed ^ splitmix64(scene.wrapping_add(1))));
         let mut cats = Category::ALL.to_vec();
