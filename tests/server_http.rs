@@ -233,6 +233,17 @@ fn formats_and_extra_outputs() {
     });
 }
 
+/// A float32 `.npy` of one value whose header claims 2⁶² + 1 rows.
+fn overflowing_npy() -> Vec<u8> {
+    let header = "{'descr': '<f4', 'fortran_order': False, 'shape': (4611686018427387905, 1), }";
+    let header = format!("{header:<117}\n");
+    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
+    npy.extend((header.len() as u16).to_le_bytes());
+    npy.extend(header.as_bytes());
+    npy.extend(1.0f32.to_le_bytes());
+    npy
+}
+
 #[test]
 fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
     let mut server = Server::start(&[
@@ -267,6 +278,17 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
                 {
                     let f = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
                     f[..f.len() / 3].to_vec()
+                },
+                422,
+                "bad_image",
+            ),
+            (
+                // Decoded leniently, this was a frame half filled with grey.
+                "truncated JPEG",
+                "image/jpeg",
+                {
+                    let f = std::fs::read(real("metric3d_nyu/rgb/rgb_00000.jpg")).unwrap();
+                    f[..f.len() / 2].to_vec()
                 },
                 422,
                 "bad_image",
@@ -347,6 +369,38 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
                 Form::new().part("picture", Part::bytes(rgb.clone())),
                 "bad_request",
             ),
+            (
+                // Its shape times the value size wraps around to a few bytes: this once
+                // passed the length check and stopped the only worker.
+                "depth .npy whose shape overflows",
+                Form::new()
+                    .part("rgb", Part::bytes(rgb.clone()))
+                    .part("depth", Part::bytes(overflowing_npy())),
+                "bad_depth",
+            ),
+            (
+                "depth that is not an image",
+                Form::new()
+                    .part("rgb", Part::bytes(rgb.clone()))
+                    .part("depth", Part::bytes(b"not a depth map".to_vec())),
+                "bad_depth",
+            ),
+            (
+                "empty depth",
+                Form::new()
+                    .part("rgb", Part::bytes(rgb.clone()))
+                    .part("depth", Part::bytes(Vec::new())),
+                "bad_depth",
+            ),
+            (
+                // Valid as given, but 0 once scaled from 640×480 to the working size.
+                "focal length that vanishes at the working size",
+                Form::new().part("rgb", Part::bytes(rgb.clone())).part(
+                    "camera",
+                    Part::text(r#"{"fx": 5e-324, "fy": 5e-324, "cx": 320, "cy": 240}"#),
+                ),
+                "bad_camera",
+            ),
         ];
         for (what, form, code) in forms {
             let resp = reqwest::Client::new()
@@ -390,7 +444,7 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
     assert_eq!(get(server.addr, "/healthz").0, 200);
     let metrics = String::from_utf8(get(server.addr, "/metrics").1).unwrap();
     assert!(
-        metrics.contains("tre_requests_total{endpoint=\"roughness\",outcome=\"bad_image\"} 3"),
+        metrics.contains("tre_requests_total{endpoint=\"roughness\",outcome=\"bad_image\"} 4"),
         "{metrics}"
     );
     assert!(metrics.contains("tre_requests_total{endpoint=\"roughness\",outcome=\"too_large\"} 2"));
@@ -625,5 +679,52 @@ fn a_client_that_sends_a_whole_oversize_body_first_still_reads_the_413() {
     std::io::Read::read_to_string(&mut s, &mut answer).unwrap();
     assert!(answer.starts_with("HTTP/1.1 413"), "{answer}");
     assert!(answer.contains("\"too_large\""), "{answer}");
+    rt().block_on(still_serves(&server));
+}
+
+/// A client that sends its headers and a few bytes of body, then nothing: it holds one of the
+/// `--max-concurrent` places only until the request timeout, when it hears 503 `timeout`, and
+/// the next client is served.
+#[test]
+fn a_client_that_stalls_mid_upload_gives_its_place_back_at_the_timeout() {
+    use std::io::Read;
+    let server = Server::start(&[
+        "--workers",
+        "1",
+        "--max-concurrent",
+        "1",
+        "--request-timeout-ms",
+        "1500",
+    ]);
+    let url = format!("{}/v1/roughness?mode=rgb", server.url());
+    let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    let mut stalled = TcpStream::connect(server.addr).unwrap();
+    let head = "POST /v1/roughness HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nContent-Length: 100000\r\n\r\n";
+    stalled.write_all(head.as_bytes()).unwrap();
+    stalled.write_all(&frame[..4]).unwrap();
+    rt().block_on(async {
+        // While it holds the only place, the others are refused at once.
+        let mut refused = false;
+        for _ in 0..50 {
+            let resp = post(&url, "image/png", frame.clone()).await;
+            if resp.status().as_u16() == 429 {
+                refused = true;
+                break;
+            }
+            tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+        }
+        assert!(refused, "the stalled upload never held the only place");
+    });
+    stalled
+        .set_read_timeout(Some(std::time::Duration::from_secs(30)))
+        .unwrap();
+    let mut answer = Vec::new();
+    let _ = stalled.read_to_end(&mut answer);
+    let answer = String::from_utf8_lossy(&answer);
+    assert!(answer.starts_with("HTTP/1.1 503"), "{answer}");
+    assert!(
+        answer.contains("\"timeout\"") && answer.contains("the body did not arrive"),
+        "{answer}"
+    );
     rt().block_on(still_serves(&server));
 }

@@ -56,16 +56,12 @@ impl Annotate {
             bail!("--depth-scale must be positive, got {scale}");
         }
         let depth = io::read_depth(&self.depth, scale)?;
-        if let (Some(w), Some(h)) = (cam.width, cam.height) {
-            if (w, h) != depth.size() {
-                bail!(
-                    "depth {} is {}×{} but the camera JSON {} describes a {w}×{h} image",
-                    self.depth.display(),
-                    depth.width(),
-                    depth.height(),
-                    self.camera.display()
-                );
-            }
+        if let Err(why) = cam.check_size(depth.size()) {
+            bail!(
+                "camera {} and depth {}: {why}",
+                self.camera.display(),
+                self.depth.display()
+            );
         }
         let normals = self.normals.as_deref().map(io::read_normals).transpose()?;
         let labels = self.labels.as_deref().map(io::read_labels).transpose()?;

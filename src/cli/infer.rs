@@ -8,7 +8,7 @@ use clap::{Args, ValueEnum};
 use image::DynamicImage;
 
 use super::options::{ModeArg, StageArgs};
-use crate::geometry::Mounting;
+use crate::geometry::{Grid, Mounting};
 use crate::io;
 use crate::pipeline::{FrameInput, FrameOutput};
 
@@ -104,6 +104,15 @@ impl Infer {
             Some((c, _)) => c.mounting().context("camera pitch or height")?,
             None => Mounting::default(),
         };
+        let size = match (&rgb, &depth_m) {
+            (Some(i), _) => Some((i.width() as usize, i.height() as usize)),
+            (None, d) => d.as_ref().map(Grid::size),
+        };
+        if let (Some((c, _)), Some(path), Some(size)) = (&cam, &self.camera, size) {
+            c.check_size(size)
+                .map_err(anyhow::Error::msg)
+                .with_context(|| format!("camera {}", path.display()))?;
+        }
         Ok(FrameInput {
             rgb,
             depth_m,

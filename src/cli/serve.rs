@@ -58,7 +58,8 @@ pub struct Serve {
     /// HTTP requests handled at once; beyond, requests get 429 at once.
     #[arg(long, env = "TRE_MAX_CONCURRENT", default_value_t = 64)]
     pub max_concurrent: usize,
-    /// Time one request may take, queue included, milliseconds (then 503).
+    /// Time one HTTP request may take from its arrival, the upload of its body, the queue and
+    /// the run included, milliseconds (then 503).
     #[arg(long, env = "TRE_REQUEST_TIMEOUT_MS", default_value_t = 30_000)]
     pub request_timeout_ms: u64,
     /// Largest WebSocket message, bytes (up to 4× this gets an error message; beyond, the

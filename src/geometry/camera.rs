@@ -18,6 +18,11 @@ pub fn is_valid_point(p: &Vec3) -> bool {
     p.z > 0.0 && p.z.is_finite() && p.x.is_finite() && p.y.is_finite()
 }
 
+/// The narrowest field of view across an image that [`Intrinsics::check_for`] accepts, degrees.
+pub const MIN_FOV_DEG: f64 = 0.1;
+/// The widest field of view across an image that [`Intrinsics::check_for`] accepts, degrees.
+pub const MAX_FOV_DEG: f64 = 179.5;
+
 /// Pinhole intrinsics in pixels of the frame they describe.
 ///
 /// ```
@@ -63,6 +68,46 @@ impl Intrinsics {
         for (name, c) in [("cx", self.cx_px), ("cy", self.cy_px)] {
             if !c.is_finite() {
                 return Err(GeometryError::BadPrincipalPoint { name, value: c });
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks that these intrinsics can describe a `width × height` image: the principal point
+    /// within one image size of the image (`−w ≤ cx ≤ 2w`, the same for y: a crop may move it
+    /// outside, never further), and a field of view across the image between
+    /// [`MIN_FOV_DEG`] and [`MAX_FOV_DEG`] on each axis. Values beyond these are typing errors
+    /// or wrong units, and would turn into roughness of kilometres or of nothing at all.
+    ///
+    /// ```
+    /// use tre::geometry::Intrinsics;
+    /// assert!(Intrinsics::new(525.0, 525.0, 319.5, 239.5).unwrap().check_for(640, 480).is_ok());
+    /// assert!(Intrinsics::new(525.0, 525.0, -1e9, 239.5).unwrap().check_for(640, 480).is_err());
+    /// assert!(Intrinsics::new(1e-9, 525.0, 319.5, 239.5).unwrap().check_for(640, 480).is_err());
+    /// ```
+    pub fn check_for(&self, width: usize, height: usize) -> Result<(), GeometryError> {
+        let fault = |what: String, why| GeometryError::ImplausibleIntrinsics {
+            width,
+            height,
+            what,
+            why,
+        };
+        for (name, c, side) in [("cx", self.cx_px, width), ("cy", self.cy_px, height)] {
+            let side = side as f64;
+            if !(-side..=2.0 * side).contains(&c) {
+                return Err(fault(
+                    format!("{name} = {c}"),
+                    "the principal point must lie within one image size of the image",
+                ));
+            }
+        }
+        for (name, f, side) in [("fx", self.fx_px, width), ("fy", self.fy_px, height)] {
+            let fov_deg = 2.0 * (side as f64 / (2.0 * f)).atan().to_degrees();
+            if !(MIN_FOV_DEG..=MAX_FOV_DEG).contains(&fov_deg) {
+                return Err(fault(
+                    format!("{name} = {f} ({fov_deg:.3}° across the image)"),
+                    "the field of view must be 0.1° to 179.5° (is the focal length in pixels?)",
+                ));
             }
         }
         Ok(())

@@ -62,6 +62,18 @@ pub enum GeometryError {
         /// The value given, metres.
         height_m: f64,
     },
+    /// Intrinsics that no pinhole camera could have for an image of the frame's size.
+    #[error("intrinsics {what} cannot describe a {width}×{height} image: {why}")]
+    ImplausibleIntrinsics {
+        /// The image width, pixels.
+        width: usize,
+        /// The image height, pixels.
+        height: usize,
+        /// The values at fault, as given.
+        what: String,
+        /// The rule they break.
+        why: &'static str,
+    },
     /// Neighbour logits of the wrong size for the point map.
     #[error("neighbour logits hold {got} values, expected 49 × H × W = {expected}")]
     LogitsSize {

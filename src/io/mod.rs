@@ -101,6 +101,28 @@ impl CameraFile {
         Intrinsics::new(self.fx, self.fy, self.cx, self.cy)
     }
 
+    /// Whether the image size the file states, if any, is `(width, height)`; if not, why not.
+    ///
+    /// ```
+    /// let cam: tre::io::CameraFile =
+    ///     serde_json::from_str(r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "width": 640, "height": 480}"#).unwrap();
+    /// assert!(cam.check_size((640, 480)).is_ok());
+    /// assert!(cam.check_size((320, 240)).unwrap_err().contains("640×480"));
+    /// ```
+    pub fn check_size(&self, (width, height): (usize, usize)) -> Result<(), String> {
+        let stated = (self.width.unwrap_or(width), self.height.unwrap_or(height));
+        if stated == (width, height) {
+            return Ok(());
+        }
+        let show = |v: Option<usize>| v.map_or("?".to_string(), |v| v.to_string());
+        Err(format!(
+            "the camera describes a {}×{} image but the frame is {width}×{height}; \
+             intrinsics of another size would misplace every point",
+            show(self.width),
+            show(self.height)
+        ))
+    }
+
     /// The checked mounting: the stated pitch and height, each defaulting to
     /// [`Mounting::default`]'s (60°, 1 m).
     pub fn mounting(&self) -> Result<Mounting, GeometryError> {
@@ -129,25 +151,75 @@ pub fn read_camera(path: &Path) -> Result<(CameraFile, Intrinsics), IoError> {
     Ok((cam, k))
 }
 
-/// Decodes an image file, naming the file in errors.
+/// Decodes an image file, naming the file in errors. JPEGs are decoded strictly
+/// ([`decode_jpeg`]).
 pub fn read_image(path: &Path) -> Result<DynamicImage, IoError> {
+    let failed = |reason: String| IoError::Image {
+        path: path.to_owned(),
+        reason,
+    };
     let reader = ImageReader::new(BufReader::new(open(path)?))
         .with_guessed_format()
-        .map_err(|e| IoError::Image {
-            path: path.to_owned(),
-            reason: e.to_string(),
-        })?;
-    reader.decode().map_err(|e| IoError::Image {
-        path: path.to_owned(),
-        reason: e.to_string(),
-    })
+        .map_err(|e| failed(e.to_string()))?;
+    if reader.format() == Some(image::ImageFormat::Jpeg) {
+        return decode_jpeg(&std::fs::read(path)?).map_err(failed);
+    }
+    reader.decode().map_err(|e| failed(e.to_string()))
+}
+
+/// Decodes a JPEG, refusing truncated or corrupt data. (`image`'s own JPEG decoding is lenient,
+/// as browsers are: it fills what is missing with grey, so half a frame would pass for a whole
+/// one.) Grey JPEGs come back as 8-bit grey, every other kind as RGB. One flaw is not caught:
+/// scan data that ends with a proper end marker before the header's size is filled (a header
+/// edited to claim more pixels) decodes with the rest filled, as the decoder reports no error.
+///
+/// ```
+/// let img = image::RgbImage::from_fn(32, 24, |x, y| image::Rgb([x as u8 * 8, y as u8 * 10, 99]));
+/// let mut jpeg = Vec::new();
+/// image::codecs::jpeg::JpegEncoder::new(&mut jpeg).encode_image(&img).unwrap();
+/// assert_eq!(tre::io::decode_jpeg(&jpeg).unwrap().to_rgb8().dimensions(), (32, 24));
+/// assert!(tre::io::decode_jpeg(&jpeg[..jpeg.len() / 2]).is_err());
+/// ```
+pub fn decode_jpeg(bytes: &[u8]) -> Result<DynamicImage, String> {
+    use zune_core::bytestream::ZCursor;
+    use zune_core::colorspace::ColorSpace;
+    use zune_core::options::DecoderOptions;
+    let options = DecoderOptions::default()
+        .set_strict_mode(true)
+        .set_max_width(usize::MAX)
+        .set_max_height(usize::MAX);
+    let mut decoder = zune_jpeg::JpegDecoder::new_with_options(ZCursor::new(bytes), options);
+    let failed = |e: zune_jpeg::errors::DecodeErrors| format!("not a whole, valid JPEG: {e}");
+    decoder.decode_headers().map_err(failed)?;
+    let grey = matches!(
+        decoder.input_colorspace(),
+        Some(ColorSpace::Luma | ColorSpace::LumaA)
+    );
+    let out = if grey {
+        ColorSpace::Luma
+    } else {
+        ColorSpace::RGB
+    };
+    decoder.set_options(decoder.options().jpeg_set_out_colorspace(out));
+    let pixels = decoder.decode().map_err(failed)?;
+    let (w, h) = decoder
+        .dimensions()
+        .ok_or("not a whole, valid JPEG: no dimensions")?;
+    let (w, h) = (w as u32, h as u32);
+    let image = if grey {
+        image::GrayImage::from_raw(w, h, pixels).map(DynamicImage::ImageLuma8)
+    } else {
+        image::RgbImage::from_raw(w, h, pixels).map(DynamicImage::ImageRgb8)
+    };
+    image.ok_or_else(|| format!("not a whole, valid JPEG: {w}×{h} pixels do not match the data"))
 }
 
 /// Reads depth in metres: a 16-bit grey PNG divided by `units_per_m` (0 = no data), or a float
 /// `.npy` already in metres (0 or NaN = no data).
 pub fn read_depth(path: &Path, units_per_m: f64) -> Result<Grid<f64>, IoError> {
     if is_npy(path) {
-        return read_npy_grid(path);
+        return npy_depth(npy::read_npy(BufReader::new(open(path)?))?)
+            .map_err(|why| IoError::Npy(format!("{}: {why}", path.display())));
     }
     match read_image(path)? {
         DynamicImage::ImageLuma16(img) => Ok(depth_from_luma16(img, units_per_m)),
@@ -231,6 +303,20 @@ fn read_npy_grid(path: &Path) -> Result<Grid<f64>, IoError> {
         .map_err(|why| IoError::Npy(format!("{}: {why}", path.display())))
 }
 
+/// Depth in metres from a `.npy`: a 2-D float array. Integer arrays are refused, since their
+/// unit cannot be known (millimetres read as metres would be a thousand times off); for why not,
+/// a message saying what to send instead.
+pub fn npy_depth(a: npy::NpyArray) -> Result<Grid<f64>, String> {
+    if !a.is_float() {
+        return Err(format!(
+            "depth .npy must hold float metres (float16, float32 or float64), got dtype {}: \
+             for integer depth send a 16-bit PNG with its depth_scale",
+            a.dtype
+        ));
+    }
+    npy_grid(a)
+}
+
 /// A 2-D `(H, W)` array as a grid; for any other shape, why not.
 pub fn npy_grid(a: npy::NpyArray) -> Result<Grid<f64>, String> {
     let [h, w] = a.shape[..] else {
@@ -239,7 +325,7 @@ pub fn npy_grid(a: npy::NpyArray) -> Result<Grid<f64>, String> {
             a.shape
         ));
     };
-    Ok(Grid::from_vec(w, h, a.data).expect("shape checked; this is a bug"))
+    Grid::from_vec(w, h, a.data).map_err(|e| e.to_string())
 }
 
 /// Writes a float map as an `(H, W)` float32 `.npy` (NaN: no data).

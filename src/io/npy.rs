@@ -128,6 +128,15 @@ pub struct NpyArray {
     pub shape: Vec<usize>,
     /// Values, C order, converted to f64.
     pub data: Vec<f64>,
+    /// The file's dtype as numpy writes it (`<f4`, `<u2`, `|u1`, …).
+    pub dtype: String,
+}
+
+impl NpyArray {
+    /// Whether the file held floating-point values (float16, float32 or float64).
+    pub fn is_float(&self) -> bool {
+        matches!(self.dtype.as_str(), "<f2" | "<f4" | "<f8")
+    }
 }
 
 /// Reads a `.npy` file of any supported numeric dtype into f64.
@@ -157,10 +166,18 @@ pub fn read_npy(mut r: impl Read) -> Result<NpyArray, IoError> {
     }
     let descr = field(header, "descr").ok_or_else(|| bad("header has no descr"))?;
     let shape = parse_shape(header).ok_or_else(|| bad("header has no readable shape"))?;
-    let count: usize = shape.iter().product();
+    let count = shape
+        .iter()
+        .try_fold(1usize, |n, &d| n.checked_mul(d))
+        .ok_or_else(|| bad(&format!("shape {shape:?} holds more values than can exist")))?;
     let body = &bytes[start + header_len..];
-    let data = decode(descr.trim_matches('\''), body, count)?;
-    Ok(NpyArray { shape, data })
+    let dtype = descr.trim_matches('\'');
+    let data = decode(dtype, body, count)?;
+    Ok(NpyArray {
+        shape,
+        data,
+        dtype: dtype.to_string(),
+    })
 }
 
 fn field<'a>(header: &'a str, name: &str) -> Option<&'a str> {
@@ -197,13 +214,14 @@ fn decode(descr: &str, body: &[u8], count: usize) -> Result<Vec<f64>, IoError> {
             )))
         }
     };
-    if body.len() < count * size {
+    let needed = count.checked_mul(size).filter(|&n| n <= body.len());
+    let Some(needed) = needed else {
         return Err(IoError::Npy(format!(
             "truncated data: {} bytes for {count} values of {size} bytes",
             body.len()
         )));
-    }
-    let c = body[..count * size].chunks_exact(size);
+    };
+    let c = body[..needed].chunks_exact(size);
     Ok(match descr {
         "<f4" => c
             .map(|b| f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])))
@@ -278,5 +296,25 @@ mod tests {
             .to_string()
             .contains("truncated"));
         assert!(read_npy(&b"hello"[..]).is_err());
+    }
+
+    /// A header whose shape overflows when its dimensions (or its bytes) are multiplied: an
+    /// error, never a short count that a few bytes of data would satisfy.
+    #[test]
+    fn overflowing_shapes_are_errors() {
+        for (shape, why) in [
+            ("(4611686018427387905, 1)", "truncated"),
+            ("(4294967296, 4294967296)", "more values than can exist"),
+            ("(18446744073709551615, 2)", "more values than can exist"),
+        ] {
+            let header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}");
+            let header = format!("{header:<117}\n");
+            let mut buf = b"\x93NUMPY\x01\x00".to_vec();
+            buf.extend((header.len() as u16).to_le_bytes());
+            buf.extend(header.as_bytes());
+            buf.extend(1.0f32.to_le_bytes());
+            let err = read_npy(&buf[..]).unwrap_err().to_string();
+            assert!(err.contains(why), "{shape}: {err}");
+        }
     }
 }

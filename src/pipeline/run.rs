@@ -323,7 +323,10 @@ impl Pipeline {
             return Err(PipelineError::BadWorkingSize { size, stride });
         }
         let k0 = match input.intrinsics {
-            Some(k) => k,
+            Some(k) => {
+                k.check_for(w0, h0)?;
+                k
+            }
             None => Intrinsics::from_hfov(w0, h0, DEFAULT_HFOV_DEG)?,
         };
         let k = k0.scaled(size.0 as f64 / w0 as f64, size.1 as f64 / h0 as f64)?;

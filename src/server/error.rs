@@ -5,6 +5,7 @@ use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 
+use crate::geometry::GeometryError;
 use crate::pipeline::PipelineError;
 
 /// Stable error codes, shared by HTTP bodies and stream `Error` messages.
@@ -134,7 +135,21 @@ impl From<PipelineError> for ApiError {
             PipelineError::DepthSizeMismatch { .. } => ErrorCode::BadDepth,
             PipelineError::MissingInput { .. }
             | PipelineError::ModelsRequired { .. }
-            | PipelineError::BadWorkingSize { .. } => ErrorCode::BadInput,
+            | PipelineError::BadWorkingSize { .. }
+            | PipelineError::BadHypotheses { .. } => ErrorCode::BadInput,
+            // Intrinsics that pass the camera's own checks but not once scaled to the working
+            // size (a focal length of 1e308 overflows): still the camera's fault.
+            PipelineError::Geometry(GeometryError::ImplausibleIntrinsics { .. }) => {
+                return Self::new(ErrorCode::BadCamera, format!("camera: {e}"))
+            }
+            PipelineError::Geometry(
+                GeometryError::BadFocalLength { .. } | GeometryError::BadPrincipalPoint { .. },
+            ) => {
+                return Self::new(
+                    ErrorCode::BadCamera,
+                    format!("camera, once scaled to the working size: {e}"),
+                )
+            }
             _ => ErrorCode::Internal,
         };
         Self::new(code, e.to_string())

@@ -170,6 +170,16 @@ pub async fn roughness(State(app): State<Arc<AppState>>, req: Request) -> Respon
 }
 
 async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, ApiError> {
+    // One deadline for the whole request, upload included: a client that stops sending its
+    // body gives its place back when it passes, instead of holding it for good.
+    let timeout = app.cfg.request_timeout;
+    let deadline = tokio::time::Instant::now() + timeout;
+    let too_late = |what: &str| {
+        ApiError::new(
+            ErrorCode::Timeout,
+            format!("{what} within {} ms", timeout.as_millis()),
+        )
+    };
     let _permit = app.concurrency.clone().try_acquire_owned().map_err(|_| {
         ApiError::new(
             ErrorCode::TooManyRequests,
@@ -187,24 +197,22 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
     };
     // The body is read before a bad query is answered: a client still sending it would
     // otherwise meet a closed connection instead of the error.
-    let mut frame = read_body(app, req).await?;
+    let mut frame = tokio::time::timeout_at(deadline, read_body(app, req))
+        .await
+        .map_err(|_| too_late("the body did not arrive"))??;
     let query = query?;
     frame.options = query.options()?;
     if frame.camera.is_none() {
         frame.camera = query.camera()?;
     }
     let rx = app.workers.submit(frame)?;
-    let timeout = app.cfg.request_timeout;
-    match tokio::time::timeout(timeout, rx).await {
+    match tokio::time::timeout_at(deadline, rx).await {
         Ok(Ok((result, _queued))) => result,
         Ok(Err(_)) => Err(ApiError::new(
             ErrorCode::Internal,
             "the worker stopped before answering",
         )),
-        Err(_) => Err(ApiError::new(
-            ErrorCode::Timeout,
-            format!("no answer within {} ms", timeout.as_millis()),
-        )),
+        Err(_) => Err(too_late("no answer")),
     }
 }
 

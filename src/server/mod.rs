@@ -62,7 +62,7 @@ pub struct ServeConfig {
     pub max_pixels: usize,
     /// Requests handled at once; more get 429.
     pub max_concurrent: usize,
-    /// Time a request may take, queue included.
+    /// Time an HTTP request may take from its arrival: body upload, queue and run.
     pub request_timeout: Duration,
     /// Largest WebSocket message, bytes.
     pub ws_max_message_bytes: usize,
@@ -202,10 +202,20 @@ pub async fn serve(
         let _ = stop_tx.send(true);
     };
     let server = axum::serve(listener, app).with_graceful_shutdown(signal);
+    // Upgraded streams are no longer connections of the server: it does not wait for them.
+    // Each holds a stream permit until it has answered its frame in flight and closed, so
+    // holding every permit means they are all done.
+    let streams = state.streams.clone();
+    let all_streams = u32::try_from(cfg.max_streams).unwrap_or(u32::MAX);
+    let drained = async move {
+        let served = server.await;
+        let _closed = streams.acquire_many(all_streams).await;
+        served
+    };
     let grace = cfg.shutdown_grace;
     let mut stopping = state.shutdown.clone();
     tokio::select! {
-        r = server => r?,
+        r = drained => r?,
         () = async { let _ = stopping.wait_for(|s| *s).await; tokio::time::sleep(grace).await } => {
             tracing::warn!("in-flight work did not finish within {} s; stopping anyway", grace.as_secs());
         }

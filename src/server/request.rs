@@ -180,6 +180,10 @@ pub fn decode_image(
             ),
         ));
     }
+    if format == ImageFormat::Jpeg {
+        return io::decode_jpeg(bytes)
+            .map_err(|e| ApiError::new(ErrorCode::BadImage, format!("{what}: {e}")));
+    }
     let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
     let mut l = image::Limits::default();
     l.max_image_width = Some(w);
@@ -198,8 +202,11 @@ pub fn decode_depth(
     let bad = |m: String| ApiError::new(ErrorCode::BadDepth, format!("depth: {m}"));
     if bytes.starts_with(b"\x93NUMPY") {
         let array = io::npy::read_npy(Cursor::new(bytes)).map_err(|e| bad(e.to_string()))?;
-        let grid = io::npy_grid(array).map_err(bad)?;
+        let grid = io::npy_depth(array).map_err(bad)?;
         let (w, h) = grid.size();
+        if w * h == 0 {
+            return Err(bad(format!("the array is {w}×{h}, it has no pixels")));
+        }
         if w * h > limits.max_pixels {
             return Err(ApiError::new(
                 ErrorCode::TooLarge,
@@ -211,7 +218,18 @@ pub fn decode_depth(
         }
         return Ok(grid);
     }
-    match decode_image("depth", bytes, limits)? {
+    // Not an image, or a broken one: a depth error, saying what depth may be.
+    let image = decode_image("depth", bytes, limits).map_err(|e| match e.code {
+        ErrorCode::BadImage | ErrorCode::UnsupportedMedia => ApiError::new(
+            ErrorCode::BadDepth,
+            format!(
+                "{}; depth must be a 16-bit grey PNG or a float .npy",
+                e.message
+            ),
+        ),
+        _ => e,
+    })?;
+    match image {
         DynamicImage::ImageLuma16(img) => Ok(io::depth_from_luma16(img, units_per_m)),
         other => Err(bad(format!(
             "must be a 16-bit grey PNG or a float .npy, got {:?}",
@@ -247,11 +265,19 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
         Some(b) => Some(decode_depth(b, scale, limits)?),
         None => None,
     };
-    if rgb.is_none() && depth_m.is_none() {
-        return Err(ApiError::new(
-            ErrorCode::BadRequest,
-            "the frame has neither an image nor depth",
-        ));
+    let size = match (&rgb, &depth_m) {
+        (Some(i), _) => (i.width() as usize, i.height() as usize),
+        (None, Some(d)) => d.size(),
+        (None, None) => {
+            return Err(ApiError::new(
+                ErrorCode::BadRequest,
+                "the frame has neither an image nor depth",
+            ))
+        }
+    };
+    if let Some(c) = &req.camera {
+        c.check_size(size)
+            .map_err(|why| ApiError::new(ErrorCode::BadCamera, format!("camera: {why}")))?;
     }
     Ok(FrameInput {
         rgb,
@@ -457,5 +483,43 @@ mod tests {
     fn depth_must_be_16_bit() {
         let e = decode_depth(&png_bytes(4, 4), 1000.0, LIMITS).unwrap_err();
         assert_eq!(e.code, ErrorCode::BadDepth);
+    }
+
+    fn npy_bytes<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Vec<u8> {
+        let mut out = Vec::new();
+        io::npy::write_npy(&mut out, shape, data).expect("writes");
+        out
+    }
+
+    /// Every way depth can be wrong is a `bad_depth` error that says what depth may be, except
+    /// a size over the limit (`too_large`); float `.npy` depth is read as metres.
+    #[test]
+    fn depth_errors_are_depth_errors() {
+        let grid = decode_depth(&npy_bytes(&[2, 3], &[1.5f32; 6]), 1000.0, LIMITS).unwrap();
+        assert_eq!((grid.size(), grid[(2, 1)]), ((3, 2), 1.5));
+        for (bytes, says) in [
+            (Vec::new(), "16-bit grey PNG or a float .npy"),
+            (b"hello world".to_vec(), "16-bit grey PNG or a float .npy"),
+            (
+                png_bytes(64, 48)[..100].to_vec(),
+                "16-bit grey PNG or a float .npy",
+            ),
+            (
+                npy_bytes(&[2, 3], &[1500u16; 6]),
+                "for integer depth send a 16-bit PNG",
+            ),
+            (npy_bytes(&[0, 3], &[0.0f32; 0]), "it has no pixels"),
+            (npy_bytes(&[2, 3, 1], &[1.0f32; 6]), "expected a 2-D array"),
+        ] {
+            let e = decode_depth(&bytes, 1000.0, LIMITS).unwrap_err();
+            assert_eq!(e.code, ErrorCode::BadDepth, "{e}");
+            assert!(
+                e.message.starts_with("depth: ") && e.message.contains(says),
+                "{e}"
+            );
+        }
+        let big = npy_bytes(&[1001, 1000], &vec![1.0f32; 1_001_000]);
+        let e = decode_depth(&big, 1000.0, LIMITS).unwrap_err();
+        assert_eq!(e.code, ErrorCode::TooLarge, "{e}");
     }
 }

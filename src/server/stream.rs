@@ -10,6 +10,7 @@ use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
 use axum::extract::State;
 use axum::response::{IntoResponse, Response};
+use futures_util::SinkExt;
 use tokio::sync::oneshot;
 
 use super::error::{ApiError, ErrorCode};
@@ -21,6 +22,8 @@ use super::{AppState, OVERSIZE_READ_FACTOR};
 const PING_EVERY: Duration = Duration::from_secs(15);
 /// A client silent for this long (no message, no pong) is disconnected.
 const IDLE_LIMIT: Duration = Duration::from_secs(60);
+/// How long a stream closed by the server waits for the client's close in reply.
+const CLOSE_WAIT: Duration = Duration::from_secs(2);
 
 /// Upgrades the connection, unless `--max-streams` are open already (429 at once).
 pub async fn stream(
@@ -142,8 +145,7 @@ impl Connection {
                 }
                 Event::Ping => self.on_ping().await,
                 Event::Shutdown => {
-                    self.finish_in_flight().await;
-                    self.close(1001, "server shutting down").await;
+                    self.shut_down().await;
                     false
                 }
             };
@@ -186,7 +188,11 @@ impl Connection {
                 let e = ApiError::new(ErrorCode::BadRequest, "text messages are not part of the protocol; send binary roughness.v1.ClientMessage");
                 return self.refuse(None, &e).await;
             }
-            Message::Close(_) => return false,
+            Message::Close(_) => {
+                // The reply the WebSocket queued on reading the client's close goes out now.
+                let _ = SinkExt::flush(&mut self.socket).await;
+                return false;
+            }
             Message::Ping(_) | Message::Pong(_) => return true,
         };
         let limit = self.app.cfg.ws_max_message_bytes;
@@ -276,8 +282,31 @@ impl Connection {
         }
     }
 
-    /// On shutdown: waits for the frame in flight and sends its result; the waiting one is
-    /// reported dropped.
+    /// On shutdown: takes the messages that have already arrived as usual, answers the frame
+    /// in flight and reports the waiting one dropped, closes with 1001, then reads on until the
+    /// client's close (at most [`CLOSE_WAIT`]; frames still arriving then go unanswered, as the
+    /// client has been told the stream is over). Leaving a message unread would make the
+    /// system reset the connection, and the client could lose the answers sent before.
+    async fn shut_down(&mut self) {
+        while let Ok(Some(Ok(msg))) = tokio::time::timeout(Duration::ZERO, self.socket.recv()).await
+        {
+            if !self.on_message(msg).await {
+                return;
+            }
+        }
+        self.finish_in_flight().await;
+        self.close(1001, "server shutting down").await;
+        let _ = tokio::time::timeout(CLOSE_WAIT, async {
+            while let Some(Ok(msg)) = self.socket.recv().await {
+                if matches!(msg, Message::Close(_)) {
+                    break;
+                }
+            }
+        })
+        .await;
+    }
+
+    /// Waits for the frame in flight and sends its result; the waiting one is reported dropped.
     async fn finish_in_flight(&mut self) {
         if let Some(f) = self.in_flight.as_mut() {
             if let Ok(done) = (&mut f.rx).await {

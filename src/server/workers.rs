@@ -263,13 +263,31 @@ fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, met
             continue;
         }
         metrics.batch(1);
-        let result = run_job(&mut pipeline, &job.request, cfg);
+        let result = guarded(i, || run_job(&mut pipeline, &job.request, cfg));
         if let Ok(reply) = &result {
             metrics.frame(&reply.timings, queued);
         }
         // A closed receiver means the client left; nothing to do with the answer.
         let _ = job.reply.send((result, queued));
     }
+}
+
+/// Runs one job on worker `i`, turning a panic (a bug) into an `internal` error for that frame
+/// alone: the worker lives on for the next frames instead of leaving the queue unserved while
+/// the server still reports ready. Every buffer the pipeline reuses is sized afresh per frame.
+fn guarded(i: usize, job: impl FnOnce() -> JobResult) -> JobResult {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(job)).unwrap_or_else(|panic| {
+        let what = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "no message".to_string());
+        tracing::error!(worker = i, panic = %what, "a frame hit a bug; the worker goes on");
+        Err(ApiError::new(
+            ErrorCode::Internal,
+            format!("the frame hit a bug in the server ({what}); the server goes on"),
+        ))
+    })
 }
 
 /// Decodes, runs and encodes one frame.
@@ -300,4 +318,20 @@ fn warm_up(pipeline: &mut Pipeline) -> Result<(), crate::pipeline::PipelineError
         pipeline.recycle(out);
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panicking_job_is_an_internal_error_and_the_next_one_runs() {
+        let e = guarded(0, || panic!("index 7 out of range")).unwrap_err();
+        assert_eq!(e.code, ErrorCode::Internal);
+        assert!(e.message.contains("index 7 out of range"), "{e}");
+        let e = guarded(0, || panic!("{}", String::from("formatted"))).unwrap_err();
+        assert!(e.message.contains("formatted"), "{e}");
+        let ok = guarded(0, || Err(ApiError::new(ErrorCode::BadImage, "fine")));
+        assert_eq!(ok.unwrap_err().code, ErrorCode::BadImage);
+    }
 }
