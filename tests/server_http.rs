@@ -370,6 +370,32 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
                 "bad_request",
             ),
             (
+                "the same part twice",
+                Form::new()
+                    .part("rgb", Part::bytes(b"garbage".to_vec()))
+                    .part("rgb", Part::bytes(rgb.clone())),
+                "bad_request",
+            ),
+            (
+                "a camera of another size than the frame",
+                Form::new().part("rgb", Part::bytes(rgb.clone())).part(
+                    "camera",
+                    Part::text(
+                        r#"{"fx": 500, "fy": 500, "cx": 160, "cy": 120, "width": 320, "height": 240}"#,
+                    ),
+                ),
+                "bad_camera",
+            ),
+            (
+                // Finite, but a typing error: the points would lie kilometres to the side.
+                "a principal point far outside the image",
+                Form::new().part("rgb", Part::bytes(rgb.clone())).part(
+                    "camera",
+                    Part::text(r#"{"fx": 500, "fy": 500, "cx": -1e9, "cy": 240}"#),
+                ),
+                "bad_camera",
+            ),
+            (
                 // Its shape times the value size wraps around to a few bytes: this once
                 // passed the length check and stopped the only worker.
                 "depth .npy whose shape overflows",
@@ -420,6 +446,17 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
         let (s, c, _) =
             error_of(post(&format!("{url}?normals=magic"), "image/png", rgb.clone()).await).await;
         assert_eq!((s, c.as_str()), (400, "bad_request"));
+        let twice = Form::new()
+            .part("rgb", Part::bytes(rgb.clone()))
+            .part("camera", Part::text(r#"{"fx": 500, "fy": 500, "cx": 320, "cy": 240}"#));
+        let resp = reqwest::Client::new()
+            .post(format!("{url}?fx=525&fy=525&cx=319.5&cy=239.5"))
+            .multipart(twice)
+            .send()
+            .await
+            .unwrap();
+        let (s, c, message) = error_of(resp).await;
+        assert_eq!((s, c.as_str()), (400, "bad_request"), "{message}");
         let (s, c, _) = error_of(post(&format!("{url}?mode=rgbd"), "image/png", rgb).await).await;
         assert_eq!((s, c.as_str()), (422, "bad_input"));
     });

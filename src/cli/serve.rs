@@ -52,7 +52,9 @@ pub struct Serve {
     #[arg(long, env = "TRE_MAX_BODY_BYTES", default_value_t = 32 << 20)]
     pub max_body_bytes: usize,
     /// Largest image, pixels (checked from the header, before decoding). A frame in flight
-    /// takes about 60 bytes per pixel: 16 Mpx is about 1 GB per worker.
+    /// takes up to about 110 bytes per pixel (a depth-only frame, which the geometric mode
+    /// runs at its own size; RGB frames run at the working size and take far less): 16 Mpx is
+    /// up to about 2 GB per worker.
     #[arg(long, env = "TRE_MAX_PIXELS", default_value_t = 16 << 20)]
     pub max_pixels: usize,
     /// HTTP requests handled at once; beyond, requests get 429 at once.

@@ -88,7 +88,7 @@ pub enum PipelineError {
         loaded: bool,
     },
     /// A working size that is zero, too large, or not a multiple of the stride.
-    #[error("working size {}×{} must be positive, at most {MAX_WORKING_SIDE} per side{}", size.0, size.1, stride.map_or(String::new(), |s| format!(" and a multiple of the models' stride {s}")))]
+    #[error("working size {}×{} must be positive, at most {MAX_WORKING_SIDE} per side{}", size.0, size.1, stride.map_or(" (without networks, the geometric mode works at the frame's own size unless one is set)".to_string(), |s| format!(" and a multiple of the models' stride {s}")))]
     BadWorkingSize {
         /// `(width, height)`.
         size: (usize, usize),

@@ -202,8 +202,14 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
         .map_err(|_| too_late("the body did not arrive"))??;
     let query = query?;
     frame.options = query.options()?;
-    if frame.camera.is_none() {
-        frame.camera = query.camera()?;
+    match (&frame.camera, query.camera()?) {
+        (Some(_), Some(_)) => {
+            return Err(bad(
+                "the camera is given both in the query and as a multipart part; give it once",
+            ))
+        }
+        (None, from_query) => frame.camera = from_query,
+        (Some(_), None) => {}
     }
     let rx = app.workers.submit(frame)?;
     match tokio::time::timeout_at(deadline, rx).await {
@@ -304,6 +310,17 @@ async fn read_multipart(mut m: Multipart) -> Result<FrameRequest, ApiError> {
             .bytes()
             .await
             .map_err(|e| bad(format!("multipart field {name:?}: {}", e.body_text())))?;
+        let given = match name.as_str() {
+            "rgb" => frame.rgb.is_some(),
+            "depth" => frame.depth.is_some(),
+            "camera" => frame.camera.is_some(),
+            _ => false,
+        };
+        if given {
+            return Err(bad(format!(
+                "multipart: the {name:?} part is given twice; send each part once"
+            )));
+        }
         match name.as_str() {
             "rgb" => frame.rgb = Some(data.to_vec()),
             "depth" => frame.depth = Some(data.to_vec()),
