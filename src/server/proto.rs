@@ -187,6 +187,43 @@ pub fn decode_client(bytes: &[u8]) -> Result<Incoming, (Option<u64>, ApiError)> 
     }
 }
 
+/// The sequence number of a frame message, read without decoding the rest (for a message too
+/// large to decode, so that its error can still name the frame); `None` when `bytes` does not
+/// hold a frame. Decoding stays with [`decode_client`].
+pub fn peek_frame_sequence(mut bytes: &[u8]) -> Option<u64> {
+    use prost::encoding::{decode_key, decode_varint, WireType};
+    /// Skips one field's value of `wire` type.
+    fn skip(buf: &mut &[u8], wire: WireType) -> Option<()> {
+        let n = match wire {
+            WireType::Varint => return decode_varint(buf).ok().map(drop),
+            WireType::SixtyFourBit => 8,
+            WireType::ThirtyTwoBit => 4,
+            WireType::LengthDelimited => usize::try_from(decode_varint(buf).ok()?).ok()?,
+            WireType::StartGroup | WireType::EndGroup => return None,
+        };
+        *buf = buf.get(n..)?;
+        Some(())
+    }
+    while !bytes.is_empty() {
+        let (tag, wire) = decode_key(&mut bytes).ok()?;
+        if tag == 2 && wire == WireType::LengthDelimited {
+            // ClientMessage.frame: its sequence is field 1 (0 when absent, as proto3 decodes).
+            let len = usize::try_from(decode_varint(&mut bytes).ok()?).ok()?;
+            let mut frame = bytes.get(..len)?;
+            while !frame.is_empty() {
+                let (tag, wire) = decode_key(&mut frame).ok()?;
+                if tag == 1 && wire == WireType::Varint {
+                    return decode_varint(&mut frame).ok();
+                }
+                skip(&mut frame, wire)?;
+            }
+            return Some(0);
+        }
+        skip(&mut bytes, wire)?;
+    }
+    None
+}
+
 fn encode(msg: pb::server_message::Msg) -> Vec<u8> {
     pb::ServerMessage { msg: Some(msg) }.encode_to_vec()
 }
@@ -254,6 +291,38 @@ pub fn result(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_sequence_of_a_frame_is_read_without_decoding_it() {
+        let frame = |sequence| {
+            pb::ClientMessage {
+                msg: Some(pb::client_message::Msg::Frame(pb::Frame {
+                    sequence,
+                    timestamp_us: -5,
+                    image: vec![7; 300],
+                    depth: vec![1; 20],
+                    ..Default::default()
+                })),
+            }
+            .encode_to_vec()
+        };
+        for seq in [0, 1, 300, u64::MAX] {
+            assert_eq!(peek_frame_sequence(&frame(seq)), Some(seq));
+        }
+        // Fields in another order still work.
+        let mut reordered = Vec::new();
+        prost::encoding::bytes::encode(3, &vec![9u8; 40], &mut reordered);
+        prost::encoding::uint64::encode(1, &42, &mut reordered);
+        let mut outer = Vec::new();
+        prost::encoding::bytes::encode(2, &reordered, &mut outer);
+        assert_eq!(peek_frame_sequence(&outer), Some(42));
+        let hello = pb::ClientMessage {
+            msg: Some(pb::client_message::Msg::Hello(pb::Hello::default())),
+        };
+        assert_eq!(peek_frame_sequence(&hello.encode_to_vec()), None);
+        assert_eq!(peek_frame_sequence(&[0xFF, 0xFF, 0xFF]), None);
+        assert_eq!(peek_frame_sequence(&frame(5)[..10]), None);
+    }
 
     #[test]
     fn garbage_is_a_bad_request() {

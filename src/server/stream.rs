@@ -204,7 +204,7 @@ impl Connection {
                     bytes.len()
                 ),
             );
-            return self.refuse(None, &e).await;
+            return self.refuse(proto::peek_frame_sequence(&bytes), &e).await;
         }
         match proto::decode_client(&bytes) {
             Ok(Incoming::Hello(settings)) => {
