@@ -333,35 +333,35 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
             .unwrap();
             out
         };
+        let with_camera = |json: &str| {
+            Form::new()
+                .part("rgb", Part::bytes(rgb.clone()))
+                .part("camera", Part::text(json.to_owned()))
+        };
+        let with_depth = |depth: Vec<u8>| {
+            Form::new()
+                .part("rgb", Part::bytes(rgb.clone()))
+                .part("depth", Part::bytes(depth))
+        };
         let forms: Vec<(&str, Form, &str)> = vec![
             (
                 "depth of the wrong size",
-                Form::new()
-                    .part("rgb", Part::bytes(rgb.clone()))
-                    .part("depth", Part::bytes(small_depth)),
+                with_depth(small_depth),
                 "bad_depth",
             ),
             (
                 "camera that is not JSON",
-                Form::new()
-                    .part("rgb", Part::bytes(rgb.clone()))
-                    .part("camera", Part::text("fx=500")),
+                with_camera("fx=500"),
                 "bad_camera",
             ),
             (
                 "nonsense intrinsics",
-                Form::new().part("rgb", Part::bytes(rgb.clone())).part(
-                    "camera",
-                    Part::text(r#"{"fx": -5, "fy": 0, "cx": 1e300, "cy": 2}"#),
-                ),
+                with_camera(r#"{"fx": -5, "fy": 0, "cx": 1e300, "cy": 2}"#),
                 "bad_camera",
             ),
             (
                 "nonsense mounting",
-                Form::new().part("rgb", Part::bytes(rgb.clone())).part(
-                    "camera",
-                    Part::text(r#"{"fx": 500, "fy": 500, "cx": 320, "cy": 240, "height_m": -3}"#),
-                ),
+                with_camera(r#"{"fx": 500, "fy": 500, "cx": 320, "cy": 240, "height_m": -3}"#),
                 "bad_camera",
             ),
             (
@@ -378,53 +378,34 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
             ),
             (
                 "a camera of another size than the frame",
-                Form::new().part("rgb", Part::bytes(rgb.clone())).part(
-                    "camera",
-                    Part::text(
-                        r#"{"fx": 500, "fy": 500, "cx": 160, "cy": 120, "width": 320, "height": 240}"#,
-                    ),
+                with_camera(
+                    r#"{"fx": 500, "fy": 500, "cx": 160, "cy": 120, "width": 320, "height": 240}"#,
                 ),
                 "bad_camera",
             ),
             (
                 // Finite, but a typing error: the points would lie kilometres to the side.
                 "a principal point far outside the image",
-                Form::new().part("rgb", Part::bytes(rgb.clone())).part(
-                    "camera",
-                    Part::text(r#"{"fx": 500, "fy": 500, "cx": -1e9, "cy": 240}"#),
-                ),
+                with_camera(r#"{"fx": 500, "fy": 500, "cx": -1e9, "cy": 240}"#),
                 "bad_camera",
             ),
             (
                 // Its shape times the value size wraps around to a few bytes: this once
                 // passed the length check and stopped the only worker.
                 "depth .npy whose shape overflows",
-                Form::new()
-                    .part("rgb", Part::bytes(rgb.clone()))
-                    .part("depth", Part::bytes(overflowing_npy())),
+                with_depth(overflowing_npy()),
                 "bad_depth",
             ),
             (
                 "depth that is not an image",
-                Form::new()
-                    .part("rgb", Part::bytes(rgb.clone()))
-                    .part("depth", Part::bytes(b"not a depth map".to_vec())),
+                with_depth(b"not a depth map".to_vec()),
                 "bad_depth",
             ),
-            (
-                "empty depth",
-                Form::new()
-                    .part("rgb", Part::bytes(rgb.clone()))
-                    .part("depth", Part::bytes(Vec::new())),
-                "bad_depth",
-            ),
+            ("empty depth", with_depth(Vec::new()), "bad_depth"),
             (
                 // Valid as given, but 0 once scaled from 640×480 to the working size.
                 "focal length that vanishes at the working size",
-                Form::new().part("rgb", Part::bytes(rgb.clone())).part(
-                    "camera",
-                    Part::text(r#"{"fx": 5e-324, "fy": 5e-324, "cx": 320, "cy": 240}"#),
-                ),
+                with_camera(r#"{"fx": 5e-324, "fy": 5e-324, "cx": 320, "cy": 240}"#),
                 "bad_camera",
             ),
         ];
@@ -446,9 +427,10 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
         let (s, c, _) =
             error_of(post(&format!("{url}?normals=magic"), "image/png", rgb.clone()).await).await;
         assert_eq!((s, c.as_str()), (400, "bad_request"));
-        let twice = Form::new()
-            .part("rgb", Part::bytes(rgb.clone()))
-            .part("camera", Part::text(r#"{"fx": 500, "fy": 500, "cx": 320, "cy": 240}"#));
+        let twice = Form::new().part("rgb", Part::bytes(rgb.clone())).part(
+            "camera",
+            Part::text(r#"{"fx": 500, "fy": 500, "cx": 320, "cy": 240}"#),
+        );
         let resp = reqwest::Client::new()
             .post(format!("{url}?fx=525&fy=525&cx=319.5&cy=239.5"))
             .multipart(twice)
