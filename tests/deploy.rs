@@ -17,10 +17,12 @@ use tre::model::runtime::ORT_VERSION;
 const BUILD_ENV: &[&str] = &["TRE_ORT_NO_FETCH"];
 
 /// Memory budget of `tre serve`, from measurements (two workers: about 450 MB resident after
-/// serving frames; each frame in flight about 60 bytes per pixel, from 5 to 40 Mpx): per worker,
-/// its sessions plus one frame of `TRE_MAX_PIXELS`; plus every concurrent request's body.
+/// serving frames; each frame in flight about 60 bytes per pixel for RGB frames, from 5 to 40
+/// Mpx, and up to about 105 for a depth-only frame, which the geometric mode runs at its own
+/// size: 4096 × 4096 peaked at 1.78 GB): per worker, its sessions plus one frame of
+/// `TRE_MAX_PIXELS` at the worst case; plus every concurrent request's body.
 const SESSIONS_BYTES_PER_WORKER: u64 = 256 << 20;
-const BYTES_PER_PIXEL_IN_FLIGHT: u64 = 64;
+const BYTES_PER_PIXEL_IN_FLIGHT: u64 = 112;
 
 /// The memory `tre serve` may need with these settings, bytes.
 fn memory_needed(env: &BTreeMap<String, String>, file: &str) -> u64 {
