@@ -111,8 +111,14 @@ impl Fake {
                 s.n - 1
             };
             let (status, text) = (self.answer)(n);
+            // Answers as `tre serve` does: its maps carry the scale header.
+            let map = if status == 200 {
+                "X-Roughness-Scale-M: 0.0001\r\n"
+            } else {
+                ""
+            };
             let resp = format!(
-                "HTTP/1.1 {status} X\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{text}",
+                "HTTP/1.1 {status} X\r\nContent-Type: application/json\r\n{map}Content-Length: {}\r\n\r\n{text}",
                 text.len()
             );
             if conn.write_all(resp.as_bytes()).is_err() {

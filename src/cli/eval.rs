@@ -103,6 +103,9 @@ struct Frame {
 impl Eval {
     /// Scores every frame of the split and prints the metrics (and the tables).
     pub fn run(self) -> anyhow::Result<()> {
+        if let Some(json) = &self.json {
+            super::refuse_overwriting(&[json], &[&self.data])?;
+        }
         let dirs = self.frame_dirs()?;
         let specs = if self.tables {
             tables::row_specs(&self.stages.config(self.mode))
@@ -173,6 +176,9 @@ impl Eval {
             rows,
         };
         let text = serde_json::to_string_pretty(&report)?;
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        }
         std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
     }
 }

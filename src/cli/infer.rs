@@ -60,6 +60,7 @@ pub struct Infer {
 impl Infer {
     /// Reads the frame, runs the pipeline and writes the roughness map and its preview.
     pub fn run(self) -> anyhow::Result<()> {
+        self.check_outputs()?;
         let mode = self.mode()?;
         let cfg = self.stages.config(mode);
         let frame = self.read_frame()?;
@@ -69,6 +70,39 @@ impl Infer {
         self.write(&out)?;
         print_summary(&out, &cfg.label());
         Ok(())
+    }
+
+    /// Refuses, before any work, an output that could not hold the map or would replace an
+    /// input, and a preview scale that is not a positive number.
+    fn check_outputs(&self) -> anyhow::Result<()> {
+        let ext = self
+            .out
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        let wanted = match self.format {
+            Format::Png16 => "png",
+            Format::Npy => "npy",
+        };
+        if ext.as_deref() != Some(wanted) {
+            bail!(
+                "-o {}: the {} format writes a .{wanted} file; name it so (other image kinds \
+                 cannot hold the 16-bit map)",
+                self.out.display(),
+                wanted
+            );
+        }
+        if !(self.preview_max_cm.is_finite() && self.preview_max_cm > 0.0) {
+            bail!(
+                "--preview-max-cm must be a positive number, got {}",
+                self.preview_max_cm
+            );
+        }
+        let inputs: Vec<&Path> = [&self.frame, &self.depth, &self.camera]
+            .into_iter()
+            .flatten()
+            .map(PathBuf::as_path)
+            .collect();
+        super::refuse_overwriting(&[&self.out, &preview_path(&self.out)], &inputs)
     }
 
     /// The mode asked for, or the one the inputs imply.
@@ -97,7 +131,15 @@ impl Infer {
             None => None,
         };
         let depth_m = match &self.depth {
-            Some(path) => Some(io::read_depth(path, scale)?),
+            Some(path) => {
+                let depth = io::read_depth(path, scale)?;
+                io::check_depth(&depth)
+                    .map_err(anyhow::Error::msg)
+                    .with_context(|| {
+                        format!("depth {} at {scale} units per metre", path.display())
+                    })?;
+                Some(depth)
+            }
             None => None,
         };
         let mounting = match &cam {
@@ -108,10 +150,12 @@ impl Infer {
             (Some(i), _) => Some((i.width() as usize, i.height() as usize)),
             (None, d) => d.as_ref().map(Grid::size),
         };
-        if let (Some((c, _)), Some(path), Some(size)) = (&cam, &self.camera, size) {
-            c.check_size(size)
+        if let (Some((c, k)), Some(path), Some((w, h))) = (&cam, &self.camera, size) {
+            let named = || format!("camera {}", path.display());
+            c.check_size((w, h))
                 .map_err(anyhow::Error::msg)
-                .with_context(|| format!("camera {}", path.display()))?;
+                .with_context(named)?;
+            k.check_for(w, h).with_context(named)?;
         }
         Ok(FrameInput {
             rgb,

@@ -147,6 +147,18 @@ impl Loadtest {
 
     /// Runs the load, prints the report and writes the files asked for.
     pub fn run(self) -> anyhow::Result<()> {
+        let outputs: Vec<&Path> = [&self.json, &self.plot]
+            .into_iter()
+            .flatten()
+            .map(PathBuf::as_path)
+            .collect();
+        let inputs: Vec<&Path> = self
+            .frame
+            .iter()
+            .chain(&self.frames)
+            .map(PathBuf::as_path)
+            .collect();
+        super::refuse_overwriting(&outputs, &inputs)?;
         let cfg = self.config()?;
         let old = self.compare.as_deref().map(read_report).transpose()?;
         let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -161,14 +173,20 @@ impl Loadtest {
                 println!("\ncompared with {}:", self.compare_path());
                 print!("{}", report::compare(old, &r));
             }
-            self.write(&r.to_json(), || svg::plot_run(&r))
+            self.write(&r.to_json(), || svg::plot_run(&r))?;
+            no_result_is_a_failure(r.ok, r.requests)
         } else {
             println!("{}", report::sweep_header());
             let sw: SweepReport = runtime.block_on(sweep(&cfg, &self.sweep, self.slo_ms, |r| {
                 println!("{}", report::sweep_row(r));
             }))?;
             print!("{}", report::sweep_summary(&sw));
-            self.write(&sw.to_json(), || svg::plot_sweep(&sw))
+            self.write(&sw.to_json(), || svg::plot_sweep(&sw))?;
+            let (ok, requests) = sw
+                .rows
+                .iter()
+                .fold((0, 0), |(o, n), r| (o + r.ok, n + r.requests));
+            no_result_is_a_failure(ok, requests)
         }
     }
 
@@ -188,6 +206,19 @@ impl Loadtest {
         }
         Ok(())
     }
+}
+
+/// A load test in which no request got a roughness map measured nothing about the service: it
+/// fails (after its report is printed and written), so that a script does not take it for a
+/// result.
+fn no_result_is_a_failure(ok: u64, requests: u64) -> anyhow::Result<()> {
+    if ok == 0 {
+        anyhow::bail!(
+            "none of the {requests} requests got a roughness map: is the target a running tre \
+             serve (see the errors above)?"
+        );
+    }
+    Ok(())
 }
 
 fn write_file(path: &Path, text: &str) -> anyhow::Result<()> {

@@ -81,3 +81,58 @@ fn finite_sorted(map: &crate::geometry::Grid<f64>) -> Vec<f64> {
     v.sort_by(f64::total_cmp);
     v
 }
+
+/// `path` as the file system names it: its longest existing ancestor made canonical, with the
+/// rest appended (so that `out.png` and `./dir/../out.png` compare equal before either exists).
+fn resolved(path: &std::path::Path) -> std::path::PathBuf {
+    let path = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    for base in path.ancestors() {
+        if let Ok(canonical) = base.canonicalize() {
+            let rest = path.strip_prefix(base).unwrap_or(std::path::Path::new(""));
+            return canonical.join(rest);
+        }
+    }
+    path
+}
+
+/// Refuses, before any work, to write an output over one of the command's inputs, or (for an
+/// input that is a folder) inside it: `tre infer rgb.png -o rgb.png` would replace the frame,
+/// `tre eval --json DATA/dataset.json` the dataset's manifest.
+fn refuse_overwriting(
+    outputs: &[&std::path::Path],
+    inputs: &[&std::path::Path],
+) -> anyhow::Result<()> {
+    for out in outputs {
+        let o = resolved(out);
+        for input in inputs {
+            let i = resolved(input);
+            if o == i || (i.is_dir() && o.starts_with(&i)) {
+                anyhow::bail!(
+                    "{} would be written over or inside the input {}; choose another output path",
+                    out.display(),
+                    input.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn outputs_may_not_replace_inputs() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("rgb.png");
+        std::fs::write(&input, b"x").unwrap();
+        let data = dir.path().join("data");
+        std::fs::create_dir(&data).unwrap();
+        let same = dir.path().join("data/../rgb.png");
+        assert!(refuse_overwriting(&[&same], &[&input]).is_err());
+        assert!(refuse_overwriting(&[&data.join("new/report.json")], &[&data]).is_err());
+        let elsewhere = dir.path().join("out.png");
+        assert!(refuse_overwriting(&[&elsewhere], &[&input, &data]).is_ok());
+    }
+}

@@ -21,7 +21,7 @@ pub fn is_valid_point(p: &Vec3) -> bool {
 /// The narrowest field of view across an image that [`Intrinsics::check_for`] accepts, degrees.
 pub const MIN_FOV_DEG: f64 = 0.1;
 /// The widest field of view across an image that [`Intrinsics::check_for`] accepts, degrees.
-pub const MAX_FOV_DEG: f64 = 179.5;
+pub const MAX_FOV_DEG: f64 = 170.0;
 
 /// Pinhole intrinsics in pixels of the frame they describe.
 ///
@@ -76,8 +76,10 @@ impl Intrinsics {
     /// Checks that these intrinsics can describe a `width × height` image: the principal point
     /// within one image size of the image (`−w ≤ cx ≤ 2w`, the same for y: a crop may move it
     /// outside, never further), and a field of view across the image between
-    /// [`MIN_FOV_DEG`] and [`MAX_FOV_DEG`] on each axis. Values beyond these are typing errors
-    /// or wrong units, and would turn into roughness of kilometres or of nothing at all.
+    /// [`MIN_FOV_DEG`] and [`MAX_FOV_DEG`] on each axis (a pinhole model of a wider lens would
+    /// not be one). Values beyond these are typing errors or wrong units, and would turn into
+    /// roughness of kilometres or of nothing at all. A focal length given in millimetres is
+    /// caught when it is below 1/23 of the image side in pixels (3.6 mm on a 640-pixel image).
     ///
     /// ```
     /// use tre::geometry::Intrinsics;
@@ -106,7 +108,7 @@ impl Intrinsics {
             if !(MIN_FOV_DEG..=MAX_FOV_DEG).contains(&fov_deg) {
                 return Err(fault(
                     format!("{name} = {f} ({fov_deg:.3}° across the image)"),
-                    "the field of view must be 0.1° to 179.5° (is the focal length in pixels?)",
+                    "the field of view must be 0.1° to 170° (is the focal length in pixels?)",
                 ));
             }
         }

@@ -303,6 +303,58 @@ fn read_npy_grid(path: &Path) -> Result<Grid<f64>, IoError> {
         .map_err(|why| IoError::Npy(format!("{}: {why}", path.display())))
 }
 
+/// Nearest median depth any sensor gives, metres: below it the depth scale is wrong.
+pub const MIN_MEDIAN_DEPTH_M: f64 = 0.01;
+/// Farthest median depth any robot's depth sensor gives, metres: above it the depth is in
+/// millimetres, or the depth scale is wrong.
+pub const MAX_MEDIAN_DEPTH_M: f64 = 200.0;
+
+/// Whether a depth map in metres can be one: some valid pixel (finite, positive), and a median
+/// valid depth between [`MIN_MEDIAN_DEPTH_M`] and [`MAX_MEDIAN_DEPTH_M`], which catches depth
+/// in millimetres or a wrong depth scale. The median is taken over at most about 65,000
+/// evenly spread pixels. For why not, a message saying what to check.
+///
+/// ```
+/// use tre::geometry::Grid;
+/// assert!(tre::io::check_depth(&Grid::new(64, 48, 1.5)).is_ok());
+/// assert!(tre::io::check_depth(&Grid::new(64, 48, 0.0)).unwrap_err().contains("no valid pixel"));
+/// assert!(tre::io::check_depth(&Grid::new(64, 48, 1500.0)).unwrap_err().contains("millimetres"));
+/// ```
+pub fn check_depth(depth_m: &Grid<f64>) -> Result<(), String> {
+    let all = depth_m.as_slice();
+    let step = (all.len() / 65_536).max(1);
+    let mut sample: Vec<f64> = all
+        .iter()
+        .step_by(step)
+        .copied()
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .collect();
+    if sample.is_empty() && !all.iter().any(|d| d.is_finite() && *d > 0.0) {
+        let (w, h) = depth_m.size();
+        return Err(format!(
+            "the {w}×{h} depth map has no valid pixel (all zero, negative or not finite)"
+        ));
+    }
+    if sample.is_empty() {
+        return Ok(()); // Valid pixels, all between the sampled ones: too few to judge.
+    }
+    let mid = sample.len() / 2;
+    let median = *sample.select_nth_unstable_by(mid, f64::total_cmp).1;
+    if median > MAX_MEDIAN_DEPTH_M {
+        return Err(format!(
+            "the median depth is {median:.1} m, farther than any depth sensor sees: is the depth \
+             in millimetres, or its depth scale (units per metre) wrong?"
+        ));
+    }
+    if median < MIN_MEDIAN_DEPTH_M {
+        return Err(format!(
+            "the median depth is {median:.2e} m, nearer than any depth sensor sees: is the depth \
+             scale (units per metre) wrong?"
+        ));
+    }
+    Ok(())
+}
+
 /// Depth in metres from a `.npy`: a 2-D float array. Integer arrays are refused, since their
 /// unit cannot be known (millimetres read as metres would be a thousand times off); for why not,
 /// a message saying what to send instead.

@@ -142,18 +142,25 @@ async fn send(client: &Client, url: &str, frame: &Frame) -> Outcome {
         Err(e) => return Outcome::Error(error_kind(&e)),
     };
     let status = resp.status().as_u16();
+    let is_map = resp.headers().contains_key(ROUGHNESS_HEADER);
     match resp.bytes().await {
-        Ok(body) => classify(status, &body),
+        Ok(body) => classify(status, is_map, &body),
         Err(e) => Outcome::Error(error_kind(&e)),
     }
 }
 
-/// The outcome of an answer: 2xx ok, 429/503 refused (by the body's error code), else an
-/// error named `http STATUS CODE`.
-pub fn classify(status: u16, body: &[u8]) -> Outcome {
+/// The header every roughness map from `tre serve` carries.
+const ROUGHNESS_HEADER: &str = "x-roughness-scale-m";
+
+/// The outcome of an answer: a 2xx roughness map (`is_map`: it has the `X-Roughness-Scale-M`
+/// header) ok, any other 2xx an error `not a roughness map` (a server that is not `tre serve`
+/// must not pass for a fast one), 429/503 refused (by the body's error code), else an error
+/// named `http STATUS CODE`.
+pub fn classify(status: u16, is_map: bool, body: &[u8]) -> Outcome {
     let code = || error_code(body).unwrap_or_else(|| "-".into());
     match status {
-        200..=299 => Outcome::Ok,
+        200..=299 if is_map => Outcome::Ok,
+        200..=299 => Outcome::Error(format!("http {status} not a roughness map")),
         429 | 503 => Outcome::Refused(code()),
         _ => Outcome::Error(format!("http {status} {}", code())),
     }
@@ -186,14 +193,24 @@ mod tests {
     #[test]
     fn answers_are_classified_by_status_and_code() {
         let body = br#"{"error":{"code":"overloaded","message":"queue full"}}"#;
-        assert_eq!(classify(200, b"png"), Outcome::Ok);
-        assert_eq!(classify(503, body), Outcome::Refused("overloaded".into()));
-        assert_eq!(classify(429, b"?"), Outcome::Refused("-".into()));
+        assert_eq!(classify(200, true, b"png"), Outcome::Ok);
+        assert_eq!(
+            classify(200, false, b"<html>hello</html>"),
+            Outcome::Error("http 200 not a roughness map".into())
+        );
+        assert_eq!(
+            classify(503, false, body),
+            Outcome::Refused("overloaded".into())
+        );
+        assert_eq!(classify(429, false, b"?"), Outcome::Refused("-".into()));
         let bad = br#"{"error":{"code":"bad_image","message":"truncated"}}"#;
         assert_eq!(
-            classify(422, bad),
+            classify(422, false, bad),
             Outcome::Error("http 422 bad_image".into())
         );
-        assert_eq!(classify(500, b""), Outcome::Error("http 500 -".into()));
+        assert_eq!(
+            classify(500, false, b""),
+            Outcome::Error("http 500 -".into())
+        );
     }
 }

@@ -193,12 +193,21 @@ pub fn decode_image(
     reader.decode().map_err(bad)
 }
 
-/// Decodes depth in metres: a 16-bit grey PNG at `units_per_m`, or a float `.npy`.
+/// Decodes depth in metres: a 16-bit grey PNG at `units_per_m`, or a float `.npy`; depth that
+/// cannot be one ([`io::check_depth`]: no valid pixel, or a median in millimetres) is refused.
 pub fn decode_depth(
     bytes: &[u8],
     units_per_m: f64,
     limits: DecodeLimits,
 ) -> Result<Grid<f64>, ApiError> {
+    let depth = depth_of(bytes, units_per_m, limits)?;
+    io::check_depth(&depth)
+        .map_err(|why| ApiError::new(ErrorCode::BadDepth, format!("depth: {why}")))?;
+    Ok(depth)
+}
+
+/// [`decode_depth`] without the check of its values.
+fn depth_of(bytes: &[u8], units_per_m: f64, limits: DecodeLimits) -> Result<Grid<f64>, ApiError> {
     let bad = |m: String| ApiError::new(ErrorCode::BadDepth, format!("depth: {m}"));
     if bytes.starts_with(b"\x93NUMPY") {
         let array = io::npy::read_npy(Cursor::new(bytes)).map_err(|e| bad(e.to_string()))?;
@@ -510,6 +519,8 @@ mod tests {
             ),
             (npy_bytes(&[0, 3], &[0.0f32; 0]), "it has no pixels"),
             (npy_bytes(&[2, 3, 1], &[1.0f32; 6]), "expected a 2-D array"),
+            (npy_bytes(&[2, 3], &[0.0f32; 6]), "no valid pixel"),
+            (npy_bytes(&[2, 3], &[1500.0f32; 6]), "in millimetres"),
         ] {
             let e = decode_depth(&bytes, 1000.0, LIMITS).unwrap_err();
             assert_eq!(e.code, ErrorCode::BadDepth, "{e}");

@@ -169,7 +169,7 @@ pub fn generate(cfg: &SynthConfig) -> Result<Manifest, SynthError> {
 
 fn check(cfg: &SynthConfig) -> Result<(), SynthError> {
     let (w, h) = cfg.size;
-    if w == 0 || h == 0 || w * h > 4096 * 4096 {
+    if w == 0 || h == 0 || w.checked_mul(h).is_none_or(|n| n > 4096 * 4096) {
         return Err(SynthError::Config(format!(
             "image size {w}×{h} must be between 1×1 and 4096×4096"
         )));
@@ -178,6 +178,15 @@ fn check(cfg: &SynthConfig) -> Result<(), SynthError> {
         return Err(SynthError::Config(
             "need 1° < hfov < 170°, at least one view, cell ≥ 0.5 mm".into(),
         ));
+    }
+    if cfg.scenes == 0 {
+        return Err(SynthError::Config("need at least one scene".into()));
+    }
+    if !(0.0..=1.0).contains(&cfg.test_fraction) {
+        return Err(SynthError::Config(format!(
+            "the test fraction must be between 0 and 1, got {}",
+            cfg.test_fraction
+        )));
     }
     Ok(())
 }
@@ -450,4 +459,34 @@ fn contact_sheet(rows: &[RgbImage]) -> RgbImage {
         image::imageops::replace(&mut sheet, r, 0, 160 * i as i64);
     }
     sheet
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nonsense_settings_are_refused() {
+        assert!(check(&SynthConfig::default()).is_ok());
+        for cfg in [
+            SynthConfig {
+                size: (1 << 32, 1 << 32), // w·h wraps to 0
+                ..SynthConfig::default()
+            },
+            SynthConfig {
+                scenes: 0,
+                ..SynthConfig::default()
+            },
+            SynthConfig {
+                test_fraction: 2.0,
+                ..SynthConfig::default()
+            },
+            SynthConfig {
+                test_fraction: f64::NAN,
+                ..SynthConfig::default()
+            },
+        ] {
+            assert!(check(&cfg).is_err(), "{cfg:?}");
+        }
+    }
 }
