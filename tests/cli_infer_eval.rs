@@ -156,7 +156,8 @@ fn outputs_never_replace_inputs_and_implausible_inputs_are_refused() {
     )
     .unwrap();
     let elsewhere = p("out/r.png");
-    let (jpg, annotated, report) = (p("r.jpg"), p("a"), p("report.json"));
+    let (jpg, annotated, manifest) = (p("r.jpg"), p("a"), p("dataset.json"));
+    std::fs::write(&manifest, b"{}").unwrap();
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (vec!["infer", s(&frame), "-o", s(&frame)], "input"),
         (vec!["infer", s(&frame), "-o", s(&jpg)], ".png"),
@@ -216,8 +217,8 @@ fn outputs_never_replace_inputs_and_implausible_inputs_are_refused() {
             "holds the input",
         ),
         (
-            vec!["eval", "--data", s(dir.path()), "--json", s(&report)],
-            "inside the input",
+            vec!["eval", "--data", s(dir.path()), "--json", s(&manifest)],
+            "over or inside the input",
         ),
         (
             vec![
@@ -247,7 +248,12 @@ fn outputs_never_replace_inputs_and_implausible_inputs_are_refused() {
         original,
         "the frame was written over"
     );
-    assert!(!elsewhere.exists() && !jpg.exists() && !report.exists());
+    assert!(!elsewhere.exists() && !jpg.exists());
+    assert_eq!(
+        std::fs::read(&manifest).unwrap(),
+        b"{}",
+        "the manifest was written over"
+    );
 }
 
 #[test]

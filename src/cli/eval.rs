@@ -104,7 +104,14 @@ impl Eval {
     /// Scores every frame of the split and prints the metrics (and the tables).
     pub fn run(self) -> anyhow::Result<()> {
         if let Some(json) = &self.json {
-            super::refuse_overwriting(&[json], &[&self.data])?;
+            // The dataset's manifest and its scene folders are inputs; a report beside them
+            // is fine.
+            let mut inputs = vec![self.data.join("dataset.json")];
+            if let Ok(entries) = std::fs::read_dir(&self.data) {
+                inputs.extend(entries.flatten().map(|e| e.path()).filter(|p| p.is_dir()));
+            }
+            let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+            super::refuse_overwriting(&[json], &inputs)?;
         }
         let dirs = self.frame_dirs()?;
         let specs = if self.tables {

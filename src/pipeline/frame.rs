@@ -3,6 +3,7 @@
 use std::time::Duration;
 
 use image::RgbImage;
+use rayon::prelude::*;
 
 use super::centroid::{slopes, traversable};
 use super::resize::{resize_nearest, resize_nearest_reusing};
@@ -108,6 +109,24 @@ impl FrameOutput {
         }
     }
 
+    /// Marks no roughness wherever the frame's own depth (`depth_m`, at the frame's size) has
+    /// none: a hole's nearest pixel at the working size may have had depth. (Pixels whose
+    /// nearest working pixel was a hole have no roughness already.) A no-op when the depth is
+    /// of another size or the frame was run at its own size.
+    pub(crate) fn keep_holes(&mut self, depth_m: &Grid<f64>) {
+        if self.working.roughness_m.is_none() || depth_m.size() != self.roughness_m.size() {
+            return;
+        }
+        let r = self.roughness_m.as_mut_slice();
+        r.par_iter_mut()
+            .zip(depth_m.as_slice())
+            .for_each(|(r, &d)| {
+                if !(d.is_finite() && d > 0.0) {
+                    *r = f64::NAN;
+                }
+            });
+    }
+
     /// Hands every map of this output to `spares`, for the next frames.
     pub(crate) fn give_maps(self, spares: &mut Spares) {
         spares.keep(self.roughness_m);
@@ -167,7 +186,16 @@ impl FrameOutput {
         let w = &self.working;
         let roughness = w.roughness_m.as_ref().unwrap_or(&self.roughness_m);
         let tilt = w.stages.as_ref().map(|m| (&m.normals, &w.up_in_cam));
-        self.full_size(&traversable(roughness, tilt, &w.limits), false)
+        let mut full = self.full_size(&traversable(roughness, tilt, &w.limits), false);
+        // No pixel without roughness at the frame's size is traversable (a sensor's hole).
+        for (t, r) in full
+            .as_mut_slice()
+            .iter_mut()
+            .zip(self.roughness_m.as_slice())
+        {
+            *t &= r.is_finite();
+        }
+        full
     }
 }
 

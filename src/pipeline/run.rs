@@ -178,7 +178,11 @@ impl Pipeline {
         let mut out = timings.time("outputs", || {
             let up = input.mounting.up_in_cam();
             let (limits, spares) = (cfg.traversability, &mut self.scratch.spares);
-            FrameOutput::new(size, roughness_m, Some(maps), up, limits, spares)
+            let mut out = FrameOutput::new(size, roughness_m, Some(maps), up, limits, spares);
+            if let (Mode::Rgbd | Mode::Geometric, Some(given)) = (cfg.mode, &input.depth_m) {
+                out.keep_holes(given);
+            }
+            out
         });
         out.timings = timings;
         Ok(out)
