@@ -18,6 +18,18 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// Runs `tre args`, which must fail with a message holding `needle` (and no panic).
+fn fails_saying(args: &[&str], needle: &str) {
+    let o = tre(args);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{args:?} should fail");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+    assert!(
+        err.contains(needle),
+        "{args:?}: expected {needle:?} in {err}"
+    );
+}
+
 fn real(rel: &str) -> PathBuf {
     Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -112,14 +124,7 @@ fn infer_refuses_bad_input_clearly() {
     for (args, needle) in cases {
         let mut all = vec!["infer", "-o", s(&out)];
         all.extend(args.iter().copied());
-        let o = tre(&all);
-        let err = stderr(&o);
-        assert!(!o.status.success(), "{args:?} should fail");
-        assert!(!err.contains("panicked"), "{args:?}: {err}");
-        assert!(
-            err.contains(needle),
-            "{args:?}: expected {needle:?} in {err}"
-        );
+        fails_saying(&all, needle);
     }
 }
 
@@ -234,14 +239,7 @@ fn outputs_never_replace_inputs_and_implausible_inputs_are_refused() {
         ),
     ];
     for (args, needle) in cases {
-        let o = tre(&args);
-        let err = stderr(&o);
-        assert!(!o.status.success(), "{args:?} should fail");
-        assert!(!err.contains("panicked"), "{args:?}: {err}");
-        assert!(
-            err.contains(needle),
-            "{args:?}: expected {needle:?} in {err}"
-        );
+        fails_saying(&args, needle);
     }
     assert_eq!(
         std::fs::read(&frame).unwrap(),

@@ -477,11 +477,14 @@ fn overload_is_refused_at_once_and_accepted_work_finishes() {
     let outcomes = rt().block_on(async {
         let client = reqwest::Client::new();
         let order = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+        // The first request alone, until the worker has started it (its batch is counted):
+        // on a busy machine the burst could otherwise come before the worker takes it from
+        // the queue, and find both taken.
         let tasks: Vec<_> = (0..12)
-            .map(|_| {
+            .map(|i| {
                 let (client, url, frame, order) =
                     (client.clone(), url.clone(), frame.clone(), order.clone());
-                tokio::spawn(async move {
+                let task = tokio::spawn(async move {
                     let resp = client
                         .post(&url)
                         .header("content-type", "image/png")
@@ -497,7 +500,20 @@ fn overload_is_refused_at_once_and_accepted_work_finishes() {
                     let body = resp.bytes().await.unwrap();
                     let finished = order.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
                     (status, retry, body, finished)
-                })
+                });
+                if i == 0 {
+                    let started = std::time::Instant::now();
+                    while !String::from_utf8_lossy(&get(server.addr, "/metrics").1)
+                        .contains("tre_batch_size_count 1")
+                    {
+                        assert!(
+                            started.elapsed().as_secs() < 30,
+                            "the first frame never started"
+                        );
+                        std::thread::sleep(std::time::Duration::from_millis(5));
+                    }
+                }
+                task
             })
             .collect();
         let mut out = Vec::new();
