@@ -126,6 +126,15 @@ fn infer_refuses_bad_input_clearly() {
         all.extend(args.iter().copied());
         fails_saying(&all, needle);
     }
+    // Each cause is said once (the errors' chain once repeated it).
+    let missing = dir.path().join("missing.png");
+    let o = tre(&["infer", s(&missing), "-o", s(&out)]);
+    assert_eq!(
+        stderr(&o).matches("No such file").count(),
+        1,
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// No command writes over its inputs, and inputs that cannot be right (depth with no valid

@@ -20,15 +20,17 @@ pub const ROUGHNESS_PNG_SCALE_M: f64 = 1e-4;
 #[derive(Debug, thiserror::Error)]
 pub enum IoError {
     /// An OS-level read or write failure.
-    #[error("{0}")]
+    #[error(transparent)]
     Os(#[from] std::io::Error),
     /// A file that cannot be opened or read.
-    #[error("{}: {source}", path.display())]
+    // The reason is in the message, not a `source`: a report that prints the chain would
+    // say it twice.
+    #[error("{}: {reason}", path.display())]
     Read {
         /// The file.
         path: PathBuf,
         /// What the OS said.
-        source: std::io::Error,
+        reason: std::io::Error,
     },
     /// A file that cannot be read as the image it should be (unreadable, truncated, …).
     #[error("{path}: not a readable image: {reason}")]
@@ -58,12 +60,12 @@ pub enum IoError {
         reason: String,
     },
     /// Bad intrinsics values.
-    #[error("{path}: {source}")]
+    #[error("{path}: {reason}")]
     Intrinsics {
         /// The file.
         path: PathBuf,
         /// The check that failed.
-        source: GeometryError,
+        reason: GeometryError,
     },
 }
 
@@ -136,17 +138,17 @@ impl CameraFile {
 
 /// Reads and checks a camera JSON file.
 pub fn read_camera(path: &Path) -> Result<(CameraFile, Intrinsics), IoError> {
-    let text = std::fs::read_to_string(path).map_err(|source| IoError::Read {
+    let text = std::fs::read_to_string(path).map_err(|reason| IoError::Read {
         path: path.to_owned(),
-        source,
+        reason,
     })?;
     let cam: CameraFile = serde_json::from_str(&text).map_err(|e| IoError::Camera {
         path: path.to_owned(),
         reason: e.to_string(),
     })?;
-    let k = cam.intrinsics().map_err(|source| IoError::Intrinsics {
+    let k = cam.intrinsics().map_err(|reason| IoError::Intrinsics {
         path: path.to_owned(),
-        source,
+        reason,
     })?;
     Ok((cam, k))
 }
@@ -287,9 +289,9 @@ pub fn read_normals(path: &Path) -> Result<Grid<Vec3>, IoError> {
 
 /// Opens a file for reading, naming it in the error.
 fn open(path: &Path) -> Result<File, IoError> {
-    File::open(path).map_err(|source| IoError::Read {
+    File::open(path).map_err(|reason| IoError::Read {
         path: path.to_owned(),
-        source,
+        reason,
     })
 }
 
@@ -476,9 +478,9 @@ pub fn save(path: &Path, img: &DynamicImage) -> Result<(), IoError> {
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"))
     {
-        let out = BufWriter::new(File::create(path).map_err(|source| IoError::Read {
+        let out = BufWriter::new(File::create(path).map_err(|reason| IoError::Read {
             path: path.to_owned(),
-            source,
+            reason,
         })?);
         return encode_png(img, out).map_err(err);
     }
