@@ -106,8 +106,12 @@ fn infer_refuses_bad_input_clearly() {
     .unwrap();
     let garbage = dir.path().join("garbage.png");
     std::fs::write(&garbage, b"not a png at all").unwrap();
-    let cases: [(Vec<&str>, &str); 3] = [
+    let cases: [(Vec<&str>, &str); 4] = [
         (vec![s(&rgb), "--depth", s(&cut_path)], "320×240"),
+        (
+            vec![s(&rgb), "--depth", s(&cut_path), "--method", "end-to-end"],
+            "RGB alone",
+        ),
         (vec![s(&garbage), "--mode", "rgb"], "not a readable image"),
         (
             vec![

@@ -7,7 +7,7 @@ use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use image::DynamicImage;
 
-use super::options::{ModeArg, StageArgs};
+use super::options::{MethodArg, ModeArg, StageArgs};
 use crate::geometry::{Grid, Mounting};
 use crate::io;
 use crate::pipeline::{FrameInput, FrameOutput};
@@ -61,6 +61,12 @@ impl Infer {
     /// Reads the frame, runs the pipeline and writes the roughness map and its preview.
     pub fn run(self) -> anyhow::Result<()> {
         self.check_outputs()?;
+        if self.stages.method == MethodArg::EndToEnd && self.depth.is_some() {
+            bail!(
+                "the end-to-end baseline runs from RGB alone, so --depth would be ignored: drop \
+                 it, or use --method pipeline"
+            );
+        }
         let mode = self.mode()?;
         let cfg = self.stages.config(mode);
         let frame = self.read_frame()?;
