@@ -57,11 +57,6 @@ impl Annotate {
             bail!("--depth-scale must be positive, got {scale}");
         }
         let depth = io::read_depth(&self.depth, scale)?;
-        io::check_depth(&depth)
-            .map_err(anyhow::Error::msg)
-            .with_context(|| {
-                format!("depth {} at {scale} units per metre", self.depth.display())
-            })?;
         if let Err(why) = cam.check_size(depth.size()) {
             bail!(
                 "camera {} and depth {}: {why}",
@@ -107,28 +102,18 @@ impl Annotate {
         })
     }
 
-    /// The files [`Annotate::write`] writes into the output folder.
-    const OUTPUTS: [&str; 6] = [
-        "roughness.png",
-        "roughness.npy",
-        "boundary.png",
-        "edge_weight.npy",
-        "segments.npy",
-        "preview.png",
-    ];
-
-    /// Refuses, before any work, an output folder that holds an input (its outputs would mix
-    /// with the data there, and a `tre synth` view's ground truth has the same file names) or
-    /// whose outputs would replace an input.
+    /// Refuses, before any work, an output folder that holds an input: its outputs would mix
+    /// with the data there (a `tre synth` view's ground truth has the same file names), and any
+    /// output that would replace an input lies in it.
     fn check_outputs(&self) -> anyhow::Result<()> {
-        let inputs: Vec<&Path> = [Some(&self.depth), Some(&self.camera)]
-            .into_iter()
-            .chain([self.normals.as_ref(), self.labels.as_ref()])
-            .flatten()
-            .map(PathBuf::as_path)
-            .collect();
+        let inputs = [
+            Some(&self.depth),
+            Some(&self.camera),
+            self.normals.as_ref(),
+            self.labels.as_ref(),
+        ];
         let out = super::resolved(&self.out);
-        for input in &inputs {
+        for input in inputs.into_iter().flatten() {
             if super::resolved(input).parent() == Some(out.as_path()) {
                 bail!(
                     "--out {} holds the input {}: write the annotation to a folder of its own",
@@ -137,18 +122,13 @@ impl Annotate {
                 );
             }
         }
-        let outputs: Vec<PathBuf> = Self::OUTPUTS.iter().map(|f| self.out.join(f)).collect();
-        let outputs: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
-        super::refuse_overwriting(&outputs, &inputs)
+        Ok(())
     }
 
     fn write(&self, ann: &Annotation) -> anyhow::Result<()> {
         let out = &self.out;
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-        let p = |name: &str| -> PathBuf {
-            debug_assert!(Self::OUTPUTS.contains(&name), "{name} is not in OUTPUTS");
-            Path::new(out).join(name)
-        };
+        let p = |name: &str| -> PathBuf { Path::new(out).join(name) };
         io::save(
             &p("roughness.png"),
             &image::DynamicImage::ImageLumaA16(io::roughness_png16(&ann.roughness_m)),

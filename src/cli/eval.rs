@@ -182,11 +182,7 @@ impl Eval {
             frames,
             rows,
         };
-        let text = serde_json::to_string_pretty(&report)?;
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        }
-        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+        super::write_file(path, &serde_json::to_string_pretty(&report)?)
     }
 }
 

@@ -8,7 +8,7 @@ use clap::{Args, ValueEnum};
 use image::DynamicImage;
 
 use super::options::{MethodArg, ModeArg, StageArgs};
-use crate::geometry::{Grid, Mounting};
+use crate::geometry::Mounting;
 use crate::io;
 use crate::pipeline::{FrameInput, FrameOutput};
 
@@ -137,38 +137,27 @@ impl Infer {
             None => None,
         };
         let depth_m = match &self.depth {
-            Some(path) => {
-                let depth = io::read_depth(path, scale)?;
-                io::check_depth(&depth)
-                    .map_err(anyhow::Error::msg)
-                    .with_context(|| {
-                        format!("depth {} at {scale} units per metre", path.display())
-                    })?;
-                Some(depth)
-            }
+            Some(path) => Some(io::read_depth(path, scale)?),
             None => None,
         };
         let mounting = match &cam {
             Some((c, _)) => c.mounting().context("camera pitch or height")?,
             None => Mounting::default(),
         };
-        let size = match (&rgb, &depth_m) {
-            (Some(i), _) => Some((i.width() as usize, i.height() as usize)),
-            (None, d) => d.as_ref().map(Grid::size),
+        let frame = FrameInput {
+            rgb,
+            depth_m,
+            intrinsics: cam.as_ref().map(|&(_, k)| k),
+            mounting,
         };
-        if let (Some((c, k)), Some(path), Some((w, h))) = (&cam, &self.camera, size) {
+        if let (Some((c, k)), Some(path), Some((w, h))) = (&cam, &self.camera, frame.size()) {
             let named = || format!("camera {}", path.display());
             c.check_size((w, h))
                 .map_err(anyhow::Error::msg)
                 .with_context(named)?;
             k.check_for(w, h).with_context(named)?;
         }
-        Ok(FrameInput {
-            rgb,
-            depth_m,
-            intrinsics: cam.map(|(_, k)| k),
-            mounting,
-        })
+        Ok(frame)
     }
 
     /// Writes the roughness map in the chosen format and the preview beside it.

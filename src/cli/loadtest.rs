@@ -199,10 +199,10 @@ impl Loadtest {
     /// Writes the JSON and the plot if asked for.
     fn write(&self, json: &str, plot: impl FnOnce() -> String) -> anyhow::Result<()> {
         if let Some(path) = &self.json {
-            write_file(path, json)?;
+            super::write_file(path, json)?;
         }
         if let Some(path) = &self.plot {
-            write_file(path, &plot())?;
+            super::write_file(path, &plot())?;
         }
         Ok(())
     }
@@ -219,13 +219,6 @@ fn no_result_is_a_failure(ok: u64, requests: u64) -> anyhow::Result<()> {
         );
     }
     Ok(())
-}
-
-fn write_file(path: &Path, text: &str) -> anyhow::Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
-    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }
 
 fn read_report(path: &Path) -> anyhow::Result<Report> {

@@ -82,6 +82,15 @@ fn finite_sorted(map: &crate::geometry::Grid<f64>) -> Vec<f64> {
     v
 }
 
+/// Writes `text` to `path`, creating its folder if missing.
+fn write_file(path: &std::path::Path, text: &str) -> anyhow::Result<()> {
+    use anyhow::Context;
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
 /// `path` as the file system names it: its longest existing ancestor made canonical, with the
 /// rest appended (so that `out.png` and `./dir/../out.png` compare equal before either exists).
 fn resolved(path: &std::path::Path) -> std::path::PathBuf {

@@ -8,7 +8,7 @@ use std::fs::File;
 use std::io::{BufReader, BufWriter};
 use std::path::{Path, PathBuf};
 
-use image::{DynamicImage, ImageBuffer, ImageReader, LumaA};
+use image::{DynamicImage, ImageBuffer, LumaA};
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{GeometryError, Grid, Intrinsics, Mounting, Vec3};
@@ -160,13 +160,14 @@ pub fn read_image(path: &Path) -> Result<DynamicImage, IoError> {
         path: path.to_owned(),
         reason,
     };
-    let reader = ImageReader::new(BufReader::new(open(path)?))
-        .with_guessed_format()
-        .map_err(|e| failed(e.to_string()))?;
-    if reader.format() == Some(image::ImageFormat::Jpeg) {
-        return decode_jpeg(&std::fs::read(path)?).map_err(failed);
+    let bytes = std::fs::read(path).map_err(|reason| IoError::Read {
+        path: path.to_owned(),
+        reason,
+    })?;
+    if image::guess_format(&bytes).ok() == Some(image::ImageFormat::Jpeg) {
+        return decode_jpeg(&bytes).map_err(failed);
     }
-    reader.decode().map_err(|e| failed(e.to_string()))
+    image::load_from_memory(&bytes).map_err(|e| failed(e.to_string()))
 }
 
 /// Decodes a JPEG, refusing truncated or corrupt data. (`image`'s own JPEG decoding is lenient,
@@ -217,22 +218,31 @@ pub fn decode_jpeg(bytes: &[u8]) -> Result<DynamicImage, String> {
 }
 
 /// Reads depth in metres: a 16-bit grey PNG divided by `units_per_m` (0 = no data), or a float
-/// `.npy` already in metres (0 or NaN = no data).
+/// `.npy` already in metres (0 or NaN = no data). Depth that cannot be one ([`check_depth`]:
+/// no valid pixel, or a median in millimetres) is refused.
 pub fn read_depth(path: &Path, units_per_m: f64) -> Result<Grid<f64>, IoError> {
-    if is_npy(path) {
-        return npy_depth(npy::read_npy(BufReader::new(open(path)?))?)
-            .map_err(|why| IoError::Npy(format!("{}: {why}", path.display())));
-    }
-    match read_image(path)? {
-        DynamicImage::ImageLuma16(img) => Ok(depth_from_luma16(img, units_per_m)),
-        other => Err(IoError::ImageKind {
-            path: path.to_owned(),
-            reason: format!(
-                "depth must be a 16-bit grey PNG or a float .npy, got {:?}",
-                other.color()
-            ),
-        }),
-    }
+    let depth = if is_npy(path) {
+        npy_depth(npy::read_npy(BufReader::new(open(path)?))?)
+            .map_err(|why| IoError::Npy(format!("{}: {why}", path.display())))?
+    } else {
+        match read_image(path)? {
+            DynamicImage::ImageLuma16(img) => depth_from_luma16(img, units_per_m),
+            other => {
+                return Err(IoError::ImageKind {
+                    path: path.to_owned(),
+                    reason: format!(
+                        "depth must be a 16-bit grey PNG or a float .npy, got {:?}",
+                        other.color()
+                    ),
+                })
+            }
+        }
+    };
+    check_depth(&depth).map_err(|why| IoError::ImageKind {
+        path: path.to_owned(),
+        reason: format!("{why} (read at {units_per_m} units per metre)"),
+    })?;
+    Ok(depth)
 }
 
 /// Depth in metres from a decoded 16-bit grey image at `units_per_m` (0 = no data).

@@ -310,25 +310,13 @@ async fn read_multipart(mut m: Multipart) -> Result<FrameRequest, ApiError> {
             .bytes()
             .await
             .map_err(|e| bad(format!("multipart field {name:?}: {}", e.body_text())))?;
-        let given = match name.as_str() {
-            "rgb" => frame.rgb.is_some(),
-            "depth" => frame.depth.is_some(),
-            "camera" => frame.camera.is_some(),
-            _ => false,
-        };
-        if given {
-            return Err(bad(format!(
-                "multipart: the {name:?} part is given twice; send each part once"
-            )));
-        }
         match name.as_str() {
-            "rgb" => frame.rgb = Some(data.to_vec()),
-            "depth" => frame.depth = Some(data.to_vec()),
-            "camera" => {
-                let cam: CameraFile = serde_json::from_slice(&data)
-                    .map_err(|e| ApiError::new(ErrorCode::BadCamera, format!("camera: not valid camera JSON ({{fx, fy, cx, cy, pitch_deg?, height_m?, depth_scale?}}): {e}")))?;
-                frame.camera = Some(cam);
-            }
+            "rgb" => set_once(&mut frame.rgb, &name, || Ok(data.to_vec()))?,
+            "depth" => set_once(&mut frame.depth, &name, || Ok(data.to_vec()))?,
+            "camera" => set_once(&mut frame.camera, &name, || {
+                serde_json::from_slice::<CameraFile>(&data)
+                    .map_err(|e| ApiError::new(ErrorCode::BadCamera, format!("camera: not valid camera JSON ({{fx, fy, cx, cy, pitch_deg?, height_m?, depth_scale?}}): {e}")))
+            })?,
             other => {
                 return Err(bad(format!(
                     "multipart: unknown field {other:?} (rgb, depth, camera)"
@@ -340,6 +328,21 @@ async fn read_multipart(mut m: Multipart) -> Result<FrameRequest, ApiError> {
         return Err(bad("multipart: give an `rgb` part, a `depth` part or both"));
     }
     Ok(frame)
+}
+
+/// Fills the slot of multipart part `name` with `value()`, unless the part came before.
+fn set_once<T>(
+    slot: &mut Option<T>,
+    name: &str,
+    value: impl FnOnce() -> Result<T, ApiError>,
+) -> Result<(), ApiError> {
+    if slot.is_some() {
+        return Err(bad(format!(
+            "multipart: the {name:?} part is given twice; send each part once"
+        )));
+    }
+    *slot = Some(value()?);
+    Ok(())
 }
 
 /// `Server-Timing` value: one entry per stage, milliseconds.

@@ -274,26 +274,23 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
         Some(b) => Some(decode_depth(b, scale, limits)?),
         None => None,
     };
-    let size = match (&rgb, &depth_m) {
-        (Some(i), _) => (i.width() as usize, i.height() as usize),
-        (None, Some(d)) => d.size(),
-        (None, None) => {
-            return Err(ApiError::new(
-                ErrorCode::BadRequest,
-                "the frame has neither an image nor depth",
-            ))
-        }
+    let frame = FrameInput {
+        rgb,
+        depth_m,
+        intrinsics,
+        mounting,
+    };
+    let Some(size) = frame.size() else {
+        return Err(ApiError::new(
+            ErrorCode::BadRequest,
+            "the frame has neither an image nor depth",
+        ));
     };
     if let Some(c) = &req.camera {
         c.check_size(size)
             .map_err(|why| ApiError::new(ErrorCode::BadCamera, format!("camera: {why}")))?;
     }
-    Ok(FrameInput {
-        rgb,
-        depth_m,
-        intrinsics,
-        mounting,
-    })
+    Ok(frame)
 }
 
 /// What a frame gets for the settings it does not choose itself (`tre serve --normals`,
