@@ -240,7 +240,11 @@ pub fn read_depth(path: &Path, units_per_m: f64) -> Result<Grid<f64>, IoError> {
     };
     check_depth(&depth).map_err(|why| IoError::ImageKind {
         path: path.to_owned(),
-        reason: format!("{why} (read at {units_per_m} units per metre)"),
+        reason: if is_npy(path) {
+            why
+        } else {
+            format!("{why} (read at {units_per_m} units per metre)")
+        },
     })?;
     Ok(depth)
 }
