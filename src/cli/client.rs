@@ -432,7 +432,7 @@ impl Sink {
     fn job_for(&mut self, ev: Event) -> Option<Job> {
         let received_us = unix_us(SystemTime::now());
         let (sequence, rest) = match ev {
-            Event::Result(r) => return Some(self.result_job(r, received_us)),
+            Event::Result(r) => return Some(self.result_job(r)),
             Event::Dropped {
                 sequence,
                 dropped_total,
@@ -463,8 +463,8 @@ impl Sink {
         Some(Job::Row(row))
     }
 
-    /// A result's map and row; its send time is the timestamp it echoes (stamped at sending).
-    fn result_job(&mut self, r: Box<FrameResult>, received_us: i64) -> Job {
+    /// A result's map and row, with the send and receive times its latency runs between.
+    fn result_job(&mut self, r: Box<FrameResult>) -> Job {
         let (name, _) = self.take_entry(r.sequence);
         self.stats.result(&r);
         let rest = format!(
@@ -473,7 +473,13 @@ impl Sink {
             r.server_latency.as_secs_f64() * 1e3,
             r.dropped_total
         );
-        let line = csv_row(r.sequence, &name, Some(r.timestamp_us), received_us, &rest);
+        let line = csv_row(
+            r.sequence,
+            &name,
+            Some(r.sent_unix_us),
+            r.received_unix_us,
+            &rest,
+        );
         let path = self.out.join(format!("{}_{name}.png", r.sequence));
         Job::Map {
             path,

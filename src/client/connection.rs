@@ -15,6 +15,7 @@ use tokio_tungstenite::tungstenite::{self, Message};
 use super::config::{ClientConfig, Endpoints};
 use super::event::{Event, FrameResult, LostReason, ServerInfo};
 use super::proto::{self, Incoming};
+use super::session::Stamp;
 use super::ClientError;
 
 type Ws =
@@ -27,8 +28,8 @@ pub(crate) struct Outgoing {
     pub sequence: u64,
     /// The encoded `ClientMessage`.
     pub bytes: Vec<u8>,
-    /// When `send` was called (the start of its latency).
-    pub sent: Instant,
+    /// When `send` stamped it (the start of its latency).
+    pub sent: Stamp,
 }
 
 /// What the sending half sees of the link.
@@ -68,7 +69,7 @@ pub(crate) struct Link {
     events: mpsc::Sender<Event>,
     state: watch::Sender<LinkState>,
     /// Send time of each frame awaiting its answer, by sequence number (so also by age).
-    pending: BTreeMap<u64, Instant>,
+    pending: BTreeMap<u64, Stamp>,
 }
 
 impl Link {
@@ -292,7 +293,7 @@ impl Link {
                     );
                     return;
                 };
-                let event = match FrameResult::try_from((wire, sent.elapsed())) {
+                let event = match FrameResult::try_from((wire, sent)) {
                     Ok(r) => Event::Result(Box::new(r)),
                     Err(e) => Event::Error {
                         sequence: Some(sequence),
@@ -336,7 +337,7 @@ impl Link {
     /// When the oldest frame awaiting an answer times out.
     fn next_expiry(&self) -> Option<Instant> {
         let (_, sent) = self.pending.first_key_value()?;
-        Some(*sent + self.shared.cfg.frame_timeout)
+        Some(sent.at + self.shared.cfg.frame_timeout)
     }
 
     /// Reports every frame past its timeout lost.

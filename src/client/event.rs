@@ -69,8 +69,15 @@ pub struct FrameResult {
     pub traversable: Option<Grid<bool>>,
     /// Wall time of each pipeline stage on the server.
     pub timings: Vec<(String, Duration)>,
-    /// Round trip measured by the client, from sending to the decoded result.
+    /// Round trip measured by the client: from [`FrameSender::send`](super::FrameSender::send)
+    /// stamping the frame to its result decoded (`received_unix_us − sent_unix_us`, measured
+    /// on the monotonic clock).
     pub latency: Duration,
+    /// When `send` stamped the frame, microseconds since the Unix epoch (the start of
+    /// `latency`; also the frame's timestamp unless [`Frame::timestamp_us`] gave one).
+    pub sent_unix_us: i64,
+    /// When the result was decoded, microseconds since the Unix epoch (the end of `latency`).
+    pub received_unix_us: i64,
     /// Time from the frame's arrival at the server to its result.
     pub server_latency: Duration,
     /// Frames of this connection the server has dropped so far (latest frame wins).

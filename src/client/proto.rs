@@ -9,6 +9,7 @@ use prost::Message;
 
 use super::config::{ClientConfig, Format};
 use super::event::{Frame, FrameResult, Roughness, ServerInfo};
+use super::session::Stamp;
 use super::ClientError;
 use crate::geometry::Grid;
 use crate::io::{self, CameraFile, ROUGHNESS_PNG_SCALE_M};
@@ -152,11 +153,12 @@ pub(crate) fn decode_server(bytes: &[u8]) -> Result<Incoming, ClientError> {
     Incoming::try_from(msg)
 }
 
-impl TryFrom<(WireResult, Duration)> for FrameResult {
+impl TryFrom<(WireResult, Stamp)> for FrameResult {
     type Error = ClientError;
 
-    /// The result with its map decoded, `latency` being the client's round trip.
-    fn try_from((WireResult(r), latency): (WireResult, Duration)) -> Result<Self, ClientError> {
+    /// The result with its map decoded, its frame having been stamped `sent`: the latency runs
+    /// to the end of the decoding.
+    fn try_from((WireResult(r), sent): (WireResult, Stamp)) -> Result<Self, ClientError> {
         let sequence = r.sequence;
         let bad = |reason: String| ClientError::BadResult { sequence, reason };
         let (w, h) = (r.width as usize, r.height as usize);
@@ -186,6 +188,8 @@ impl TryFrom<(WireResult, Duration)> for FrameResult {
             .iter()
             .map(|t| Ok((t.stage.clone(), ms("timings", t.ms)?)))
             .collect::<Result<_, ClientError>>()?;
+        let server_latency = ms("latency_ms", r.latency_ms)?;
+        let received = Stamp::now();
         Ok(Self {
             sequence,
             timestamp_us: r.timestamp_us,
@@ -196,8 +200,10 @@ impl TryFrom<(WireResult, Duration)> for FrameResult {
             format,
             traversable,
             timings,
-            latency,
-            server_latency: ms("latency_ms", r.latency_ms)?,
+            latency: received.at.saturating_duration_since(sent.at),
+            sent_unix_us: sent.unix_us,
+            received_unix_us: received.unix_us,
+            server_latency,
             dropped_total: r.dropped_total,
         })
     }
@@ -293,7 +299,7 @@ mod tests {
             .flat_map(|&v| (v as f32).to_le_bytes())
             .collect();
         for (format, bytes) in [(pb::Format::Png16, png), (pb::Format::F32, f32s)] {
-            let r = FrameResult::try_from((wire(format, bytes, (3, 2)), Duration::ZERO)).unwrap();
+            let r = FrameResult::try_from((wire(format, bytes, (3, 2)), Stamp::now())).unwrap();
             let m = r.roughness_m().unwrap();
             for (got, want) in m.as_slice().iter().zip(truth.as_slice()) {
                 assert!(
@@ -307,7 +313,7 @@ mod tests {
 
     #[test]
     fn a_map_of_the_wrong_size_names_the_frame() {
-        let e = FrameResult::try_from((wire(pb::Format::F32, vec![0; 8], (3, 2)), Duration::ZERO))
+        let e = FrameResult::try_from((wire(pb::Format::F32, vec![0; 8], (3, 2)), Stamp::now()))
             .unwrap_err();
         assert!(
             matches!(&e, ClientError::BadResult { sequence: 7, reason } if reason.contains("3×2")),
@@ -315,7 +321,7 @@ mod tests {
         );
         let e = FrameResult::try_from((
             wire(pb::Format::Png16, b"not a png".to_vec(), (3, 2)),
-            Duration::ZERO,
+            Stamp::now(),
         ))
         .unwrap_err();
         assert!(matches!(e, ClientError::BadResult { sequence: 7, .. }));

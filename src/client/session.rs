@@ -135,7 +135,8 @@ impl FrameSender {
     pub async fn send(&mut self, frame: Frame) -> Result<u64, ClientError> {
         self.pace().await?;
         let sequence = self.next_sequence;
-        let bytes = proto::frame(frame, sequence, unix_us(SystemTime::now()));
+        let sent = Stamp::now();
+        let bytes = proto::frame(frame, sequence, sent.unix_us);
         let limit = self.state.borrow().max_message_bytes;
         if limit > 0 && bytes.len() > limit {
             return Err(ClientError::FrameTooLarge {
@@ -146,7 +147,7 @@ impl FrameSender {
         let out = Outgoing {
             sequence,
             bytes,
-            sent: Instant::now(),
+            sent,
         };
         self.tx.send(out).await.map_err(|_| ClientError::Closed)?;
         self.next_sequence += 1;
@@ -193,6 +194,25 @@ impl futures_util::Stream for Events {
 
     fn poll_next(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Event>> {
         self.rx.poll_recv(cx)
+    }
+}
+
+/// One moment on both clocks: the monotonic one for durations, the wall clock for logs.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Stamp {
+    /// Monotonic.
+    pub at: Instant,
+    /// Wall clock, microseconds since the Unix epoch.
+    pub unix_us: i64,
+}
+
+impl Stamp {
+    /// Now.
+    pub fn now() -> Self {
+        Self {
+            at: Instant::now(),
+            unix_us: unix_us(SystemTime::now()),
+        }
     }
 }
 
