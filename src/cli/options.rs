@@ -140,6 +140,7 @@ impl StageArgs {
         if configs.iter().all(|c| c.networks().is_empty()) {
             return Ok(Pipeline::new(None));
         }
+        super::check_threads(None, self.ort_threads, super::cores())?;
         let session = SessionConfig {
             intra_threads: self.ort_threads,
             ..SessionConfig::default()

@@ -88,7 +88,8 @@ pub struct Serve {
 impl Serve {
     /// The checked service configuration.
     pub fn config(&self) -> anyhow::Result<ServeConfig> {
-        let cores = std::thread::available_parallelism().map_or(1, usize::from);
+        let cores = super::cores();
+        super::check_threads(Some(self.workers), self.ort_threads, cores)?;
         let workers = if self.workers == 0 {
             cores
         } else {
