@@ -360,6 +360,12 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
                 "bad_camera",
             ),
             (
+                // Ignored, it would leave the default 60° in place of the 30° meant.
+                "the pitch under another name",
+                with_camera(r#"{"fx": 500, "fy": 500, "cx": 320, "cy": 240, "pitch": 30}"#),
+                "bad_camera",
+            ),
+            (
                 "nonsense mounting",
                 with_camera(r#"{"fx": 500, "fy": 500, "cx": 320, "cy": 240, "height_m": -3}"#),
                 "bad_camera",

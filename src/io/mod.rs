@@ -70,7 +70,25 @@ pub enum IoError {
 }
 
 /// A camera JSON file: intrinsics plus optional size and depth scale, as in `shared/data`.
+///
+/// Other keys are allowed (files carry notes such as `source` or `sensor`), except ones that
+/// look like a misspelt parameter (another case or separator, such as `Depth_Scale`) or like
+/// the pitch or the camera height under another name (`pitch`, `tilt_rad`, `camera_height`):
+/// ignoring those would leave a default in place of the value meant, so they are errors.
+///
+/// ```
+/// use tre::io::CameraFile;
+/// let ok: CameraFile = serde_json::from_str(
+///     r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "pitch_deg": 30, "sensor": "Kinect"}"#,
+/// ).unwrap();
+/// assert_eq!(ok.pitch_deg, Some(30.0));
+/// let e = serde_json::from_str::<CameraFile>(
+///     r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "pitch": 30}"#,
+/// ).unwrap_err();
+/// assert!(e.to_string().contains("pitch_deg"), "{e}");
+/// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "CameraFileKeys")]
 pub struct CameraFile {
     /// Focal length x, pixels.
     pub fx: f64,
@@ -95,6 +113,94 @@ pub struct CameraFile {
     /// Camera height above the ground, metres, if stated (default 1 m).
     #[serde(default)]
     pub height_m: Option<f64>,
+}
+
+/// [`CameraFile`] as written, with the keys it does not know.
+#[derive(Deserialize)]
+struct CameraFileKeys {
+    fx: f64,
+    fy: f64,
+    cx: f64,
+    cy: f64,
+    #[serde(default)]
+    width: Option<usize>,
+    #[serde(default)]
+    height: Option<usize>,
+    #[serde(default)]
+    depth_scale: Option<f64>,
+    #[serde(default)]
+    pitch_deg: Option<f64>,
+    #[serde(default)]
+    height_m: Option<f64>,
+    #[serde(flatten)]
+    other: std::collections::BTreeMap<String, serde::de::IgnoredAny>,
+}
+
+/// The keys of a camera file.
+const CAMERA_KEYS: [&str; 9] = [
+    "fx",
+    "fy",
+    "cx",
+    "cy",
+    "width",
+    "height",
+    "depth_scale",
+    "pitch_deg",
+    "height_m",
+];
+
+/// Why an unknown camera key must not be ignored, if it must not.
+fn misspelt_camera_key(key: &str) -> Option<String> {
+    let bare = |k: &str| -> String {
+        k.chars()
+            .filter(char::is_ascii_alphanumeric)
+            .map(|c| c.to_ascii_lowercase())
+            .collect()
+    };
+    let k = bare(key);
+    if let Some(known) = CAMERA_KEYS.iter().find(|c| bare(c) == k) {
+        return Some(format!("camera key {key:?}: did you mean {known:?}?"));
+    }
+    if k.starts_with("pitch") || k.starts_with("tilt") {
+        return Some(format!(
+            "camera key {key:?}: the pitch is \"pitch_deg\", degrees below the horizon"
+        ));
+    }
+    let height = [
+        "height",
+        "cameraheight",
+        "camheight",
+        "mountheight",
+        "mountingheight",
+    ];
+    if height.iter().any(|h| k.starts_with(h)) {
+        return Some(format!(
+            "camera key {key:?}: the camera's height is \"height_m\", metres above the ground \
+             (\"height\" is the image's, in pixels)"
+        ));
+    }
+    None
+}
+
+impl TryFrom<CameraFileKeys> for CameraFile {
+    type Error = String;
+
+    fn try_from(c: CameraFileKeys) -> Result<Self, String> {
+        if let Some(e) = c.other.keys().find_map(|k| misspelt_camera_key(k)) {
+            return Err(e);
+        }
+        Ok(Self {
+            fx: c.fx,
+            fy: c.fy,
+            cx: c.cx,
+            cy: c.cy,
+            width: c.width,
+            height: c.height,
+            depth_scale: c.depth_scale,
+            pitch_deg: c.pitch_deg,
+            height_m: c.height_m,
+        })
+    }
 }
 
 impl CameraFile {
