@@ -246,6 +246,27 @@ fn bad_messages_are_errors_and_the_stream_goes_on() {
         };
         send(&mut ws, bad_cam.encode_to_vec()).await;
         expect_error(next(&mut ws).await, "bad_camera");
+        // Intrinsics stated for 640×480 with a 64×48 frame would misplace every point.
+        let other_size = pb::ClientMessage {
+            msg: Some(pb::client_message::Msg::Frame(pb::Frame {
+                sequence: 7,
+                image: small.clone(),
+                camera: Some(pb::Camera {
+                    fx: 525.0,
+                    fy: 525.0,
+                    cx: 32.0,
+                    cy: 24.0,
+                    width: Some(640),
+                    height: Some(480),
+                    ..Default::default()
+                }),
+                ..Default::default()
+            })),
+        };
+        send(&mut ws, other_size.encode_to_vec()).await;
+        let e = expect_error(next(&mut ws).await, "bad_camera");
+        assert_eq!(e.sequence, Some(7));
+        assert!(e.message.contains("640×480"), "{}", e.message);
         // After all that, the same stream still answers a good frame.
         send(&mut ws, frame(10, small.clone())).await;
         match next(&mut ws).await {

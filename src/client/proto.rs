@@ -26,6 +26,8 @@ impl From<&CameraFile> for pb::Camera {
             pitch_deg: c.pitch_deg,
             height_m: c.height_m,
             depth_scale: c.depth_scale,
+            width: c.width.map(|w| u32::try_from(w).unwrap_or(u32::MAX)),
+            height: c.height.map(|h| u32::try_from(h).unwrap_or(u32::MAX)),
         }
     }
 }
