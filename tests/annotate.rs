@@ -345,6 +345,43 @@ fn all_invalid_depth_is_a_clear_error() {
 }
 
 #[test]
+fn normals_missing_where_there_is_depth_are_an_error_unless_those_pixels_are_void() {
+    let k = Intrinsics::new(500.0, 500.0, 10.0, 10.0).unwrap();
+    let depth = Grid::new(20, 20, 1.0);
+    let mut normals = Grid::new(20, 20, Vec3::new(0.0, 0.0, -1.0));
+    normals[(3, 2)] = Vec3::new(f64::NAN, 0.0, 0.0);
+    normals[(5, 7)] = Vec3::zeros();
+    let run = |labels: Option<&Grid<u32>>| {
+        annotate(
+            &AnnotateInput {
+                depth_m: &depth,
+                intrinsics: &k,
+                normals: Some(&normals),
+                labels,
+            },
+            &AnnotateConfig::default(),
+        )
+    };
+    let err = run(None).unwrap_err();
+    assert_eq!(
+        err,
+        RoughnessError::MissingNormals {
+            missing: 2,
+            valid: 400,
+            first: (3, 2)
+        }
+    );
+    assert!(err.to_string().contains("2 of the 400 pixels"), "{err}");
+    // Marked void, those pixels have no data, and the rest is annotated with the normals given.
+    let mut labels = Grid::new(20, 20, 1u32);
+    labels[(3, 2)] = 0;
+    labels[(5, 7)] = 0;
+    let ann = run(Some(&labels)).unwrap();
+    assert!(ann.roughness_m[(3, 2)].is_nan() && ann.roughness_m[(5, 7)].is_nan());
+    assert!(ann.roughness_m[(10, 10)] < 1e-9);
+}
+
+#[test]
 fn labels_of_another_size_are_a_clear_error() {
     let k = Intrinsics::new(500.0, 500.0, 10.0, 10.0).unwrap();
     let depth = Grid::new(20, 20, 1.0);

@@ -372,7 +372,16 @@ pub fn depth_from_luma16(
 /// Reads labels: an 8- or 16-bit grey PNG or an integer `.npy` (0 = void).
 pub fn read_labels(path: &Path) -> Result<Grid<u32>, IoError> {
     if is_npy(path) {
-        return Ok(read_npy_grid(path)?.map(|&v| v.max(0.0) as u32));
+        let a = npy::read_npy(BufReader::new(open(path)?))?;
+        let npy_error = |why: String| IoError::Npy(format!("{}: {why}", path.display()));
+        if a.is_float() {
+            return Err(npy_error(format!(
+                "labels must be an integer .npy (class ids, 0 = void), got dtype {}",
+                a.dtype
+            )));
+        }
+        // Negative ids (often "ignore") are void too.
+        return Ok(npy_grid(a).map_err(npy_error)?.map(|&v| v.max(0.0) as u32));
     }
     let img = read_image(path)?;
     let (w, h) = (img.width() as usize, img.height() as usize);
@@ -418,11 +427,6 @@ fn open(path: &Path) -> Result<File, IoError> {
 fn is_npy(path: &Path) -> bool {
     path.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("npy"))
-}
-
-fn read_npy_grid(path: &Path) -> Result<Grid<f64>, IoError> {
-    npy_grid(npy::read_npy(BufReader::new(open(path)?))?)
-        .map_err(|why| IoError::Npy(format!("{}: {why}", path.display())))
 }
 
 /// Nearest median depth any sensor gives, metres: below it the depth scale is wrong.
@@ -672,4 +676,25 @@ pub fn write_ply(
     }
     out.flush()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn labels_are_integer_ids_and_negative_ones_are_void() {
+        let dir = tempfile::tempdir().unwrap();
+        let ints = dir.path().join("labels.npy");
+        write_npy_u32(&ints, &Grid::from_vec(2, 1, vec![0, 7]).unwrap()).unwrap();
+        assert_eq!(read_labels(&ints).unwrap().as_slice(), &[0, 7]);
+        let signed = dir.path().join("signed.npy");
+        npy::write_npy(File::create(&signed).unwrap(), &[1, 2], &[-1i32, 3]).unwrap();
+        assert_eq!(read_labels(&signed).unwrap().as_slice(), &[0, 3]);
+        // Floats would be truncated (0.7 → 0: void): refused.
+        let floats = dir.path().join("floats.npy");
+        write_npy_f32(&floats, &Grid::from_vec(2, 1, vec![0.7, 2.0]).unwrap()).unwrap();
+        let e = read_labels(&floats).unwrap_err().to_string();
+        assert!(e.contains("integer") && e.contains("<f4"), "{e}");
+    }
 }

@@ -88,6 +88,7 @@ npy_element!(f64, "<f8");
 npy_element!(u8, "|u1");
 npy_element!(u16, "<u2");
 npy_element!(u32, "<u4");
+npy_element!(i32, "<i4");
 
 /// Writes `data` with `shape` as a `.npy` file.
 pub fn write_npy<T: NpyElement>(

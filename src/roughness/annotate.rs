@@ -137,6 +137,25 @@ fn checked_points(input: &AnnotateInput<'_>) -> Result<PointMap, RoughnessError>
             height: size.1,
         });
     }
+    if let Some(normals) = input.normals {
+        let usable = |n: &Vec3| {
+            let len = n.norm();
+            len > 0.0 && len.is_finite()
+        };
+        let lacking = |(p, n): (&Vec3, &Vec3)| is_valid_point(p) && !usable(n);
+        let pairs = || points.as_slice().iter().zip(normals.as_slice());
+        if let Some(i) = pairs().position(lacking) {
+            return Err(RoughnessError::MissingNormals {
+                missing: pairs().filter(|&pn| lacking(pn)).count(),
+                valid: points
+                    .as_slice()
+                    .iter()
+                    .filter(|p| is_valid_point(p))
+                    .count(),
+                first: (i % size.0, i / size.0),
+            });
+        }
+    }
     Ok(points)
 }
 

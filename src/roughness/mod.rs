@@ -30,4 +30,20 @@ pub enum RoughnessError {
         /// Height.
         height: usize,
     },
+    /// Given normals that are missing (not finite, or of zero length) at pixels with data.
+    #[error(
+        "normals: {missing} of the {valid} pixels with depth have no normal (not finite or of \
+         zero length), the first at x = {}, y = {}; give normals for every pixel with depth, \
+         mark the others void (label 0), or leave the normals out (LS normals stand in)",
+        first.0,
+        first.1
+    )]
+    MissingNormals {
+        /// Pixels with depth and no normal.
+        missing: usize,
+        /// Pixels with depth.
+        valid: usize,
+        /// The first of them (x, y), in row order.
+        first: (usize, usize),
+    },
 }
