@@ -194,9 +194,15 @@ fn print_summary(out: &FrameOutput, label: &str) {
     let valid = super::finite_sorted(&out.roughness_m);
     let median_cm = valid.get(valid.len() / 2).map_or(f64::NAN, |r| 100.0 * r);
     let traversable = out.traversable().as_slice().iter().filter(|&&t| t).count();
+    // Without normals (the end-to-end baseline) only the roughness limit is checked.
+    let judged = if out.slope_rad().is_some() {
+        "traversable"
+    } else {
+        "within the roughness limit (no slope without normals)"
+    };
     let (w, h) = out.working_size;
     println!(
-        "{label} at {w}×{h}: {} px with roughness, median {median_cm:.3} cm, {traversable} px traversable",
+        "{label} at {w}×{h}: {} px with roughness, median {median_cm:.3} cm, {traversable} px {judged}",
         valid.len()
     );
     let stages: Vec<String> = out
