@@ -8,6 +8,7 @@ mod common;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::process::Command;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -225,6 +226,40 @@ fn answers_are_counted_as_ok_refused_or_errors_by_code() {
     assert_eq!(r.refused_by_code.get("overloaded"), Some(&3));
     assert_eq!(r.errors_by_kind.get("http 422 bad_image"), Some(&3));
     assert_eq!(r.refusal_latency_ms.count, 3);
+}
+
+#[test]
+fn a_closed_loop_without_warm_up_sends_exactly_its_requests_and_measures_them_all() {
+    let _serial = serial();
+    static SEEN: AtomicU64 = AtomicU64::new(0);
+    fn counted(_: u64) -> (u16, &'static str) {
+        SEEN.fetch_add(1, Ordering::SeqCst);
+        (200, "png")
+    }
+    let addr = Fake {
+        service: Duration::from_millis(20),
+        stall: None,
+        answer: counted,
+    }
+    .start();
+    let c = LoadConfig {
+        connections: 2,
+        requests: Some(6),
+        duration: None,
+        warmup: Duration::ZERO,
+        ..cfg(Load::Closed)
+    };
+    let r = block_on(run_on(&c, &Target::at(addr), &frames())).expect("runs");
+    assert_eq!((r.requests, r.ok), (6, 6));
+    // Each connection's first request once went before the window opened: 8 were sent, the
+    // report counted 6, and its window included the 2 unmeasured ones' time.
+    assert_eq!(SEEN.load(Ordering::SeqCst), 6, "requests the service saw");
+    // One at a time at 20 ms each: 6 take at least 120 ms, and the window is not much longer.
+    assert!(
+        (0.12..0.5).contains(&r.window_s),
+        "window {} s for 6 requests of 20 ms",
+        r.window_s
+    );
 }
 
 #[test]

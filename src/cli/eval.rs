@@ -246,7 +246,7 @@ impl Score {
     fn finish(&self, spec: &RowSpec, frames: usize) -> RowResult {
         RowResult {
             key: spec.key.clone(),
-            config: spec.cfg,
+            config: spec.cfg.as_run(),
             roughness: self.roughness.finish(),
             normals: self.has_normals.then(|| self.normals.finish()),
             depth: self.has_depth.then(|| self.depth.finish()),

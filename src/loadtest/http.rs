@@ -114,6 +114,9 @@ async fn closed_loop(shared: &Arc<Shared>, connections: usize) {
     for c in 0..connections as u64 {
         let shared = shared.clone();
         tasks.spawn(async move {
+            // The run starts at `t0`: a request sent before it would be taken for warm-up
+            // while the window counted its time.
+            tokio::time::sleep_until(shared.plan.t0).await;
             let mut i = c;
             loop {
                 let sent = Instant::now();

@@ -336,25 +336,34 @@ pub fn compare(old: &Report, new: &Report) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "{:<18} {:>12} {:>12} {:>9}", "", "old", "new", "new/old");
     let _ = writeln!(s, "{:<18} {:>12} {:>12}", "run", old.label(), new.label());
+    // Percentiles of no answers are absent (`-`), not 0.
+    let of = |p: &Percentiles, v: fn(&Percentiles) -> f64| (p.count > 0).then(|| v(p));
+    let latency =
+        |name, v: fn(&Percentiles) -> f64| (name, of(&old.latency_ms, v), of(&new.latency_ms, v));
     let num_rows = [
         (
             "throughput ok/s",
-            old.throughput_ok_per_s,
-            new.throughput_ok_per_s,
+            Some(old.throughput_ok_per_s),
+            Some(new.throughput_ok_per_s),
         ),
-        ("p50 ms", old.latency_ms.p50_ms, new.latency_ms.p50_ms),
-        ("p90 ms", old.latency_ms.p90_ms, new.latency_ms.p90_ms),
-        ("p99 ms", old.latency_ms.p99_ms, new.latency_ms.p99_ms),
-        ("p99.9 ms", old.latency_ms.p999_ms, new.latency_ms.p999_ms),
-        ("max ms", old.latency_ms.max_ms, new.latency_ms.max_ms),
+        latency("p50 ms", |p| p.p50_ms),
+        latency("p90 ms", |p| p.p90_ms),
+        latency("p99 ms", |p| p.p99_ms),
+        latency("p99.9 ms", |p| p.p999_ms),
+        latency("max ms", |p| p.max_ms),
         (
             "refusal p99 ms",
-            old.refusal_latency_ms.p99_ms,
-            new.refusal_latency_ms.p99_ms,
+            of(&old.refusal_latency_ms, |p| p.p99_ms),
+            of(&new.refusal_latency_ms, |p| p.p99_ms),
         ),
     ];
+    let cell = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.2}"));
     for (name, o, n) in num_rows {
-        let _ = writeln!(s, "{name:<18} {o:>12.2} {n:>12.2} {:>9}", ratio(o, n));
+        let r = match (o, n) {
+            (Some(o), Some(n)) => ratio(o, n),
+            _ => "-".to_owned(),
+        };
+        let _ = writeln!(s, "{name:<18} {:>12} {:>12} {r:>9}", cell(o), cell(n));
     }
     let share = |n: u64, r: &Report| {
         if r.requests == 0 {
@@ -497,5 +506,19 @@ pub(crate) mod tests {
         assert!(thr.ends_with("1.00×"), "{thr}");
         let errors = c.lines().find(|l| l.starts_with("errors")).expect("row");
         assert!(errors.ends_with('='), "{errors}");
+        // No refusals in the new run: its refusal p99 is absent, not 0.
+        let mut refusing = report(10.0, 100, 100, 5);
+        refusing.refusal_latency_ms = Percentiles {
+            count: 5,
+            p99_ms: 3.0,
+            ..Percentiles::default()
+        };
+        let c = compare(&refusing, &new);
+        let refusal = c
+            .lines()
+            .find(|l| l.starts_with("refusal p99"))
+            .expect("row");
+        let cells: Vec<&str> = refusal.split_whitespace().collect();
+        assert_eq!(cells[3..], ["3.00", "-", "-"], "{refusal}");
     }
 }

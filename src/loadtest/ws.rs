@@ -335,6 +335,8 @@ fn sequence(i: u64) -> u64 {
 
 /// One connection's closed loop: send, wait for this frame's answer, repeat.
 async fn closed_loop(mut ws: Socket, run: Arc<Run>) {
+    // As over HTTP: nothing goes before the run's start.
+    tokio::time::sleep_until(run.plan.t0).await;
     loop {
         let sent = Instant::now();
         if run.plan.admit(sent).is_none() {

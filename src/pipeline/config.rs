@@ -171,6 +171,26 @@ impl PipelineConfig {
         }
     }
 
+    /// This configuration with the switches that run: in the geometric mode, LS normals, no
+    /// refiner and window centroids whatever was asked (for records of what ran).
+    ///
+    /// ```
+    /// use tre::pipeline::{CentroidMethod, Mode, NormalsMethod, PipelineConfig};
+    /// let asked = PipelineConfig { mode: Mode::Geometric, ..PipelineConfig::default() };
+    /// let ran = asked.as_run();
+    /// assert_eq!((ran.normals, ran.refine, ran.centroid), (NormalsMethod::Ls, false, CentroidMethod::Window));
+    /// assert_eq!(ran.label(), asked.label());
+    /// ```
+    pub fn as_run(&self) -> Self {
+        let (normals, refine, centroid) = self.effective();
+        Self {
+            normals,
+            refine,
+            centroid,
+            ..*self
+        }
+    }
+
     /// DSAC in [`label`](Self::label): `DSAC`, or `DSAC(K=4)` with other than
     /// [`DEFAULT_DSAC_HYPOTHESES`] hypotheses.
     pub fn dsac_label(&self) -> String {
