@@ -207,7 +207,7 @@ impl Metrics {
         }
         let dropped = self.frames_dropped.load(Ordering::Relaxed);
         let _ = writeln!(out, "# HELP tre_frames_dropped_total Stream frames skipped for a newer one.\n# TYPE tre_frames_dropped_total counter\ntre_frames_dropped_total {dropped}");
-        out.push_str("# HELP tre_request_seconds Latency from arrival to answer.\n# TYPE tre_request_seconds histogram\n");
+        out.push_str("# HELP tre_request_seconds Latency from arrival to answer, of requests answered with a map.\n# TYPE tre_request_seconds histogram\n");
         for (endpoint, h) in self
             .request_seconds
             .lock()
@@ -229,11 +229,11 @@ impl Metrics {
         {
             h.write(&mut out, "tre_stage_seconds", &format!("stage=\"{stage}\""));
         }
-        out.push_str("# HELP tre_queue_wait_seconds Time jobs waited for a worker.\n# TYPE tre_queue_wait_seconds histogram\n");
+        out.push_str("# HELP tre_queue_wait_seconds Time frames answered with a map waited for a worker.\n# TYPE tre_queue_wait_seconds histogram\n");
         self.queue_wait
             .write(&mut out, "tre_queue_wait_seconds", "");
         out.push_str(
-            "# HELP tre_batch_size Frames per worker run.\n# TYPE tre_batch_size histogram\n",
+            "# HELP tre_batch_size Frames per worker run (every run, failed frames included).\n# TYPE tre_batch_size histogram\n",
         );
         self.batch_size.write(&mut out, "tre_batch_size", "");
         out
