@@ -80,6 +80,16 @@ fn answers_equal_tre_infer_in_rgb_and_rgbd() {
         for stage in ["depth;dur=", "normals;dur=", "refine;dur=", "centroid;dur="] {
             assert!(timing.contains(stage), "{timing}");
         }
+        // The worker's whole job: decoding first, encoding (and any extra maps) last.
+        let stages: Vec<&str> = timing
+            .split(", ")
+            .map(|s| s.split(';').next().unwrap())
+            .collect();
+        assert_eq!(
+            (stages.first(), stages.last()),
+            (Some(&"decode"), Some(&"encode")),
+            "{timing}"
+        );
         let served = png16_values(&resp.bytes().await.unwrap());
         let reference = infer_png16(&[rgb_path.to_str().unwrap(), "--mode", "rgb"]);
         assert_eq!(served, reference, "HTTP rgb answer differs from tre infer");

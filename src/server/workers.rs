@@ -18,7 +18,7 @@ use super::request::{
 };
 use crate::geometry::Grid;
 use crate::model::{Models, SessionConfig};
-use crate::pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
+use crate::pipeline::{FrameInput, Mode, Pipeline, PipelineConfig, StageTimings};
 
 /// How the pool is built.
 #[derive(Debug, Clone)]
@@ -290,14 +290,21 @@ fn guarded(i: usize, job: impl FnOnce() -> JobResult) -> JobResult {
     })
 }
 
-/// Decodes, runs and encodes one frame.
+/// Decodes, runs and encodes one frame. Its timings are the pipeline's stages between
+/// `decode` and `encode` (the answer's map and the extra maps, which are computed on request
+/// while they are encoded).
 fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> JobResult {
-    let frame = decode_frame(req, pool.limits)?;
+    let mut timings = StageTimings::default();
+    let frame = timings.time("decode", || decode_frame(req, pool.limits))?;
     let cfg = config_for(&frame, &req.options, pool.limits.max_pixels, pool.defaults);
     let out = pipeline.run(&frame, &cfg)?;
-    let reply = encode_reply(&out, &req.options);
+    for (stage, took) in out.timings.iter() {
+        timings.add(stage, took);
+    }
+    timings.set_onnx_runtime(out.timings.onnx_runtime());
+    let reply = timings.time("encode", || encode_reply(&out, &req.options));
     pipeline.recycle(out);
-    reply
+    reply.map(|r| FrameReply { timings, ..r })
 }
 
 /// Runs every mode once on a synthetic 256×192 frame, so that ONNX Runtime has allocated and
