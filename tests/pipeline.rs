@@ -211,9 +211,11 @@ fn every_mode_runs_on_a_real_frame() -> TestResult {
     for mode in [Mode::Geometric, Mode::Rgbd] {
         let out = pipeline.run(&frame, &PipelineConfig::for_mode(mode))?;
         let traversable = out.traversable();
+        let boundary = out.boundary().ok_or("boundary")?;
         for &i in &holes {
             assert!(out.roughness_m.as_slice()[i].is_nan(), "{mode:?} at {i}");
             assert!(!traversable.as_slice()[i], "{mode:?} at {i}");
+            assert!(!boundary.as_slice()[i], "{mode:?} boundary at {i}");
         }
     }
     Ok(())

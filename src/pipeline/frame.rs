@@ -173,11 +173,25 @@ impl FrameOutput {
 
     /// Boundary pixels by annotation spec v1, steps 2 and 3, on the pipeline's own points and
     /// normals (one label): valid pixels with a valid 8-neighbour in another smooth segment,
-    /// i.e. depth steps and creases. `None` for the end-to-end baseline.
+    /// i.e. depth steps and creases; no pixel without roughness (a sensor's hole) is one.
+    /// `None` for the end-to-end baseline.
     pub fn boundary(&self) -> Option<Grid<bool>> {
         let m = self.working.stages.as_ref()?;
         let segments = segment(&m.points, &m.normals, None, &AnnotateConfig::default());
-        Some(self.full_size(&boundary_mask(&m.points, &segments), false))
+        let mut full = self.full_size(&boundary_mask(&m.points, &segments), false);
+        self.only_with_roughness(&mut full);
+        Some(full)
+    }
+
+    /// Clears `mask` wherever the frame-size roughness is missing.
+    fn only_with_roughness(&self, mask: &mut Grid<bool>) {
+        for (t, r) in mask
+            .as_mut_slice()
+            .iter_mut()
+            .zip(self.roughness_m.as_slice())
+        {
+            *t &= r.is_finite();
+        }
     }
 
     /// Pixels whose roughness and slope are within the thresholds (roughness only for the
@@ -188,13 +202,7 @@ impl FrameOutput {
         let tilt = w.stages.as_ref().map(|m| (&m.normals, &w.up_in_cam));
         let mut full = self.full_size(&traversable(roughness, tilt, &w.limits), false);
         // No pixel without roughness at the frame's size is traversable (a sensor's hole).
-        for (t, r) in full
-            .as_mut_slice()
-            .iter_mut()
-            .zip(self.roughness_m.as_slice())
-        {
-            *t &= r.is_finite();
-        }
+        self.only_with_roughness(&mut full);
         full
     }
 }
