@@ -144,8 +144,10 @@ impl Pipeline {
         self.check_models(cfg)?;
         let work = self.working(input, cfg, size)?;
         let mut timings = StageTimings::default();
+        // RGB goes only to the networks: the geometric mode leaves a frame's image alone.
+        let nets_rgb = input.rgb.as_ref().filter(|_| !cfg.networks().is_empty());
         let rgb = timings.time("resize", || {
-            input.rgb.as_ref().map(|rgb| {
+            nets_rgb.map(|rgb| {
                 let small = resize_rgb(rgb, work.size.0, work.size.1);
                 rgb_tensor(&small, &mut self.scratch.rgb);
             })
