@@ -10,7 +10,8 @@ use super::error::{ApiError, ErrorCode};
 use crate::geometry::{Grid, Mounting};
 use crate::io::{self, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
 use crate::pipeline::{
-    FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, DEFAULT_DSAC_HYPOTHESES,
+    FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, PipelineError,
+    DEFAULT_DSAC_HYPOTHESES,
 };
 
 /// Encodings of the roughness map.
@@ -151,6 +152,29 @@ pub fn decode_image(
     bytes: &[u8],
     limits: DecodeLimits,
 ) -> Result<DynamicImage, ApiError> {
+    let (format, (w, h)) = image_header(what, bytes, limits)?;
+    let pixels = u64::from(w) * u64::from(h);
+    if format == ImageFormat::Jpeg {
+        return io::decode_jpeg(bytes)
+            .map_err(|e| ApiError::new(ErrorCode::BadImage, format!("{what}: {e}")));
+    }
+    let bad = |e: image::ImageError| ApiError::new(ErrorCode::BadImage, format!("{what}: {e}"));
+    let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
+    let mut l = image::Limits::default();
+    l.max_image_width = Some(w);
+    l.max_image_height = Some(h);
+    l.max_alloc = Some(pixels * 16 + (1 << 20));
+    reader.limits(l);
+    reader.decode().map_err(bad)
+}
+
+/// The format and size of an image from its header, checked against the limits, without
+/// decoding its pixels.
+fn image_header(
+    what: &str,
+    bytes: &[u8],
+    limits: DecodeLimits,
+) -> Result<(ImageFormat, (u32, u32)), ApiError> {
     if bytes.is_empty() {
         return Err(ApiError::new(ErrorCode::BadImage, format!("{what}: empty")));
     }
@@ -180,17 +204,7 @@ pub fn decode_image(
             ),
         ));
     }
-    if format == ImageFormat::Jpeg {
-        return io::decode_jpeg(bytes)
-            .map_err(|e| ApiError::new(ErrorCode::BadImage, format!("{what}: {e}")));
-    }
-    let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
-    let mut l = image::Limits::default();
-    l.max_image_width = Some(w);
-    l.max_image_height = Some(h);
-    l.max_alloc = Some(pixels * 16 + (1 << 20));
-    reader.limits(l);
-    reader.decode().map_err(bad)
+    Ok((format, (w, h)))
 }
 
 /// Decodes depth in metres: a 16-bit grey PNG at `units_per_m`, or a float `.npy`; depth that
@@ -266,14 +280,28 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
             format!("camera: depth_scale must be positive, got {scale}"),
         ));
     }
-    let rgb = match &req.rgb {
-        Some(b) => Some(decode_image("rgb", b, limits)?.to_rgb8()),
-        None => None,
+    // The geometric mode uses no RGB: an image sent along is checked from its header (format,
+    // limits, the depth's size) but not decoded.
+    let geometric = req.options.mode == Some(Mode::Geometric) && req.depth.is_some();
+    let (rgb, unused_rgb) = match &req.rgb {
+        Some(b) if geometric => (None, Some(image_header("rgb", b, limits)?.1)),
+        Some(b) => (Some(decode_image("rgb", b, limits)?.to_rgb8()), None),
+        None => (None, None),
     };
     let depth_m = match &req.depth {
         Some(b) => Some(decode_depth(b, scale, limits)?),
         None => None,
     };
+    if let (Some((w, h)), Some(d)) = (unused_rgb, &depth_m) {
+        let rgb = (w as usize, h as usize);
+        if rgb != d.size() {
+            return Err(PipelineError::DepthSizeMismatch {
+                rgb,
+                depth: d.size(),
+            }
+            .into());
+        }
+    }
     let frame = FrameInput {
         rgb,
         depth_m,
@@ -529,5 +557,35 @@ mod tests {
         let big = npy_bytes(&[1001, 1000], &vec![1.0f32; 1_001_000]);
         let e = decode_depth(&big, 1000.0, LIMITS).unwrap_err();
         assert_eq!(e.code, ErrorCode::TooLarge, "{e}");
+    }
+
+    /// In the geometric mode an RGB part is not decoded (nothing uses it), but its header is
+    /// still checked: not an image, over the limit, or another size than the depth is an error.
+    #[test]
+    fn the_geometric_mode_checks_an_rgb_part_without_decoding_it() {
+        let depth = npy_bytes(&[48, 64], &vec![1.5f32; 64 * 48]);
+        let request = |rgb: Vec<u8>, mode| FrameRequest {
+            rgb: Some(rgb),
+            depth: Some(depth.clone()),
+            camera: None,
+            options: FrameOptions {
+                mode,
+                ..FrameOptions::default()
+            },
+        };
+        let geometric = Some(Mode::Geometric);
+        let frame = decode_frame(&request(png_bytes(64, 48), geometric), LIMITS).unwrap();
+        assert!(frame.rgb.is_none() && frame.depth_m.is_some());
+        // rgbd (the default with both parts) decodes it.
+        let frame = decode_frame(&request(png_bytes(64, 48), None), LIMITS).unwrap();
+        assert_eq!(frame.rgb.map(|i| i.dimensions()), Some((64, 48)));
+        for (rgb, code) in [
+            (png_bytes(32, 48), ErrorCode::BadDepth),
+            (b"hello world".to_vec(), ErrorCode::UnsupportedMedia),
+            (png_bytes(2000, 1000), ErrorCode::TooLarge),
+        ] {
+            let e = decode_frame(&request(rgb, geometric), LIMITS).unwrap_err();
+            assert_eq!(e.code, code, "{e}");
+        }
     }
 }
