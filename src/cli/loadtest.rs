@@ -176,8 +176,12 @@ impl Loadtest {
             self.write(&r.to_json(), || svg::plot_run(&r))?;
             no_result_is_a_failure(r.ok, r.requests)
         } else {
-            println!("{}", report::sweep_header());
+            // The header comes with the first row: a sweep refused before it runs prints none.
+            let mut header = Some(report::sweep_header());
             let sw: SweepReport = runtime.block_on(sweep(&cfg, &self.sweep, self.slo_ms, |r| {
+                if let Some(h) = header.take() {
+                    println!("{h}");
+                }
                 println!("{}", report::sweep_row(r));
             }))?;
             print!("{}", report::sweep_summary(&sw));
