@@ -430,7 +430,6 @@ impl Sink {
 
     /// Counts the event; the map and CSV row to write, if it settles a frame.
     fn job_for(&mut self, ev: Event) -> Option<Job> {
-        let received_us = unix_us(SystemTime::now());
         let (sequence, rest) = match ev {
             Event::Result(r) => return Some(self.result_job(r)),
             Event::Dropped {
@@ -458,6 +457,7 @@ impl Sink {
                 return None;
             }
         };
+        let received_us = unix_us(SystemTime::now());
         let (name, sent) = self.take_entry(sequence);
         let row = csv_row(sequence, &name, sent.map(unix_us), received_us, &rest);
         Some(Job::Row(row))

@@ -236,6 +236,11 @@ impl StageTimings {
         }
     }
 
+    /// Records stage `name`, which ran before all the others, as the first one.
+    pub fn add_first(&mut self, name: &'static str, took: Duration) {
+        self.stages.insert(0, (name, took));
+    }
+
     /// Runs `f` and adds its wall time to stage `name`.
     pub fn time<T>(&mut self, name: &'static str, f: impl FnOnce() -> T) -> T {
         let start = std::time::Instant::now();

@@ -152,6 +152,7 @@ impl Pipeline {
                 rgb_tensor(&small, &mut self.scratch.rgb);
             })
         });
+        // Some only when a network runs.
         let has_rgb = rgb.is_some();
         if cfg.method == Method::EndToEnd {
             return self.end_to_end(input, cfg, &work, size, timings);
@@ -160,7 +161,7 @@ impl Pipeline {
         let points = timings.time("back_project", || {
             let mut points = self.scratch.spares.take();
             work.k.back_project_map_into(&depth_m, &mut points);
-            if has_rgb && !cfg.networks().is_empty() {
+            if has_rgb {
                 points_tensors(&points, &mut self.scratch.points, &mut self.scratch.valid);
             }
             points

@@ -138,11 +138,7 @@ fn checked_points(input: &AnnotateInput<'_>) -> Result<PointMap, RoughnessError>
         });
     }
     if let Some(normals) = input.normals {
-        let usable = |n: &Vec3| {
-            let len = n.norm();
-            len > 0.0 && len.is_finite()
-        };
-        let lacking = |(p, n): (&Vec3, &Vec3)| is_valid_point(p) && !usable(n);
+        let lacking = |(p, n): (&Vec3, &Vec3)| is_valid_point(p) && !is_usable_normal(n.norm());
         let pairs = || points.as_slice().iter().zip(normals.as_slice());
         if let Some(i) = pairs().position(lacking) {
             return Err(RoughnessError::MissingNormals {
@@ -159,12 +155,17 @@ fn checked_points(input: &AnnotateInput<'_>) -> Result<PointMap, RoughnessError>
     Ok(points)
 }
 
+/// Whether a given normal of length `len` can be normalised (finite, not zero).
+fn is_usable_normal(len: f64) -> bool {
+    len > 0.0 && len.is_finite()
+}
+
 /// Normalises given normals and turns them towards the camera (invalid where not finite).
 fn oriented_normals(normals: &Grid<Vec3>, points: &PointMap) -> Grid<Vec3> {
     Grid::par_from_fn(points.width(), points.height(), |x, y| {
         let (n, p) = (normals[(x, y)], points[(x, y)]);
         let len = n.norm();
-        if is_valid_point(&p) && len > 0.0 && len.is_finite() {
+        if is_valid_point(&p) && is_usable_normal(len) {
             orient_towards_camera(&(n / len), &p)
         } else {
             INVALID_POINT

@@ -18,7 +18,7 @@ use super::request::{
 };
 use crate::geometry::Grid;
 use crate::model::{Models, SessionConfig};
-use crate::pipeline::{FrameInput, Mode, Pipeline, PipelineConfig, StageTimings};
+use crate::pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
 
 /// How the pool is built.
 #[derive(Debug, Clone)]
@@ -294,17 +294,19 @@ fn guarded(i: usize, job: impl FnOnce() -> JobResult) -> JobResult {
 /// `decode` and `encode` (the answer's map and the extra maps, which are computed on request
 /// while they are encoded).
 fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> JobResult {
-    let mut timings = StageTimings::default();
-    let frame = timings.time("decode", || decode_frame(req, pool.limits))?;
+    let started = Instant::now();
+    let frame = decode_frame(req, pool.limits)?;
+    let decoded = started.elapsed();
     let cfg = config_for(&frame, &req.options, pool.limits.max_pixels, pool.defaults);
     let out = pipeline.run(&frame, &cfg)?;
-    for (stage, took) in out.timings.iter() {
-        timings.add(stage, took);
-    }
-    timings.set_onnx_runtime(out.timings.onnx_runtime());
-    let reply = timings.time("encode", || encode_reply(&out, &req.options));
+    let started = Instant::now();
+    let reply = encode_reply(&out, &req.options);
+    let encoded = started.elapsed();
     pipeline.recycle(out);
-    reply.map(|r| FrameReply { timings, ..r })
+    let mut reply = reply?;
+    reply.timings.add_first("decode", decoded);
+    reply.timings.add("encode", encoded);
+    Ok(reply)
 }
 
 /// Runs every mode once on a synthetic 256×192 frame, so that ONNX Runtime has allocated and
