@@ -91,6 +91,51 @@ fn infer_writes_roughness_and_a_preview_in_every_mode() {
 }
 
 #[test]
+fn infer_takes_the_traversability_thresholds() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("geo.npy");
+    let depth = real("slambook2_ch5/depth/1.png");
+    let camera = real("slambook2_ch5/intrinsics.json");
+    let base = [
+        "infer",
+        "--format",
+        "npy",
+        "-o",
+        s(&out),
+        "--depth",
+        s(&depth),
+    ];
+    let counts = |extra: &[&str]| -> (usize, usize) {
+        let mut args = base.to_vec();
+        args.extend(["--camera", s(&camera)]);
+        args.extend(extra);
+        let o = tre(&args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        let text = String::from_utf8_lossy(&o.stdout).into_owned();
+        // "LS+window at 640×480: N px with roughness, median … cm, M px traversable"
+        let number_before = |what: &str| -> usize {
+            let head = &text[..text
+                .find(what)
+                .unwrap_or_else(|| panic!("{what} in {text}"))];
+            head.split_whitespace().last().unwrap().parse().unwrap()
+        };
+        (
+            number_before(" px traversable"),
+            number_before(" px with roughness"),
+        )
+    };
+    let (default, valid) = counts(&[]);
+    assert!(0 < default && default < valid, "{default} of {valid}");
+    let loose = counts(&["--max-roughness-cm", "10000", "--max-slope-deg", "90"]);
+    assert_eq!(loose, (valid, valid));
+    let strict = counts(&["--max-roughness-cm", "1", "--max-slope-deg", "5"]);
+    assert!(strict.0 < default, "{strict:?} against {default}");
+    let mut args = base.to_vec();
+    args.extend(["--max-slope-deg", "95"]);
+    fails_saying(&args, "--max-slope-deg: must be 0 to 90");
+}
+
+#[test]
 fn infer_refuses_bad_input_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.png");

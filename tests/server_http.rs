@@ -443,6 +443,17 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
         let (s, c, _) =
             error_of(post(&format!("{url}?normals=magic"), "image/png", rgb.clone()).await).await;
         assert_eq!((s, c.as_str()), (400, "bad_request"));
+        for thresholds in [
+            "max_slope_deg=95",
+            "max_roughness_cm=0",
+            "max_roughness_cm=-2",
+        ] {
+            let url = format!("{url}?outputs=traversable&{thresholds}");
+            let (s, c, message) = error_of(post(&url, "image/png", rgb.clone()).await).await;
+            assert_eq!((s, c.as_str()), (400, "bad_request"), "{thresholds}");
+            let field = thresholds.split('=').next().unwrap();
+            assert!(message.contains(field), "{message}");
+        }
         let twice = Form::new().part("rgb", Part::bytes(rgb.clone())).part(
             "camera",
             Part::text(r#"{"fx": 500, "fy": 500, "cx": 320, "cy": 240}"#),

@@ -81,6 +81,77 @@ async fn handshake(ws: &mut Ws, format: pb::Format, mode: pb::Mode) {
 }
 
 #[test]
+fn the_hello_sets_the_traversability_thresholds() {
+    let server = Server::start(&["--workers", "1"]);
+    let image = std::fs::read(real("slambook2_ch7/2.png")).unwrap();
+    let hello_with = |max_roughness_cm, max_slope_deg| {
+        pb::ClientMessage {
+            msg: Some(pb::client_message::Msg::Hello(pb::Hello {
+                mode: pb::Mode::Rgb as i32,
+                format: pb::Format::F32 as i32,
+                want_traversable: true,
+                max_roughness_cm,
+                max_slope_deg,
+                ..Default::default()
+            })),
+        }
+        .encode_to_vec()
+    };
+    rt().block_on(async {
+        // (traversable pixels, pixels with roughness) under each pair of thresholds.
+        let mut counts = Vec::new();
+        for (sequence, (cm, deg)) in [
+            (None, None),
+            (Some(1e4), Some(90.0)),
+            (Some(1e-4), Some(0.0)),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let mut ws = connect(&server).await;
+            send(&mut ws, hello_with(cm, deg)).await;
+            assert!(matches!(
+                next(&mut ws).await,
+                pb::server_message::Msg::Ready(_)
+            ));
+            send(&mut ws, frame(sequence as u64 + 1, image.clone())).await;
+            let pb::server_message::Msg::Result(r) = next(&mut ws).await else {
+                panic!("expected a Result");
+            };
+            let valid = r
+                .roughness
+                .chunks_exact(4)
+                .filter(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]).is_finite())
+                .count();
+            let traversable = r.traversable.iter().filter(|&&t| t == 1).count();
+            counts.push((traversable, valid));
+            ws.close(None).await.unwrap();
+        }
+        let (default, loose, strict) = (counts[0], counts[1], counts[2]);
+        assert!(
+            default.1 > 0 && default.1 == loose.1 && loose.1 == strict.1,
+            "{counts:?}"
+        );
+        assert_eq!(
+            loose.0, loose.1,
+            "every pixel with roughness passes 100 m and 90°"
+        );
+        assert_eq!(strict.0, 0, "none passes 1 µm and 0°");
+        assert!(0 < default.0 && default.0 < default.1, "{counts:?}");
+
+        let mut ws = connect(&server).await;
+        send(&mut ws, hello_with(None, Some(95.0))).await;
+        match next(&mut ws).await {
+            pb::server_message::Msg::Error(e) => {
+                assert_eq!(e.code, "bad_request");
+                assert!(e.message.contains("hello.max_slope_deg"), "{}", e.message);
+            }
+            other => panic!("expected an Error, got {other:?}"),
+        }
+    });
+}
+
+#[test]
 fn the_hello_chooses_dsac_hypotheses_and_a_bad_number_is_an_error() {
     let server = Server::start(&["--workers", "1"]);
     let path = real("slambook2_ch7/2.png");

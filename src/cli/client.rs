@@ -84,6 +84,12 @@ pub struct Client {
     /// Also ask for traversability, written as SEQ_NAME_traversable.png (255 = traversable).
     #[arg(long, env = "TRE_CLIENT_TRAVERSABLE")]
     pub traversable: bool,
+    /// Traversability: the largest roughness, centimetres (default 5).
+    #[arg(long, env = "TRE_CLIENT_MAX_ROUGHNESS_CM")]
+    pub max_roughness_cm: Option<f64>,
+    /// Traversability: the steepest slope, degrees (default 20).
+    #[arg(long, env = "TRE_CLIENT_MAX_SLOPE_DEG")]
+    pub max_slope_deg: Option<f64>,
     /// Stop after this many frames.
     #[arg(long, env = "TRE_CLIENT_LIMIT")]
     pub limit: Option<u64>,
@@ -169,6 +175,8 @@ impl Client {
             normals: self.normals.map(Into::into),
             dsac_hypotheses: self.dsac_hypotheses,
             want_traversable: self.traversable,
+            max_roughness_cm: self.max_roughness_cm,
+            max_slope_deg: self.max_slope_deg,
             rate: self.rate.map_or(Rate::AsFastAsResults, Rate::Fixed),
             reconnect: Backoff {
                 initial: Duration::from_millis(self.reconnect_initial_ms),

@@ -10,7 +10,7 @@ use image::DynamicImage;
 use super::options::{MethodArg, ModeArg, StageArgs};
 use crate::geometry::Mounting;
 use crate::io;
-use crate::pipeline::{FrameInput, FrameOutput};
+use crate::pipeline::{FrameInput, FrameOutput, PipelineConfig, Traversability};
 
 /// Output format of the roughness map.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -55,6 +55,12 @@ pub struct Infer {
     /// Top of the preview's colour scale, centimetres.
     #[arg(long, default_value_t = 5.0)]
     pub preview_max_cm: f64,
+    /// Traversability (the summary's count): the largest roughness, centimetres.
+    #[arg(long, default_value_t = 5.0)]
+    pub max_roughness_cm: f64,
+    /// Traversability: the steepest slope, degrees.
+    #[arg(long, default_value_t = 20.0)]
+    pub max_slope_deg: f64,
 }
 
 impl Infer {
@@ -68,7 +74,13 @@ impl Infer {
             );
         }
         let mode = self.mode()?;
-        let cfg = self.stages.config(mode);
+        let traversability =
+            Traversability::from_cm_deg(Some(self.max_roughness_cm), Some(self.max_slope_deg))
+                .map_err(|e| anyhow::anyhow!("--{}", e.replace('_', "-")))?;
+        let cfg = PipelineConfig {
+            traversability,
+            ..self.stages.config(mode)
+        };
         let frame = self.read_frame()?;
         crate::pipeline::check_input(&frame, &cfg)?;
         let mut pipeline = self.stages.pipeline(&[cfg])?;

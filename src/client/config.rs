@@ -107,6 +107,10 @@ pub struct ClientConfig {
     pub preview_max_m: Option<f64>,
     /// Also ask for the traversability mask.
     pub want_traversable: bool,
+    /// The mask's largest roughness, centimetres; `None`: 5.
+    pub max_roughness_cm: Option<f64>,
+    /// The mask's steepest slope, degrees; `None`: 20.
+    pub max_slope_deg: Option<f64>,
     /// How fast frames go out.
     pub rate: Rate,
     /// Reconnection back-off (also used for the first connection).
@@ -139,6 +143,8 @@ impl Default for ClientConfig {
             dsac_hypotheses: None,
             preview_max_m: None,
             want_traversable: false,
+            max_roughness_cm: None,
+            max_slope_deg: None,
             rate: Rate::AsFastAsResults,
             reconnect: Backoff::default(),
             frame_timeout: Duration::from_secs(30),
@@ -171,6 +177,11 @@ impl ClientConfig {
                     format!("frames per second must be positive, got {fps}"),
                 );
             }
+        }
+        if let Err(reason) =
+            crate::pipeline::Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
+        {
+            return bad("traversability", reason);
         }
         let b = &self.reconnect;
         if b.initial.is_zero() || b.max < b.initial {

@@ -74,6 +74,8 @@ impl From<&ClientConfig> for pb::Hello {
             want_traversable: cfg.want_traversable,
             normals: pb::Normals::from(cfg.normals) as i32,
             dsac_hypotheses: cfg.dsac_hypotheses.unwrap_or(0),
+            max_roughness_cm: cfg.max_roughness_cm,
+            max_slope_deg: cfg.max_slope_deg,
         }
     }
 }

@@ -69,6 +69,36 @@ impl Default for Traversability {
     }
 }
 
+impl Traversability {
+    /// The thresholds as a robot states them: roughness in centimetres (above 0) and slope in
+    /// degrees (0 to 90), each defaulting to [`Traversability::default`]'s (5 cm, 20°); for
+    /// values that cannot be thresholds, why not.
+    ///
+    /// ```
+    /// use tre::pipeline::Traversability;
+    /// let t = Traversability::from_cm_deg(Some(2.0), None).unwrap();
+    /// assert_eq!((t.max_roughness_m, t.max_slope_rad), (0.02, 20f64.to_radians()));
+    /// assert!(Traversability::from_cm_deg(Some(0.0), None).is_err());
+    /// assert!(Traversability::from_cm_deg(None, Some(95.0)).is_err());
+    /// ```
+    pub fn from_cm_deg(
+        max_roughness_cm: Option<f64>,
+        max_slope_deg: Option<f64>,
+    ) -> Result<Self, String> {
+        let default = Self::default();
+        if let Some(cm) = max_roughness_cm.filter(|cm| !(cm.is_finite() && *cm > 0.0)) {
+            return Err(format!("max_roughness_cm: must be positive, got {cm}"));
+        }
+        if let Some(deg) = max_slope_deg.filter(|d| !(0.0..=90.0).contains(d)) {
+            return Err(format!("max_slope_deg: must be 0 to 90, got {deg}"));
+        }
+        Ok(Self {
+            max_roughness_m: max_roughness_cm.map_or(default.max_roughness_m, |cm| cm / 100.0),
+            max_slope_rad: max_slope_deg.map_or(default.max_slope_rad, f64::to_radians),
+        })
+    }
+}
+
 /// Largest input frame accepted by default, pixels (about 40 MP).
 pub const DEFAULT_MAX_INPUT_PIXELS: usize = 40_000_000;
 

@@ -16,7 +16,7 @@ use super::metrics::Gauges;
 use super::request::{Extras, Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
 use super::{AppState, OVERSIZE_READ_FACTOR};
 use crate::io::CameraFile;
-use crate::pipeline::{check_dsac_hypotheses, Mode, NormalsMethod};
+use crate::pipeline::{check_dsac_hypotheses, Mode, NormalsMethod, Traversability};
 
 /// Query of `POST /v1/roughness`.
 #[derive(Debug, Default, Deserialize)]
@@ -36,6 +36,10 @@ pub struct RoughnessQuery {
     preview_max_cm: Option<f64>,
     /// Extra maps, comma-separated: `depth,normals,slope,traversable,boundary`.
     outputs: Option<String>,
+    /// Traversability: the largest roughness, centimetres (default 5).
+    max_roughness_cm: Option<f64>,
+    /// Traversability: the steepest slope, degrees (default 20).
+    max_slope_deg: Option<f64>,
     fx: Option<f64>,
     fy: Option<f64>,
     cx: Option<f64>,
@@ -115,6 +119,8 @@ impl RoughnessQuery {
             preview_max_m: self.preview_max_cm.map(|c| c / 100.0),
             extras,
             traversable_bytes: false,
+            traversability: Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
+                .map_err(bad)?,
         })
     }
 

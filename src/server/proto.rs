@@ -6,7 +6,7 @@ use prost::Message;
 use super::error::{ApiError, ErrorCode};
 use super::request::{Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
 use crate::io::CameraFile;
-use crate::pipeline::{check_dsac_hypotheses, Mode, NormalsMethod};
+use crate::pipeline::{check_dsac_hypotheses, Mode, NormalsMethod, Traversability};
 use crate::proto::v1 as pb;
 
 /// A stream's settings from its Hello.
@@ -135,6 +135,8 @@ impl TryFrom<pb::Hello> for StreamSettings {
                 dsac_hypotheses,
                 preview_max_m: h.preview_max_m,
                 traversable_bytes: h.want_traversable,
+                traversability: Traversability::from_cm_deg(h.max_roughness_cm, h.max_slope_deg)
+                    .map_err(|e| ApiError::new(ErrorCode::BadRequest, format!("hello.{e}")))?,
                 ..FrameOptions::default()
             },
         })

@@ -10,7 +10,7 @@ use super::error::{ApiError, ErrorCode};
 use crate::geometry::{Grid, Mounting};
 use crate::io::{self, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
 use crate::pipeline::{
-    FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, PipelineError,
+    FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, PipelineError, Traversability,
     DEFAULT_DSAC_HYPOTHESES,
 };
 
@@ -80,6 +80,8 @@ pub struct FrameOptions {
     pub extras: Extras,
     /// The traversability mask as raw bytes (1 per pixel), for the stream.
     pub traversable_bytes: bool,
+    /// Thresholds of the traversability mask.
+    pub traversability: Traversability,
 }
 
 /// A frame as received: encoded images and an unchecked camera.
@@ -359,6 +361,7 @@ pub fn config_for(
         normals: opts.normals.unwrap_or(defaults.normals),
         dsac_hypotheses: opts.dsac_hypotheses.unwrap_or(defaults.dsac_hypotheses),
         max_input_pixels: max_pixels,
+        traversability: opts.traversability,
         ..PipelineConfig::for_mode(mode)
     }
 }
