@@ -572,3 +572,63 @@ fn streams_over_the_limit_are_refused_at_once() {
         .await;
     });
 }
+
+/// A client that stops reading, such as a hung robot process with its socket still open, once
+/// held its stream (and a `--max-streams` place) for good, and the server's shutdown for the
+/// whole grace time: the server waited forever to send it an answer, and did not ping it or
+/// read from it meanwhile. Now a message it takes none of within `--ws-idle-timeout-ms` ends
+/// its stream, which frees the place.
+#[test]
+fn a_client_that_stops_reading_is_dropped_after_the_idle_timeout() {
+    let server = Server::start(&[
+        "--workers",
+        "1",
+        "--max-streams",
+        "1",
+        "--ws-idle-timeout-ms",
+        "1500",
+    ]);
+    let image = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    let url = format!("ws://{}/v1/stream", server.addr);
+    rt().block_on(async {
+        // A small receive buffer, so that the answers (640×480 float maps, 1.2 MB each) fill
+        // the connection after a few frames.
+        let socket = tokio::net::TcpSocket::new_v4().unwrap();
+        socket.set_recv_buffer_size(4096).unwrap();
+        let tcp = socket.connect(server.addr).await.unwrap();
+        let plain = tokio_tungstenite::MaybeTlsStream::Plain(tcp);
+        let (mut stuck, _) = tokio_tungstenite::client_async(url.clone(), plain)
+            .await
+            .unwrap();
+        handshake(&mut stuck, pb::Format::F32, pb::Mode::Rgb).await;
+        // Frames, one at a time and never reading an answer, until the server takes no more
+        // (its answers are not taken, so it stops reading) or drops the connection.
+        let mut sent = 0;
+        for seq in 1..=200 {
+            let msg = Message::Binary(frame(seq, image.clone()).into());
+            match tokio::time::timeout(Duration::from_secs(3), stuck.send(msg)).await {
+                Ok(Ok(())) => sent += 1,
+                Ok(Err(_)) | Err(_) => break,
+            }
+            tokio::time::sleep(Duration::from_millis(150)).await;
+        }
+        assert!(sent < 200, "the server read every frame: nothing was stuck");
+        // The stuck stream's place is freed: a new stream is accepted and answered.
+        let mut accepted = None;
+        for _ in 0..100 {
+            if let Ok((ws, _)) = tokio_tungstenite::connect_async(url.clone()).await {
+                accepted = Some(ws);
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+        let mut ws = accepted.expect("the stuck stream still holds the only place 10 s on");
+        handshake(&mut ws, pb::Format::Png16, pb::Mode::Rgb).await;
+        send(&mut ws, frame(1, common::pattern_png(64, 48))).await;
+        match next(&mut ws).await {
+            pb::server_message::Msg::Result(r) => assert_eq!(r.sequence, 1),
+            other => panic!("expected a result, got {other:?}"),
+        }
+        drop(stuck);
+    });
+}

@@ -80,6 +80,11 @@ pub struct Serve {
     /// WebSocket streams open at once; beyond, the upgrade gets 429 at once.
     #[arg(long, env = "TRE_MAX_STREAMS", default_value_t = 64)]
     pub max_streams: usize,
+    /// A stream whose client sends nothing (no message, no answer to the server's pings) or
+    /// takes nothing (an answer waits to be sent: the client stopped reading) for this long is
+    /// closed, milliseconds; its `--max-streams` place is freed.
+    #[arg(long, env = "TRE_WS_IDLE_TIMEOUT_MS", default_value_t = 60_000)]
+    pub ws_idle_timeout_ms: u64,
     /// Seconds in-flight work may take to finish after SIGTERM or Ctrl-C.
     #[arg(long, env = "TRE_SHUTDOWN_GRACE_S", default_value_t = 30)]
     pub shutdown_grace_s: u64,
@@ -105,8 +110,9 @@ impl Serve {
             || self.max_concurrent == 0
             || self.ws_max_message_bytes == 0
             || self.max_streams == 0
+            || self.ws_idle_timeout_ms == 0
         {
-            bail!("--max-body-bytes, --max-pixels, --max-concurrent, --ws-max-message-bytes and --max-streams must be positive");
+            bail!("--max-body-bytes, --max-pixels, --max-concurrent, --ws-max-message-bytes, --max-streams and --ws-idle-timeout-ms must be positive");
         }
         Ok(ServeConfig {
             addr: self.addr,
@@ -128,6 +134,7 @@ impl Serve {
             request_timeout: Duration::from_millis(self.request_timeout_ms.max(1)),
             ws_max_message_bytes: self.ws_max_message_bytes,
             max_streams: self.max_streams,
+            ws_idle_timeout: Duration::from_millis(self.ws_idle_timeout_ms),
             shutdown_grace: Duration::from_secs(self.shutdown_grace_s),
             defaults: FrameDefaults {
                 normals: self.normals.into(),
@@ -199,5 +206,32 @@ async fn shutdown_signal() {
     tokio::select! {
         () = ctrl_c => {},
         () = term => {},
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        serve: Serve,
+    }
+
+    fn parse(args: &[&str]) -> Result<ServeConfig, String> {
+        let cli = Cli::try_parse_from(std::iter::once("tre").chain(args.iter().copied()))
+            .map_err(|e| e.to_string())?;
+        cli.serve.config().map_err(|e| format!("{e:#}"))
+    }
+
+    #[test]
+    fn the_stream_idle_timeout_is_set_in_milliseconds_and_zero_is_refused() {
+        assert_eq!(parse(&[]).unwrap().ws_idle_timeout, Duration::from_secs(60));
+        let cfg = parse(&["--ws-idle-timeout-ms", "1500"]).unwrap();
+        assert_eq!(cfg.ws_idle_timeout, Duration::from_millis(1500));
+        let e = parse(&["--ws-idle-timeout-ms", "0"]).unwrap_err();
+        assert!(e.contains("--ws-idle-timeout-ms must be positive"), "{e}");
     }
 }

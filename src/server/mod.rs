@@ -68,6 +68,9 @@ pub struct ServeConfig {
     pub ws_max_message_bytes: usize,
     /// WebSocket streams open at once; more get 429.
     pub max_streams: usize,
+    /// A stream whose client sends nothing (no message, no pong) or takes nothing (an answer
+    /// waits to be sent) for this long is closed.
+    pub ws_idle_timeout: Duration,
     /// Time in-flight work may take to finish after SIGTERM.
     pub shutdown_grace: Duration,
     /// What frames get for the settings they do not choose: initial normals (DSAC, the paper's
@@ -93,6 +96,7 @@ impl Default for ServeConfig {
             request_timeout: Duration::from_secs(30),
             ws_max_message_bytes: 16 << 20,
             max_streams: 64,
+            ws_idle_timeout: Duration::from_secs(60),
             shutdown_grace: Duration::from_secs(30),
             defaults: FrameDefaults::default(),
         }

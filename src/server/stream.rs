@@ -1,7 +1,9 @@
 //! `GET /v1/stream`: the WebSocket stream. Latest frame wins: each connection has at most one
 //! frame running and one waiting; a newer frame replaces the waiting one, which is answered
 //! with `Dropped`. Bad messages get an `Error` and the stream goes on. The server pings idle
-//! clients and closes cleanly (1001) on shutdown, after the frame in flight.
+//! clients, drops a client that has sent nothing or taken nothing for `--ws-idle-timeout-ms`
+//! (one that stopped reading would otherwise hold its stream, and the server's shutdown,
+//! forever), and closes cleanly (1001) on shutdown, after the frame in flight.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -18,10 +20,8 @@ use super::proto::{self, Incoming, StreamFrame, StreamSettings};
 use super::workers::JobResult;
 use super::{AppState, OVERSIZE_READ_FACTOR};
 
-/// Interval of the server's pings.
-const PING_EVERY: Duration = Duration::from_secs(15);
-/// A client silent for this long (no message, no pong) is disconnected.
-const IDLE_LIMIT: Duration = Duration::from_secs(60);
+/// Pings per idle timeout: a silent client is found at most a quarter of it late.
+const PINGS_PER_IDLE_TIMEOUT: u32 = 4;
 /// How long a stream closed by the server waits for the client's close in reply.
 const CLOSE_WAIT: Duration = Duration::from_secs(2);
 
@@ -111,7 +111,8 @@ impl Connection {
     }
 
     async fn run(mut self) {
-        let mut ping = tokio::time::interval(PING_EVERY);
+        let every = self.app.cfg.ws_idle_timeout / PINGS_PER_IDLE_TIMEOUT;
+        let mut ping = tokio::time::interval(every.max(Duration::from_millis(1)));
         ping.tick().await;
         let mut shutdown = self.app.shutdown.clone();
         loop {
@@ -156,10 +157,23 @@ impl Connection {
     }
 
     async fn send(&mut self, bytes: Vec<u8>) -> bool {
-        self.socket
-            .send(Message::Binary(bytes.into()))
-            .await
-            .is_ok()
+        self.send_message(Message::Binary(bytes.into())).await
+    }
+
+    /// Sends `msg`; false when the connection is over: it failed, or the client took none of
+    /// it within the idle timeout (it stopped reading: its buffers and ours are full).
+    async fn send_message(&mut self, msg: Message) -> bool {
+        let limit = self.app.cfg.ws_idle_timeout;
+        match tokio::time::timeout(limit, self.socket.send(msg)).await {
+            Ok(sent) => sent.is_ok(),
+            Err(_) => {
+                tracing::info!(
+                    timeout_ms = limit.as_millis(),
+                    "stream client took no message within the idle timeout; dropping it"
+                );
+                false
+            }
+        }
     }
 
     async fn close(&mut self, code: u16, reason: &'static str) {
@@ -167,18 +181,15 @@ impl Connection {
             code,
             reason: reason.into(),
         };
-        let _ = self.socket.send(Message::Close(Some(frame))).await;
+        let _ = self.send_message(Message::Close(Some(frame))).await;
     }
 
     async fn on_ping(&mut self) -> bool {
-        if self.last_heard.elapsed() > IDLE_LIMIT {
+        if self.last_heard.elapsed() > self.app.cfg.ws_idle_timeout {
             self.close(1001, "idle").await;
             return false;
         }
-        self.socket
-            .send(Message::Ping(Vec::new().into()))
-            .await
-            .is_ok()
+        self.send_message(Message::Ping(Vec::new().into())).await
     }
 
     async fn on_message(&mut self, msg: Message) -> bool {
@@ -190,7 +201,8 @@ impl Connection {
             }
             Message::Close(_) => {
                 // The reply the WebSocket queued on reading the client's close goes out now.
-                let _ = SinkExt::flush(&mut self.socket).await;
+                let limit = self.app.cfg.ws_idle_timeout;
+                let _ = tokio::time::timeout(limit, SinkExt::flush(&mut self.socket)).await;
                 return false;
             }
             Message::Ping(_) | Message::Pong(_) => return true,
