@@ -790,3 +790,91 @@ fn a_client_that_stalls_mid_upload_gives_its_place_back_at_the_timeout() {
     );
     rt().block_on(still_serves(&server));
 }
+
+/// Posts `frame` for `query` over a socket with a receive buffer of `recv_buffer` bytes (so that
+/// a large answer fills the connection) and returns the socket without reading.
+async fn post_unread(
+    server: &Server,
+    query: &str,
+    frame: &[u8],
+    recv_buffer: u32,
+) -> tokio::net::TcpStream {
+    use tokio::io::AsyncWriteExt;
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    socket.set_recv_buffer_size(recv_buffer).unwrap();
+    let mut tcp = socket.connect(server.addr).await.unwrap();
+    let head = format!(
+        "POST /v1/roughness?{query} HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nContent-Length: {}\r\n\r\n",
+        frame.len()
+    );
+    tcp.write_all(head.as_bytes()).await.unwrap();
+    tcp.write_all(frame).await.unwrap();
+    tcp
+}
+
+/// Reads an HTTP answer from `tcp`, `chunk` bytes at a time with `pause` before each read,
+/// until its body is complete or the connection ends: (answer bytes, whether complete).
+async fn read_answer(
+    tcp: &mut tokio::net::TcpStream,
+    chunk: usize,
+    pause: std::time::Duration,
+) -> (Vec<u8>, bool) {
+    use tokio::io::AsyncReadExt;
+    let mut answer = Vec::new();
+    let mut buf = vec![0u8; chunk];
+    loop {
+        tokio::time::sleep(pause).await;
+        let read = tokio::time::timeout(std::time::Duration::from_secs(30), tcp.read(&mut buf));
+        match read.await.expect("no byte and no end within 30 s") {
+            Ok(0) | Err(_) => return (answer, false),
+            Ok(n) => answer.extend_from_slice(&buf[..n]),
+        }
+        let text = String::from_utf8_lossy(&answer);
+        if let Some(end) = text.find("\r\n\r\n") {
+            let length: usize = text[..end]
+                .lines()
+                .find_map(|l| l.strip_prefix("content-length: "))
+                .expect("a content-length")
+                .parse()
+                .unwrap();
+            if answer.len() >= end + 4 + length {
+                return (answer, true);
+            }
+        }
+    }
+}
+
+/// A client that stops reading its answer, such as a hung process with its socket open, once
+/// kept its connection and the answer in it (here 640×480 float maps, about 7 MB, more than the
+/// system's socket buffers hold) until the server stopped, and held up its shutdown for the
+/// whole grace time. Now the connection ends once the client has taken nothing for
+/// `--stall-timeout-ms`, so the answer it reads later is cut short; a client that reads slowly
+/// but steadily still gets all of it.
+#[test]
+fn a_client_that_stops_reading_its_answer_loses_the_connection_and_a_slow_one_does_not() {
+    let server = Server::start(&["--workers", "1", "--stall-timeout-ms", "1500"]);
+    let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    rt().block_on(async {
+        let big = "mode=rgb&normals=ls&format=npy&outputs=depth,normals,slope";
+        let mut stuck = post_unread(&server, big, &frame, 4096).await;
+        tokio::time::sleep(std::time::Duration::from_secs(5)).await;
+        let (answer, complete) = read_answer(&mut stuck, 1 << 20, Default::default()).await;
+        assert!(answer.starts_with(b"HTTP/1.1 200"));
+        assert!(
+            !complete,
+            "all {} bytes arrived after a 5 s stall",
+            answer.len()
+        );
+        // Slow but steady (at most 256 KiB every 0.2 s, about 6 s for the same answer): the
+        // server waits on it throughout, never 1.5 s without progress.
+        let mut slow = post_unread(&server, big, &frame, 256 << 10).await;
+        let pause = std::time::Duration::from_millis(200);
+        let (answer, complete) = read_answer(&mut slow, 256 << 10, pause).await;
+        assert!(
+            complete,
+            "a slow reader was cut off after {} bytes",
+            answer.len()
+        );
+        still_serves(&server).await;
+    });
+}

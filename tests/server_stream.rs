@@ -576,16 +576,16 @@ fn streams_over_the_limit_are_refused_at_once() {
 /// A client that stops reading, such as a hung robot process with its socket still open, once
 /// held its stream (and a `--max-streams` place) for good, and the server's shutdown for the
 /// whole grace time: the server waited forever to send it an answer, and did not ping it or
-/// read from it meanwhile. Now a message it takes none of within `--ws-idle-timeout-ms` ends
+/// read from it meanwhile. Now an answer it takes nothing of within `--stall-timeout-ms` ends
 /// its stream, which frees the place.
 #[test]
-fn a_client_that_stops_reading_is_dropped_after_the_idle_timeout() {
+fn a_client_that_stops_reading_is_dropped_after_the_stall_timeout() {
     let server = Server::start(&[
         "--workers",
         "1",
         "--max-streams",
         "1",
-        "--ws-idle-timeout-ms",
+        "--stall-timeout-ms",
         "1500",
     ]);
     let image = std::fs::read(real("slambook2_ch7/1.png")).unwrap();

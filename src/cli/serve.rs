@@ -80,11 +80,15 @@ pub struct Serve {
     /// WebSocket streams open at once; beyond, the upgrade gets 429 at once.
     #[arg(long, env = "TRE_MAX_STREAMS", default_value_t = 64)]
     pub max_streams: usize,
-    /// A stream whose client sends nothing (no message, no answer to the server's pings) or
-    /// takes nothing (an answer waits to be sent: the client stopped reading) for this long is
-    /// closed, milliseconds; its `--max-streams` place is freed.
+    /// A stream whose client sends nothing (no message, no answer to the server's pings) for
+    /// this long is closed, milliseconds; its `--max-streams` place is freed.
     #[arg(long, env = "TRE_WS_IDLE_TIMEOUT_MS", default_value_t = 60_000)]
     pub ws_idle_timeout_ms: u64,
+    /// A connection whose client takes no byte of an answer for this long (it stopped reading,
+    /// like a hung process with its socket open) is closed, milliseconds: HTTP requests and
+    /// streams alike. A slow client that keeps reading is not affected.
+    #[arg(long, env = "TRE_STALL_TIMEOUT_MS", default_value_t = 30_000)]
+    pub stall_timeout_ms: u64,
     /// Seconds in-flight work may take to finish after SIGTERM or Ctrl-C.
     #[arg(long, env = "TRE_SHUTDOWN_GRACE_S", default_value_t = 30)]
     pub shutdown_grace_s: u64,
@@ -111,8 +115,9 @@ impl Serve {
             || self.ws_max_message_bytes == 0
             || self.max_streams == 0
             || self.ws_idle_timeout_ms == 0
+            || self.stall_timeout_ms == 0
         {
-            bail!("--max-body-bytes, --max-pixels, --max-concurrent, --ws-max-message-bytes, --max-streams and --ws-idle-timeout-ms must be positive");
+            bail!("--max-body-bytes, --max-pixels, --max-concurrent, --ws-max-message-bytes, --max-streams, --ws-idle-timeout-ms and --stall-timeout-ms must be positive");
         }
         Ok(ServeConfig {
             addr: self.addr,
@@ -135,6 +140,7 @@ impl Serve {
             ws_max_message_bytes: self.ws_max_message_bytes,
             max_streams: self.max_streams,
             ws_idle_timeout: Duration::from_millis(self.ws_idle_timeout_ms),
+            stall_timeout: Duration::from_millis(self.stall_timeout_ms),
             shutdown_grace: Duration::from_secs(self.shutdown_grace_s),
             defaults: FrameDefaults {
                 normals: self.normals.into(),
@@ -227,11 +233,16 @@ mod tests {
     }
 
     #[test]
-    fn the_stream_idle_timeout_is_set_in_milliseconds_and_zero_is_refused() {
-        assert_eq!(parse(&[]).unwrap().ws_idle_timeout, Duration::from_secs(60));
-        let cfg = parse(&["--ws-idle-timeout-ms", "1500"]).unwrap();
+    fn the_idle_and_stall_timeouts_are_set_in_milliseconds_and_zero_is_refused() {
+        let cfg = parse(&[]).unwrap();
+        assert_eq!(cfg.ws_idle_timeout, Duration::from_secs(60));
+        assert_eq!(cfg.stall_timeout, Duration::from_secs(30));
+        let cfg = parse(&["--ws-idle-timeout-ms", "1500", "--stall-timeout-ms", "700"]).unwrap();
         assert_eq!(cfg.ws_idle_timeout, Duration::from_millis(1500));
-        let e = parse(&["--ws-idle-timeout-ms", "0"]).unwrap_err();
-        assert!(e.contains("--ws-idle-timeout-ms must be positive"), "{e}");
+        assert_eq!(cfg.stall_timeout, Duration::from_millis(700));
+        for flag in ["--ws-idle-timeout-ms", "--stall-timeout-ms"] {
+            let e = parse(&[flag, "0"]).unwrap_err();
+            assert!(e.contains("must be positive") && e.contains(flag), "{e}");
+        }
     }
 }

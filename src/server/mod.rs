@@ -17,6 +17,7 @@ pub mod http;
 pub mod metrics;
 pub mod proto;
 pub mod request;
+pub mod stall;
 pub mod stream;
 pub mod workers;
 
@@ -68,9 +69,11 @@ pub struct ServeConfig {
     pub ws_max_message_bytes: usize,
     /// WebSocket streams open at once; more get 429.
     pub max_streams: usize,
-    /// A stream whose client sends nothing (no message, no pong) or takes nothing (an answer
-    /// waits to be sent) for this long is closed.
+    /// A stream whose client sends nothing (no message, no pong) for this long is closed.
     pub ws_idle_timeout: Duration,
+    /// A connection (HTTP or stream) whose client takes nothing of an answer for this long is
+    /// closed: [`stall`].
+    pub stall_timeout: Duration,
     /// Time in-flight work may take to finish after SIGTERM.
     pub shutdown_grace: Duration,
     /// What frames get for the settings they do not choose: initial normals (DSAC, the paper's
@@ -97,6 +100,7 @@ impl Default for ServeConfig {
             ws_max_message_bytes: 16 << 20,
             max_streams: 64,
             ws_idle_timeout: Duration::from_secs(60),
+            stall_timeout: Duration::from_secs(30),
             shutdown_grace: Duration::from_secs(30),
             defaults: FrameDefaults::default(),
         }
@@ -205,6 +209,7 @@ pub async fn serve(
         }
         let _ = stop_tx.send(true);
     };
+    let listener = stall::StallGuardedListener::new(listener, cfg.stall_timeout);
     let server = axum::serve(listener, app).with_graceful_shutdown(signal);
     // Upgraded streams are no longer connections of the server: it does not wait for them.
     // Each holds a stream permit until it has answered its frame in flight and closed, so

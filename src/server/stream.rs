@@ -1,9 +1,8 @@
 //! `GET /v1/stream`: the WebSocket stream. Latest frame wins: each connection has at most one
 //! frame running and one waiting; a newer frame replaces the waiting one, which is answered
 //! with `Dropped`. Bad messages get an `Error` and the stream goes on. The server pings idle
-//! clients, drops a client that has sent nothing or taken nothing for `--ws-idle-timeout-ms`
-//! (one that stopped reading would otherwise hold its stream, and the server's shutdown,
-//! forever), and closes cleanly (1001) on shutdown, after the frame in flight.
+//! clients and drops one silent for `--ws-idle-timeout-ms` (one that stops reading is dropped
+//! by [`super::stall`]), and closes cleanly (1001) on shutdown, after the frame in flight.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -160,20 +159,10 @@ impl Connection {
         self.send_message(Message::Binary(bytes.into())).await
     }
 
-    /// Sends `msg`; false when the connection is over: it failed, or the client took none of
-    /// it within the idle timeout (it stopped reading: its buffers and ours are full).
+    /// Sends `msg`; false when the connection is over (a client that stops reading makes the
+    /// send fail after `--stall-timeout-ms`: [`super::stall`]).
     async fn send_message(&mut self, msg: Message) -> bool {
-        let limit = self.app.cfg.ws_idle_timeout;
-        match tokio::time::timeout(limit, self.socket.send(msg)).await {
-            Ok(sent) => sent.is_ok(),
-            Err(_) => {
-                tracing::info!(
-                    timeout_ms = limit.as_millis(),
-                    "stream client took no message within the idle timeout; dropping it"
-                );
-                false
-            }
-        }
+        self.socket.send(msg).await.is_ok()
     }
 
     async fn close(&mut self, code: u16, reason: &'static str) {
@@ -201,8 +190,7 @@ impl Connection {
             }
             Message::Close(_) => {
                 // The reply the WebSocket queued on reading the client's close goes out now.
-                let limit = self.app.cfg.ws_idle_timeout;
-                let _ = tokio::time::timeout(limit, SinkExt::flush(&mut self.socket)).await;
+                let _ = SinkExt::flush(&mut self.socket).await;
                 return false;
             }
             Message::Ping(_) | Message::Pong(_) => return true,
