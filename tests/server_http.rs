@@ -878,3 +878,59 @@ fn a_client_that_stops_reading_its_answer_loses_the_connection_and_a_slow_one_do
         still_serves(&server).await;
     });
 }
+
+/// Whether the server closes `tcp` within `within` while it is sent one byte of `bytes` every
+/// 0.2 s (nothing once they run out). A server that answers instead is a failure.
+fn closed_within(mut tcp: TcpStream, bytes: &[u8], within: std::time::Duration) -> bool {
+    use std::io::Read;
+    let start = std::time::Instant::now();
+    tcp.set_read_timeout(Some(std::time::Duration::from_millis(200)))
+        .unwrap();
+    let mut sent = 0;
+    while start.elapsed() < within {
+        if sent < bytes.len() && tcp.write_all(&bytes[sent..=sent]).is_ok() {
+            sent += 1;
+        }
+        let mut buf = [0u8; 256];
+        match tcp.read(&mut buf) {
+            Ok(0) => return true,
+            Ok(n) => panic!("an answer: {}", String::from_utf8_lossy(&buf[..n])),
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+            Err(_) => return true,
+        }
+    }
+    false
+}
+
+/// Request headers sent a byte at a time (slowloris), and a connection opened and left idle,
+/// were once kept until the server stopped: a task and a file descriptor each, so enough of
+/// them exhaust the process's descriptors. Now the headers must arrive within
+/// `--request-timeout-ms`, which also closes an idle kept-alive connection; requests that
+/// arrive in time are served, on new and kept-alive connections alike.
+#[test]
+fn request_headers_have_a_deadline_and_idle_connections_are_closed() {
+    let server = Server::start(&["--workers", "1", "--request-timeout-ms", "1500"]);
+    let within = std::time::Duration::from_secs(8);
+    let head = b"POST /v1/roughness HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nX-Pad: aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa";
+    let trickling = TcpStream::connect(server.addr).unwrap();
+    assert!(
+        closed_within(trickling, head, within),
+        "headers sent a byte every 0.2 s still held the connection 8 s on"
+    );
+    let idle = TcpStream::connect(server.addr).unwrap();
+    assert!(
+        closed_within(idle, b"", within),
+        "an idle connection was still open 8 s on"
+    );
+    // Two requests 1 s apart on one kept-alive connection are both served.
+    rt().block_on(async {
+        let client = reqwest::Client::new();
+        for _ in 0..2 {
+            let resp = client.get(format!("{}/healthz", server.url())).send().await;
+            assert_eq!(resp.unwrap().status().as_u16(), 200);
+            tokio::time::sleep(std::time::Duration::from_secs(1)).await;
+        }
+        still_serves(&server).await;
+    });
+}

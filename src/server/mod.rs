@@ -1,7 +1,7 @@
-//! The inference service: axum over tokio for HTTP and the WebSocket stream, with the pipeline
-//! on named worker threads ([`workers`]) fed by a bounded queue. One mapping turns every error
-//! into a status and a code ([`error`]); limits answer overload at once (429/503 with
-//! `Retry-After`) instead of queueing without bound.
+//! The inference service: axum's routing over hyper's HTTP/1 on tokio ([`connections`]) for HTTP
+//! and the WebSocket stream, with the pipeline on named worker threads ([`workers`]) fed by a
+//! bounded queue. One mapping turns every error into a status and a code ([`error`]); limits
+//! answer overload at once (429/503 with `Retry-After`) instead of queueing without bound.
 //!
 //! ```no_run
 //! # async fn demo() -> Result<(), Box<dyn std::error::Error>> {
@@ -12,6 +12,7 @@
 //! # }
 //! ```
 
+pub mod connections;
 pub mod error;
 pub mod http;
 pub mod metrics;
@@ -209,22 +210,24 @@ pub async fn serve(
         }
         let _ = stop_tx.send(true);
     };
-    let listener = stall::StallGuardedListener::new(listener, cfg.stall_timeout);
-    let server = axum::serve(listener, app).with_graceful_shutdown(signal);
+    let limits = connections::ConnectionLimits {
+        header_read: cfg.request_timeout,
+        write_stall: cfg.stall_timeout,
+    };
+    let server = connections::serve_connections(listener, app, limits, signal);
     // Upgraded streams are no longer connections of the server: it does not wait for them.
     // Each holds a stream permit until it has answered its frame in flight and closed, so
     // holding every permit means they are all done.
     let streams = state.streams.clone();
     let all_streams = u32::try_from(cfg.max_streams).unwrap_or(u32::MAX);
     let drained = async move {
-        let served = server.await;
+        server.await;
         let _closed = streams.acquire_many(all_streams).await;
-        served
     };
     let grace = cfg.shutdown_grace;
     let mut stopping = state.shutdown.clone();
     tokio::select! {
-        r = drained => r?,
+        () = drained => {}
         () = async { let _ = stopping.wait_for(|s| *s).await; tokio::time::sleep(grace).await } => {
             tracing::warn!("in-flight work did not finish within {} s; stopping anyway", grace.as_secs());
         }

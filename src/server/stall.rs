@@ -7,44 +7,12 @@
 
 use std::future::Future;
 use std::io;
-use std::net::SocketAddr;
 use std::pin::Pin;
 use std::task::{Context, Poll};
 use std::time::Duration;
 
-use axum::serve::Listener;
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
-use tokio::net::{TcpListener, TcpStream};
 use tokio::time::Sleep;
-
-/// A TCP listener whose connections are [`StallGuard`]ed.
-#[derive(Debug)]
-pub struct StallGuardedListener {
-    inner: TcpListener,
-    limit: Duration,
-}
-
-impl StallGuardedListener {
-    /// Guards the connections of `inner`: a write pending for `limit` without progress fails.
-    pub fn new(inner: TcpListener, limit: Duration) -> Self {
-        Self { inner, limit }
-    }
-}
-
-impl Listener for StallGuardedListener {
-    type Io = StallGuard<TcpStream>;
-    type Addr = SocketAddr;
-
-    async fn accept(&mut self) -> (Self::Io, Self::Addr) {
-        // axum's accept for a TCP listener logs and retries failed accepts.
-        let (io, addr) = Listener::accept(&mut self.inner).await;
-        (StallGuard::new(io, self.limit), addr)
-    }
-
-    fn local_addr(&self) -> io::Result<Self::Addr> {
-        self.inner.local_addr()
-    }
-}
 
 /// An IO whose writes (and flushes and shutdowns) fail with [`io::ErrorKind::TimedOut`] once
 /// one has been pending for the limit without any progress in between; reads pass through.
