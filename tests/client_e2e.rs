@@ -444,3 +444,98 @@ fn assert_spans_latency(sent_us: i64, received_us: i64, latency_ms: f64) {
         "received − sent = {span_ms} ms, latency {latency_ms} ms"
     );
 }
+
+/// A server that stops mid-stream (SIGSTOP: hung, with its socket open) once froze the client:
+/// once the frames filled the connection, the write in progress blocked the whole session, so
+/// no frame was reported lost, the silence check never ran and the client never reconnected,
+/// for as long as the server stayed stopped. Now frames time out on time, the silence drops the
+/// connection, and the session carries on once the server answers again.
+#[test]
+fn a_hung_server_is_reported_on_time_and_the_session_recovers() {
+    let _serial = SERIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = tempfile::tempdir().unwrap();
+    let mut server = Server::start("127.0.0.1:0", &dir.path().join("serve.log"));
+    server.wait_ready();
+    // 1200×1200 of noise: a 4.3 MB PNG, so that a few fill the socket buffers.
+    let noise = {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let img = image::RgbImage::from_fn(1200, 1200, |_, _| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            image::Rgb([state as u8, (state >> 8) as u8, (state >> 16) as u8])
+        });
+        let mut png = Vec::new();
+        DynamicImage::ImageRgb8(img)
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        png
+    };
+    let signal = |sig: &str| {
+        let pid = server.child.id().to_string();
+        assert!(Command::new("kill")
+            .args([sig, &pid])
+            .status()
+            .unwrap()
+            .success());
+    };
+    rt().block_on(async {
+        let mut cfg = session_config(server.addr);
+        cfg.rate = Rate::Fixed(10.0);
+        cfg.frame_timeout = Duration::from_secs(1);
+        cfg.silence_timeout = Duration::from_secs(4);
+        cfg.connect_timeout = Duration::from_secs(1);
+        cfg.reconnect.initial = Duration::from_millis(100);
+        cfg.reconnect.max = Duration::from_millis(500);
+        let (mut sender, mut events) = Session::connect(cfg).await.unwrap().split();
+        signal("-STOP");
+        let stopped = Instant::now();
+        let frames = tokio::spawn(async move {
+            // Until the session ends (the test drops the events): the send may block, paced.
+            while sender.send(Frame::rgb(noise.clone())).await.is_ok() {}
+        });
+        let (mut first_lost, mut disconnected) = (None, None);
+        while disconnected.is_none() && stopped.elapsed() < Duration::from_secs(20) {
+            let wait = Duration::from_secs(20).saturating_sub(stopped.elapsed());
+            match tokio::time::timeout(wait, events.recv()).await {
+                Ok(Some(Event::Lost { reason, .. })) if first_lost.is_none() => {
+                    assert_eq!(reason, LostReason::TimedOut);
+                    first_lost = Some(stopped.elapsed());
+                }
+                Ok(Some(Event::Disconnected { reason })) => {
+                    assert!(reason.contains("nothing heard"), "{reason}");
+                    disconnected = Some(stopped.elapsed());
+                }
+                Ok(Some(_)) => {}
+                Ok(None) | Err(_) => break,
+            }
+        }
+        signal("-CONT");
+        let first_lost = first_lost.expect("no frame reported lost while the server was stopped");
+        assert!(
+            first_lost < Duration::from_secs(5),
+            "the first loss came {first_lost:?} after the stop"
+        );
+        let disconnected = disconnected.expect("the silence never dropped the connection");
+        assert!(
+            disconnected < Duration::from_secs(12),
+            "dropped {disconnected:?} after the stop"
+        );
+        // The server answers again: the session reconnects and frames come back.
+        let mut recovered = false;
+        while let Ok(Some(event)) =
+            tokio::time::timeout(Duration::from_secs(60), events.recv()).await
+        {
+            if matches!(event, Event::Result(_)) {
+                recovered = true;
+                break;
+            }
+        }
+        assert!(recovered, "no result after the server came back");
+        drop(events);
+        frames.abort();
+    });
+    server.kill();
+}

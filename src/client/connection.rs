@@ -8,6 +8,7 @@ use std::future::Future;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use futures_util::stream::SplitSink;
 use futures_util::{SinkExt, StreamExt};
 use tokio::sync::{mpsc, oneshot, watch};
 use tokio_tungstenite::tungstenite::{self, Message};
@@ -212,18 +213,29 @@ impl Link {
         }
     }
 
-    /// Serves one connection until it drops or the session is finished.
-    async fn pump(&mut self, mut ws: Ws) -> Ended {
+    /// Serves one connection until it drops or the session is finished. Reading, writing and
+    /// the deadlines run side by side: a frame the server does not take (it is hung, or its
+    /// buffers are full) holds up neither the answers, nor the frame timeouts, nor the silence
+    /// check that drops the connection. (A write once blocked all three: with a server stopped
+    /// mid-stream the client reported nothing and never reconnected.)
+    async fn pump(&mut self, ws: Ws) -> Ended {
         let silence = self.shared.cfg.silence_timeout;
         let mut last_heard = Instant::now();
+        let (sink, mut stream) = ws.split();
+        // The sink when idle; while a frame is being written, the write owns it and hands it
+        // back.
+        let mut sink = Some(sink);
+        let mut writing: Option<Write> = None;
         loop {
-            if !self.frames_open && self.pending.is_empty() {
-                let _ = ws.close(None).await;
+            if !self.frames_open && self.pending.is_empty() && writing.is_none() {
+                if let Some(mut sink) = sink.take() {
+                    let _ = sink.close().await;
+                }
                 return Ended::Finished;
             }
             let expiry = self.next_expiry();
             tokio::select! {
-                m = ws.next() => {
+                m = stream.next() => {
                     last_heard = Instant::now();
                     match m {
                         Some(Ok(Message::Binary(b))) => self.on_message(&b).await,
@@ -236,11 +248,21 @@ impl Link {
                         None => return Ended::Dropped("the connection ended".into()),
                     }
                 }
-                f = self.frames.recv(), if self.frames_open => match f {
+                (idle, written) = async { writing.as_mut().expect("guarded by the branch condition; this is a bug").await }, if writing.is_some() => {
+                    writing = None;
+                    sink = Some(idle);
+                    if let Err(e) = written {
+                        return Ended::Dropped(format!("sending a frame: {e}"));
+                    }
+                }
+                f = self.frames.recv(), if self.frames_open && writing.is_none() => match f {
                     Some(o) => {
-                        if let Err(e) = self.transmit(&mut ws, o).await {
-                            return Ended::Dropped(format!("sending a frame: {e}"));
-                        }
+                        let msg = self.track(o).await;
+                        let mut idle = sink.take().expect("no write in progress; this is a bug");
+                        writing = Some(Box::pin(async move {
+                            let written = idle.send(msg).await;
+                            (idle, written)
+                        }));
                     }
                     None => self.frames_open = false,
                 },
@@ -252,8 +274,9 @@ impl Link {
         }
     }
 
-    /// Remembers the frame's send time (forgetting the oldest beyond the bound) and writes it.
-    async fn transmit(&mut self, ws: &mut Ws, o: Outgoing) -> Result<(), tungstenite::Error> {
+    /// Remembers the frame's send time (forgetting the oldest beyond the bound); returns the
+    /// message to write.
+    async fn track(&mut self, o: Outgoing) -> Message {
         if self.pending.len() >= self.shared.cfg.max_pending {
             if let Some((sequence, _)) = self.pending.pop_first() {
                 let lost = Event::Lost {
@@ -264,7 +287,7 @@ impl Link {
             }
         }
         self.pending.insert(o.sequence, o.sent);
-        ws.send(Message::Binary(o.bytes.into())).await
+        Message::Binary(o.bytes.into())
     }
 
     /// Handles one server message.
@@ -386,6 +409,11 @@ impl Link {
         });
     }
 }
+
+/// A frame being written: the write owns the sink and hands it back with the outcome.
+type Write = std::pin::Pin<
+    Box<dyn Future<Output = (SplitSink<Ws, Message>, Result<(), tungstenite::Error>)> + Send>,
+>;
 
 /// Sleeps until `t` (forever for `None`).
 async fn sleep_until(t: Option<Instant>) {
