@@ -13,9 +13,9 @@
 //! no longer connections here: the caller waits for them.
 
 use std::future::Future;
-use std::io;
 use std::time::Duration;
 
+use axum::serve::Listener;
 use axum::Router;
 use hyper::server::conn::http1;
 use hyper_util::rt::{TokioIo, TokioTimer};
@@ -37,7 +37,7 @@ pub struct ConnectionLimits {
 /// Serves `app` on `listener` until `signal` completes, then stops accepting and waits for the
 /// connections to finish their requests in flight and close.
 pub async fn serve_connections(
-    listener: TcpListener,
+    mut listener: TcpListener,
     app: Router,
     limits: ConnectionLimits,
     signal: impl Future<Output = ()>,
@@ -51,14 +51,11 @@ pub async fn serve_connections(
         .header_read_timeout(limits.header_read);
     let mut signal = std::pin::pin!(signal);
     loop {
-        let io = tokio::select! {
-            accepted = listener.accept() => match accepted {
-                Ok((io, _)) => io,
-                Err(e) => {
-                    accept_failed(e).await;
-                    continue;
-                }
-            },
+        // axum's accept for a TCP listener skips connections that failed before they were
+        // taken, and logs other errors (such as running out of file descriptors) and retries
+        // a second later.
+        let (io, _) = tokio::select! {
+            accepted = Listener::accept(&mut listener) => accepted,
             () = &mut signal => break,
         };
         let io = TokioIo::new(StallGuard::new(io, limits.write_stall));
@@ -91,19 +88,4 @@ pub async fn serve_connections(
     drop(open_rx);
     let _ = stop_tx.send(());
     open_tx.closed().await;
-}
-
-/// After a failed accept: a connection that failed before it was taken is skipped; anything
-/// else (such as running out of file descriptors) is logged and retried a second later, as
-/// retrying at once would only fail again.
-async fn accept_failed(e: io::Error) {
-    use io::ErrorKind::{ConnectionAborted, ConnectionRefused, ConnectionReset};
-    if matches!(
-        e.kind(),
-        ConnectionAborted | ConnectionRefused | ConnectionReset
-    ) {
-        return;
-    }
-    tracing::error!(error = %e, "accepting a connection failed; retrying in 1 s");
-    tokio::time::sleep(Duration::from_secs(1)).await;
 }
