@@ -934,3 +934,62 @@ fn request_headers_have_a_deadline_and_idle_connections_are_closed() {
         still_serves(&server).await;
     });
 }
+
+/// Connections were once unlimited in number: each held a task and a file descriptor until its
+/// deadlines ran out, so enough of them, idle, exhausted the process's descriptors and left
+/// the server unable to take any. Over `--max-connections` a request is now answered 503
+/// `overloaded` with `Retry-After` at once, past twice the limit a connection is closed
+/// unanswered, and once the holders leave the server takes connections again.
+#[test]
+fn connections_over_the_limit_are_answered_503_at_once() {
+    let server = Server::start(&["--workers", "1", "--max-connections", "2"]);
+    let holders: Vec<TcpStream> = (0..2)
+        .map(|_| TcpStream::connect(server.addr).unwrap())
+        .collect();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let refused = |tcp: &mut TcpStream| -> Option<Vec<u8>> {
+        use std::io::Read;
+        tcp.set_read_timeout(Some(std::time::Duration::from_secs(5)))
+            .unwrap();
+        let req = b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n";
+        tcp.write_all(req).ok()?;
+        let mut raw = Vec::new();
+        tcp.read_to_end(&mut raw).ok()?;
+        Some(raw)
+    };
+    // Two more get the answer (and keep the refusals' places while they are open); a fifth
+    // finds both kinds of place taken and is closed unanswered.
+    let mut waiting: Vec<TcpStream> = (0..3)
+        .map(|_| TcpStream::connect(server.addr).unwrap())
+        .collect();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let answers: Vec<String> = waiting
+        .iter_mut()
+        .map(|t| String::from_utf8_lossy(&refused(t).unwrap_or_default()).into_owned())
+        .collect();
+    for answer in &answers[..2] {
+        assert!(answer.starts_with("HTTP/1.1 503"), "{answer}");
+        assert!(answer.contains("retry-after: 1"), "{answer}");
+        assert!(answer.contains("\"code\":\"overloaded\""), "{answer}");
+        assert!(answer.contains("--max-connections"), "{answer}");
+    }
+    assert_eq!(answers[2], "", "past twice the limit: closed unanswered");
+    drop(waiting);
+    drop(holders);
+    // The places are free again: the server serves.
+    let start = std::time::Instant::now();
+    let mut early = 0;
+    while get(server.addr, "/healthz").0 != 200 {
+        early += 1;
+        assert!(
+            start.elapsed() < std::time::Duration::from_secs(5),
+            "the places were not freed"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let metrics = String::from_utf8(get(server.addr, "/metrics").1).unwrap();
+    let refused_total = format!("tre_connections_refused_total {}\n", 3 + early);
+    assert!(metrics.contains(&refused_total), "{metrics}");
+    assert!(metrics.contains("tre_connections_open 1\n"), "{metrics}");
+    rt().block_on(still_serves(&server));
+}

@@ -89,6 +89,12 @@ pub struct Serve {
     /// streams alike. A slow client that keeps reading is not affected.
     #[arg(long, env = "TRE_STALL_TIMEOUT_MS", default_value_t = 30_000)]
     pub stall_timeout_ms: u64,
+    /// HTTP connections open at once (a stream counts until its upgrade, then against
+    /// `--max-streams`); beyond, requests get 503 and the connection is closed. Each open
+    /// connection takes a file descriptor: `ulimit -n` should allow twice this plus
+    /// `--max-streams` and about 100 more.
+    #[arg(long, env = "TRE_MAX_CONNECTIONS", default_value_t = 1024)]
+    pub max_connections: usize,
     /// Seconds in-flight work may take to finish after SIGTERM or Ctrl-C.
     #[arg(long, env = "TRE_SHUTDOWN_GRACE_S", default_value_t = 30)]
     pub shutdown_grace_s: u64,
@@ -112,12 +118,14 @@ impl Serve {
         if self.max_body_bytes == 0
             || self.max_pixels == 0
             || self.max_concurrent == 0
+            || self.request_timeout_ms == 0
             || self.ws_max_message_bytes == 0
             || self.max_streams == 0
             || self.ws_idle_timeout_ms == 0
             || self.stall_timeout_ms == 0
+            || self.max_connections == 0
         {
-            bail!("--max-body-bytes, --max-pixels, --max-concurrent, --ws-max-message-bytes, --max-streams, --ws-idle-timeout-ms and --stall-timeout-ms must be positive");
+            bail!("--max-body-bytes, --max-pixels, --max-concurrent, --request-timeout-ms, --ws-max-message-bytes, --max-streams, --ws-idle-timeout-ms, --stall-timeout-ms and --max-connections must be positive");
         }
         Ok(ServeConfig {
             addr: self.addr,
@@ -136,11 +144,12 @@ impl Serve {
             max_body_bytes: self.max_body_bytes,
             max_pixels: self.max_pixels,
             max_concurrent: self.max_concurrent,
-            request_timeout: Duration::from_millis(self.request_timeout_ms.max(1)),
+            request_timeout: Duration::from_millis(self.request_timeout_ms),
             ws_max_message_bytes: self.ws_max_message_bytes,
             max_streams: self.max_streams,
             ws_idle_timeout: Duration::from_millis(self.ws_idle_timeout_ms),
             stall_timeout: Duration::from_millis(self.stall_timeout_ms),
+            max_connections: self.max_connections,
             shutdown_grace: Duration::from_secs(self.shutdown_grace_s),
             defaults: FrameDefaults {
                 normals: self.normals.into(),
@@ -233,14 +242,33 @@ mod tests {
     }
 
     #[test]
-    fn the_idle_and_stall_timeouts_are_set_in_milliseconds_and_zero_is_refused() {
+    fn the_connection_limits_are_set_and_zero_is_refused() {
         let cfg = parse(&[]).unwrap();
         assert_eq!(cfg.ws_idle_timeout, Duration::from_secs(60));
         assert_eq!(cfg.stall_timeout, Duration::from_secs(30));
-        let cfg = parse(&["--ws-idle-timeout-ms", "1500", "--stall-timeout-ms", "700"]).unwrap();
+        assert_eq!(cfg.request_timeout, Duration::from_secs(30));
+        assert_eq!(cfg.max_connections, 1024);
+        let cfg = parse(&[
+            "--ws-idle-timeout-ms",
+            "1500",
+            "--stall-timeout-ms",
+            "700",
+            "--request-timeout-ms",
+            "250",
+            "--max-connections",
+            "3",
+        ])
+        .unwrap();
         assert_eq!(cfg.ws_idle_timeout, Duration::from_millis(1500));
         assert_eq!(cfg.stall_timeout, Duration::from_millis(700));
-        for flag in ["--ws-idle-timeout-ms", "--stall-timeout-ms"] {
+        assert_eq!(cfg.request_timeout, Duration::from_millis(250));
+        assert_eq!(cfg.max_connections, 3);
+        for flag in [
+            "--ws-idle-timeout-ms",
+            "--stall-timeout-ms",
+            "--request-timeout-ms",
+            "--max-connections",
+        ] {
             let e = parse(&[flag, "0"]).unwrap_err();
             assert!(e.contains("must be positive") && e.contains(flag), "{e}");
         }

@@ -8,11 +8,18 @@
 //!   them exhaust the process's descriptors);
 //! - its writes are [`StallGuard`]ed (`--stall-timeout-ms`).
 //!
+//! and a limit on how many connections may be open at once (`--max-connections`; a stream
+//! counts until its upgrade, then against `--max-streams`). A connection over it gets its
+//! request answered with 503 `overloaded` and `Retry-After`, under the same two limits, and is
+//! closed; past as many such refusals at once again, a new connection is closed unanswered, so
+//! that a flood cannot take more than twice the limit in file descriptors.
+//!
 //! On the shutdown signal it stops accepting, lets each connection finish the request in
 //! flight (hyper's graceful shutdown), and returns once all have closed. Upgraded streams are
 //! no longer connections here: the caller waits for them.
 
 use std::future::Future;
+use std::sync::Arc;
 use std::time::Duration;
 
 use axum::serve::Listener;
@@ -21,8 +28,10 @@ use hyper::server::conn::http1;
 use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::service::TowerToHyperService;
 use tokio::net::TcpListener;
-use tokio::sync::watch;
+use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
+use super::error::{ApiError, ErrorCode};
+use super::metrics::Metrics;
 use super::stall::StallGuard;
 
 /// What a client may hold without doing anything.
@@ -32,6 +41,18 @@ pub struct ConnectionLimits {
     pub header_read: Duration,
     /// A write without progress for this long fails, which ends the connection.
     pub write_stall: Duration,
+    /// Connections open at once; beyond, requests are answered 503.
+    pub max_open: usize,
+}
+
+/// The answer to every request on a connection over `--max-connections`.
+fn refuse_router(max_open: usize) -> Router {
+    Router::new().fallback(move || async move {
+        ApiError::new(
+            ErrorCode::Overloaded,
+            format!("the server holds its limit of {max_open} open connections (--max-connections); retry later"),
+        )
+    })
 }
 
 /// Serves `app` on `listener` until `signal` completes, then stops accepting and waits for the
@@ -40,6 +61,7 @@ pub async fn serve_connections(
     mut listener: TcpListener,
     app: Router,
     limits: ConnectionLimits,
+    metrics: Arc<Metrics>,
     signal: impl Future<Output = ()>,
 ) {
     let (stop_tx, stop_rx) = watch::channel(());
@@ -49,18 +71,35 @@ pub async fn serve_connections(
     builder
         .timer(TokioTimer::new())
         .header_read_timeout(limits.header_read);
+    let mut refusing = builder.clone();
+    refusing.keep_alive(false);
+    let refuse = refuse_router(limits.max_open);
+    let served = Arc::new(Semaphore::new(limits.max_open));
+    let refused = Arc::new(Semaphore::new(limits.max_open));
     let mut signal = std::pin::pin!(signal);
     loop {
         // axum's accept for a TCP listener skips connections that failed before they were
         // taken, and logs other errors (such as running out of file descriptors) and retries
         // a second later.
-        let (io, _) = tokio::select! {
+        let (io, peer) = tokio::select! {
             accepted = Listener::accept(&mut listener) => accepted,
             () = &mut signal => break,
         };
+        let (place, builder, app) = match served.clone().try_acquire_owned() {
+            Ok(place) => (Place::served(place, &metrics), &builder, app.clone()),
+            Err(_) => {
+                metrics.connection_refused();
+                let Ok(place) = refused.clone().try_acquire_owned() else {
+                    tracing::debug!(%peer, "connection closed unanswered: too many open and refused");
+                    continue;
+                };
+                tracing::debug!(%peer, "connection refused: --max-connections reached");
+                (Place::refused(place), &refusing, refuse.clone())
+            }
+        };
         let io = TokioIo::new(StallGuard::new(io, limits.write_stall));
         let conn = builder
-            .serve_connection(io, TowerToHyperService::new(app.clone()))
+            .serve_connection(io, TowerToHyperService::new(app))
             .with_upgrades();
         let mut stop = stop_rx.clone();
         let open = open_rx.clone();
@@ -81,6 +120,7 @@ pub async fn serve_connections(
                     }
                 }
             }
+            drop(place);
             drop(open);
         });
     }
@@ -88,4 +128,36 @@ pub async fn serve_connections(
     drop(open_rx);
     let _ = stop_tx.send(());
     open_tx.closed().await;
+}
+
+/// A connection's place within `--max-connections` or among those being refused; a served
+/// one is counted open in the metrics until it is dropped.
+struct Place {
+    _permit: OwnedSemaphorePermit,
+    served: Option<Arc<Metrics>>,
+}
+
+impl Place {
+    fn served(permit: OwnedSemaphorePermit, metrics: &Arc<Metrics>) -> Self {
+        metrics.connection_open(true);
+        Self {
+            _permit: permit,
+            served: Some(metrics.clone()),
+        }
+    }
+
+    fn refused(permit: OwnedSemaphorePermit) -> Self {
+        Self {
+            _permit: permit,
+            served: None,
+        }
+    }
+}
+
+impl Drop for Place {
+    fn drop(&mut self) {
+        if let Some(metrics) = &self.served {
+            metrics.connection_open(false);
+        }
+    }
 }

@@ -78,6 +78,8 @@ pub struct Metrics {
     batch_size: Histogram,
     frames_dropped: AtomicU64,
     streams_open: AtomicU64,
+    connections_open: AtomicU64,
+    connections_refused: AtomicU64,
 }
 
 impl Default for Metrics {
@@ -90,6 +92,8 @@ impl Default for Metrics {
             batch_size: Histogram::new(&BATCH_BUCKETS),
             frames_dropped: AtomicU64::new(0),
             streams_open: AtomicU64::new(0),
+            connections_open: AtomicU64::new(0),
+            connections_refused: AtomicU64::new(0),
         }
     }
 }
@@ -156,6 +160,20 @@ impl Metrics {
         }
     }
 
+    /// An HTTP connection taken (`+1`) or closed (`-1`) within `--max-connections`.
+    pub fn connection_open(&self, open: bool) {
+        if open {
+            self.connections_open.fetch_add(1, Ordering::Relaxed);
+        } else {
+            self.connections_open.fetch_sub(1, Ordering::Relaxed);
+        }
+    }
+
+    /// Counts a connection refused for `--max-connections`.
+    pub fn connection_refused(&self) {
+        self.connections_refused.fetch_add(1, Ordering::Relaxed);
+    }
+
     /// The exposition text.
     pub fn render(&self, g: Gauges) -> String {
         let mut out = String::with_capacity(8192);
@@ -193,6 +211,15 @@ impl Metrics {
             "Open WebSocket streams.",
             open,
         );
+        let connections = self.connections_open.load(Ordering::Relaxed) as f64;
+        gauge(
+            &mut out,
+            "tre_connections_open",
+            "Open HTTP connections (a stream counts until its upgrade).",
+            connections,
+        );
+        let refused = self.connections_refused.load(Ordering::Relaxed);
+        let _ = writeln!(out, "# HELP tre_connections_refused_total Connections refused over --max-connections.\n# TYPE tre_connections_refused_total counter\ntre_connections_refused_total {refused}");
         out.push_str("# HELP tre_requests_total Requests and stream frames by endpoint and outcome.\n# TYPE tre_requests_total counter\n");
         for ((endpoint, outcome), n) in self
             .requests

@@ -75,6 +75,9 @@ pub struct ServeConfig {
     /// A connection (HTTP or stream) whose client takes nothing of an answer for this long is
     /// closed: [`stall`].
     pub stall_timeout: Duration,
+    /// HTTP connections open at once (a stream until its upgrade); more are answered 503 and
+    /// closed: [`connections`].
+    pub max_connections: usize,
     /// Time in-flight work may take to finish after SIGTERM.
     pub shutdown_grace: Duration,
     /// What frames get for the settings they do not choose: initial normals (DSAC, the paper's
@@ -102,6 +105,7 @@ impl Default for ServeConfig {
             max_streams: 64,
             ws_idle_timeout: Duration::from_secs(60),
             stall_timeout: Duration::from_secs(30),
+            max_connections: 1024,
             shutdown_grace: Duration::from_secs(30),
             defaults: FrameDefaults::default(),
         }
@@ -213,8 +217,10 @@ pub async fn serve(
     let limits = connections::ConnectionLimits {
         header_read: cfg.request_timeout,
         write_stall: cfg.stall_timeout,
+        max_open: cfg.max_connections,
     };
-    let server = connections::serve_connections(listener, app, limits, signal);
+    let server =
+        connections::serve_connections(listener, app, limits, state.metrics.clone(), signal);
     // Upgraded streams are no longer connections of the server: it does not wait for them.
     // Each holds a stream permit until it has answered its frame in flight and closed, so
     // holding every permit means they are all done.
