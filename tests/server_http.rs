@@ -993,3 +993,111 @@ fn connections_over_the_limit_are_answered_503_at_once() {
     assert!(metrics.contains("tre_connections_open 1\n"), "{metrics}");
     rt().block_on(still_serves(&server));
 }
+
+/// The OpenAPI document is what the server does: every query parameter it lists is taken (all
+/// at once, with values its schema allows) and one it does not list is refused; every `format`
+/// it enumerates and every body type it lists gives a map; and it is valid OpenAPI 3.0, where
+/// `exclusiveMinimum` is a flag beside `minimum` (a number there is 3.1, which 3.0 tools
+/// reject).
+#[test]
+fn the_openapi_document_matches_what_the_server_takes() {
+    let server = Server::start(&["--workers", "1"]);
+    let (s, body) = get(server.addr, "/openapi.json");
+    assert_eq!(s, 200);
+    let doc: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert!(doc["openapi"].as_str().unwrap().starts_with("3.0."));
+    fn walk(v: &serde_json::Value, bad: &mut Vec<String>) {
+        match v {
+            serde_json::Value::Object(m) => {
+                for (k, v) in m {
+                    if k.starts_with("exclusiveM") && !v.is_boolean() {
+                        bad.push(format!("{k}: {v}"));
+                    }
+                    walk(v, bad);
+                }
+            }
+            serde_json::Value::Array(a) => a.iter().for_each(|v| walk(v, bad)),
+            _ => {}
+        }
+    }
+    let mut not_3_0 = Vec::new();
+    walk(&doc, &mut not_3_0);
+    assert!(not_3_0.is_empty(), "not OpenAPI 3.0: {not_3_0:?}");
+
+    let op = &doc["paths"]["/v1/roughness"]["post"];
+    let examples = [
+        ("format", "png16"),
+        ("mode", "rgb"),
+        ("seed", "7"),
+        ("normals", "ls"),
+        ("dsac_hypotheses", "4"),
+        ("preview_max_cm", "4"),
+        ("max_roughness_cm", "3"),
+        ("max_slope_deg", "25"),
+        ("outputs", "slope"),
+        ("fx", "525"),
+        ("fy", "525"),
+        ("cx", "319.5"),
+        ("cy", "239.5"),
+        ("pitch_deg", "50"),
+        ("height_m", "0.8"),
+        ("depth_scale", "1000"),
+    ];
+    let listed: Vec<&str> = op["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["name"].as_str().unwrap())
+        .collect();
+    let mut named: Vec<&str> = examples.iter().map(|(n, _)| *n).collect();
+    let mut sorted = listed.clone();
+    sorted.sort_unstable();
+    named.sort_unstable();
+    assert_eq!(sorted, named, "the document's query parameters");
+    let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    let url = |query: &str| format!("{}/v1/roughness?{query}", server.url());
+    let all: Vec<String> = examples.iter().map(|(n, v)| format!("{n}={v}")).collect();
+    rt().block_on(async {
+        let resp = post(&url(&all.join("&")), "image/png", frame.clone()).await;
+        assert_eq!(
+            resp.status().as_u16(),
+            200,
+            "every documented parameter at once"
+        );
+        let resp = post(
+            &url("normals=ls&colour_map=turbo"),
+            "image/png",
+            frame.clone(),
+        )
+        .await;
+        let (status, code, message) = error_of(resp).await;
+        assert_eq!((status, code.as_str()), (400, "bad_request"), "{message}");
+
+        let formats = op["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == "format")
+            .unwrap()["schema"]["enum"]
+            .as_array()
+            .unwrap()
+            .clone();
+        assert!(formats.len() >= 3);
+        for f in formats {
+            let f = f.as_str().unwrap();
+            let resp = post(
+                &url(&format!("normals=ls&format={f}")),
+                "image/png",
+                frame.clone(),
+            )
+            .await;
+            assert_eq!(resp.status().as_u16(), 200, "format={f}");
+        }
+        let types = op["requestBody"]["content"].as_object().unwrap();
+        assert!(types.contains_key("image/png") && types.contains_key("image/jpeg"));
+        for t in types.keys().filter(|t| !t.starts_with("multipart/")) {
+            let resp = post(&url("normals=ls"), t, frame.clone()).await;
+            assert_eq!(resp.status().as_u16(), 200, "Content-Type {t}");
+        }
+    });
+}
