@@ -11,7 +11,7 @@
 //! and a limit on how many connections may be open at once (`--max-connections`; a stream
 //! counts until its upgrade, then against `--max-streams`). A connection over it gets its
 //! request answered with 503 `overloaded` and `Retry-After`, under the same two limits, and is
-//! closed; past as many such refusals at once again, a new connection is closed unanswered, so
+//! closed (its body read and dropped first, up to `--max-body-bytes`); past as many such refusals at once again, a new connection is closed unanswered, so
 //! that a flood cannot take more than twice the limit in file descriptors.
 //!
 //! On the shutdown signal it stops accepting, lets each connection finish the request in
@@ -22,8 +22,11 @@ use std::future::Future;
 use std::sync::Arc;
 use std::time::Duration;
 
+use axum::body::{Bytes, HttpBody};
+use axum::extract::Request;
 use axum::serve::Listener;
 use axum::Router;
+use http_body_util::BodyExt;
 use hyper::server::conn::http1;
 use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::service::TowerToHyperService;
@@ -43,14 +46,38 @@ pub struct ConnectionLimits {
     pub write_stall: Duration,
     /// Connections open at once; beyond, requests are answered 503.
     pub max_open: usize,
+    /// Body bytes read and dropped before a refusal is answered (`--max-body-bytes`).
+    pub drain_bytes: usize,
 }
 
-/// The answer to every request on a connection over `--max-connections`.
-fn refuse_router(max_open: usize) -> Router {
-    Router::new().fallback(move || async move {
+/// The answer to every request on a connection over `--max-connections`: 503 once the body
+/// has been read and dropped (up to `--max-body-bytes`, within the request timeout), so that a
+/// client that sends everything before reading, like Python's `http.client`, gets the answer
+/// rather than a broken pipe.
+fn refuse_router(limits: ConnectionLimits) -> Router {
+    Router::new().fallback(move |req: Request| async move {
+        let drain = async {
+            let mut body = req.into_body();
+            let declared = usize::try_from(body.size_hint().lower()).unwrap_or(usize::MAX);
+            // A body declared larger than the limit is not read: the answer goes at once.
+            let mut seen = if declared > limits.drain_bytes { declared } else { 0 };
+            while seen <= limits.drain_bytes {
+                match body.frame().await {
+                    Some(Ok(frame)) => {
+                        let n = frame.data_ref().map_or(0, Bytes::len);
+                        seen = seen.saturating_add(n);
+                    }
+                    Some(Err(_)) | None => break,
+                }
+            }
+        };
+        let _ = tokio::time::timeout(limits.header_read, drain).await;
         ApiError::new(
             ErrorCode::Overloaded,
-            format!("the server holds its limit of {max_open} open connections (--max-connections); retry later"),
+            format!(
+                "the server holds its limit of {} open connections (--max-connections); retry later",
+                limits.max_open
+            ),
         )
     })
 }
@@ -73,7 +100,7 @@ pub async fn serve_connections(
         .header_read_timeout(limits.header_read);
     let mut refusing = builder.clone();
     refusing.keep_alive(false);
-    let refuse = refuse_router(limits.max_open);
+    let refuse = refuse_router(limits);
     let served = Arc::new(Semaphore::new(limits.max_open));
     let refused = Arc::new(Semaphore::new(limits.max_open));
     let mut signal = std::pin::pin!(signal);

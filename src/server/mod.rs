@@ -218,6 +218,7 @@ pub async fn serve(
         header_read: cfg.request_timeout,
         write_stall: cfg.stall_timeout,
         max_open: cfg.max_connections,
+        drain_bytes: cfg.max_body_bytes,
     };
     let server =
         connections::serve_connections(listener, app, limits, state.metrics.clone(), signal);
