@@ -35,6 +35,11 @@ struct Server {
 impl Server {
     /// Starts `tre serve --addr ADDR --workers 1` and reads the address it listens on.
     fn start(addr: &str, log: &Path) -> Self {
+        Self::start_with(addr, log, &[])
+    }
+
+    /// [`Server::start`] with more options.
+    fn start_with(addr: &str, log: &Path, more: &[&str]) -> Self {
         let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
         let mut child = Command::new(env!("CARGO_BIN_EXE_tre"))
             .args([
@@ -46,6 +51,7 @@ impl Server {
                 "--ort-threads",
                 "1",
             ])
+            .args(more)
             .arg("--models")
             .arg(models)
             .stdout(Stdio::piped())
@@ -538,4 +544,89 @@ fn a_hung_server_is_reported_on_time_and_the_session_recovers() {
         frames.abort();
     });
     server.kill();
+}
+
+/// A server at its `--max-connections` limit: `tre client` says why it cannot connect (the
+/// server's own `overloaded` message, where it once said only "not ready yet (HTTP 503)"), and
+/// connects as soon as the place is free. It once kept its readiness check's connection open
+/// for the whole session, which on such a server held the place its own stream needed until
+/// the server closed the idle connection (`--request-timeout-ms`, 60 s here).
+#[test]
+fn a_server_at_its_connection_limit_is_named_and_the_client_connects_once_a_place_frees() {
+    use std::io::{Read, Write};
+    let _serial = SERIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = tempfile::tempdir().unwrap();
+    make_frames(&dir.path().join("frames"));
+    let more = ["--max-connections", "1", "--request-timeout-ms", "60000"];
+    let server = Server::start_with("127.0.0.1:0", &dir.path().join("server.log"), &more);
+    server.wait_ready();
+    // A kept-alive connection, seen served, holds the only place for 3 s.
+    let holder = loop {
+        let mut tcp = std::net::TcpStream::connect(server.addr).unwrap();
+        tcp.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n")
+            .unwrap();
+        let mut buf = [0u8; 512];
+        let n = tcp.read(&mut buf).unwrap();
+        if buf[..n].starts_with(b"HTTP/1.1 200") {
+            break tcp;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let release = std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_secs(3));
+        drop(holder);
+    });
+    let out = dir.path().join("out");
+    let start = Instant::now();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .args([
+            "client",
+            "--server",
+            &format!("ws://{}/v1/stream", server.addr),
+        ])
+        .arg("--frames")
+        .arg(dir.path().join("frames"))
+        .args(["--as-fast-as-results", "--mode", "rgb", "--normals", "ls"])
+        .args(["--limit", "2", "--reconnect-initial-ms", "200"])
+        .args(["--reconnect-max-ms", "1000", "--out"])
+        .arg(&out)
+        .stderr(Stdio::piped())
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stderr = child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = stderr.read_to_string(&mut text);
+        text
+    });
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if start.elapsed() > Duration::from_secs(30) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!(
+                "no results 30 s on (the place was freed at 3 s): {}",
+                reader.join().unwrap()
+            );
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    release.join().unwrap();
+    let log = reader.join().unwrap();
+    assert!(status.success(), "{log}");
+    assert!(
+        log.contains("overloaded") && log.contains("--max-connections"),
+        "the reason is not named: {log}"
+    );
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    assert_eq!(
+        csv.lines().filter(|l| l.ends_with(",ok")).count(),
+        2,
+        "{csv}"
+    );
 }

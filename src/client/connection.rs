@@ -83,8 +83,12 @@ impl Link {
         state: watch::Sender<LinkState>,
     ) -> Result<Self, ClientError> {
         let http = if cfg.wait_ready {
+            // No idle connection is kept between checks: it would hold one of the server's
+            // `--max-connections` places for the whole session, and on a server at its limit
+            // keep the stream's own connection out.
             let client = reqwest::Client::builder()
                 .timeout(cfg.connect_timeout)
+                .pool_max_idle_per_host(0)
                 .build()
                 .map_err(|e| ClientError::BadConfig {
                     field: "wait_ready",
@@ -476,10 +480,32 @@ async fn check_ready(http: &reqwest::Client, url: &str) -> Result<(), ClientErro
         })?;
     match resp.status().as_u16() {
         200 | 404 => Ok(()),
-        status => Err(ClientError::NotReady {
-            url: url.to_owned(),
-            status: format!("HTTP {status}"),
-        }),
+        status => {
+            let body = resp.bytes().await.unwrap_or_default();
+            Err(ClientError::NotReady {
+                url: url.to_owned(),
+                status: with_server_error(format!("HTTP {status}"), &body),
+            })
+        }
+    }
+}
+
+/// `what`, followed by the server's own `code: message` when `body` is its JSON error (why a
+/// 503 came: models loading, the queue full, `--max-connections` reached).
+fn with_server_error(what: String, body: &[u8]) -> String {
+    let error = serde_json::from_slice::<serde_json::Value>(body)
+        .ok()
+        .and_then(|v| {
+            let e = v.get("error")?;
+            Some(format!(
+                "{}: {}",
+                e.get("code")?.as_str()?,
+                e.get("message")?.as_str()?
+            ))
+        });
+    match error {
+        Some(e) => format!("{what}, {e}"),
+        None => what,
     }
 }
 
@@ -519,10 +545,20 @@ fn handshake_error(url: &str, e: tungstenite::Error) -> ClientError {
         reason,
     };
     match &e {
-        tungstenite::Error::Http(resp)
-            if resp.status().is_client_error() && ![408, 429].contains(&resp.status().as_u16()) =>
-        {
-            rejected(format!("HTTP {} on the WebSocket upgrade", resp.status()))
+        tungstenite::Error::Http(resp) => {
+            let body = resp.body().as_deref().unwrap_or_default();
+            let reason = with_server_error(
+                format!("HTTP {} on the WebSocket upgrade", resp.status()),
+                body,
+            );
+            if resp.status().is_client_error() && ![408, 429].contains(&resp.status().as_u16()) {
+                rejected(reason)
+            } else {
+                ClientError::Connect {
+                    url: url.to_owned(),
+                    reason,
+                }
+            }
         }
         tungstenite::Error::Url(_) => rejected(e.to_string()),
         _ => ClientError::Connect {

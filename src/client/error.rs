@@ -47,12 +47,13 @@ pub enum ClientError {
         /// The server's message.
         message: String,
     },
-    /// `/readyz` did not answer 200 (models still loading); worth retrying.
-    #[error("{url}: the server is not ready yet ({status})")]
+    /// `/readyz` did not answer 200 (models still loading, or the server at a limit such as
+    /// `--max-connections`); worth retrying.
+    #[error("{url}: the server cannot take the stream yet ({status})")]
     NotReady {
         /// The readiness URL.
         url: String,
-        /// HTTP status or transport error.
+        /// HTTP status, with the server's error code and message when it sent them.
         status: String,
     },
     /// A step of the connection took longer than allowed.
