@@ -11,8 +11,9 @@
 //! and a limit on how many connections may be open at once (`--max-connections`; a stream
 //! counts until its upgrade, then against `--max-streams`). A connection over it gets its
 //! request answered with 503 `overloaded` and `Retry-After`, under the same two limits, and is
-//! closed (its body read and dropped first, up to `--max-body-bytes`); past as many such refusals at once again, a new connection is closed unanswered, so
-//! that a flood cannot take more than twice the limit in file descriptors.
+//! closed (its body read and dropped first, up to `--max-body-bytes`); past as many such
+//! refusals at once again, a new connection is closed unanswered, so that a flood cannot take
+//! more than twice the limit in file descriptors.
 //!
 //! On the shutdown signal it stops accepting, lets each connection finish the request in
 //! flight (hyper's graceful shutdown), and returns once all have closed. Upgraded streams are
