@@ -2,7 +2,8 @@
 //! 256×256 and 512×512 (the networks run at 256 on the long side either way), with the split by
 //! stage printed after each bench from the pipeline's own stage timings; the same at 256×256 as
 //! a server worker does it (PNG bytes decoded, the pipeline, the 16-bit roughness PNG encoded);
-//! and the LS normals alone against the same right after a net run.
+//! the LS normals alone against the same right after a net run; and the geometric mode (the
+//! annotation spec) on a real Kinect frame at 640×480 and 256×192 beside `tre annotate`.
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use std::collections::BTreeMap;
@@ -14,11 +15,14 @@ use image::DynamicImage;
 use ndarray::Array4;
 use tre::geometry::normals::{local_planes_into, PackedPoints};
 use tre::geometry::{LocalPlanes, Neighbourhood};
-use tre::io::{depth_png16, encode_png, CameraFile};
+use tre::io::{depth_png16, encode_png, read_camera, read_depth, CameraFile};
 use tre::model::{Models, SessionConfig};
+use tre::pipeline::resize::resize_nearest;
 use tre::pipeline::{
-    CentroidMethod, FrameInput, Method, Mode, NormalsMethod, Pipeline, PipelineConfig, StageTimings,
+    CentroidMethod, FrameInput, GeometricMethod, Method, Mode, NormalsMethod, Pipeline,
+    PipelineConfig, StageTimings,
 };
+use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 use tre::server::request::{
     config_for, decode_frame, encode_reply, DecodeLimits, FrameDefaults, FrameOptions, FrameRequest,
 };
@@ -309,5 +313,69 @@ fn ls_after_net(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, pipeline, requests, ls_after_net);
+/// The TUM fr2 Kinect frame of `../shared/data/real-rgbd/slambook2_ch7` as depth-only input,
+/// at its own 640×480 and resampled (nearest) to `size` with the intrinsics scaled.
+fn real_depth_frame(size: (usize, usize)) -> FrameInput {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd/slambook2_ch7");
+    let (_, k) = read_camera(&dir.join("intrinsics.json")).expect("the shared intrinsics read");
+    let depth = read_depth(&dir.join("1_depth.png"), 5000.0).expect("the shared depth reads");
+    let (w0, h0) = depth.size();
+    let k = k
+        .scaled(size.0 as f64 / w0 as f64, size.1 as f64 / h0 as f64)
+        .expect("a valid scale");
+    FrameInput {
+        depth_m: Some(resize_nearest(&depth, size.0, size.1, 0.0)),
+        intrinsics: Some(k),
+        ..FrameInput::default()
+    }
+}
+
+/// The geometric mode on a real Kinect frame at its own 640×480 and at 256×192: the whole
+/// annotation spec (`spec`, the default), the paper's surface-only baseline, and `tre
+/// annotate`'s library call on the same depth for comparison.
+fn geometric_real(c: &mut Criterion) {
+    let mut pipeline = Pipeline::new(None);
+    let mut group = c.benchmark_group("geometric_real");
+    group.sample_size(30);
+    for (w, h) in [(640, 480), (256, 192)] {
+        let input = real_depth_frame((w, h));
+        for (name, geometric) in [
+            ("spec", GeometricMethod::Spec),
+            ("surface_only", GeometricMethod::SurfaceOnly),
+        ] {
+            let cfg = PipelineConfig {
+                geometric,
+                ..PipelineConfig::for_mode(Mode::Geometric)
+            };
+            let mut ran = false;
+            group.bench_function(format!("{name}_{w}x{h}"), |b| {
+                ran = true;
+                b.iter(|| {
+                    let out = pipeline.run(&input, &cfg).expect("the frame runs");
+                    pipeline.recycle(out);
+                })
+            });
+            if ran {
+                eprintln!(
+                    "geometric_real/{name}_{w}x{h} by stage: {}",
+                    stage_split(&mut pipeline, &input, &cfg, 10)
+                );
+            }
+        }
+        let depth = input.depth_m.as_ref().expect("depth");
+        let k = input.intrinsics.expect("intrinsics");
+        let ann = AnnotateInput {
+            depth_m: depth,
+            intrinsics: &k,
+            normals: None,
+            labels: None,
+        };
+        group.bench_function(format!("annotate_{w}x{h}"), |b| {
+            b.iter(|| annotate(&ann, &AnnotateConfig::default()).expect("annotates"))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, pipeline, requests, ls_after_net, geometric_real);
 criterion_main!(benches);

@@ -11,20 +11,42 @@ use clap::Args;
 use serde::Serialize;
 
 use super::options::{ModeArg, StageArgs};
-use super::tables;
+use super::{real, tables};
 use crate::geometry::{Grid, Vec3};
 use crate::io;
-use crate::pipeline::{FrameInput, Method, Pipeline, PipelineConfig};
+use crate::pipeline::{FrameInput, Method, Mode, Pipeline, PipelineConfig};
 use crate::roughness::metrics::{DepthMetrics, NormalMetrics, RoughnessMetrics};
 use crate::roughness::{DepthAccumulator, NormalAccumulator, RoughnessAccumulator};
 use crate::synth::dataset::Manifest;
 
-/// Score a method on a synthetic dataset's split.
+/// Score a method on a synthetic dataset's split, or every mode on real RGB-D frames.
 #[derive(Debug, Args)]
 pub struct Eval {
     /// Dataset folder written by `tre synth` (holds dataset.json).
-    #[arg(long)]
-    pub data: PathBuf,
+    #[arg(long, required_unless_present = "real")]
+    pub data: Option<PathBuf>,
+    /// Real-frame benchmark: a folder of RGB-D frames with their intrinsics (one sequence
+    /// folder with intrinsics.json, or a folder of them, as ../shared/data/real-rgbd). Every
+    /// mode in --modes runs on each frame and is scored against annotation spec v1 on the same
+    /// sensor depth; the geometric mode runs as the spec and as the surface-only baseline.
+    #[arg(long, conflicts_with_all = ["data", "tables"])]
+    pub real: Option<PathBuf>,
+    /// Floor boxes of the real frames (JSON, as tests/fixtures/real_floor.json): floor median
+    /// and p90 per frame.
+    #[arg(long, requires = "real")]
+    pub floors: Option<PathBuf>,
+    /// Modes of the real-frame benchmark.
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "rgb,rgbd,geometric"
+    )]
+    pub modes: Vec<ModeArg>,
+    /// Real-frame benchmark: write a contact sheet PNG per frame into this folder (RGB | spec
+    /// | each mode, one colour scale).
+    #[arg(long, requires = "real")]
+    pub sheets: Option<PathBuf>,
     /// Input mode.
     #[arg(long, value_enum, default_value = "geometric")]
     pub mode: ModeArg,
@@ -101,19 +123,24 @@ struct Frame {
 }
 
 impl Eval {
-    /// Scores every frame of the split and prints the metrics (and the tables).
+    /// Scores every frame of the split and prints the metrics (and the tables), or runs the
+    /// real-frame benchmark.
     pub fn run(self) -> anyhow::Result<()> {
+        if let Some(real) = &self.real {
+            return self.run_real(real);
+        }
+        let data = self.data.clone().context("--data or --real is needed")?;
         if let Some(json) = &self.json {
             // The dataset's manifest and its scene folders are inputs; a report beside them
             // is fine.
-            let mut inputs = vec![self.data.join("dataset.json")];
-            if let Ok(entries) = std::fs::read_dir(&self.data) {
+            let mut inputs = vec![data.join("dataset.json")];
+            if let Ok(entries) = std::fs::read_dir(&data) {
                 inputs.extend(entries.flatten().map(|e| e.path()).filter(|p| p.is_dir()));
             }
             let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
             super::refuse_overwriting(&[json], &inputs)?;
         }
-        let dirs = self.frame_dirs()?;
+        let dirs = self.frame_dirs(&data)?;
         let specs = if self.tables {
             tables::row_specs(&self.stages.config(self.mode))
         } else {
@@ -141,7 +168,7 @@ impl Eval {
             .collect();
         println!(
             "{}, split {}, {} frames\n",
-            self.data.display(),
+            data.display(),
             self.split,
             dirs.len()
         );
@@ -150,12 +177,44 @@ impl Eval {
         } else {
             rows.iter().for_each(print_row);
         }
-        self.write_json(dirs.len(), &rows)
+        self.write_json(&data, dirs.len(), &rows)
+    }
+
+    /// The real-frame benchmark (`--real`): markdown on stdout, `--json`, `--sheets`.
+    fn run_real(&self, dir: &Path) -> anyhow::Result<()> {
+        if let Some(json) = &self.json {
+            super::refuse_overwriting(&[json], &[dir])?;
+        }
+        let frames = real::find_frames(dir, self.limit)?;
+        let floors = match &self.floors {
+            Some(path) => real::read_floors(path)?,
+            None => real::Floors::new(),
+        };
+        let modes: Vec<Mode> = self.modes.iter().map(|&m| m.into()).collect();
+        let rows = real::real_rows(&modes, &self.stages.config(ModeArg::Rgb));
+        let configs: Vec<PipelineConfig> = rows.iter().map(|(_, c)| *c).collect();
+        let mut pipeline = self.stages.pipeline(&configs)?;
+        if let Some(sheets) = &self.sheets {
+            std::fs::create_dir_all(sheets)
+                .with_context(|| format!("creating {}", sheets.display()))?;
+        }
+        let report =
+            real::run_benchmark(dir, &frames, &floors, &rows, &mut pipeline, |f, l, maps| {
+                match &self.sheets {
+                    Some(sheets) => real::write_sheet(sheets, f, l, &rows, maps),
+                    None => Ok(()),
+                }
+            })?;
+        println!("{}", real::markdown(&report));
+        if let Some(path) = &self.json {
+            super::write_file(path, &serde_json::to_string_pretty(&report)?)?;
+        }
+        Ok(())
     }
 
     /// The frame folders of the split, at most `--limit`.
-    fn frame_dirs(&self) -> anyhow::Result<Vec<PathBuf>> {
-        let path = self.data.join("dataset.json");
+    fn frame_dirs(&self, data: &Path) -> anyhow::Result<Vec<PathBuf>> {
+        let path = data.join("dataset.json");
         let text = std::fs::read_to_string(&path)
             .with_context(|| format!("reading {}", path.display()))?;
         let manifest: Manifest = serde_json::from_str(&text).context("parsing dataset.json")?;
@@ -163,7 +222,7 @@ impl Eval {
             .scenes
             .iter()
             .filter(|s| s.split == self.split)
-            .flat_map(|s| s.frames.iter().map(|f| self.data.join(&f.dir)))
+            .flat_map(|s| s.frames.iter().map(|f| data.join(&f.dir)))
             .take(self.limit.unwrap_or(usize::MAX))
             .collect();
         if dirs.is_empty() {
@@ -172,12 +231,12 @@ impl Eval {
         Ok(dirs)
     }
 
-    fn write_json(&self, frames: usize, rows: &[RowResult]) -> anyhow::Result<()> {
+    fn write_json(&self, data: &Path, frames: usize, rows: &[RowResult]) -> anyhow::Result<()> {
         let Some(path) = &self.json else {
             return Ok(());
         };
         let report = Report {
-            data: &self.data,
+            data,
             split: &self.split,
             frames,
             rows,

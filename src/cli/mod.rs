@@ -6,6 +6,7 @@ pub mod eval;
 pub mod infer;
 pub mod loadtest;
 pub mod options;
+pub mod real;
 pub mod serve;
 pub mod synth;
 pub mod tables;
@@ -36,8 +37,9 @@ pub enum Command {
     Synth(synth::Synth),
     /// Estimate roughness for one frame (RGB, RGB-D or depth only).
     Infer(infer::Infer),
-    /// Score roughness, normals and depth on a synthetic dataset's split; --tables for the
-    /// paper's Tables II, IV and V.
+    /// Score roughness, normals and depth on a synthetic dataset's split (--tables for the
+    /// paper's Tables II, IV and V), or every mode on real RGB-D frames against the spec on
+    /// the same sensor depth (--real).
     Eval(eval::Eval),
     /// Serve roughness over HTTP and a WebSocket stream.
     Serve(serve::Serve),

@@ -8,8 +8,8 @@ use clap::{Args, ValueEnum};
 
 use crate::model::{Models, SessionConfig};
 use crate::pipeline::{
-    CentroidMethod, Method, Mode, NormalsMethod, Pipeline, PipelineConfig, DEFAULT_DSAC_HYPOTHESES,
-    MAX_DSAC_HYPOTHESES,
+    CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod, Pipeline, PipelineConfig,
+    DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES,
 };
 
 /// Input mode (the paper's Table IV rows).
@@ -19,8 +19,27 @@ pub enum ModeArg {
     Rgb,
     /// RGB plus a registered depth frame: the depth net is skipped.
     Rgbd,
-    /// Depth only, no networks: LS normals and window centroids.
+    /// Depth only, no networks: annotation spec v1 (surface and edge terms), as `tre annotate`.
     Geometric,
+}
+
+/// What the geometric mode computes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GeometricArg {
+    /// The whole annotation spec v1: surface term and edge term (drops and steps are hazards).
+    Spec,
+    /// The paper's surface-only baseline: Eq. 1 with LS normals and window centroids, no edge
+    /// term.
+    SurfaceOnly,
+}
+
+impl From<GeometricArg> for GeometricMethod {
+    fn from(g: GeometricArg) -> Self {
+        match g {
+            GeometricArg::Spec => GeometricMethod::Spec,
+            GeometricArg::SurfaceOnly => GeometricMethod::SurfaceOnly,
+        }
+    }
 }
 
 /// The staged pipeline or the end-to-end baseline.
@@ -99,6 +118,9 @@ pub struct StageArgs {
     /// Centroids (ignored in geometric mode).
     #[arg(long, value_enum, default_value = "net")]
     pub centroid: CentroidArg,
+    /// What the geometric mode computes (ignored in the other modes).
+    #[arg(long, value_enum, default_value = "spec")]
+    pub geometric: GeometricArg,
     /// Seed of the DSAC sampler: the same seed gives the same output.
     #[arg(long, env = "TRE_SEED", default_value_t = 0)]
     pub seed: u64,
@@ -129,6 +151,7 @@ impl StageArgs {
                 CentroidArg::Net => CentroidMethod::Net,
                 CentroidArg::Window => CentroidMethod::Window,
             },
+            geometric: self.geometric.into(),
             seed: self.seed,
             dsac_hypotheses: self.dsac_hypotheses,
             ..PipelineConfig::default()

@@ -2,13 +2,12 @@
 //! roughness by Eq. 1, `r = |n·(p − c)|`, with slope and traversability from the normals.
 
 use ndarray::Array4;
-use rayon::prelude::*;
 
 use super::normals::NetInputs;
 use super::tensors::{vectors_from_tensor_into, vectors_tensor};
 use super::{PipelineError, Traversability};
 use crate::geometry::gravity::slope_from_up;
-use crate::geometry::{is_valid_point, Grid, PointMap, Vec3};
+use crate::geometry::{Grid, PointMap, Vec3};
 use crate::model::Models;
 
 /// The centroid net's centroids for `normals`, written into `out` (`normals_t` is scratch
@@ -36,41 +35,6 @@ pub fn net_centroids(
         vectors_from_tensor_into(c, points, false, &mut out)
     })?;
     Ok(out)
-}
-
-/// Eq. 1 at every pixel into `out` (same size): `|n·(p − c)|`, NaN where the point, the normal
-/// or the centroid is missing. Rows in parallel.
-///
-/// ```
-/// use tre::geometry::{Grid, Vec3};
-/// use tre::pipeline::centroid::roughness_into;
-/// let points = Grid::new(2, 1, Vec3::new(0.0, 0.0, 1.0));
-/// let normals = Grid::new(2, 1, Vec3::new(0.0, 0.0, -1.0));
-/// let centroids = Grid::new(2, 1, Vec3::new(0.5, 0.0, 1.02));
-/// let mut r = Grid::new(2, 1, 0.0);
-/// roughness_into(&points, &normals, &centroids, &mut r);
-/// assert!((r[(1, 0)] - 0.02).abs() < 1e-12);
-/// ```
-pub fn roughness_into(
-    points: &PointMap,
-    normals: &Grid<Vec3>,
-    centroids: &PointMap,
-    out: &mut Grid<f64>,
-) {
-    let w = out.width().max(1);
-    out.as_mut_slice()
-        .par_chunks_mut(w)
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (x, r) in row.iter_mut().enumerate() {
-                let p = points[(x, y)];
-                *r = if is_valid_point(&p) {
-                    normals[(x, y)].dot(&(p - centroids[(x, y)])).abs()
-                } else {
-                    f64::NAN
-                };
-            }
-        });
 }
 
 /// Slope of every normal in the gravity frame whose up axis is `up_in_cam` (a unit vector in

@@ -14,8 +14,23 @@ pub enum Mode {
     Rgb,
     /// RGB plus a depth-sensor frame; the depth net is skipped.
     Rgbd,
-    /// Depth only, no networks: LS normals and window centroids (the switches are ignored).
+    /// Depth only, no networks: annotation spec v1 as `tre annotate` computes it without
+    /// labels (LS normals, window centroids, surface and edge terms), or the paper's
+    /// surface-only baseline ([`GeometricMethod`]); the switches are ignored.
     Geometric,
+}
+
+/// What the `geometric` mode computes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GeometricMethod {
+    /// The whole of annotation spec v1: surface term and edge term with its transient, so
+    /// drops and steps read as hazards. Equal to `tre annotate` on the same depth.
+    #[default]
+    Spec,
+    /// The paper's classical baseline: Eq. 1 with LS normals and window centroids, no edge
+    /// term (every drop is missed). What the paper's tables use.
+    SurfaceOnly,
 }
 
 /// The full pipeline or the end-to-end baseline of the paper's Table II.
@@ -143,6 +158,9 @@ pub struct PipelineConfig {
     pub refine: bool,
     /// Centroids (ignored in geometric mode, which uses windows).
     pub centroid: CentroidMethod,
+    /// What the geometric mode computes (ignored in the other modes).
+    #[serde(default)]
+    pub geometric: GeometricMethod,
     /// Seed of the DSAC sampler for this request: the same seed gives the same output.
     pub seed: u64,
     /// DSAC hypotheses per pixel, K: 1 to [`MAX_DSAC_HYPOTHESES`]. The default,
@@ -173,6 +191,7 @@ impl Default for PipelineConfig {
             normals: NormalsMethod::Dsac,
             refine: true,
             centroid: CentroidMethod::Net,
+            geometric: GeometricMethod::Spec,
             seed: 0,
             dsac_hypotheses: DEFAULT_DSAC_HYPOTHESES,
             working_size: None,
@@ -253,7 +272,8 @@ impl PipelineConfig {
         nets
     }
 
-    /// A short name of the stages, in the paper's notation: `DE+DSAC+NR+ESR`, `LS+window`, `E2E`;
+    /// A short name of the stages, in the paper's notation: `DE+DSAC+NR+ESR`, `LS+window+edge`
+    /// (the geometric mode's spec), `LS+window` (its surface-only baseline), `E2E`;
     /// DSAC with other than [`DEFAULT_DSAC_HYPOTHESES`] hypotheses reads `DSAC(K=4)`.
     pub fn label(&self) -> String {
         if self.method == Method::EndToEnd {
@@ -276,6 +296,9 @@ impl PipelineConfig {
             CentroidMethod::Net => "ESR",
             CentroidMethod::Window => "window",
         });
+        if self.mode == Mode::Geometric && self.geometric == GeometricMethod::Spec {
+            parts.push("edge");
+        }
         parts.join("+")
     }
 }

@@ -31,9 +31,9 @@ mod spares;
 pub mod tensors;
 
 pub use config::{
-    check_dsac_hypotheses, CentroidMethod, Method, Mode, NormalsMethod, PipelineConfig,
-    Traversability, DEFAULT_DSAC_HYPOTHESES, DEFAULT_MAX_INPUT_PIXELS, MAX_DSAC_HYPOTHESES,
-    MAX_WORKING_SIDE,
+    check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod,
+    PipelineConfig, Traversability, DEFAULT_DSAC_HYPOTHESES, DEFAULT_MAX_INPUT_PIXELS,
+    MAX_DSAC_HYPOTHESES, MAX_WORKING_SIDE,
 };
 pub use depth::{prior_depth, MAX_PRIOR_DEPTH_M};
 pub use frame::{FrameInput, FrameOutput, StageTimings, DEFAULT_HFOV_DEG};

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use ndarray::Array4;
 
-use super::centroid::{net_centroids, roughness_into};
+use super::centroid::net_centroids;
 use super::depth::{prior_depth_into, MAX_PRIOR_DEPTH_M};
 use super::frame::{FrameInput, FrameOutput, StageMaps, StageTimings, DEFAULT_HFOV_DEG};
 use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
@@ -14,13 +14,15 @@ use super::resize::{resize_nearest_reusing, resize_rgb};
 use super::spares::Spares;
 use super::tensors::{depth_from_tensor_into, points_tensors, rgb_tensor, scalar_tensor};
 use super::{
-    check_dsac_hypotheses, CentroidMethod, Method, Mode, NormalsMethod, PipelineConfig,
-    PipelineError, MAX_WORKING_SIDE,
+    check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod,
+    PipelineConfig, PipelineError, MAX_WORKING_SIDE,
 };
 use crate::geometry::dsac::DsacScratch;
 use crate::geometry::normals::{window_centroids_into, PackedPoints};
 use crate::geometry::{DsacConfig, Grid, Intrinsics, LocalPlanes, PointMap, Vec3};
 use crate::model::Models;
+use crate::roughness::annotate::{spec_roughness_into, surface_term_into, SpecMaps, SpecPlanes};
+use crate::roughness::AnnotateConfig;
 
 /// Working size when no models are loaded, `(width, height)`.
 pub const DEFAULT_WORKING_SIZE: (usize, usize) = (256, 256);
@@ -69,6 +71,7 @@ struct Scratch {
     normals: Array4<f32>,
     packed: PackedPoints,
     dsac: DsacScratch,
+    spec: SpecMaps,
     spares: Spares,
 }
 
@@ -170,7 +173,21 @@ impl Pipeline {
         let mut roughness_m = self.scratch.spares.take();
         timings.time("roughness", || {
             roughness_m.reset(work.size.0, work.size.1, f64::NAN);
-            roughness_into(&points, &normals, &centroids, &mut roughness_m);
+            if cfg.mode == Mode::Geometric && cfg.geometric == GeometricMethod::Spec {
+                let planes = SpecPlanes {
+                    points: &points,
+                    normals: &normals,
+                    centroids: &centroids,
+                };
+                let spec = AnnotateConfig {
+                    hood: cfg.neighbourhood,
+                    ..AnnotateConfig::default()
+                };
+                let maps = &mut self.scratch.spec;
+                spec_roughness_into(&planes, None, &spec, maps, &mut roughness_m);
+            } else {
+                surface_term_into(&points, &normals, &centroids, &mut roughness_m);
+            }
         });
         self.scratch.spares.keep(centroids);
         let maps = StageMaps {

@@ -8,6 +8,7 @@ use super::RoughnessError;
 use crate::geometry::camera::{is_valid_point, PointMap};
 use crate::geometry::normals::{local_planes, window_centroids, Neighbourhood};
 use crate::geometry::plane::orient_towards_camera;
+use crate::geometry::Plane;
 use crate::geometry::{Grid, Intrinsics, Vec3, INVALID_POINT};
 
 /// Parameters of annotation spec v1, with the spec's defaults.
@@ -83,28 +84,112 @@ pub fn annotate(
             (planes.normal, planes.centroid)
         }
     };
-    let segments = segment(&points, &normals, input.labels, cfg);
-    let boundary = boundary_mask(&points, &segments);
-    let edge_weight_m = edge_weights(&points, &boundary);
-    let edge_term = edge_weight_m.map(|&w| edge_term(w, cfg.epsilon_m));
-    let edge_m = edge_transient(&edge_term, &points, cfg.edge_sigma_px);
-    let surface_m = surface_term(&points, &normals, &centroids);
-    let roughness_m = Grid::par_from_fn(points.width(), points.height(), |x, y| {
-        if is_valid_point(&points[(x, y)]) {
-            surface_m[(x, y)].max(edge_m[(x, y)])
-        } else {
-            f64::NAN
-        }
-    });
+    let mut maps = SpecMaps::default();
+    let mut roughness_m = Grid::default();
+    let planes = SpecPlanes {
+        points: &points,
+        normals: &normals,
+        centroids: &centroids,
+    };
+    spec_roughness_into(&planes, input.labels, cfg, &mut maps, &mut roughness_m);
     Ok(Annotation {
         roughness_m,
-        boundary,
-        edge_weight_m,
-        segments,
+        boundary: maps.boundary,
+        edge_weight_m: maps.edge_weight_m,
+        segments: maps.segments,
         normals,
-        surface_m,
-        edge_m,
+        surface_m: maps.surface_m,
+        edge_m: maps.edge_m,
     })
+}
+
+/// The per-pixel local planes the spec's steps 2–7 start from, at one size: points (camera
+/// frame, invalid where no data), unit normals facing the camera and the centroids of Eq. 1.
+#[derive(Debug, Clone, Copy)]
+pub struct SpecPlanes<'a> {
+    /// Back-projected points.
+    pub points: &'a PointMap,
+    /// Unit normals (NaN: none).
+    pub normals: &'a Grid<Vec3>,
+    /// Local-plane centroids (the window means of spec step 5).
+    pub centroids: &'a PointMap,
+}
+
+/// The maps of spec steps 2–6, kept from frame to frame so that a caller that reuses them
+/// allocates nothing once they have reached the frame's size.
+#[derive(Debug, Clone, Default)]
+pub struct SpecMaps {
+    /// Segment ids, 1-based and compact (0: invalid).
+    pub segments: Grid<u32>,
+    /// Boundary mask B.
+    pub boundary: Grid<bool>,
+    /// Edge weight W, metres (0 off boundaries).
+    pub edge_weight_m: Grid<f64>,
+    /// Surface term s (Eq. 1), metres; NaN where the pixel has no point or no normal.
+    pub surface_m: Grid<f64>,
+    /// Edge transient ẽ, metres (0 at invalid pixels).
+    pub edge_m: Grid<f64>,
+    forest: DisjointSets,
+    edges: EdgeRows,
+}
+
+/// Spec v1 steps 2–7 from local planes: segments, boundary, edge weights, the surface term
+/// (Eq. 1), the edge term and its transient, and `r = max(s, ẽ)` into `roughness_m` (NaN at
+/// pixels without a point). This is what `tre annotate` and the `geometric` mode both run.
+///
+/// ```
+/// use tre::geometry::{local_planes, Grid, Intrinsics, Neighbourhood};
+/// use tre::roughness::annotate::{spec_roughness_into, AnnotateConfig, SpecMaps, SpecPlanes};
+/// // A 10 cm drop between two floor halves seen from above.
+/// let k = Intrinsics::from_hfov(40, 30, 60.0).unwrap();
+/// let depth = Grid::from_fn(40, 30, |x, _| if x < 20 { 1.0 } else { 1.1 });
+/// let points = k.back_project_map(&depth);
+/// let planes = local_planes(&points, k.fx_px, &Neighbourhood::default());
+/// let (mut maps, mut r) = (SpecMaps::default(), Grid::default());
+/// let input = SpecPlanes { points: &points, normals: &planes.normal, centroids: &planes.centroid };
+/// spec_roughness_into(&input, None, &AnnotateConfig::default(), &mut maps, &mut r);
+/// assert!(r[(20, 15)] >= 0.1, "the drop is a hazard: {}", r[(20, 15)]);
+/// assert!(r[(5, 15)] < 1e-6, "flat floor away from it: {}", r[(5, 15)]);
+/// ```
+pub fn spec_roughness_into(
+    planes: &SpecPlanes<'_>,
+    labels: Option<&Grid<u32>>,
+    cfg: &AnnotateConfig,
+    maps: &mut SpecMaps,
+    roughness_m: &mut Grid<f64>,
+) {
+    let points = planes.points;
+    let (w, h) = points.size();
+    segment_into(
+        points,
+        planes.normals,
+        labels,
+        cfg,
+        &mut maps.forest,
+        &mut maps.segments,
+    );
+    boundary_mask_into(points, &maps.segments, &mut maps.boundary);
+    edge_weights_into(points, &maps.boundary, &mut maps.edge_weight_m);
+    maps.edges.collect(&maps.edge_weight_m, cfg.epsilon_m);
+    maps.edges
+        .transient_into(points, cfg.edge_sigma_px, &mut maps.edge_m);
+    maps.surface_m.reset(w, h, f64::NAN);
+    surface_term_into(
+        points,
+        planes.normals,
+        planes.centroids,
+        &mut maps.surface_m,
+    );
+    roughness_m.reset(w, h, f64::NAN);
+    let (s, e) = (&maps.surface_m, &maps.edge_m);
+    roughness_m.par_rows_mut().for_each(|(y, row)| {
+        for (x, r) in row.iter_mut().enumerate() {
+            if is_valid_point(&points[(x, y)]) {
+                // A missing surface term (NaN) leaves the edge transient, which is ≥ 0.
+                *r = s[(x, y)].max(e[(x, y)]);
+            }
+        }
+    });
 }
 
 /// Back-projects the depth after checking sizes and that some data is there; void labels
@@ -181,12 +266,34 @@ pub fn segment(
     labels: Option<&Grid<u32>>,
     cfg: &AnnotateConfig,
 ) -> Grid<u32> {
+    let mut out = Grid::default();
+    segment_into(
+        points,
+        normals,
+        labels,
+        cfg,
+        &mut DisjointSets::default(),
+        &mut out,
+    );
+    out
+}
+
+/// [`segment`] into `out`, with `forest` as scratch (both reused across frames).
+fn segment_into(
+    points: &PointMap,
+    normals: &Grid<Vec3>,
+    labels: Option<&Grid<u32>>,
+    cfg: &AnnotateConfig,
+    forest: &mut DisjointSets,
+    out: &mut Grid<u32>,
+) {
     let (w, h) = points.size();
     let cos_max = cfg.segment_angle_deg.to_radians().cos();
     let label = |i: usize| labels.map_or(1, |l| l.as_slice()[i]);
+    let (p, n) = (points.as_slice(), normals.as_slice());
     let joins = |i: usize, j: usize| {
-        let (pi, pj) = (points.as_slice()[i], points.as_slice()[j]);
-        let (ni, nj) = (normals.as_slice()[i], normals.as_slice()[j]);
+        let (pi, pj) = (p[i], p[j]);
+        let (ni, nj) = (n[i], n[j]);
         is_valid_point(&pi)
             && is_valid_point(&pj)
             && label(i) == label(j)
@@ -194,7 +301,7 @@ pub fn segment(
             && ni.dot(&(pj - pi)).abs() < cfg.epsilon_m
             && nj.dot(&(pi - pj)).abs() < cfg.epsilon_m
     };
-    let mut forest = DisjointSets::new(w * h);
+    forest.reset(w * h);
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
@@ -206,49 +313,34 @@ pub fn segment(
             }
         }
     }
-    compact_ids(points, &mut forest)
+    forest.compact_ids(points, out);
 }
 
-/// Numbers the components 1, 2, … in raster order of their first pixel; invalid pixels get 0.
-fn compact_ids(points: &PointMap, forest: &mut DisjointSets) -> Grid<u32> {
-    let (w, h) = points.size();
-    let mut id_of_root = vec![0u32; w * h];
-    let mut next = 0u32;
-    let mut out = Grid::new(w, h, 0u32);
-    for i in 0..w * h {
-        if !is_valid_point(&points.as_slice()[i]) {
-            continue;
-        }
-        let root = forest.find(i);
-        if id_of_root[root] == 0 {
-            next += 1;
-            id_of_root[root] = next;
-        }
-        out.as_mut_slice()[i] = id_of_root[root];
-    }
-    out
-}
-
-/// Union-find with path halving and union by size.
+/// Union-find with path halving and union by size; `id` numbers the roots compactly.
+#[derive(Debug, Clone, Default)]
 struct DisjointSets {
-    parent: Vec<usize>,
+    parent: Vec<u32>,
     size: Vec<u32>,
+    id: Vec<u32>,
 }
 
 impl DisjointSets {
-    fn new(n: usize) -> Self {
-        Self {
-            parent: (0..n).collect(),
-            size: vec![1; n],
-        }
+    /// `n` singletons, keeping the buffers.
+    fn reset(&mut self, n: usize) {
+        self.parent.clear();
+        self.parent.extend(0..n as u32);
+        self.size.clear();
+        self.size.resize(n, 1);
     }
 
-    fn find(&mut self, mut i: usize) -> usize {
-        while self.parent[i] != i {
-            self.parent[i] = self.parent[self.parent[i]];
-            i = self.parent[i];
+    fn find(&mut self, i: usize) -> usize {
+        let mut i = i as u32;
+        while self.parent[i as usize] != i {
+            let up = self.parent[self.parent[i as usize] as usize];
+            self.parent[i as usize] = up;
+            i = up;
         }
-        i
+        i as usize
     }
 
     fn union(&mut self, a: usize, b: usize) {
@@ -259,8 +351,31 @@ impl DisjointSets {
         if self.size[ra] < self.size[rb] {
             std::mem::swap(&mut ra, &mut rb);
         }
-        self.parent[rb] = ra;
+        self.parent[rb] = ra as u32;
         self.size[ra] += self.size[rb];
+    }
+
+    /// Numbers the components 1, 2, … in raster order of their first pixel into `out`;
+    /// invalid pixels get 0.
+    fn compact_ids(&mut self, points: &PointMap, out: &mut Grid<u32>) {
+        let (w, h) = points.size();
+        let mut id = std::mem::take(&mut self.id);
+        id.clear();
+        id.resize(w * h, 0);
+        let mut next = 0u32;
+        out.reset(w, h, 0);
+        for (i, p) in points.as_slice().iter().enumerate() {
+            if !is_valid_point(p) {
+                continue;
+            }
+            let root = self.find(i);
+            if id[root] == 0 {
+                next += 1;
+                id[root] = next;
+            }
+            out.as_mut_slice()[i] = id[root];
+        }
+        self.id = id;
     }
 }
 
@@ -278,28 +393,47 @@ fn neighbours8(w: usize, h: usize, x: usize, y: usize) -> impl Iterator<Item = u
 
 /// Step 3: valid pixels with a valid 8-neighbour in another segment.
 pub fn boundary_mask(points: &PointMap, segments: &Grid<u32>) -> Grid<bool> {
+    let mut out = Grid::default();
+    boundary_mask_into(points, segments, &mut out);
+    out
+}
+
+/// [`boundary_mask`] into `out` (resized to the points' size).
+fn boundary_mask_into(points: &PointMap, segments: &Grid<u32>, out: &mut Grid<bool>) {
     let (w, h) = points.size();
     let s = segments.as_slice();
-    Grid::par_from_fn(w, h, |x, y| {
-        let i = y * w + x;
-        s[i] != 0 && neighbours8(w, h, x, y).any(|j| s[j] != 0 && s[j] != s[i])
-    })
+    out.reset(w, h, false);
+    out.par_rows_mut().for_each(|(y, row)| {
+        for (x, b) in row.iter_mut().enumerate() {
+            let i = y * w + x;
+            *b = s[i] != 0 && neighbours8(w, h, x, y).any(|j| s[j] != 0 && s[j] != s[i]);
+        }
+    });
 }
 
 /// Step 4: on boundary pixels, the largest distance to a valid 8-neighbour; 0 elsewhere.
 pub fn edge_weights(points: &PointMap, boundary: &Grid<bool>) -> Grid<f64> {
+    let mut out = Grid::default();
+    edge_weights_into(points, boundary, &mut out);
+    out
+}
+
+/// [`edge_weights`] into `out` (resized to the points' size).
+fn edge_weights_into(points: &PointMap, boundary: &Grid<bool>, out: &mut Grid<f64>) {
     let (w, h) = points.size();
     let p = points.as_slice();
-    Grid::par_from_fn(w, h, |x, y| {
-        let i = y * w + x;
-        if !boundary.as_slice()[i] {
-            return 0.0;
+    out.reset(w, h, 0.0);
+    out.par_rows_mut().for_each(|(y, row)| {
+        for (x, o) in row.iter_mut().enumerate() {
+            let i = y * w + x;
+            if boundary.as_slice()[i] {
+                *o = neighbours8(w, h, x, y)
+                    .filter(|&j| is_valid_point(&p[j]))
+                    .map(|j| (p[j] - p[i]).norm())
+                    .fold(0.0, f64::max);
+            }
         }
-        neighbours8(w, h, x, y)
-            .filter(|&j| is_valid_point(&p[j]))
-            .map(|j| (p[j] - p[i]).norm())
-            .fold(0.0, f64::max)
-    })
+    });
 }
 
 /// Step 4's edge term: W where W ≥ ε, 2W where 0.5ε < W < ε, else 0.
@@ -320,55 +454,123 @@ pub fn edge_term(w_m: f64, epsilon_m: f64) -> f64 {
     }
 }
 
-/// Step 5: `|n_i·(p_i − c_i)|` where normal and centroid exist; 0 where the normal is missing.
-fn surface_term(points: &PointMap, normals: &Grid<Vec3>, centroids: &PointMap) -> Grid<f64> {
-    Grid::par_from_fn(points.width(), points.height(), |x, y| {
-        let (p, n, c) = (points[(x, y)], normals[(x, y)], centroids[(x, y)]);
-        let s = n.dot(&(p - c)).abs();
-        if s.is_finite() {
-            s
-        } else {
-            0.0
-        }
-    })
-}
-
-/// Step 6: `ẽ_i = max_j e_j·exp(−d_ij²/2σ²)` over pixels j within 3σ (pixel distance), at valid i.
-pub fn edge_transient(edge: &Grid<f64>, points: &PointMap, sigma_px: f64) -> Grid<f64> {
-    let (w, h) = edge.size();
-    let reach = (3.0 * sigma_px).floor() as isize;
-    let mut out = Grid::new(w, h, 0.0);
+/// Step 5, Eq. 1 of the paper at every pixel into `out` (same size): `|n·(p − c)|`
+/// ([`Plane::distance`]), NaN where the point, the normal or the centroid is missing. Rows in
+/// parallel. The one implementation of Eq. 1 over a map: the annotator, the `geometric` mode
+/// and the learned modes (with the centroid net's centroids) all call it.
+///
+/// ```
+/// use tre::geometry::{Grid, Vec3};
+/// use tre::roughness::annotate::surface_term_into;
+/// let points = Grid::new(2, 1, Vec3::new(0.0, 0.0, 1.0));
+/// let normals = Grid::new(2, 1, Vec3::new(0.0, 0.0, -1.0));
+/// let centroids = Grid::new(2, 1, Vec3::new(0.5, 0.0, 1.02));
+/// let mut r = Grid::new(2, 1, 0.0);
+/// surface_term_into(&points, &normals, &centroids, &mut r);
+/// assert!((r[(1, 0)] - 0.02).abs() < 1e-12);
+/// ```
+pub fn surface_term_into(
+    points: &PointMap,
+    normals: &Grid<Vec3>,
+    centroids: &PointMap,
+    out: &mut Grid<f64>,
+) {
     out.par_rows_mut().for_each(|(y, row)| {
-        for (x, o) in row.iter_mut().enumerate() {
-            if !is_valid_point(&points[(x, y)]) {
-                continue;
-            }
-            *o = transient_at(edge, x, y, reach, sigma_px);
+        for (x, r) in row.iter_mut().enumerate() {
+            let p = points[(x, y)];
+            *r = if is_valid_point(&p) {
+                let plane = Plane {
+                    centroid: centroids[(x, y)],
+                    normal: normals[(x, y)],
+                };
+                plane.distance(&p)
+            } else {
+                f64::NAN
+            };
         }
     });
+}
+
+/// Step 6: `ẽ_i = max_j e_j·exp(−d_ij²/2σ²)` over pixels j within 3σ (pixel distance), at valid
+/// i, from the edge terms `edge` (0 where none).
+pub fn edge_transient(edge: &Grid<f64>, points: &PointMap, sigma_px: f64) -> Grid<f64> {
+    let mut rows = EdgeRows::default();
+    rows.collect_terms(edge);
+    let mut out = Grid::default();
+    rows.transient_into(points, sigma_px, &mut out);
     out
 }
 
-fn transient_at(edge: &Grid<f64>, x: usize, y: usize, reach: isize, sigma_px: f64) -> f64 {
-    let (w, h) = edge.size();
-    let mut best: f64 = 0.0;
-    for dy in -reach..=reach {
-        for dx in -reach..=reach {
-            let d2 = (dx * dx + dy * dy) as f64;
-            let (nx, ny) = (x as isize + dx, y as isize + dy);
-            if d2 > 9.0 * sigma_px * sigma_px
-                || nx < 0
-                || ny < 0
-                || nx as usize >= w
-                || ny as usize >= h
-            {
-                continue;
-            }
-            let e = edge[(nx as usize, ny as usize)];
-            if e > 0.0 {
-                best = best.max(e * (-d2 / (2.0 * sigma_px * sigma_px)).exp());
+/// The pixels with an edge term, row by row: the transient visits only these, as a boundary
+/// covers a small part of a frame.
+#[derive(Debug, Clone, Default)]
+struct EdgeRows {
+    /// `(x, e_x)` of each row's pixels with `e > 0`, rows one after another.
+    terms: Vec<(u32, f64)>,
+    /// Where each row's terms start in `terms` (height + 1 entries).
+    row_start: Vec<usize>,
+}
+
+impl EdgeRows {
+    /// The edge terms (step 4) of the edge weights `w_m`.
+    fn collect(&mut self, w_m: &Grid<f64>, epsilon_m: f64) {
+        self.gather(w_m, |w| edge_term(w, epsilon_m));
+    }
+
+    /// Edge terms given as a map.
+    fn collect_terms(&mut self, e: &Grid<f64>) {
+        self.gather(e, |e| e);
+    }
+
+    fn gather(&mut self, grid: &Grid<f64>, term: impl Fn(f64) -> f64) {
+        let h = grid.height();
+        self.terms.clear();
+        self.row_start.clear();
+        for y in 0..h {
+            self.row_start.push(self.terms.len());
+            for (x, &v) in grid.row(y).iter().enumerate() {
+                let e = term(v);
+                if e > 0.0 {
+                    self.terms.push((x as u32, e));
+                }
             }
         }
+        self.row_start.push(self.terms.len());
     }
-    best
+
+    /// Step 6 into `out` (the points' size): each output row takes the maximum over the terms
+    /// of the rows within 3σ, weighted by `exp(−d²/2σ²)`; 0 at invalid pixels and where no term
+    /// reaches.
+    fn transient_into(&self, points: &PointMap, sigma_px: f64, out: &mut Grid<f64>) {
+        let (w, h) = points.size();
+        let reach = (3.0 * sigma_px).floor() as isize;
+        let limit = 9.0 * sigma_px * sigma_px;
+        // By squared pixel distance, with the definition's expression (bit for bit).
+        let max_d2 = 2 * reach.max(0) * reach.max(0);
+        let weight: Vec<f64> = (0..=max_d2)
+            .map(|d2| (-(d2 as f64) / (2.0 * sigma_px * sigma_px)).exp())
+            .collect();
+        out.reset(w, h, 0.0);
+        out.par_rows_mut().for_each(|(y, row)| {
+            let prow = points.row(y);
+            let (y0, y1) = (y as isize - reach, y as isize + reach);
+            for yy in y0.max(0)..=y1.min(h as isize - 1) {
+                let dy = yy - y as isize;
+                let yy = yy as usize;
+                for &(xx, e) in &self.terms[self.row_start[yy]..self.row_start[yy + 1]] {
+                    for dx in -reach..=reach {
+                        let d2 = dx * dx + dy * dy;
+                        let x = xx as isize + dx;
+                        if d2 as f64 > limit || x < 0 || x >= w as isize {
+                            continue;
+                        }
+                        let x = x as usize;
+                        if is_valid_point(&prow[x]) {
+                            row[x] = row[x].max(e * weight[d2 as usize]);
+                        }
+                    }
+                }
+            }
+        });
+    }
 }

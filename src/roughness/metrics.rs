@@ -76,6 +76,15 @@ impl RoughnessAccumulator {
         Ok(())
     }
 
+    /// Adds another accumulator's pixels.
+    pub fn merge(&mut self, other: &Self) {
+        for k in 0..2 {
+            self.sse[k] += other.sse[k];
+            self.count[k] += other.count[k];
+        }
+        self.missing += other.missing;
+    }
+
     /// The metrics so far (NaN for an empty set).
     pub fn finish(&self) -> RoughnessMetrics {
         let rmse_cm = |sse: f64, n: u64| {
@@ -177,6 +186,14 @@ pub struct DepthMetrics {
 }
 
 impl DepthAccumulator {
+    /// Adds another accumulator's pixels.
+    pub fn merge(&mut self, other: &Self) {
+        self.abs_rel += other.abs_rel;
+        self.sse += other.sse;
+        self.within += other.within;
+        self.count += other.count;
+    }
+
     /// Adds one frame (metres; ≤ 0 or non-finite: none).
     pub fn add(&mut self, pred_m: &Grid<f64>, gt_m: &Grid<f64>) -> Result<(), RoughnessError> {
         check_size("predicted depth", gt_m.size(), pred_m.size())?;

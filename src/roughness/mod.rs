@@ -1,7 +1,8 @@
-//! Roughness: the ground-truth annotator (spec v1) and the evaluation metrics. Pure and
-//! synchronous, like `geometry`.
+//! Roughness: the ground-truth annotator (spec v1), the evaluation metrics and the hazard scores
+//! of real frames. Pure and synchronous, like `geometry`.
 
 pub mod annotate;
+pub mod hazard;
 pub mod metrics;
 
 pub use annotate::{annotate, AnnotateConfig, AnnotateInput, Annotation};
