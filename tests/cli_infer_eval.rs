@@ -401,3 +401,83 @@ fn eval_tables_print_every_table_and_write_json() {
     assert!(one.status.success(), "{}", stderr(&one));
     assert!(String::from_utf8_lossy(&one.stdout).contains("rgbd:LS+window"));
 }
+
+#[test]
+fn eval_real_scores_every_mode_on_one_frame_and_writes_json_and_a_sheet() {
+    let dir = tempfile::tempdir().unwrap();
+    let (json, sheets) = (dir.path().join("real.json"), dir.path().join("sheets"));
+    let o = tre(&[
+        "eval",
+        "--real",
+        real("slambook2_ch7").to_str().unwrap(),
+        "--limit",
+        "1",
+        "--floors",
+        "tests/fixtures/real_floor.json",
+        "--json",
+        json.to_str().unwrap(),
+        "--sheets",
+        sheets.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("| geometric:LS+window+edge |"), "{stdout}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["frames"], 1);
+    let frame = &report["per_frame"][0];
+    assert_eq!(frame["name"], "slambook2_ch7/1_depth.png");
+    assert_eq!(frame["size"], serde_json::json!([640, 480]));
+    assert_eq!(frame["floor_box"], serde_json::json!([240, 455, 500, 478]));
+    let spec_floor = frame["spec"]["floor"]["median_cm"].as_f64().unwrap();
+    assert!((0.05..1.0).contains(&spec_floor), "spec floor {spec_floor}");
+    let rows = report["pooled"].as_array().unwrap();
+    let keys: Vec<&str> = rows.iter().map(|r| r["key"].as_str().unwrap()).collect();
+    assert_eq!(
+        keys,
+        [
+            "rgb:DE+DSAC+NR+ESR",
+            "rgbd:DSAC+NR+ESR",
+            "geometric:LS+window+edge",
+            "geometric:LS+window"
+        ]
+    );
+    let unit = |v: &serde_json::Value| v.as_f64().filter(|x| (0.0..=1.0).contains(x));
+    for r in rows {
+        let key = r["key"].as_str().unwrap();
+        assert!(unit(&r["all"]["edge_recall"]).is_some(), "{key}");
+        assert!(unit(&r["all"]["false_hazards"]).is_some(), "{key}");
+        assert!(r["all"]["edges"].as_u64().unwrap() > 1000, "{key}");
+        assert!(r["all"]["roughness"]["rmse_cm"].as_f64().unwrap() >= 0.0);
+        assert!(
+            r["floor"]["p90_cm"].as_f64().unwrap() >= r["floor"]["median_cm"].as_f64().unwrap()
+        );
+        assert!(r["ms"]["total"].as_f64().unwrap() > 0.0, "{key}");
+        let ranges: Vec<&String> = r["by_range"].as_object().unwrap().keys().collect();
+        assert_eq!(ranges, ["2m_to_4m", "over_4m", "under_2m"], "{key}");
+        let pixels: u64 = r["by_range"]
+            .as_object()
+            .unwrap()
+            .values()
+            .map(|b| b["roughness"]["pixels"].as_u64().unwrap())
+            .sum();
+        assert_eq!(
+            pixels,
+            r["all"]["roughness"]["pixels"].as_u64().unwrap(),
+            "{key}"
+        );
+    }
+    // The geometric mode is the spec: nothing missed, nothing invented.
+    assert_eq!(rows[2]["all"]["edge_recall"], 1.0);
+    assert_eq!(rows[2]["all"]["false_hazards"], 0.0);
+    assert_eq!(rows[2]["all"]["roughness"]["rmse_cm"], 0.0);
+    // The surface-only baseline misses the drops.
+    assert!(rows[3]["all"]["edge_recall"].as_f64().unwrap() < 0.2);
+    // Depth errors only for rgb, against the sensor.
+    let depth = &rows[0]["depth"];
+    assert!(depth["abs_rel"].as_f64().unwrap() > 0.0);
+    assert!(unit(&depth["delta_1_25"]).is_some());
+    assert!(rows[1]["depth"].is_null());
+    let sheet = image::open(sheets.join("slambook2_ch7_1_depth.png")).unwrap();
+    assert!(sheet.width() >= 3 * 320 && sheet.height() >= 2 * 240);
+}

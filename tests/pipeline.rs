@@ -9,8 +9,8 @@ use image::RgbImage;
 use tre::geometry::{local_planes, Grid, Mounting, Neighbourhood};
 use tre::model::{Models, SessionConfig};
 use tre::pipeline::{
-    CentroidMethod, FrameInput, Method, Mode, NormalsMethod, Pipeline, PipelineConfig,
-    PipelineError,
+    CentroidMethod, FrameInput, GeometricMethod, Method, Mode, NormalsMethod, Pipeline,
+    PipelineConfig, PipelineError,
 };
 use tre::synth::SynthConfig;
 
@@ -161,10 +161,14 @@ fn every_mode_runs_on_a_synthetic_frame() -> TestResult {
 }
 
 #[test]
-fn geometric_mode_is_ls_normals_and_window_centroids_at_the_frame_size() -> TestResult {
+fn geometric_surface_only_is_ls_normals_and_window_centroids_at_the_frame_size() -> TestResult {
     let frame = read_synth(&synth_frame().1)?;
     let mut pipeline = Pipeline::new(None);
-    let out = pipeline.run(&frame, &PipelineConfig::for_mode(Mode::Geometric))?;
+    let cfg = PipelineConfig {
+        geometric: GeometricMethod::SurfaceOnly,
+        ..PipelineConfig::for_mode(Mode::Geometric)
+    };
+    let out = pipeline.run(&frame, &cfg)?;
     let k = frame.intrinsics.ok_or("intrinsics")?;
     let points = k.back_project_map(frame.depth_m.as_ref().ok_or("depth")?);
     let planes = local_planes(&points, k.fx_px, &Neighbourhood::default());
@@ -181,6 +185,63 @@ fn geometric_mode_is_ls_normals_and_window_centroids_at_the_frame_size() -> Test
         }
     }
     assert_eq!(out.working_size, (64, 64));
+    Ok(())
+}
+
+#[test]
+fn geometric_mode_is_the_annotator_on_every_shared_real_frame() -> TestResult {
+    // The spec (`tre annotate` without labels) and the geometric mode at the frame's own size
+    // must agree bit for bit: one implementation serves both.
+    let frames = tre::cli::real::find_frames(&real(""), None)?;
+    assert_eq!(frames.len(), 10, "the shared real frames");
+    let mut pipeline = Pipeline::new(None);
+    let cfg = PipelineConfig::for_mode(Mode::Geometric);
+    assert_eq!(cfg.label(), "LS+window+edge");
+    for frame in &frames {
+        let loaded = tre::cli::real::load_frame(frame)?;
+        let input = FrameInput {
+            rgb: None,
+            ..loaded.input.clone()
+        };
+        let out = pipeline.run(&input, &cfg)?;
+        let (got, want) = (&out.roughness_m, &loaded.spec.roughness_m);
+        assert_eq!(got.size(), want.size());
+        let differ = got
+            .as_slice()
+            .iter()
+            .zip(want.as_slice())
+            .filter(|(a, b)| a.to_bits() != b.to_bits() && !(a.is_nan() && b.is_nan()))
+            .count();
+        assert_eq!(
+            differ,
+            0,
+            "{}: pixels that differ from the spec",
+            frame.name()
+        );
+        let hazards = got.as_slice().iter().filter(|&&r| r >= 0.05).count();
+        assert!(
+            hazards > 1000,
+            "{}: drops are hazards ({hazards} px)",
+            frame.name()
+        );
+        // The surface-only baseline misses them: its hazards are a fraction of the spec's.
+        let surface = PipelineConfig {
+            geometric: GeometricMethod::SurfaceOnly,
+            ..cfg
+        };
+        let base = pipeline.run(&input, &surface)?;
+        let base_hazards = base
+            .roughness_m
+            .as_slice()
+            .iter()
+            .filter(|&&r| r >= 0.05)
+            .count();
+        assert!(
+            base_hazards * 4 < hazards,
+            "{}: {base_hazards} vs {hazards}",
+            frame.name()
+        );
+    }
     Ok(())
 }
 
