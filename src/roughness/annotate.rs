@@ -278,7 +278,12 @@ pub fn segment(
     out
 }
 
-/// [`segment`] into `out`, with `forest` as scratch (both reused across frames).
+/// Rows per band of the parallel union-find.
+const BAND_ROWS: usize = 32;
+
+/// [`segment`] into `out`, with `forest` as scratch (both reused across frames). Bands of rows
+/// join their own pixels in parallel; the joins across band borders follow; the partition is
+/// the same as one pass gives, since components do not depend on the order of unions.
 fn segment_into(
     points: &PointMap,
     normals: &Grid<Vec3>,
@@ -288,32 +293,81 @@ fn segment_into(
     out: &mut Grid<u32>,
 ) {
     let (w, h) = points.size();
-    let cos_max = cfg.segment_angle_deg.to_radians().cos();
-    let label = |i: usize| labels.map_or(1, |l| l.as_slice()[i]);
-    let (p, n) = (points.as_slice(), normals.as_slice());
-    let joins = |i: usize, j: usize| {
-        let (pi, pj) = (p[i], p[j]);
-        let (ni, nj) = (n[i], n[j]);
-        is_valid_point(&pi)
-            && is_valid_point(&pj)
-            && label(i) == label(j)
-            && ni.dot(&nj) > cos_max
-            && ni.dot(&(pj - pi)).abs() < cfg.epsilon_m
-            && nj.dot(&(pi - pj)).abs() < cfg.epsilon_m
-    };
+    let joiner = Joiner::new(points, normals, labels, cfg);
     forest.reset(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            if x + 1 < w && joins(i, i + 1) {
-                forest.union(i, i + 1);
+    let band = BAND_ROWS * w.max(1);
+    forest
+        .parent
+        .par_chunks_mut(band)
+        .zip(forest.size.par_chunks_mut(band))
+        .enumerate()
+        .for_each(|(b, (parent, size))| {
+            let mut sets = SetsView {
+                parent,
+                size,
+                offset: b * band,
+            };
+            let rows = sets.parent.len() / w.max(1);
+            for ly in 0..rows {
+                for x in 0..w {
+                    let i = sets.offset + ly * w + x;
+                    if x + 1 < w && joiner.joins(i, i + 1) {
+                        sets.union(i, i + 1);
+                    }
+                    if ly + 1 < rows && joiner.joins(i, i + w) {
+                        sets.union(i, i + w);
+                    }
+                }
             }
-            if y + 1 < h && joins(i, i + w) {
+        });
+    for y in (BAND_ROWS..h).step_by(BAND_ROWS) {
+        for x in 0..w {
+            let i = (y - 1) * w + x;
+            if joiner.joins(i, i + w) {
                 forest.union(i, i + w);
             }
         }
     }
     forest.compact_ids(points, out);
+}
+
+/// Whether two neighbouring pixels belong to one segment (spec step 2): both valid, the same
+/// label, normals within the segment angle, each point within ε of the other's tangent plane.
+struct Joiner<'a> {
+    points: &'a [Vec3],
+    normals: &'a [Vec3],
+    labels: Option<&'a [u32]>,
+    cos_max: f64,
+    epsilon_m: f64,
+}
+
+impl<'a> Joiner<'a> {
+    fn new(
+        points: &'a PointMap,
+        normals: &'a Grid<Vec3>,
+        labels: Option<&'a Grid<u32>>,
+        cfg: &AnnotateConfig,
+    ) -> Self {
+        Self {
+            points: points.as_slice(),
+            normals: normals.as_slice(),
+            labels: labels.map(Grid::as_slice),
+            cos_max: cfg.segment_angle_deg.to_radians().cos(),
+            epsilon_m: cfg.epsilon_m,
+        }
+    }
+
+    fn joins(&self, i: usize, j: usize) -> bool {
+        let (pi, pj) = (self.points[i], self.points[j]);
+        let (ni, nj) = (self.normals[i], self.normals[j]);
+        let label = |k: usize| self.labels.map_or(1, |l| l[k]);
+        is_valid_point(&pi)
+            && is_valid_point(&pj)
+            && label(i) == label(j)
+            && ni.dot(&nj) > self.cos_max
+            && ni.dot(&(pj - pi)).abs() < self.epsilon_m
+            && nj.dot(&(pi - pj)).abs() < self.epsilon_m
+    }
 }
 
 /// Union-find with path halving and union by size; `id` numbers the roots compactly.
@@ -322,6 +376,40 @@ struct DisjointSets {
     parent: Vec<u32>,
     size: Vec<u32>,
     id: Vec<u32>,
+}
+
+/// Union-find over a contiguous range of the pixels (`offset ..`), on slices of a
+/// [`DisjointSets`]' arrays: parents hold whole-frame indices.
+struct SetsView<'a> {
+    parent: &'a mut [u32],
+    size: &'a mut [u32],
+    offset: usize,
+}
+
+impl SetsView<'_> {
+    fn find(&mut self, i: usize) -> usize {
+        let off = self.offset;
+        let mut i = i as u32;
+        while self.parent[i as usize - off] != i {
+            let up = self.parent[self.parent[i as usize - off] as usize - off];
+            self.parent[i as usize - off] = up;
+            i = up;
+        }
+        i as usize
+    }
+
+    fn union(&mut self, a: usize, b: usize) {
+        let (mut ra, mut rb) = (self.find(a), self.find(b));
+        if ra == rb {
+            return;
+        }
+        let off = self.offset;
+        if self.size[ra - off] < self.size[rb - off] {
+            std::mem::swap(&mut ra, &mut rb);
+        }
+        self.parent[rb - off] = ra as u32;
+        self.size[ra - off] += self.size[rb - off];
+    }
 }
 
 impl DisjointSets {
@@ -333,26 +421,20 @@ impl DisjointSets {
         self.size.resize(n, 1);
     }
 
-    fn find(&mut self, i: usize) -> usize {
-        let mut i = i as u32;
-        while self.parent[i as usize] != i {
-            let up = self.parent[self.parent[i as usize] as usize];
-            self.parent[i as usize] = up;
-            i = up;
+    fn view(&mut self) -> SetsView<'_> {
+        SetsView {
+            parent: &mut self.parent,
+            size: &mut self.size,
+            offset: 0,
         }
-        i as usize
+    }
+
+    fn find(&mut self, i: usize) -> usize {
+        self.view().find(i)
     }
 
     fn union(&mut self, a: usize, b: usize) {
-        let (mut ra, mut rb) = (self.find(a), self.find(b));
-        if ra == rb {
-            return;
-        }
-        if self.size[ra] < self.size[rb] {
-            std::mem::swap(&mut ra, &mut rb);
-        }
-        self.parent[rb] = ra as u32;
-        self.size[ra] += self.size[rb];
+        self.view().union(a, b);
     }
 
     /// Numbers the components 1, 2, … in raster order of their first pixel into `out`;
@@ -404,9 +486,20 @@ fn boundary_mask_into(points: &PointMap, segments: &Grid<u32>, out: &mut Grid<bo
     let s = segments.as_slice();
     out.reset(w, h, false);
     out.par_rows_mut().for_each(|(y, row)| {
+        let rows = [y.checked_sub(1), Some(y), (y + 1 < h).then_some(y + 1)];
+        let rows: Vec<&[u32]> = rows
+            .iter()
+            .flatten()
+            .map(|&r| &s[r * w..(r + 1) * w])
+            .collect();
         for (x, b) in row.iter_mut().enumerate() {
-            let i = y * w + x;
-            *b = s[i] != 0 && neighbours8(w, h, x, y).any(|j| s[j] != 0 && s[j] != s[i]);
+            let v = s[y * w + x];
+            let (x0, x1) = (x.saturating_sub(1), (x + 1).min(w - 1));
+            // The pixel itself is in its own segment, so it never counts.
+            *b = v != 0
+                && rows
+                    .iter()
+                    .any(|r| r[x0..=x1].iter().any(|&t| t != 0 && t != v));
         }
     });
 }
@@ -543,34 +636,178 @@ impl EdgeRows {
     /// reaches.
     fn transient_into(&self, points: &PointMap, sigma_px: f64, out: &mut Grid<f64>) {
         let (w, h) = points.size();
-        let reach = (3.0 * sigma_px).floor() as isize;
-        let limit = 9.0 * sigma_px * sigma_px;
-        // By squared pixel distance, with the definition's expression (bit for bit).
-        let max_d2 = 2 * reach.max(0) * reach.max(0);
-        let weight: Vec<f64> = (0..=max_d2)
-            .map(|d2| (-(d2 as f64) / (2.0 * sigma_px * sigma_px)).exp())
-            .collect();
+        let kernel = TransientKernel::new(sigma_px);
+        let reach = kernel.reach;
         out.reset(w, h, 0.0);
         out.par_rows_mut().for_each(|(y, row)| {
-            let prow = points.row(y);
-            let (y0, y1) = (y as isize - reach, y as isize + reach);
-            for yy in y0.max(0)..=y1.min(h as isize - 1) {
-                let dy = yy - y as isize;
-                let yy = yy as usize;
+            let (y0, y1) = (
+                y.saturating_sub(reach),
+                (y + reach).min(h.saturating_sub(1)),
+            );
+            for yy in y0..=y1 {
+                let (half, weights) = kernel.row(yy.abs_diff(y));
                 for &(xx, e) in &self.terms[self.row_start[yy]..self.row_start[yy + 1]] {
-                    for dx in -reach..=reach {
-                        let d2 = dx * dx + dy * dy;
-                        let x = xx as isize + dx;
-                        if d2 as f64 > limit || x < 0 || x >= w as isize {
-                            continue;
-                        }
-                        let x = x as usize;
-                        if is_valid_point(&prow[x]) {
-                            row[x] = row[x].max(e * weight[d2 as usize]);
-                        }
+                    let xx = xx as usize;
+                    // Columns xx − half ..= xx + half, clipped to the row; weights[reach + dx].
+                    let (x0, x1) = (xx.saturating_sub(half), (xx + half + 1).min(w));
+                    let wts = &weights[x0 + reach - xx..x1 + reach - xx];
+                    for (o, &wt) in row[x0..x1].iter_mut().zip(wts) {
+                        *o = o.max(e * wt);
                     }
                 }
             }
+            // Pixels without a point have no roughness, so no transient either.
+            for (o, p) in row.iter_mut().zip(points.row(y)) {
+                if !is_valid_point(p) {
+                    *o = 0.0;
+                }
+            }
         });
+    }
+}
+
+/// The weights of the edge transient, `exp(−(dx² + dy²)/2σ²)` for pixel offsets within 3σ,
+/// row by row, with the definition's expression (bit for bit).
+struct TransientKernel {
+    /// `⌊3σ⌋`: the largest offset along an axis.
+    reach: usize,
+    /// Per |dy|: the largest |dx| within 3σ, and the weights of dx = −reach ..= reach (0
+    /// outside the disc).
+    rows: Vec<(usize, Vec<f64>)>,
+}
+
+impl TransientKernel {
+    fn new(sigma_px: f64) -> Self {
+        let reach = (3.0 * sigma_px).floor().max(0.0) as usize;
+        let limit = 9.0 * sigma_px * sigma_px;
+        let rows = (0..=reach)
+            .map(|dy| {
+                let mut half = 0;
+                let weights = (0..=2 * reach)
+                    .map(|i| {
+                        let dx = i.abs_diff(reach);
+                        let d2 = (dx * dx + dy * dy) as f64;
+                        if d2 > limit {
+                            return 0.0;
+                        }
+                        half = half.max(dx);
+                        (-d2 / (2.0 * sigma_px * sigma_px)).exp()
+                    })
+                    .collect();
+                (half, weights)
+            })
+            .collect();
+        Self { reach, rows }
+    }
+
+    /// The half-width and weights of row offset `dy` (≤ reach).
+    fn row(&self, dy: usize) -> (usize, &[f64]) {
+        let (half, weights) = &self.rows[dy];
+        (*half, weights)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Step 6 as the spec writes it, pixel by pixel: the reference for the sparse kernel.
+    fn transient_reference(edge: &Grid<f64>, points: &PointMap, sigma_px: f64) -> Grid<f64> {
+        let (w, h) = edge.size();
+        let reach = (3.0 * sigma_px).floor() as isize;
+        Grid::from_fn(w, h, |x, y| {
+            if !is_valid_point(&points[(x, y)]) {
+                return 0.0;
+            }
+            let mut best: f64 = 0.0;
+            for dy in -reach..=reach {
+                for dx in -reach..=reach {
+                    let d2 = (dx * dx + dy * dy) as f64;
+                    let (nx, ny) = (x as isize + dx, y as isize + dy);
+                    let inside = nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h;
+                    if d2 > 9.0 * sigma_px * sigma_px || !inside {
+                        continue;
+                    }
+                    let e = edge[(nx as usize, ny as usize)];
+                    if e > 0.0 {
+                        best = best.max(e * (-d2 / (2.0 * sigma_px * sigma_px)).exp());
+                    }
+                }
+            }
+            best
+        })
+    }
+
+    #[test]
+    fn sparse_transient_equals_the_per_pixel_definition_bit_for_bit() {
+        let (w, h) = (53, 37);
+        // Scattered edge terms of varied size, a hole pattern, edges on the frame's border.
+        let edge = Grid::from_fn(w, h, |x, y| match (x * 7 + y * 13) % 29 {
+            0 => 0.01 + 0.003 * (x % 5) as f64,
+            3 if x == 0 || y == h - 1 => 0.2,
+            _ if x == w - 1 && y % 4 == 0 => 0.05,
+            _ => 0.0,
+        });
+        let points = Grid::from_fn(w, h, |x, y| {
+            if (x * 3 + y * 5) % 11 == 0 {
+                INVALID_POINT
+            } else {
+                Vec3::new(x as f64, y as f64, 2.0)
+            }
+        });
+        for sigma in [0.4, 1.0, 1.5, 2.2] {
+            let got = edge_transient(&edge, &points, sigma);
+            let want = transient_reference(&edge, &points, sigma);
+            let same = got
+                .as_slice()
+                .iter()
+                .zip(want.as_slice())
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "σ = {sigma}");
+            assert!(got.as_slice().iter().filter(|&&v| v > 0.0).count() > w * h / 20);
+        }
+    }
+
+    #[test]
+    fn segments_do_not_depend_on_how_rows_are_split() {
+        // Two planes meeting at a crease, with holes: the partition into segments is the
+        // same as one pass over the whole frame would give.
+        let k = Intrinsics::from_hfov(61, 203, 60.0).unwrap();
+        let depth = Grid::from_fn(61, 203, |x, y| {
+            if (x * 5 + y) % 17 == 0 {
+                0.0
+            } else {
+                1.5 + 0.004 * (x as f64 - 30.0).abs() + 0.2 * ((y / 40) % 2) as f64
+            }
+        });
+        let points = k.back_project_map(&depth);
+        let planes = local_planes(&points, k.fx_px, &Neighbourhood::default());
+        let cfg = AnnotateConfig::default();
+        let got = segment(&points, &planes.normal, None, &cfg);
+        let want = segment_serial(&points, &planes.normal, &cfg);
+        assert_eq!(got, want);
+        assert!(got.as_slice().iter().max().copied().unwrap_or(0) >= 5);
+    }
+
+    /// Step 2 in one serial pass (the reference for the banded union-find).
+    fn segment_serial(points: &PointMap, normals: &Grid<Vec3>, cfg: &AnnotateConfig) -> Grid<u32> {
+        let (w, h) = points.size();
+        let joiner = Joiner::new(points, normals, None, cfg);
+        let mut forest = DisjointSets::default();
+        forest.reset(w * h);
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                if x + 1 < w && joiner.joins(i, i + 1) {
+                    forest.union(i, i + 1);
+                }
+                if y + 1 < h && joiner.joins(i, i + w) {
+                    forest.union(i, i + w);
+                }
+            }
+        }
+        let mut out = Grid::default();
+        forest.compact_ids(points, &mut out);
+        out
     }
 }
