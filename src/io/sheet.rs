@@ -224,8 +224,8 @@ impl Panel {
 /// Every cell is as large as the largest panel; a smaller panel is centred in its cell on the
 /// white background, never scaled (bring images to one size first, e.g. with
 /// [`fit_within`], when pixels should line up). The sheet is `8 + columns × (cell_w + 8)`
-/// wide, at least the legend's width plus 16, and `8 + rows × (22 + cell_h + 8)` high, plus
-/// the legend's height and 8 when there is one.
+/// wide, at least the legend's width plus 16 (the grid then centred), and
+/// `8 + rows × (22 + cell_h + 8)` high, plus the legend's height and 8 when there is one.
 ///
 /// ```
 /// use image::{Rgb, RgbImage};
@@ -251,7 +251,7 @@ pub fn contact_sheet(panels: &[Panel], columns: usize, legend: Option<&RgbImage>
     let mut sheet = RgbImage::from_pixel(width, height, BACKGROUND);
     for (i, panel) in panels.iter().enumerate() {
         let (col, row) = (i as u32 % columns, i as u32 / columns);
-        let x = MARGIN + col * (cell_w + MARGIN);
+        let x = (width - grid_w) / 2 + MARGIN + col * (cell_w + MARGIN);
         let y = MARGIN + row * row_h;
         let title = fit_text(&panel.title, cell_w, TEXT_SCALE);
         draw_text(&mut sheet, x, y + 2, &title, TEXT_SCALE, INK);
@@ -428,6 +428,21 @@ pub fn categorical_legend(entries: &[(&str, Rgb<u8>)]) -> RgbImage {
     img
 }
 
+/// `strips` one above the other, each centred, on the background: e.g. a colour bar and a
+/// categorical legend as the one legend of a [`contact_sheet`].
+pub fn stack(strips: &[RgbImage]) -> RgbImage {
+    let width = strips.iter().map(RgbImage::width).max().unwrap_or(0);
+    let height = strips.iter().map(RgbImage::height).sum();
+    let mut out = RgbImage::from_pixel(width, height, BACKGROUND);
+    let mut y = 0;
+    for strip in strips {
+        let x = (width - strip.width()) / 2;
+        imageops::replace(&mut out, strip, i64::from(x), i64::from(y));
+        y += strip.height();
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -494,6 +509,16 @@ mod tests {
         let legend = RgbImage::new(400, 30);
         let sheet = contact_sheet(&panels, 3, Some(&legend));
         assert_eq!(sheet.dimensions(), (416, 8 + TITLE_H + 48 + 38));
+        let red = Rgb([255, 0, 0]);
+        let one = [Panel::new("", RgbImage::from_pixel(100, 10, red))];
+        let sheet = contact_sheet(&one, 1, Some(&legend));
+        let row: Vec<_> = (0..416).map(|x| *sheet.get_pixel(x, 8 + TITLE_H)).collect();
+        let left = row.iter().position(|p| *p == red);
+        assert_eq!(
+            left,
+            Some((416 - 116) / 2 + 8),
+            "the grid is centred over the legend"
+        );
     }
 
     #[test]
@@ -595,6 +620,17 @@ mod tests {
             assert!(img.pixels().any(|p| *p == colour), "{label}");
         }
         assert!(img.width() > text_size("traversablehazardunknown", TEXT_SCALE).0);
+    }
+
+    #[test]
+    fn stack_centres_each_strip_below_the_previous() {
+        let red = Rgb([255, 0, 0]);
+        let strips = [RgbImage::new(30, 5), RgbImage::from_pixel(10, 4, red)];
+        let out = stack(&strips);
+        assert_eq!(out.dimensions(), (30, 9));
+        assert_eq!(*out.get_pixel(10, 5), red);
+        assert_eq!(*out.get_pixel(9, 5), BACKGROUND);
+        assert_eq!(*out.get_pixel(19, 8), red);
     }
 
     #[test]
