@@ -1,5 +1,6 @@
 //! `tre infer` and `tre eval` end to end through the binary: outputs on a real frame in every
-//! mode, clear errors for bad input, and `eval --tables --json` on a tiny synthetic dataset.
+//! mode, clear errors for bad input, the models found from outside the checkout, and
+//! `eval --tables --json` on a tiny synthetic dataset.
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use std::path::{Path, PathBuf};
