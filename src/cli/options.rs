@@ -1,12 +1,12 @@
 //! Options shared by `tre infer` and `tre eval`: input mode, method, the pipeline's ablation
 //! switches and the models, turned into a [`PipelineConfig`] and a [`Pipeline`].
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 
-use crate::model::{Models, SessionConfig};
+use crate::model::{locate_models, Models, SessionConfig};
 use crate::pipeline::{
     CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod, Pipeline, PipelineConfig,
     DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES,
@@ -103,6 +103,14 @@ pub fn dsac_hypotheses_arg() -> clap::builder::RangedI64ValueParser<u32> {
     clap::value_parser!(u32).range(1..=i64::from(MAX_DSAC_HYPOTHESES))
 }
 
+/// The models folder for the `--models` value (see [`locate_models`]), logged with the rule
+/// that found it; shared by every subcommand that loads models.
+pub fn find_models(flag: Option<&Path>) -> anyhow::Result<PathBuf> {
+    let found = locate_models(flag)?;
+    tracing::info!(path = %found.dir.display(), "models folder found by {}", found.rule);
+    Ok(found.dir)
+}
+
 /// The pipeline's switches and models, shared by `infer` and `eval`.
 #[derive(Debug, Clone, Args)]
 pub struct StageArgs {
@@ -128,9 +136,11 @@ pub struct StageArgs {
     #[arg(long, env = "TRE_DSAC_HYPOTHESES", default_value_t = DEFAULT_DSAC_HYPOTHESES,
           value_parser = dsac_hypotheses_arg())]
     pub dsac_hypotheses: u32,
-    /// Folder with manifest.json and the ONNX models (only read when a network runs).
-    #[arg(long, env = "TRE_MODELS", default_value = "models")]
-    pub models: PathBuf,
+    /// Folder with manifest.json and the ONNX models (only read when a network runs). When
+    /// not given: TRE_MODELS, then models/ beside the executable, ../share/tre/models
+    /// relative to it, then models/ in the working directory.
+    #[arg(long, env = "TRE_MODELS")]
+    pub models: Option<PathBuf>,
     /// ONNX Runtime threads per operator (0: one per core).
     #[arg(long, env = "TRE_ORT_THREADS", default_value_t = 0)]
     pub ort_threads: usize,
@@ -168,8 +178,9 @@ impl StageArgs {
             intra_threads: self.ort_threads,
             ..SessionConfig::default()
         };
-        let models = Models::load(&self.models, &session)
-            .with_context(|| format!("loading models from {}", self.models.display()))?;
+        let dir = find_models(self.models.as_deref())?;
+        let models = Models::load(&dir, &session)
+            .with_context(|| format!("loading models from {}", dir.display()))?;
         Ok(Pipeline::new(Some(models)))
     }
 }

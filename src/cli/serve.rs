@@ -7,7 +7,7 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 
-use super::options::{dsac_hypotheses_arg, NormalsArg};
+use super::options::{dsac_hypotheses_arg, find_models, NormalsArg};
 use crate::model::{ExecutionProvider, SessionConfig};
 use crate::pipeline::DEFAULT_DSAC_HYPOTHESES;
 use crate::server::request::FrameDefaults;
@@ -30,9 +30,11 @@ pub struct Serve {
     /// Address to listen on (port 0: any free port; the address is printed on stdout).
     #[arg(long, env = "TRE_ADDR", default_value = "0.0.0.0:8080")]
     pub addr: SocketAddr,
-    /// Folder with manifest.json and the ONNX models.
-    #[arg(long, env = "TRE_MODELS", default_value = "models")]
-    pub models: PathBuf,
+    /// Folder with manifest.json and the ONNX models. When not given: TRE_MODELS, then
+    /// models/ beside the executable, ../share/tre/models relative to it, then models/ in the
+    /// working directory.
+    #[arg(long, env = "TRE_MODELS")]
+    pub models: Option<PathBuf>,
     /// Inference worker threads, each with its own sessions (0: one per core).
     #[arg(long, env = "TRE_WORKERS", default_value_t = 0)]
     pub workers: usize,
@@ -129,7 +131,7 @@ impl Serve {
         }
         Ok(ServeConfig {
             addr: self.addr,
-            models: self.models.clone(),
+            models: find_models(self.models.as_deref())?,
             workers,
             session: SessionConfig {
                 intra_threads: ort_threads,

@@ -3,6 +3,7 @@
 
 pub mod colormap;
 pub mod npy;
+pub mod sheet;
 
 use std::fs::File;
 use std::io::{BufReader, BufWriter};

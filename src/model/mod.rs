@@ -17,6 +17,7 @@
 //! # }
 //! ```
 
+pub mod locate;
 pub mod manifest;
 pub mod models;
 pub mod onnx;
@@ -26,6 +27,7 @@ pub mod session;
 use std::fmt::Display;
 use std::path::PathBuf;
 
+pub use locate::{locate_models, FoundModels, ModelSearch, ModelsRule, MODELS_ENV};
 pub use manifest::{Manifest, ModelEntry, TensorSpec};
 pub use models::{Models, CENTROID_NET, DEPTH_NET, END_TO_END, NEIGHBOUR_NET, NORMAL_REFINER};
 pub use runtime::RuntimeError;
@@ -34,6 +36,24 @@ pub use session::{ExecutionProvider, ModelSession, Optimisation, SessionConfig};
 /// Errors of the model layer; every variant about one model names it.
 #[derive(Debug, thiserror::Error)]
 pub enum ModelError {
+    /// The folder named by `--models` or `TRE_MODELS` holds no `manifest.json`.
+    #[error("{rule} names {}, which holds no manifest.json; point it at a folder holding manifest.json and the .onnx files it lists, or drop it to search the usual places", dir.display())]
+    ModelsDirMissing {
+        /// The rule that named it (`--models` or `TRE_MODELS`).
+        rule: ModelsRule,
+        /// The folder.
+        dir: PathBuf,
+    },
+    /// No models folder in any of the places searched.
+    #[error(
+        "no models folder (one holding manifest.json) found; looked, in order, at: {}; {}",
+        locate::list_searched(searched),
+        locate::MODELS_FIX
+    )]
+    ModelsNotFound {
+        /// Every folder tried, in order, with the rule that named it.
+        searched: Vec<(ModelsRule, PathBuf)>,
+    },
     /// `manifest.json` is missing, unreadable or malformed.
     #[error("{}: {reason}", path.display())]
     Manifest {
