@@ -481,6 +481,7 @@ fn eval_real_scores_every_mode_on_one_frame_and_writes_json_and_a_sheet() {
     assert!(rows[1]["depth"].is_null());
     let sheet = image::open(sheets.join("slambook2_ch7_1_depth.png")).unwrap();
     assert!(sheet.width() >= 3 * 320 && sheet.height() >= 2 * 240);
+}
 
 /// `tre ARGS` run from `cwd` (outside the checkout) with `TRE_MODELS` set to `models` or unset.
 fn tre_in(cwd: &Path, models: Option<&Path>, args: &[&str]) -> Output {
