@@ -25,6 +25,7 @@ use anyhow::{bail, Context};
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Grid, Intrinsics};
+use crate::io::sheet::{colour_bar_legend, contact_sheet, roughness_panel, Panel};
 use crate::io::{self, CameraFile};
 use crate::pipeline::{FrameInput, GeometricMethod, Mode, Pipeline, PipelineConfig};
 use crate::roughness::hazard::{
@@ -661,30 +662,31 @@ fn max_pool2(map: &Grid<f64>) -> Grid<f64> {
 }
 
 /// The panels of a frame's contact sheet at half size: the RGB image, the spec, then each
-/// configuration's roughness, titled.
+/// configuration's roughness, titled; roughness in one colour scale ([`SHEET_MAX_M`]).
 pub fn sheet_panels(
     loaded: &LoadedFrame,
     rows: &[(String, PipelineConfig)],
     maps: &[Grid<f64>],
-) -> Vec<(String, image::RgbImage)> {
-    let colour = |m: &Grid<f64>| crate::io::colormap::colourise(&max_pool2(m), 0.0, SHEET_MAX_M);
+) -> Vec<Panel> {
+    let colour = |m: &Grid<f64>| roughness_panel(&max_pool2(m), SHEET_MAX_M);
     let mut panels = Vec::new();
     if let Some(rgb) = &loaded.input.rgb {
         let (w, h) = (rgb.width().div_ceil(2), rgb.height().div_ceil(2));
         let small = image::imageops::resize(rgb, w, h, image::imageops::FilterType::Triangle);
-        panels.push(("RGB".to_owned(), small));
+        panels.push(Panel::new("RGB", small));
     }
-    panels.push((
-        "spec (tre annotate)".to_owned(),
+    panels.push(Panel::new(
+        "spec (tre annotate)",
         colour(&loaded.spec.roughness_m),
     ));
     for ((key, _), map) in rows.iter().zip(maps) {
-        panels.push((key.clone(), colour(map)));
+        panels.push(Panel::new(key.clone(), colour(map)));
     }
     panels
 }
 
-/// Writes `DIR/<sequence>_<depth stem>.png`: the frame's panels in a grid of three columns.
+/// Writes `DIR/<sequence>_<depth stem>.png`: the frame's panels in a grid of three columns
+/// over the colour scale's legend.
 ///
 /// # Errors
 ///
@@ -697,7 +699,9 @@ pub fn write_sheet(
     maps: &[Grid<f64>],
 ) -> anyhow::Result<()> {
     let panels = sheet_panels(loaded, rows, maps);
-    let sheet = compose_sheet(&panels, 3);
+    let width = panels.first().map_or(320, |p| p.image.width()) * 2;
+    let legend = colour_bar_legend(width, SHEET_MAX_M, &[0.0, 1.0, 2.0, 5.0, 10.0]);
+    let sheet = contact_sheet(&panels, 3, Some(&legend));
     let stem = frame
         .depth_rel
         .trim_end_matches(".png")
@@ -705,18 +709,4 @@ pub fn write_sheet(
     let path = dir.join(format!("{}_{stem}.png", frame.sequence));
     io::save(&path, &image::DynamicImage::ImageRgb8(sheet))?;
     Ok(())
-}
-
-/// The panels in a grid of `columns`, each cell the size of the largest panel.
-fn compose_sheet(panels: &[(String, image::RgbImage)], columns: usize) -> image::RgbImage {
-    let cw = panels.iter().map(|(_, p)| p.width()).max().unwrap_or(1);
-    let ch = panels.iter().map(|(_, p)| p.height()).max().unwrap_or(1);
-    let rows = panels.len().div_ceil(columns.max(1)) as u32;
-    let cols = columns.min(panels.len()).max(1) as u32;
-    let mut sheet = image::RgbImage::from_pixel(cw * cols, ch * rows, image::Rgb([255, 255, 255]));
-    for (i, (_, p)) in panels.iter().enumerate() {
-        let (c, r) = (i as u32 % cols, i as u32 / cols);
-        image::imageops::replace(&mut sheet, p, i64::from(c * cw), i64::from(r * ch));
-    }
-    sheet
 }
