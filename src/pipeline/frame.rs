@@ -8,9 +8,11 @@ use rayon::prelude::*;
 use super::centroid::{slopes, traversable};
 use super::resize::{resize_nearest, resize_nearest_reusing};
 use super::spares::Spares;
-use super::Traversability;
+use super::{Mode, PipelineError, Traversability};
 use crate::geometry::{Grid, Intrinsics, Mounting, PointMap, Vec3, INVALID_POINT};
 use crate::roughness::annotate::{boundary_mask, segment};
+use crate::roughness::noise::{uncertainty_map, SensorNoise, SensorPreset};
+use crate::roughness::traversal::{ThreeStateRule, Traversal};
 use crate::roughness::AnnotateConfig;
 
 /// Horizontal field of view assumed when a frame comes without intrinsics, degrees.
@@ -204,6 +206,74 @@ impl FrameOutput {
         // No pixel without roughness at the frame's size is traversable (a sensor's hole).
         self.only_with_roughness(&mut full);
         full
+    }
+}
+
+/// The sensor-noise maps of a frame, at the frame's size (docs/sensor-noise.md).
+#[derive(Debug, Clone)]
+pub struct SensorMaps {
+    /// The p95 of the roughness sensor noise alone gives spec v1 on a flat surface, metres
+    /// (NaN: no depth).
+    pub uncertainty_m: Grid<f64>,
+    /// Three-state traversability.
+    pub traversal: Grid<Traversal>,
+}
+
+impl FrameOutput {
+    /// The uncertainty and three-state maps of `frame`'s sensor depth under noise model
+    /// `sensor` (`None`: the camera gave none; `described`: its free-text sensor, if any), with
+    /// the frame's intrinsics (or the 60° default) and this output's normals. Only `rgbd` and
+    /// `geometric` read sensor depth; for `rgb` and the end-to-end baseline, an error.
+    pub fn sensor_maps(
+        &self,
+        frame: &FrameInput,
+        mode: Mode,
+        sensor: Option<&SensorNoise>,
+        described: Option<&str>,
+    ) -> Result<SensorMaps, PipelineError> {
+        let (Some(depth_m), Some(normals), false) =
+            (&frame.depth_m, self.normals(), mode == Mode::Rgb)
+        else {
+            let mode = if mode == Mode::Rgb {
+                "rgb"
+            } else {
+                "end-to-end"
+            };
+            return Err(PipelineError::NoSensorDepth { mode });
+        };
+        let Some(sensor) = sensor else {
+            return Err(PipelineError::NoSensorModel {
+                presets: SensorPreset::names(),
+                described: described.map_or(String::new(), |d| {
+                    format!(" (the camera's sensor {d:?} names no preset)")
+                }),
+            });
+        };
+        let (w, h) = depth_m.size();
+        let k = match frame.intrinsics {
+            Some(k) => k,
+            None => Intrinsics::from_hfov(w, h, DEFAULT_HFOV_DEG)?,
+        };
+        let mut uncertainty_m =
+            uncertainty_map(depth_m, &k, &normals, sensor, &AnnotateConfig::default());
+        for (u, r) in uncertainty_m
+            .as_mut_slice()
+            .iter_mut()
+            .zip(self.roughness_m.as_slice())
+        {
+            if !r.is_finite() {
+                *u = f64::NAN;
+            }
+        }
+        let rule = ThreeStateRule {
+            max_roughness_m: self.working.limits.max_roughness_m,
+            ..ThreeStateRule::default()
+        };
+        let traversal = rule.map(&self.roughness_m, &uncertainty_m, &self.traversable());
+        Ok(SensorMaps {
+            uncertainty_m,
+            traversal,
+        })
     }
 }
 

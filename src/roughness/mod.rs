@@ -1,8 +1,10 @@
-//! Roughness: the ground-truth annotator (spec v1) and the evaluation metrics. Pure and
-//! synchronous, like `geometry`.
+//! Roughness: the ground-truth annotator (spec v1), the evaluation metrics, the sensor-noise
+//! uncertainty map and three-state traversability. Pure and synchronous, like `geometry`.
 
 pub mod annotate;
 pub mod metrics;
+pub mod noise;
+pub mod traversal;
 
 pub use annotate::{annotate, AnnotateConfig, AnnotateInput, Annotation};
 pub use metrics::{DepthAccumulator, NormalAccumulator, RoughnessAccumulator};
