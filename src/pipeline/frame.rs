@@ -399,6 +399,28 @@ mod tests {
     }
 
     #[test]
+    fn sensor_maps_need_sensor_depth_and_a_noise_model() {
+        let out = output();
+        let frame = FrameInput {
+            depth_m: Some(Grid::new(4, 2, 1.5)),
+            ..FrameInput::default()
+        };
+        let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
+        let e = out.sensor_maps(&frame, Mode::Rgb, Some(&kinect), None);
+        assert!(matches!(e, Err(PipelineError::NoSensorDepth { mode: "rgb" })));
+        let e = out.sensor_maps(&frame, Mode::Rgbd, None, Some("Kinect"));
+        let e = e.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(e.contains("kinect_v1") && e.contains("\"Kinect\" names no preset"), "{e}");
+        let maps = out.sensor_maps(&frame, Mode::Rgbd, Some(&kinect), None).unwrap();
+        // The left column is rough (0.2 m, a drop above the noise): a hazard; the top right
+        // is flat with millimetres of noise: traversable.
+        assert_eq!(maps.traversal[(0, 0)], Traversal::Hazard);
+        assert_eq!(maps.traversal[(3, 0)], Traversal::Traversable);
+        // (At 0.43 m per pixel no neighbour lies within R: no surface term, so no noise in it.)
+        assert!((0.0..0.01).contains(&maps.uncertainty_m[(3, 0)]));
+    }
+
+    #[test]
     fn boundary_marks_both_sides_of_a_depth_step() {
         let points = Grid::from_fn(6, 2, |x, y| {
             let z = if x < 3 { 1.0 } else { 1.2 };
