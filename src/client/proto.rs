@@ -386,6 +386,44 @@ mod tests {
     }
 
     #[test]
+    fn three_state_and_uncertainty_bytes_decode_and_bad_ones_name_the_field() {
+        let mut w = wire(pb::Format::F32, vec![0; 24], (3, 2));
+        w.0.traversal = vec![0, 1, 2, 2, 1, 0];
+        w.0.uncertainty = [0.01f32, f32::NAN, 0.0, 0.02, 0.5, 0.001]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let r = FrameResult::try_from((WireResult(w.0.clone()), Stamp::now())).unwrap();
+        let t = r.traversal.unwrap();
+        assert_eq!(t[(2, 0)], Traversal::Hazard);
+        assert_eq!(t[(1, 0)], Traversal::Traversable);
+        assert_eq!(t[(0, 0)], Traversal::Unknown);
+        let u = r.uncertainty_m.unwrap();
+        assert!(u[(1, 0)].is_nan() && (u[(1, 1)] - 0.5).abs() < 1e-7);
+        w.0.traversal[3] = 7;
+        let e = FrameResult::try_from((w, Stamp::now())).unwrap_err();
+        assert!(e.to_string().contains("traversal: byte 7"), "{e}");
+    }
+
+    #[test]
+    fn camera_sensor_goes_out_as_a_name_or_coefficients() {
+        let mut cam: CameraFile =
+            serde_json::from_str(r#"{"fx": 500, "fy": 500, "cx": 1, "cy": 1, "sensor": "lidar"}"#)
+                .unwrap();
+        let pb_cam = pb::Camera::from(&cam);
+        assert_eq!(pb_cam.sensor.as_deref(), Some("lidar"));
+        assert!(pb_cam.sensor_sigma_mm.is_empty());
+        cam.sensor = Some(io::SensorSpec::Model(SensorNoise::Coefficients {
+            sigma_mm: [1.0, 0.0, 2.0],
+        }));
+        let pb_cam = pb::Camera::from(&cam);
+        assert_eq!(
+            (pb_cam.sensor, pb_cam.sensor_sigma_mm),
+            (None, vec![1.0, 0.0, 2.0])
+        );
+    }
+
+    #[test]
     fn garbage_from_the_server_is_a_protocol_error() {
         assert!(matches!(
             decode_server(&[0xFF, 0xFF, 0xFF]),

@@ -407,11 +407,19 @@ mod tests {
         };
         let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
         let e = out.sensor_maps(&frame, Mode::Rgb, Some(&kinect), None);
-        assert!(matches!(e, Err(PipelineError::NoSensorDepth { mode: "rgb" })));
+        assert!(matches!(
+            e,
+            Err(PipelineError::NoSensorDepth { mode: "rgb" })
+        ));
         let e = out.sensor_maps(&frame, Mode::Rgbd, None, Some("Kinect"));
         let e = e.err().map(|e| e.to_string()).unwrap_or_default();
-        assert!(e.contains("kinect_v1") && e.contains("\"Kinect\" names no preset"), "{e}");
-        let maps = out.sensor_maps(&frame, Mode::Rgbd, Some(&kinect), None).unwrap();
+        assert!(
+            e.contains("kinect_v1") && e.contains("\"Kinect\" names no preset"),
+            "{e}"
+        );
+        let maps = out
+            .sensor_maps(&frame, Mode::Rgbd, Some(&kinect), None)
+            .unwrap();
         // The left column is rough (0.2 m, a drop above the noise): a hazard; the top right
         // is flat with millimetres of noise: traversable.
         assert_eq!(maps.traversal[(0, 0)], Traversal::Hazard);
