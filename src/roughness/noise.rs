@@ -278,19 +278,10 @@ fn pixel_noise(
     let neighbours = count_within(points, x, y, half, cfg.hood.radius_m);
     let residual = (1.0 - 1.0 / neighbours.max(1) as f64).sqrt();
     let surface_p95_m = HALF_NORMAL_P95 * sigma_normal_m * residual;
-    // Two neighbours' normal offsets differ by N(0, 2σ²): the ε test fails with erfc(ε/2σ).
-    // Where 3σ along the ray exceeds the window's extent, LS normals follow the noise and the
-    // 10° test breaks every segment (the estimated normal cannot tell: it is the noisy one).
     let sigma_ray_m = sigma_z * p.norm() / p.z;
     let extent_m = (half as f64 * p.z / k.fx_px).min(cfg.hood.radius_m);
-    let noisy_normals = 3.0 * sigma_ray_m > extent_m;
-    let break_fraction = if noisy_normals {
-        1.0
-    } else if sigma_normal_m > 0.0 {
-        erfc(cfg.epsilon_m / (2.0 * sigma_normal_m))
-    } else {
-        0.0
-    };
+    let (break_fraction, noisy_normals) =
+        joins_broken(sigma_ray_m, sigma_normal_m, extent_m, cfg.epsilon_m);
     let edge_m = if break_fraction >= SEGMENT_BREAK_FRACTION {
         // A neighbour's distance moves by the difference of two ray offsets, σ√2 each.
         // A noise-led normal says nothing of the surface: the spacing facing the camera then.
@@ -307,6 +298,26 @@ fn pixel_noise(
         surface_p95_m,
         break_fraction,
         edge_m,
+    }
+}
+
+/// The fraction of segment joins (spec step 2) that noise breaks on a plane, and whether the LS
+/// normals follow the noise. Two neighbours' offsets along the normal differ by N(0, 2σ_n²), so
+/// the ε test fails with erfc(ε/2σ_n). Where 3σ along the ray exceeds the window's extent
+/// (`extent_m`), LS normals follow the noise and the 10° test breaks every join; the estimated
+/// normal cannot tell, being the noisy one.
+fn joins_broken(
+    sigma_ray_m: f64,
+    sigma_normal_m: f64,
+    extent_m: f64,
+    epsilon_m: f64,
+) -> (f64, bool) {
+    if 3.0 * sigma_ray_m > extent_m {
+        (1.0, true)
+    } else if sigma_normal_m > 0.0 {
+        (erfc(epsilon_m / (2.0 * sigma_normal_m)), false)
+    } else {
+        (0.0, false)
     }
 }
 
