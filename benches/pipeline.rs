@@ -164,6 +164,7 @@ fn request(frame: &FrameInput, depth: bool, normals: NormalsMethod) -> FrameRequ
             depth_scale: Some(1000.0),
             pitch_deg: Some(frame.mounting.pitch_rad.to_degrees()),
             height_m: Some(frame.mounting.height_m),
+            sensor: None,
         }),
         options: FrameOptions {
             normals: Some(normals),

@@ -1,7 +1,7 @@
 //! The demo page at `/` in a real browser: starts `tre serve` on a loopback port with the
 //! committed models and runs `tests/browser/demo.mjs` (playwright-core driving Debian's
 //! headless Chromium) against it: one image through `POST /v1/roughness`, the live stream over
-//! the WebSocket, and a bad file's error message.
+//! the WebSocket, a depth frame's three-state map, and a bad file's error message.
 //!
 //! Needs `node`, Chromium (`CHROMIUM`, default `/usr/bin/chromium`) and
 //! `tests/browser/node_modules/playwright-core` (`tests/browser/setup.sh` installs them). Without
@@ -57,6 +57,7 @@ fn demo_page_renders_roughness_streams_and_shows_errors() {
         .arg(root().join("tests/browser/demo.mjs"))
         .arg(server.url())
         .arg(image())
+        .arg(real("metric3d_nyu/depth/sync_depth_00000.png"))
         .output()
         .expect("cannot run node");
     println!("{}", String::from_utf8_lossy(&out.stdout));

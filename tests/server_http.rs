@@ -1082,6 +1082,7 @@ fn the_openapi_document_matches_what_the_server_takes() {
         ("pitch_deg", "50"),
         ("height_m", "0.8"),
         ("depth_scale", "1000"),
+        ("sensor", "kinect_v1"),
     ];
     let listed: Vec<&str> = op["parameters"]
         .as_array()

@@ -84,6 +84,11 @@ pub struct Client {
     /// Also ask for traversability, written as SEQ_NAME_traversable.png (255 = traversable).
     #[arg(long, env = "TRE_CLIENT_TRAVERSABLE")]
     pub traversable: bool,
+    /// Also ask for the three-state map and the uncertainty (the camera must name a sensor
+    /// noise model, docs/sensor-noise.md), written as SEQ_NAME_traversal.png (0 unknown,
+    /// 1 traversable, 2 hazard) and SEQ_NAME_uncertainty.png (16-bit, 0.1 mm per unit).
+    #[arg(long, env = "TRE_CLIENT_TRAVERSAL")]
+    pub traversal: bool,
     /// Traversability: the largest roughness, centimetres (default 5).
     #[arg(long, env = "TRE_CLIENT_MAX_ROUGHNESS_CM")]
     pub max_roughness_cm: Option<f64>,
@@ -175,6 +180,7 @@ impl Client {
             normals: self.normals.map(Into::into),
             dsac_hypotheses: self.dsac_hypotheses,
             want_traversable: self.traversable,
+            want_traversal: self.traversal,
             max_roughness_cm: self.max_roughness_cm,
             max_slope_deg: self.max_slope_deg,
             rate: self.rate.map_or(Rate::AsFastAsResults, Rate::Fixed),
@@ -611,6 +617,26 @@ fn write_map(path: &Path, r: &FrameResult) -> anyhow::Result<()> {
             .file_stem()
             .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
         io::write_mask_png(&path.with_file_name(format!("{stem}_traversable.png")), t)?;
+    }
+    write_sensor_maps(path, r)?;
+    Ok(())
+}
+
+/// The three-state and uncertainty maps of `r`, if it has them, beside `path`.
+fn write_sensor_maps(path: &Path, r: &FrameResult) -> anyhow::Result<()> {
+    let stem = path
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    if let Some(t) = &r.traversal {
+        let grey = DynamicImage::ImageLuma8(io::traversal_gray8(t));
+        io::save(&path.with_file_name(format!("{stem}_traversal.png")), &grey)?;
+    }
+    if let Some(u) = &r.uncertainty_m {
+        let png = DynamicImage::ImageLumaA16(io::roughness_png16(u));
+        io::save(
+            &path.with_file_name(format!("{stem}_uncertainty.png")),
+            &png,
+        )?;
     }
     Ok(())
 }

@@ -10,7 +10,9 @@ use image::DynamicImage;
 use super::options::{MethodArg, ModeArg, StageArgs};
 use crate::geometry::Mounting;
 use crate::io;
-use crate::pipeline::{FrameInput, FrameOutput, PipelineConfig, Traversability};
+use crate::pipeline::{FrameInput, FrameOutput, PipelineConfig, SensorMaps, Traversability};
+use crate::roughness::noise::{SensorNoise, SensorPreset};
+use crate::roughness::traversal::shares;
 
 /// Output format of the roughness map.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -61,6 +63,17 @@ pub struct Infer {
     /// Traversability: the steepest slope, degrees.
     #[arg(long, default_value_t = 20.0)]
     pub max_slope_deg: f64,
+    /// Depth sensor noise model, overriding the camera JSON's "sensor": a preset (kinect_v1,
+    /// realsense_d435, azure_kinect, lidar, exact) or coefficients a,b,c (σ_z = a + b·z + c·z²
+    /// mm). With one (rgbd and geometric modes), the uncertainty map and the three-state map
+    /// are written beside the output (docs/sensor-noise.md).
+    #[arg(long, env = "TRE_SENSOR", value_parser = parse_sensor)]
+    pub sensor: Option<SensorNoise>,
+}
+
+/// `--sensor`: a preset name or `a,b,c`.
+fn parse_sensor(s: &str) -> Result<SensorNoise, String> {
+    s.parse()
 }
 
 impl Infer {
@@ -81,12 +94,86 @@ impl Infer {
             traversability,
             ..self.stages.config(mode)
         };
-        let frame = self.read_frame()?;
+        let (frame, described) = self.read_frame()?;
         crate::pipeline::check_input(&frame, &cfg)?;
         let mut pipeline = self.stages.pipeline(&[cfg])?;
         let out = pipeline.run(&frame, &cfg)?;
         self.write(&out)?;
         print_summary(&out, &cfg.label());
+        if let Some(maps) = self.sensor_maps(&out, &frame, &cfg, described)? {
+            self.write_sensor_maps(&maps)?;
+        }
+        Ok(())
+    }
+
+    /// The uncertainty and three-state maps when a noise model is known: from `--sensor`, else
+    /// the camera's `sensor` (`described`: the camera's sensor, a model or free text). Without
+    /// one, or in a mode without sensor depth, a note on stderr; `--sensor` in such a mode is
+    /// an error.
+    fn sensor_maps(
+        &self,
+        out: &FrameOutput,
+        frame: &FrameInput,
+        cfg: &PipelineConfig,
+        described: Option<io::SensorSpec>,
+    ) -> anyhow::Result<Option<SensorMaps>> {
+        let model = self
+            .sensor
+            .or(described.as_ref().and_then(io::SensorSpec::noise));
+        let Some(model) = model else {
+            if let Some(io::SensorSpec::Description(d)) = &described {
+                eprintln!(
+                    "note: the camera's sensor {d:?} names no noise model, so no uncertainty or \
+                     three-state map is written; give --sensor (one of {}) or a,b,c",
+                    SensorPreset::names()
+                );
+            }
+            return Ok(None);
+        };
+        let depth_mode = cfg.mode != crate::pipeline::Mode::Rgb
+            && cfg.method == crate::pipeline::Method::Pipeline;
+        if !depth_mode && self.sensor.is_none() {
+            eprintln!(
+                "note: no uncertainty or three-state map in {} (no sensor depth)",
+                cfg.label()
+            );
+            return Ok(None);
+        }
+        let maps = out
+            .sensor_maps(frame, cfg.mode, Some(&model), None)
+            .context("--sensor")?;
+        let (t, h, u) = shares(&maps.traversal);
+        println!(
+            "sensor {}: {:.1}% traversable, {:.1}% hazard, {:.1}% unknown",
+            model.label(),
+            100.0 * t,
+            100.0 * h,
+            100.0 * u
+        );
+        Ok(Some(maps))
+    }
+
+    /// Writes `<stem>_uncertainty.png|npy`, `<stem>_traversal.png` (0 unknown, 1 traversable,
+    /// 2 hazard) and `<stem>_traversal_preview.png`.
+    fn write_sensor_maps(&self, maps: &SensorMaps) -> anyhow::Result<()> {
+        let u = &maps.uncertainty_m;
+        match self.format {
+            Format::Png16 => io::save(
+                &beside(&self.out, "uncertainty", "png"),
+                &DynamicImage::ImageLumaA16(io::roughness_png16(u)),
+            )?,
+            Format::Npy => io::write_npy_f32(&beside(&self.out, "uncertainty", "npy"), u)?,
+        }
+        let grey = io::traversal_gray8(&maps.traversal);
+        io::save(
+            &beside(&self.out, "traversal", "png"),
+            &DynamicImage::ImageLuma8(grey),
+        )?;
+        let preview = io::colormap::traversal_preview(&maps.traversal);
+        io::save(
+            &beside(&self.out, "traversal_preview", "png"),
+            &DynamicImage::ImageRgb8(preview),
+        )?;
         Ok(())
     }
 
@@ -120,7 +207,17 @@ impl Infer {
             .flatten()
             .map(PathBuf::as_path)
             .collect();
-        super::refuse_overwriting(&[&self.out, &preview_path(&self.out)], &inputs)
+        let sensor_maps = [
+            "uncertainty.png",
+            "uncertainty.npy",
+            "traversal.png",
+            "traversal_preview.png",
+        ]
+        .map(|f| f.split_once('.').map(|(w, e)| beside(&self.out, w, e)));
+        let mut outputs = vec![self.out.clone(), preview_path(&self.out)];
+        outputs.extend(sensor_maps.into_iter().flatten());
+        let outputs: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
+        super::refuse_overwriting(&outputs, &inputs)
     }
 
     /// The mode asked for, or the one the inputs imply.
@@ -134,8 +231,8 @@ impl Infer {
         })
     }
 
-    /// The frame, depth and camera from disk.
-    fn read_frame(&self) -> anyhow::Result<FrameInput> {
+    /// The frame, depth and camera from disk, and the camera's sensor.
+    fn read_frame(&self) -> anyhow::Result<(FrameInput, Option<io::SensorSpec>)> {
         let cam = self.camera.as_deref().map(io::read_camera).transpose()?;
         let scale = self
             .depth_scale
@@ -169,7 +266,7 @@ impl Infer {
                 .with_context(named)?;
             k.check_for(w, h).with_context(named)?;
         }
-        Ok(frame)
+        Ok((frame, cam.and_then(|(c, _)| c.sensor)))
     }
 
     /// Writes the roughness map in the chosen format and the preview beside it.
@@ -190,6 +287,15 @@ impl Infer {
         io::save(&preview_path(&self.out), &DynamicImage::ImageRgb8(preview))?;
         Ok(())
     }
+}
+
+/// `DIR/<stem>_<what>.<ext>` beside `out`.
+fn beside(out: &Path, what: &str, ext: &str) -> PathBuf {
+    let stem = out.file_stem().map_or_else(
+        || "roughness".to_owned(),
+        |s| s.to_string_lossy().into_owned(),
+    );
+    out.with_file_name(format!("{stem}_{what}.{ext}"))
 }
 
 /// `DIR/<stem>_preview.png` beside `out`.

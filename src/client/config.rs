@@ -107,6 +107,9 @@ pub struct ClientConfig {
     pub preview_max_m: Option<f64>,
     /// Also ask for the traversability mask.
     pub want_traversable: bool,
+    /// Also ask for the three-state traversability and uncertainty maps (the camera must name
+    /// a sensor noise model; modes with sensor depth only).
+    pub want_traversal: bool,
     /// The mask's largest roughness, centimetres; `None`: 5.
     pub max_roughness_cm: Option<f64>,
     /// The mask's steepest slope, degrees; `None`: 20.
@@ -143,6 +146,7 @@ impl Default for ClientConfig {
             dsac_hypotheses: None,
             preview_max_m: None,
             want_traversable: false,
+            want_traversal: false,
             max_roughness_cm: None,
             max_slope_deg: None,
             rate: Rate::AsFastAsResults,
@@ -350,6 +354,7 @@ mod tests {
                 depth_scale: None,
                 pitch_deg: None,
                 height_m: None,
+                sensor: None,
             }),
             ..base
         };

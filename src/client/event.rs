@@ -67,6 +67,10 @@ pub struct FrameResult {
     pub format: Format,
     /// Traversability (`true`: traversable), if asked for.
     pub traversable: Option<Grid<bool>>,
+    /// Three-state traversability, if asked for.
+    pub traversal: Option<Grid<crate::roughness::traversal::Traversal>>,
+    /// Uncertainty, metres (NaN: no data), if asked for.
+    pub uncertainty_m: Option<Grid<f64>>,
     /// Wall time of each pipeline stage on the server.
     pub timings: Vec<(String, Duration)>,
     /// Round trip measured by the client: from [`FrameSender::send`](super::FrameSender::send)

@@ -15,6 +15,8 @@ use crate::geometry::Grid;
 use crate::io::{self, CameraFile, ROUGHNESS_PNG_SCALE_M};
 use crate::pipeline::{Mode, NormalsMethod};
 use crate::proto::v1 as pb;
+use crate::roughness::noise::SensorNoise;
+use crate::roughness::traversal::Traversal;
 
 impl From<&CameraFile> for pb::Camera {
     fn from(c: &CameraFile) -> Self {
@@ -28,6 +30,17 @@ impl From<&CameraFile> for pb::Camera {
             depth_scale: c.depth_scale,
             width: c.width.map(|w| u32::try_from(w).unwrap_or(u32::MAX)),
             height: c.height.map(|h| u32::try_from(h).unwrap_or(u32::MAX)),
+            sensor: match &c.sensor {
+                Some(io::SensorSpec::Model(SensorNoise::Preset(p))) => Some(p.name().to_string()),
+                Some(io::SensorSpec::Description(d)) => Some(d.clone()),
+                _ => None,
+            },
+            sensor_sigma_mm: match &c.sensor {
+                Some(io::SensorSpec::Model(SensorNoise::Coefficients { sigma_mm })) => {
+                    sigma_mm.to_vec()
+                }
+                _ => Vec::new(),
+            },
         }
     }
 }
@@ -72,12 +85,42 @@ impl From<&ClientConfig> for pb::Hello {
             seed: cfg.seed,
             preview_max_m: cfg.preview_max_m,
             want_traversable: cfg.want_traversable,
+            want_traversal: cfg.want_traversal,
+            want_uncertainty: cfg.want_traversal,
             normals: pb::Normals::from(cfg.normals) as i32,
             dsac_hypotheses: cfg.dsac_hypotheses.unwrap_or(0),
             max_roughness_cm: cfg.max_roughness_cm,
             max_slope_deg: cfg.max_slope_deg,
         }
     }
+}
+
+/// The three-state map from its bytes (0 unknown, 1 traversable, 2 hazard; none: `None`).
+fn decode_traversal(
+    bytes: &[u8],
+    (w, h): (usize, usize),
+) -> Result<Option<Grid<Traversal>>, String> {
+    if bytes.is_empty() {
+        return Ok(None);
+    }
+    if bytes.len() != w * h {
+        return Err(format!(
+            "traversal: {} bytes for {w}×{h} pixels",
+            bytes.len()
+        ));
+    }
+    let states = bytes
+        .iter()
+        .map(|&b| match b {
+            0 => Ok(Traversal::Unknown),
+            1 => Ok(Traversal::Traversable),
+            2 => Ok(Traversal::Hazard),
+            other => Err(format!("traversal: byte {other} is not 0, 1 or 2")),
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Grid::from_vec(w, h, states)
+        .map(Some)
+        .map_err(|e| format!("traversal: {e}"))
 }
 
 /// The encoded Hello for `cfg`.
@@ -184,6 +227,15 @@ impl TryFrom<(WireResult, Stamp)> for FrameResult {
             ),
             n => return Err(bad(format!("traversable: {n} bytes for {w}×{h} pixels"))),
         };
+        let traversal = decode_traversal(&r.traversal, (w, h)).map_err(bad)?;
+        let uncertainty_m = match r.uncertainty.len() {
+            0 => None,
+            _ => match decode_map(&r.uncertainty, Format::F32, r.scale_m, (w, h)) {
+                Ok(Roughness::Metres(m)) => Some(m),
+                Ok(Roughness::Colour(_)) => None,
+                Err(e) => return Err(bad(format!("uncertainty: {e}"))),
+            },
+        };
         let ms = |field: &str, ms: f64| {
             Duration::try_from_secs_f64(ms / 1e3).map_err(|_| bad(format!("{field}: {ms} ms")))
         };
@@ -203,6 +255,8 @@ impl TryFrom<(WireResult, Stamp)> for FrameResult {
             encoded: r.roughness,
             format,
             traversable,
+            traversal,
+            uncertainty_m,
             timings,
             latency: received.at.saturating_duration_since(sent.at),
             sent_unix_us: sent.unix_us,
@@ -329,6 +383,44 @@ mod tests {
         ))
         .unwrap_err();
         assert!(matches!(e, ClientError::BadResult { sequence: 7, .. }));
+    }
+
+    #[test]
+    fn three_state_and_uncertainty_bytes_decode_and_bad_ones_name_the_field() {
+        let mut w = wire(pb::Format::F32, vec![0; 24], (3, 2));
+        w.0.traversal = vec![0, 1, 2, 2, 1, 0];
+        w.0.uncertainty = [0.01f32, f32::NAN, 0.0, 0.02, 0.5, 0.001]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let r = FrameResult::try_from((WireResult(w.0.clone()), Stamp::now())).unwrap();
+        let t = r.traversal.unwrap();
+        assert_eq!(t[(2, 0)], Traversal::Hazard);
+        assert_eq!(t[(1, 0)], Traversal::Traversable);
+        assert_eq!(t[(0, 0)], Traversal::Unknown);
+        let u = r.uncertainty_m.unwrap();
+        assert!(u[(1, 0)].is_nan() && (u[(1, 1)] - 0.5).abs() < 1e-7);
+        w.0.traversal[3] = 7;
+        let e = FrameResult::try_from((w, Stamp::now())).unwrap_err();
+        assert!(e.to_string().contains("traversal: byte 7"), "{e}");
+    }
+
+    #[test]
+    fn camera_sensor_goes_out_as_a_name_or_coefficients() {
+        let mut cam: CameraFile =
+            serde_json::from_str(r#"{"fx": 500, "fy": 500, "cx": 1, "cy": 1, "sensor": "lidar"}"#)
+                .unwrap();
+        let pb_cam = pb::Camera::from(&cam);
+        assert_eq!(pb_cam.sensor.as_deref(), Some("lidar"));
+        assert!(pb_cam.sensor_sigma_mm.is_empty());
+        cam.sensor = Some(io::SensorSpec::Model(SensorNoise::Coefficients {
+            sigma_mm: [1.0, 0.0, 2.0],
+        }));
+        let pb_cam = pb::Camera::from(&cam);
+        assert_eq!(
+            (pb_cam.sensor, pb_cam.sensor_sigma_mm),
+            (None, vec![1.0, 0.0, 2.0])
+        );
     }
 
     #[test]

@@ -155,3 +155,22 @@ pub fn labels(map: &Grid<u32>) -> RgbImage {
         Rgb(PALETTE[map[(x as usize, y as usize)] as usize % 8])
     })
 }
+
+/// Colour of a three-state pixel in previews and on the demo page: traversable green, hazard
+/// red, unknown grey-violet (distinct from both and from the roughness colour map's dark grey
+/// for no data).
+pub fn traversal_rgb(t: crate::roughness::traversal::Traversal) -> [u8; 3] {
+    use crate::roughness::traversal::Traversal;
+    match t {
+        Traversal::Traversable => [44, 160, 44],
+        Traversal::Hazard => [214, 39, 40],
+        Traversal::Unknown => [150, 130, 190],
+    }
+}
+
+/// Colour preview of a three-state map ([`traversal_rgb`]).
+pub fn traversal_preview(map: &Grid<crate::roughness::traversal::Traversal>) -> RgbImage {
+    RgbImage::from_fn(map.width() as u32, map.height() as u32, |x, y| {
+        image::Rgb(traversal_rgb(map[(x as usize, y as usize)]))
+    })
+}

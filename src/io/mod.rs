@@ -13,6 +13,7 @@ use image::{DynamicImage, ImageBuffer, LumaA};
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{GeometryError, Grid, Intrinsics, Mounting, Vec3};
+use crate::roughness::noise::{SensorNoise, SensorPreset};
 
 /// Roughness on the wire: metres per unit of the 16-bit PNG (0.1 mm).
 pub const ROUGHNESS_PNG_SCALE_M: f64 = 1e-4;
@@ -72,7 +73,11 @@ pub enum IoError {
 
 /// A camera JSON file: intrinsics plus optional size and depth scale, as in `shared/data`.
 ///
-/// Other keys are allowed (files carry notes such as `source` or `sensor`), except ones that
+/// `sensor` names the depth sensor's noise model (docs/sensor-noise.md): a preset name
+/// (`kinect_v1`, …) or `{"sigma_mm": [a, b, c]}`; any other text is kept as a description
+/// and means no noise model ([`SensorSpec`]).
+///
+/// Other keys are allowed (files carry notes such as `source`), except ones that
 /// look like a misspelt parameter (another case or separator, such as `Depth_Scale`) or like
 /// the pitch or the camera height under another name (`pitch`, `tilt_rad`, `camera_height`):
 /// ignoring those would leave a default in place of the value meant, so they are errors.
@@ -114,6 +119,81 @@ pub struct CameraFile {
     /// Camera height above the ground, metres, if stated (default 1 m).
     #[serde(default)]
     pub height_m: Option<f64>,
+    /// The depth sensor: a noise model, or a description only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor: Option<SensorSpec>,
+}
+
+/// The camera file's `sensor`: a noise model, or free text (e.g. "TUM RGB-D freiburg2
+/// (Kinect v1)") kept as a description, which gives no noise model.
+///
+/// ```
+/// use tre::io::SensorSpec;
+/// use tre::roughness::noise::{SensorNoise, SensorPreset};
+/// let s: SensorSpec = serde_json::from_str(r#""kinect_v1""#).unwrap();
+/// assert_eq!(s.noise(), Some(SensorNoise::Preset(SensorPreset::KinectV1)));
+/// let s: SensorSpec = serde_json::from_str(r#""TUM freiburg2 (Kinect v1)""#).unwrap();
+/// assert_eq!(s.noise(), None);
+/// let s: SensorSpec = serde_json::from_str(r#"{"sigma_mm": [1, 0, 2]}"#).unwrap();
+/// assert!(s.noise().is_some());
+/// let e = serde_json::from_str::<SensorSpec>(r#"{"sigma": 3}"#).unwrap_err();
+/// assert!(e.to_string().contains("sigma_mm"), "{e}");
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum SensorSpec {
+    /// A preset or explicit coefficients.
+    Model(SensorNoise),
+    /// Text that names no preset.
+    Description(String),
+}
+
+impl SensorSpec {
+    /// The noise model, if this names one.
+    pub fn noise(&self) -> Option<SensorNoise> {
+        match self {
+            Self::Model(m) => Some(*m),
+            Self::Description(_) => None,
+        }
+    }
+
+    /// From a JSON value: a string (preset name, else a description) or
+    /// `{"sigma_mm": [a, b, c]}`; for anything else, a message naming the field.
+    pub fn from_json(v: serde_json::Value) -> Result<Self, String> {
+        let shape = || {
+            format!(
+                "sensor: expected a preset name ({}), other text (a description: no noise \
+                 model) or {{\"sigma_mm\": [a, b, c]}} (σ_z = a + b·z + c·z² mm, z in metres)",
+                SensorPreset::names()
+            )
+        };
+        match v {
+            serde_json::Value::String(s) => {
+                Ok(s.parse::<SensorPreset>().map_or(Self::Description(s), |p| {
+                    Self::Model(SensorNoise::Preset(p))
+                }))
+            }
+            serde_json::Value::Object(o) => {
+                let keys: Vec<&String> = o.keys().collect();
+                let Some([a, b, c]) = o
+                    .get("sigma_mm")
+                    .filter(|_| keys.len() == 1)
+                    .and_then(|c| serde_json::from_value::<[f64; 3]>(c.clone()).ok())
+                else {
+                    return Err(format!("{}; got keys {keys:?}", shape()));
+                };
+                SensorNoise::coefficients([a, b, c]).map(Self::Model)
+            }
+            _ => Err(shape()),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for SensorSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let v = serde_json::Value::deserialize(d)?;
+        Self::from_json(v).map_err(serde::de::Error::custom)
+    }
 }
 
 /// [`CameraFile`] as written, with the keys it does not know.
@@ -133,12 +213,14 @@ struct CameraFileKeys {
     pitch_deg: Option<f64>,
     #[serde(default)]
     height_m: Option<f64>,
+    #[serde(default)]
+    sensor: Option<SensorSpec>,
     #[serde(flatten)]
     other: std::collections::BTreeMap<String, serde::de::IgnoredAny>,
 }
 
 /// The keys of a camera file.
-const CAMERA_KEYS: [&str; 9] = [
+const CAMERA_KEYS: [&str; 10] = [
     "fx",
     "fy",
     "cx",
@@ -148,6 +230,7 @@ const CAMERA_KEYS: [&str; 9] = [
     "depth_scale",
     "pitch_deg",
     "height_m",
+    "sensor",
 ];
 
 /// Why an unknown camera key must not be ignored, if it must not.
@@ -200,6 +283,7 @@ impl TryFrom<CameraFileKeys> for CameraFile {
             depth_scale: c.depth_scale,
             pitch_deg: c.pitch_deg,
             height_m: c.height_m,
+            sensor: c.sensor,
         })
     }
 }
@@ -578,6 +662,13 @@ pub fn decode_roughness_png16(img: &DynamicImage) -> Grid<f64> {
         })
         .collect();
     Grid::from_vec(w, h, data).expect("decoder sizes agree; this is a bug")
+}
+
+/// A three-state map as 8-bit grey: 0 unknown, 1 traversable, 2 hazard.
+pub fn traversal_gray8(map: &Grid<crate::roughness::traversal::Traversal>) -> image::GrayImage {
+    image::GrayImage::from_fn(map.width() as u32, map.height() as u32, |x, y| {
+        image::Luma([map[(x as usize, y as usize)] as u8])
+    })
 }
 
 /// Writes a boolean mask as an 8-bit PNG (255 = true).

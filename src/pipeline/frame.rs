@@ -8,9 +8,11 @@ use rayon::prelude::*;
 use super::centroid::{slopes, traversable};
 use super::resize::{resize_nearest, resize_nearest_reusing};
 use super::spares::Spares;
-use super::Traversability;
+use super::{Mode, PipelineError, Traversability};
 use crate::geometry::{Grid, Intrinsics, Mounting, PointMap, Vec3, INVALID_POINT};
 use crate::roughness::annotate::{boundary_mask, segment};
+use crate::roughness::noise::{uncertainty_map, SensorNoise, SensorPreset};
+use crate::roughness::traversal::{ThreeStateRule, Traversal};
 use crate::roughness::AnnotateConfig;
 
 /// Horizontal field of view assumed when a frame comes without intrinsics, degrees.
@@ -207,6 +209,74 @@ impl FrameOutput {
     }
 }
 
+/// The sensor-noise maps of a frame, at the frame's size (docs/sensor-noise.md).
+#[derive(Debug, Clone)]
+pub struct SensorMaps {
+    /// The p95 of the roughness sensor noise alone gives spec v1 on a flat surface, metres
+    /// (NaN: no depth).
+    pub uncertainty_m: Grid<f64>,
+    /// Three-state traversability.
+    pub traversal: Grid<Traversal>,
+}
+
+impl FrameOutput {
+    /// The uncertainty and three-state maps of `frame`'s sensor depth under noise model
+    /// `sensor` (`None`: the camera gave none; `described`: its free-text sensor, if any), with
+    /// the frame's intrinsics (or the 60° default) and this output's normals. Only `rgbd` and
+    /// `geometric` read sensor depth; for `rgb` and the end-to-end baseline, an error.
+    pub fn sensor_maps(
+        &self,
+        frame: &FrameInput,
+        mode: Mode,
+        sensor: Option<&SensorNoise>,
+        described: Option<&str>,
+    ) -> Result<SensorMaps, PipelineError> {
+        let (Some(depth_m), Some(normals), false) =
+            (&frame.depth_m, self.normals(), mode == Mode::Rgb)
+        else {
+            let mode = if mode == Mode::Rgb {
+                "rgb"
+            } else {
+                "end-to-end"
+            };
+            return Err(PipelineError::NoSensorDepth { mode });
+        };
+        let Some(sensor) = sensor else {
+            return Err(PipelineError::NoSensorModel {
+                presets: SensorPreset::names(),
+                described: described.map_or(String::new(), |d| {
+                    format!(" (the camera's sensor {d:?} names no preset)")
+                }),
+            });
+        };
+        let (w, h) = depth_m.size();
+        let k = match frame.intrinsics {
+            Some(k) => k,
+            None => Intrinsics::from_hfov(w, h, DEFAULT_HFOV_DEG)?,
+        };
+        let mut uncertainty_m =
+            uncertainty_map(depth_m, &k, &normals, sensor, &AnnotateConfig::default());
+        for (u, r) in uncertainty_m
+            .as_mut_slice()
+            .iter_mut()
+            .zip(self.roughness_m.as_slice())
+        {
+            if !r.is_finite() {
+                *u = f64::NAN;
+            }
+        }
+        let rule = ThreeStateRule {
+            max_roughness_m: self.working.limits.max_roughness_m,
+            ..ThreeStateRule::default()
+        };
+        let traversal = rule.map(&self.roughness_m, &uncertainty_m, &self.traversable());
+        Ok(SensorMaps {
+            uncertainty_m,
+            traversal,
+        })
+    }
+}
+
 /// Wall time per named stage, in the order the stages ran.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct StageTimings {
@@ -326,6 +396,36 @@ mod tests {
         assert!(slope[(3, 0)].abs() < 1e-7);
         assert!(slope[(3, 1)] > 20f64.to_radians());
         assert_eq!(out.normals().expect("normals").size(), (4, 2));
+    }
+
+    #[test]
+    fn sensor_maps_need_sensor_depth_and_a_noise_model() {
+        let out = output();
+        let frame = FrameInput {
+            depth_m: Some(Grid::new(4, 2, 1.5)),
+            ..FrameInput::default()
+        };
+        let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
+        let e = out.sensor_maps(&frame, Mode::Rgb, Some(&kinect), None);
+        assert!(matches!(
+            e,
+            Err(PipelineError::NoSensorDepth { mode: "rgb" })
+        ));
+        let e = out.sensor_maps(&frame, Mode::Rgbd, None, Some("Kinect"));
+        let e = e.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(
+            e.contains("kinect_v1") && e.contains("\"Kinect\" names no preset"),
+            "{e}"
+        );
+        let maps = out
+            .sensor_maps(&frame, Mode::Rgbd, Some(&kinect), None)
+            .unwrap();
+        // The left column is rough (0.2 m, a drop above the noise): a hazard; the top right
+        // is flat with millimetres of noise: traversable.
+        assert_eq!(maps.traversal[(0, 0)], Traversal::Hazard);
+        assert_eq!(maps.traversal[(3, 0)], Traversal::Traversable);
+        // (At 0.43 m per pixel no neighbour lies within R: no surface term, so no noise in it.)
+        assert!((0.0..0.01).contains(&maps.uncertainty_m[(3, 0)]));
     }
 
     #[test]

@@ -36,7 +36,7 @@ pub use config::{
     MAX_DSAC_HYPOTHESES, MAX_WORKING_SIDE,
 };
 pub use depth::{prior_depth, MAX_PRIOR_DEPTH_M};
-pub use frame::{FrameInput, FrameOutput, StageTimings, DEFAULT_HFOV_DEG};
+pub use frame::{FrameInput, FrameOutput, SensorMaps, StageTimings, DEFAULT_HFOV_DEG};
 pub use run::{check_input, Pipeline, DEFAULT_WORKING_SIZE};
 
 use crate::geometry::GeometryError;
@@ -100,6 +100,26 @@ pub enum PipelineError {
     BadHypotheses {
         /// The number asked for.
         got: u32,
+    },
+    /// Uncertainty or three-state maps asked for without sensor depth.
+    #[error(
+        "the uncertainty and three-state maps need sensor depth (modes rgbd and geometric); the \
+         {mode} mode's depth comes from the depth net, whose error no sensor model describes"
+    )]
+    NoSensorDepth {
+        /// The mode or method, in words.
+        mode: &'static str,
+    },
+    /// Uncertainty or three-state maps asked for without a sensor noise model.
+    #[error(
+        "the uncertainty and three-state maps need the depth sensor's noise model: name it as \
+         the camera's \"sensor\" (one of {presets}) or give {{\"sigma_mm\": [a, b, c]}}{described}"
+    )]
+    NoSensorModel {
+        /// The preset names.
+        presets: String,
+        /// What the camera said instead, if anything, in words.
+        described: String,
     },
     /// Bad intrinsics or mounting, or geometry inputs that do not fit.
     #[error(transparent)]

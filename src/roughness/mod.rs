@@ -1,9 +1,12 @@
-//! Roughness: the ground-truth annotator (spec v1), the evaluation metrics and the hazard scores
-//! of real frames. Pure and synchronous, like `geometry`.
+//! Roughness: the ground-truth annotator (spec v1), the evaluation metrics, the hazard scores
+//! of real frames, the sensor-noise uncertainty map and three-state traversability. Pure and
+//! synchronous, like `geometry`.
 
 pub mod annotate;
 pub mod hazard;
 pub mod metrics;
+pub mod noise;
+pub mod traversal;
 
 pub use annotate::{annotate, AnnotateConfig, AnnotateInput, Annotation};
 pub use metrics::{DepthAccumulator, NormalAccumulator, RoughnessAccumulator};

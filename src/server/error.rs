@@ -136,7 +136,9 @@ impl From<PipelineError> for ApiError {
             PipelineError::MissingInput { .. }
             | PipelineError::ModelsRequired { .. }
             | PipelineError::BadWorkingSize { .. }
-            | PipelineError::BadHypotheses { .. } => ErrorCode::BadInput,
+            | PipelineError::BadHypotheses { .. }
+            | PipelineError::NoSensorDepth { .. } => ErrorCode::BadInput,
+            PipelineError::NoSensorModel { .. } => ErrorCode::BadCamera,
             // Intrinsics that pass the camera's own checks but not once scaled to the working
             // size (a focal length of 1e308 overflows): still the camera's fault.
             PipelineError::Geometry(GeometryError::ImplausibleIntrinsics { .. }) => {

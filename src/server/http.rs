@@ -47,6 +47,8 @@ pub struct RoughnessQuery {
     pitch_deg: Option<f64>,
     height_m: Option<f64>,
     depth_scale: Option<f64>,
+    /// Depth sensor noise model (a preset or `a,b,c` mm), overriding the camera's `sensor`.
+    sensor: Option<String>,
 }
 
 fn bad(msg: impl Into<String>) -> ApiError {
@@ -101,8 +103,11 @@ impl RoughnessQuery {
                 "slope" => extras.slope = true,
                 "traversable" => extras.traversable = true,
                 "boundary" => extras.boundary = true,
+                "uncertainty" => extras.uncertainty = true,
+                "traversal" => extras.traversal = true,
                 other => {
-                    let known = "depth, normals, slope, traversable, boundary";
+                    let known =
+                        "depth, normals, slope, traversable, boundary, uncertainty, traversal";
                     return Err(bad(format!("outputs: unknown map {other:?} ({known})")));
                 }
             }
@@ -121,6 +126,14 @@ impl RoughnessQuery {
             traversable_bytes: false,
             traversability: Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
                 .map_err(bad)?,
+            sensor: self
+                .sensor
+                .as_deref()
+                .map(str::parse)
+                .transpose()
+                .map_err(|e: String| bad(format!("sensor: {e}")))?,
+            traversal_bytes: false,
+            uncertainty_f32: false,
         })
     }
 
@@ -150,6 +163,7 @@ impl RoughnessQuery {
             depth_scale: self.depth_scale,
             pitch_deg: self.pitch_deg,
             height_m: self.height_m,
+            sensor: None,
         }))
     }
 }

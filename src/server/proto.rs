@@ -5,9 +5,10 @@ use prost::Message;
 
 use super::error::{ApiError, ErrorCode};
 use super::request::{Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
-use crate::io::CameraFile;
+use crate::io::{CameraFile, SensorSpec};
 use crate::pipeline::{check_dsac_hypotheses, Mode, NormalsMethod, Traversability};
 use crate::proto::v1 as pb;
+use crate::roughness::noise::SensorNoise;
 
 /// A stream's settings from its Hello.
 #[derive(Debug, Clone, Default)]
@@ -58,6 +59,25 @@ fn bad(field: &str, why: impl std::fmt::Display) -> ApiError {
     ApiError::new(ErrorCode::BadRequest, format!("{field}: {why}"))
 }
 
+/// The camera message's sensor: coefficients when given, else the name (a preset, or a
+/// description).
+fn sensor_from_pb(name: Option<String>, sigma_mm: &[f64]) -> Result<Option<SensorSpec>, ApiError> {
+    let bad_camera = |why: String| ApiError::new(ErrorCode::BadCamera, why);
+    match (sigma_mm, name) {
+        ([], None) => Ok(None),
+        ([], Some(n)) => SensorSpec::from_json(n.into())
+            .map(Some)
+            .map_err(bad_camera),
+        (&[a, b, c], _) => SensorNoise::coefficients([a, b, c])
+            .map(|m| Some(SensorSpec::Model(m)))
+            .map_err(|e| bad_camera(format!("camera.{e}"))),
+        (other, _) => Err(bad_camera(format!(
+            "camera.sensor_sigma_mm: give exactly three coefficients [a, b, c], got {}",
+            other.len()
+        ))),
+    }
+}
+
 impl TryFrom<pb::Camera> for CameraFile {
     type Error = ApiError;
 
@@ -72,6 +92,7 @@ impl TryFrom<pb::Camera> for CameraFile {
             depth_scale: c.depth_scale,
             pitch_deg: c.pitch_deg,
             height_m: c.height_m,
+            sensor: sensor_from_pb(c.sensor, &c.sensor_sigma_mm)?,
         };
         let camera = |e| ApiError::new(ErrorCode::BadCamera, format!("camera: {e}"));
         cam.intrinsics().map_err(camera)?;
@@ -135,6 +156,8 @@ impl TryFrom<pb::Hello> for StreamSettings {
                 dsac_hypotheses,
                 preview_max_m: h.preview_max_m,
                 traversable_bytes: h.want_traversable,
+                traversal_bytes: h.want_traversal,
+                uncertainty_f32: h.want_uncertainty,
                 traversability: Traversability::from_cm_deg(h.max_roughness_cm, h.max_slope_deg)
                     .map_err(|e| ApiError::new(ErrorCode::BadRequest, format!("hello.{e}")))?,
                 ..FrameOptions::default()
@@ -277,6 +300,8 @@ pub fn result(
         scale_m: SCALE_M,
         roughness: reply.roughness,
         traversable: reply.traversable,
+        traversal: reply.traversal,
+        uncertainty: reply.uncertainty,
         timings: reply
             .timings
             .iter()

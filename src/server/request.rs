@@ -13,6 +13,7 @@ use crate::pipeline::{
     FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, PipelineError, Traversability,
     DEFAULT_DSAC_HYPOTHESES,
 };
+use crate::roughness::noise::SensorNoise;
 
 /// Encodings of the roughness map.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -51,12 +52,24 @@ pub struct Extras {
     pub traversable: bool,
     /// Boundary mask (depth steps and creases), 8-bit grey PNG (255 = boundary).
     pub boundary: bool,
+    /// Uncertainty (p95 of the roughness noise alone gives), 16-bit grey + alpha PNG at 0.1 mm
+    /// per unit, as roughness (modes with sensor depth and a noise model only).
+    pub uncertainty: bool,
+    /// Three-state traversability, 8-bit grey PNG: 0 unknown, 1 traversable, 2 hazard (as
+    /// `uncertainty`).
+    pub traversal: bool,
 }
 
 impl Extras {
     /// Whether any extra map is asked for.
     pub fn any(self) -> bool {
-        self.depth || self.normals || self.slope || self.traversable || self.boundary
+        self.depth
+            || self.normals
+            || self.slope
+            || self.traversable
+            || self.boundary
+            || self.uncertainty
+            || self.traversal
     }
 }
 
@@ -82,6 +95,22 @@ pub struct FrameOptions {
     pub traversable_bytes: bool,
     /// Thresholds of the traversability mask.
     pub traversability: Traversability,
+    /// The depth sensor's noise model, overriding the camera's `sensor`.
+    pub sensor: Option<SensorNoise>,
+    /// The three-state map as raw bytes (0 unknown, 1 traversable, 2 hazard), for the stream.
+    pub traversal_bytes: bool,
+    /// The uncertainty map as raw little-endian float32 metres, for the stream.
+    pub uncertainty_f32: bool,
+}
+
+impl FrameOptions {
+    /// Whether any sensor-noise map is asked for.
+    pub fn wants_sensor_maps(&self) -> bool {
+        self.extras.uncertainty
+            || self.extras.traversal
+            || self.traversal_bytes
+            || self.uncertainty_f32
+    }
 }
 
 /// A frame as received: encoded images and an unchecked camera.
@@ -132,6 +161,10 @@ pub struct FrameReply {
     pub extras: Vec<Part>,
     /// Traversability, one byte per pixel (1 = traversable), if asked for as bytes.
     pub traversable: Vec<u8>,
+    /// Three-state traversability, one byte per pixel, if asked for as bytes.
+    pub traversal: Vec<u8>,
+    /// Uncertainty, little-endian float32 metres, if asked for as bytes.
+    pub uncertainty: Vec<u8>,
     /// Wall time of each stage.
     pub timings: crate::pipeline::StageTimings,
 }
@@ -469,8 +502,61 @@ pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply
         format: opts.format,
         extras,
         traversable,
+        traversal: Vec::new(),
+        uncertainty: Vec::new(),
         timings: out.timings.clone(),
     })
+}
+
+/// Adds the sensor-noise maps the options ask for to `reply`: parts `uncertainty` and
+/// `traversal` and the stream's bytes. The noise model is the options' `sensor`, else the
+/// camera's; an error names what is missing (a noise model, or sensor depth in this mode).
+pub fn encode_sensor_maps(
+    out: &FrameOutput,
+    frame: &FrameInput,
+    mode: Mode,
+    req: &FrameRequest,
+    reply: &mut FrameReply,
+) -> Result<(), ApiError> {
+    let opts = &req.options;
+    if !opts.wants_sensor_maps() {
+        return Ok(());
+    }
+    let spec = req.camera.as_ref().and_then(|c| c.sensor.as_ref());
+    let model = opts.sensor.or_else(|| spec.and_then(io::SensorSpec::noise));
+    let described = match spec {
+        Some(io::SensorSpec::Description(d)) => Some(d.as_str()),
+        _ => None,
+    };
+    let maps = out.sensor_maps(frame, mode, model.as_ref(), described)?;
+    if opts.extras.uncertainty {
+        reply.extras.push(Part {
+            name: "uncertainty",
+            content_type: "image/png",
+            filename: "uncertainty.png",
+            bytes: png(&DynamicImage::ImageLumaA16(io::roughness_png16(
+                &maps.uncertainty_m,
+            )))?,
+        });
+    }
+    if opts.extras.traversal {
+        reply.extras.push(Part {
+            name: "traversal",
+            content_type: "image/png",
+            filename: "traversal.png",
+            bytes: png(&DynamicImage::ImageLuma8(io::traversal_gray8(
+                &maps.traversal,
+            )))?,
+        });
+    }
+    if opts.traversal_bytes {
+        reply.traversal = maps.traversal.as_slice().iter().map(|&t| t as u8).collect();
+    }
+    if opts.uncertainty_f32 {
+        let u = maps.uncertainty_m.as_slice().iter();
+        reply.uncertainty = u.flat_map(|&v| (v as f32).to_le_bytes()).collect();
+    }
+    Ok(())
 }
 
 /// Metres per unit of the 16-bit roughness PNG.

@@ -14,7 +14,8 @@ use tokio::sync::oneshot;
 use super::error::{ApiError, ErrorCode};
 use super::metrics::Metrics;
 use super::request::{
-    config_for, decode_frame, encode_reply, DecodeLimits, FrameDefaults, FrameReply, FrameRequest,
+    config_for, decode_frame, encode_reply, encode_sensor_maps, DecodeLimits, FrameDefaults,
+    FrameReply, FrameRequest,
 };
 use crate::geometry::Grid;
 use crate::model::{Models, SessionConfig};
@@ -300,7 +301,10 @@ fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> Jo
     let cfg = config_for(&frame, &req.options, pool.limits.max_pixels, pool.defaults);
     let out = pipeline.run(&frame, &cfg)?;
     let started = Instant::now();
-    let reply = encode_reply(&out, &req.options);
+    let reply = encode_reply(&out, &req.options).and_then(|mut reply| {
+        encode_sensor_maps(&out, &frame, cfg.mode, req, &mut reply)?;
+        Ok(reply)
+    });
     let encoded = started.elapsed();
     pipeline.recycle(out);
     let mut reply = reply?;

@@ -1,10 +1,11 @@
 // Headless-Chromium test of the demo page of `tre serve` (run by tests/demo_page.rs).
 //
-//   node tests/browser/demo.mjs http://127.0.0.1:PORT path/to/image.png
+//   node tests/browser/demo.mjs http://127.0.0.1:PORT path/to/image.png path/to/depth_mm.png
 //
 // Drives Debian's Chromium (CHROMIUM, default /usr/bin/chromium) with playwright-core: picks the
 // image, waits for the roughness overlay and checks that it really rendered (size, colours,
-// legend, stage timings), streams it over the WebSocket until 3 results came back, then submits
+// legend, stage timings), streams it over the WebSocket until 3 results came back, sends a depth
+// PNG through the three-state section (unknown in its own colour, legend), then submits
 // a text file and checks that the server's error message is shown. Exits 0 when every check
 // passes, 1 with the failed check otherwise. TRE_SCREENSHOT=path saves a screenshot of the page.
 import { mkdtempSync, readFileSync, rmSync, writeFileSync } from "node:fs";
@@ -92,6 +93,43 @@ async function checkSingleImage(page, imagePath) {
   check((await page.textContent("#error")).trim() === "", "no error shown");
 }
 
+/** A depth PNG through the three-state section: the map is painted in the legend's colours,
+ *  unknown among them, and the legend names the three states. */
+async function checkTraversal(page, depthPath) {
+  await page.setInputFiles("#depth-file", depthPath);
+  await page.waitForFunction(() => {
+    const shown = !document.getElementById("traversal-view").classList.contains("hidden");
+    return shown || document.getElementById("sensor-error").textContent !== "";
+  }, null, { timeout: RESULT_TIMEOUT_MS });
+  const error = (await page.textContent("#sensor-error")).trim();
+  check(error === "", `three-state map rendered${error ? ` (#sensor-error: ${error})` : ""}`);
+  const legend = await page.$$eval("#traversal-legend li", (li) => li.map((l) => l.dataset.state));
+  check(legend.join(",") === "unknown,traversable,hazard", `legend names the states (${legend})`);
+  const seen = await page.evaluate(() => {
+    const c = document.getElementById("traversal-view");
+    const d = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
+    return window.tre.TRAVERSAL.map(({ rgb }) => {
+      let n = 0;
+      for (let i = 0; i < d.length; i += 4) {
+        if (d[i] === rgb[0] && d[i + 1] === rgb[1] && d[i + 2] === rgb[2]) n += 1;
+      }
+      return n;
+    });
+  });
+  console.log(`three-state pixels (unknown, traversable, hazard): ${seen}`);
+  // Without the frame's mounting the slope test uses the default one (60° down), so which of
+  // traversable and hazard the near floor gets depends on the frame; unknown must show.
+  const size = await page.evaluate(() => {
+    const c = document.getElementById("traversal-view");
+    return c.width * c.height;
+  });
+  check(size > 0 && seen.reduce((a, b) => a + b, 0) === size,
+    `every pixel in one of the three colours (${size} px)`);
+  check(seen[0] > 0 && seen[1] + seen[2] > 0, "unknown shown in its own colour beside the others");
+  const shares = (await page.textContent("#sensor-shares")).trim();
+  check(/unknown \d/.test(shares), `shares shown (${shares})`);
+}
+
 async function checkStream(page) {
   await page.click("#stream-start");
   await page.waitForFunction(() => {
@@ -144,9 +182,9 @@ async function checkBadInput(page, baseUrl) {
 }
 
 async function main() {
-  const [baseArg, imagePath] = process.argv.slice(2);
-  if (!baseArg || !imagePath) {
-    console.error("usage: node demo.mjs BASE_URL IMAGE");
+  const [baseArg, imagePath, depthPath] = process.argv.slice(2);
+  if (!baseArg || !imagePath || !depthPath) {
+    console.error("usage: node demo.mjs BASE_URL IMAGE DEPTH_PNG_MM");
     return 2;
   }
   const baseUrl = baseArg.replace(/\/+$/, "");
@@ -173,6 +211,7 @@ async function main() {
     check(await page.title() === "tre — terrain roughness", "page title");
     await checkSingleImage(page, imagePath);
     await checkStream(page);
+    await checkTraversal(page, depthPath);
     await screenshot();
     await checkBadInput(page, baseUrl);
     check(pageErrors.length === 0, `no uncaught errors in the page (${pageErrors.join("; ")})`);
