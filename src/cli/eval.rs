@@ -16,6 +16,7 @@ use crate::geometry::{Grid, Vec3};
 use crate::io;
 use crate::pipeline::{FrameInput, Method, Mode, Pipeline, PipelineConfig};
 use crate::roughness::metrics::{DepthMetrics, NormalMetrics, RoughnessMetrics};
+use crate::roughness::noise::SensorNoise;
 use crate::roughness::{DepthAccumulator, NormalAccumulator, RoughnessAccumulator};
 use crate::synth::dataset::Manifest;
 
@@ -44,9 +45,14 @@ pub struct Eval {
     )]
     pub modes: Vec<ModeArg>,
     /// Real-frame benchmark: write a contact sheet PNG per frame into this folder (RGB | spec
-    /// | each mode, one colour scale).
+    /// | each mode, one colour scale, and the three-state map).
     #[arg(long, requires = "real")]
     pub sheets: Option<PathBuf>,
+    /// Real-frame benchmark: the depth sensor's noise model for the uncertainty and
+    /// three-state maps when a sequence's intrinsics.json names none (a preset: kinect_v1,
+    /// realsense_d435, azure_kinect, lidar, exact; or a,b,c for σ_z = a + b·z + c·z² mm).
+    #[arg(long, requires = "real", default_value = "kinect_v1", value_parser = parse_sensor)]
+    pub sensor: SensorNoise,
     /// Input mode.
     #[arg(long, value_enum, default_value = "geometric")]
     pub mode: ModeArg,
@@ -65,6 +71,11 @@ pub struct Eval {
     /// Also write the numbers as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
+}
+
+/// `--sensor`: a preset name or `a,b,c`.
+fn parse_sensor(s: &str) -> Result<SensorNoise, String> {
+    s.parse()
 }
 
 /// One configuration to score, with a stable key (`mode:label`).
@@ -198,13 +209,19 @@ impl Eval {
             std::fs::create_dir_all(sheets)
                 .with_context(|| format!("creating {}", sheets.display()))?;
         }
-        let report =
-            real::run_benchmark(dir, &frames, &floors, &rows, &mut pipeline, |f, l, maps| {
-                match &self.sheets {
-                    Some(sheets) => real::write_sheet(sheets, f, l, &rows, maps),
-                    None => Ok(()),
-                }
-            })?;
+        let sheets = self.sheets.as_deref();
+        let report = real::run_benchmark(
+            dir,
+            &frames,
+            &floors,
+            &rows,
+            &mut pipeline,
+            &self.sensor,
+            |f, l, maps| match sheets {
+                Some(sheets) => real::write_sheet(sheets, f, l, &rows, maps),
+                None => Ok(()),
+            },
+        )?;
         println!("{}", real::markdown(&report));
         if let Some(path) = &self.json {
             super::write_file(path, &serde_json::to_string_pretty(&report)?)?;

@@ -25,14 +25,20 @@ use anyhow::{bail, Context};
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Grid, Intrinsics};
-use crate::io::sheet::{colour_bar_legend, contact_sheet, roughness_panel, Panel};
+use crate::io::sheet::{
+    categorical_legend, colour_bar_legend, contact_sheet, roughness_panel, stack, Panel,
+};
 use crate::io::{self, CameraFile};
+use crate::pipeline::frame::SensorMaps;
 use crate::pipeline::{FrameInput, GeometricMethod, Mode, Pipeline, PipelineConfig};
 use crate::roughness::hazard::{
     box_values, floor_stats, FloorStats, RangeScores, ScoreMetrics, FLAT_M, HAZARD_M, RANGE_BINS,
 };
 use crate::roughness::metrics::DepthMetrics;
+use crate::roughness::noise::SensorNoise;
+use crate::roughness::traversal::Traversal;
 use crate::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation, DepthAccumulator};
+use image::Rgb;
 
 /// One real frame on disk.
 #[derive(Debug, Clone)]
@@ -214,8 +220,157 @@ pub struct RealRow {
     pub floor: Option<FloorStats>,
     /// Depth errors against the sensor (`rgb` mode only).
     pub depth: Option<DepthMetrics>,
+    /// The three-state map under the sensor's noise model (modes that read sensor depth).
+    pub traversal: Option<TraversalMetrics>,
     /// Wall time per stage, ms (mean per frame when pooled).
     pub ms: BTreeMap<String, f64>,
+}
+
+/// How the three-state map reads a frame (or pooled frames): shares of all pixels and per
+/// range bin, and the three checks of DESIGN.md: near floor traversable, far noisy range
+/// unknown, drops hazards.
+#[derive(Debug, Clone, Serialize)]
+pub struct TraversalMetrics {
+    /// Shares of every pixel of the frame (no depth: unknown).
+    pub all: StateShares,
+    /// Shares of the pixels with sensor depth in each range bin.
+    pub by_range: BTreeMap<String, StateShares>,
+    /// Median uncertainty (metres) of the pixels with depth in each range bin.
+    pub median_uncertainty_m: BTreeMap<String, f64>,
+    /// Floor-box pixels within 2 m: shares (when a floor box is given).
+    pub near_floor: Option<StateShares>,
+    /// Pixels beyond 4 m that the spec calls hazards (≥ 5 cm): shares.
+    pub far_spec_rough: StateShares,
+    /// Drops (spec ≥ 10 cm) within 4 m: shares.
+    pub near_drops: StateShares,
+}
+
+/// Shares of traversable, hazard and unknown pixels in a set.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct StateShares {
+    /// Pixels in the set.
+    pub pixels: u64,
+    /// Share traversable.
+    pub traversable: f64,
+    /// Share hazard.
+    pub hazard: f64,
+    /// Share unknown.
+    pub unknown: f64,
+}
+
+/// Counts of the three states in a set of pixels.
+#[derive(Debug, Clone, Copy, Default)]
+struct StateCounts([u64; 3]);
+
+impl StateCounts {
+    fn add(&mut self, t: Traversal) {
+        self.0[t as usize] += 1;
+    }
+
+    fn merge(&mut self, o: &Self) {
+        (0..3).for_each(|i| self.0[i] += o.0[i]);
+    }
+
+    fn shares(&self) -> StateShares {
+        let n: u64 = self.0.iter().sum();
+        let share = |k: Traversal| {
+            if n == 0 {
+                f64::NAN
+            } else {
+                self.0[k as usize] as f64 / n as f64
+            }
+        };
+        StateShares {
+            pixels: n,
+            traversable: share(Traversal::Traversable),
+            hazard: share(Traversal::Hazard),
+            unknown: share(Traversal::Unknown),
+        }
+    }
+}
+
+/// Three-state accumulators of one configuration.
+#[derive(Debug, Clone, Default)]
+struct TraversalAcc {
+    all: StateCounts,
+    by_range: [StateCounts; 3],
+    uncertainty: [Vec<f64>; 3],
+    near_floor: StateCounts,
+    far_spec_rough: StateCounts,
+    near_drops: StateCounts,
+}
+
+/// Spec roughness of a drop, metres.
+const DROP_M: f64 = 0.10;
+
+impl TraversalAcc {
+    /// Adds one frame's three-state and uncertainty maps.
+    fn add(&mut self, maps: &SensorMaps, loaded: &LoadedFrame, floor_box: Option<[usize; 4]>) {
+        let Some(depth) = loaded.input.depth_m.as_ref() else {
+            return;
+        };
+        let (w, _) = depth.size();
+        let cells = maps.traversal.as_slice().iter().zip(depth.as_slice());
+        let spec = loaded.spec.roughness_m.as_slice();
+        let u = maps.uncertainty_m.as_slice();
+        for (i, (&t, &z)) in cells.enumerate() {
+            self.all.add(t);
+            if let Some(b) = RANGE_BINS.iter().position(|&(_, a, b)| z >= a && z < b) {
+                self.by_range[b].add(t);
+                if u[i].is_finite() {
+                    self.uncertainty[b].push(u[i]);
+                }
+            }
+            if z >= 4.0 && spec[i] >= HAZARD_M {
+                self.far_spec_rough.add(t);
+            }
+            if z > 0.0 && z < 4.0 && spec[i] >= DROP_M {
+                self.near_drops.add(t);
+            }
+            let (x, y) = (i % w, i / w);
+            let in_box = |[x0, y0, x1, y1]: [usize; 4]| x >= x0 && x < x1 && y >= y0 && y < y1;
+            if z > 0.0 && z < 2.0 && floor_box.is_some_and(in_box) {
+                self.near_floor.add(t);
+            }
+        }
+    }
+
+    fn merge(&mut self, o: &Self) {
+        self.all.merge(&o.all);
+        for b in 0..3 {
+            self.by_range[b].merge(&o.by_range[b]);
+            self.uncertainty[b].extend_from_slice(&o.uncertainty[b]);
+        }
+        self.near_floor.merge(&o.near_floor);
+        self.far_spec_rough.merge(&o.far_spec_rough);
+        self.near_drops.merge(&o.near_drops);
+    }
+
+    fn finish(&self, has_floor: bool) -> TraversalMetrics {
+        let names = RANGE_BINS.iter().map(|&(n, _, _)| n.to_owned());
+        TraversalMetrics {
+            all: self.all.shares(),
+            by_range: names
+                .clone()
+                .zip(self.by_range.iter().map(StateCounts::shares))
+                .collect(),
+            median_uncertainty_m: names
+                .zip(self.uncertainty.iter().map(|u| median(u.clone())))
+                .collect(),
+            near_floor: has_floor.then(|| self.near_floor.shares()),
+            far_spec_rough: self.far_spec_rough.shares(),
+            near_drops: self.near_drops.shares(),
+        }
+    }
+}
+
+/// The median of `values` (NaN for none).
+fn median(mut values: Vec<f64>) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mid = values.len() / 2;
+    *values.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// The spec on one frame, or pooled.
@@ -274,8 +429,18 @@ pub struct RealReport {
 }
 
 /// The configurations scored: the learned modes asked for with `base`'s switches, and the
-/// geometric mode both as the spec (default) and as the paper's surface-only baseline.
+/// geometric mode both as the spec (default) and as the paper's surface-only baseline; slope
+/// is left out of traversability (the frames' mountings are unknown).
 pub fn real_rows(modes: &[Mode], base: &PipelineConfig) -> Vec<(String, PipelineConfig)> {
+    // The frames' mountings are unknown, so slope (which needs the pitch) does not count:
+    // the three-state map judges roughness and noise alone.
+    let base = &PipelineConfig {
+        traversability: crate::pipeline::Traversability {
+            max_slope_rad: std::f64::consts::FRAC_PI_2,
+            ..base.traversability
+        },
+        ..*base
+    };
     let mut cfgs = Vec::new();
     for &mode in modes {
         if mode == Mode::Geometric {
@@ -303,6 +468,7 @@ struct RowAcc {
     floor_missing: usize,
     depth: DepthAccumulator,
     has_depth: bool,
+    traversal: Option<TraversalAcc>,
     ms: BTreeMap<String, f64>,
 }
 
@@ -319,6 +485,7 @@ impl RowAcc {
                 .collect(),
             floor: has_floor.then(|| floor_stats(self.floor.clone(), self.floor_missing)),
             depth: self.has_depth.then(|| self.depth.finish()),
+            traversal: self.traversal.as_ref().map(|t| t.finish(has_floor)),
             ms: self.ms.iter().map(|(k, v)| (k.clone(), v / n)).collect(),
         }
     }
@@ -329,6 +496,9 @@ impl RowAcc {
         self.floor_missing += other.floor_missing;
         self.depth.merge(&other.depth);
         self.has_depth |= other.has_depth;
+        if let Some(t) = &other.traversal {
+            self.traversal.get_or_insert_with(Default::default).merge(t);
+        }
         for (k, v) in &other.ms {
             *self.ms.entry(k.clone()).or_default() += v;
         }
@@ -378,8 +548,10 @@ pub fn load_frame(frame: &RealFrame) -> anyhow::Result<LoadedFrame> {
     })
 }
 
-/// Runs the benchmark: every frame, every configuration; calls `on_frame` with each frame's
-/// maps (for the contact sheets) once it is scored.
+/// Runs the benchmark: every frame, every configuration; the modes that read sensor depth also
+/// get the uncertainty and three-state maps under `sensor`'s noise model (or the frame's camera
+/// file's, when it names one). Calls `on_frame` with each frame's maps (for the contact
+/// sheets) once it is scored.
 ///
 /// # Errors
 ///
@@ -390,7 +562,8 @@ pub fn run_benchmark(
     floors: &Floors,
     rows: &[(String, PipelineConfig)],
     pipeline: &mut Pipeline,
-    mut on_frame: impl FnMut(&RealFrame, &LoadedFrame, &[Grid<f64>]) -> anyhow::Result<()>,
+    sensor: &SensorNoise,
+    mut on_frame: impl FnMut(&RealFrame, &LoadedFrame, &[RowMaps]) -> anyhow::Result<()>,
 ) -> anyhow::Result<RealReport> {
     let mut pooled: Vec<RowAcc> = rows.iter().map(|_| RowAcc::default()).collect();
     let (mut spec_floor, mut spec_missing, mut spec_ms) = (Vec::new(), 0, 0.0);
@@ -419,7 +592,8 @@ pub fn run_benchmark(
         let mut maps = Vec::new();
         let mut reports = Vec::new();
         for ((key, cfg), acc) in rows.iter().zip(&mut pooled) {
-            let (one, map) = score_row(pipeline, &loaded, cfg, floor_box)
+            let sensor = frame_sensor(frame, sensor);
+            let (one, map) = score_row(pipeline, &loaded, cfg, floor_box, &sensor)
                 .with_context(|| format!("{}: {key}", frame.name()))?;
             reports.push(one.finish(key, 1, floor_box.is_some()));
             acc.merge(&one);
@@ -490,17 +664,22 @@ fn score_row(
     loaded: &LoadedFrame,
     cfg: &PipelineConfig,
     floor_box: Option<[usize; 4]>,
-) -> anyhow::Result<(RowAcc, Grid<f64>)> {
+    sensor: &SensorNoise,
+) -> anyhow::Result<(RowAcc, RowMaps)> {
     let out = pipeline.run(&loaded.input, cfg)?;
-    let sensor = loaded
+    let sensor_depth = loaded
         .input
         .depth_m
         .as_ref()
         .context("a real frame has depth")?;
     let mut acc = RowAcc::default();
     let spec = &loaded.spec;
-    acc.scores
-        .add(&out.roughness_m, &spec.roughness_m, &spec.boundary, sensor)?;
+    acc.scores.add(
+        &out.roughness_m,
+        &spec.roughness_m,
+        &spec.boundary,
+        sensor_depth,
+    )?;
     if let Some(b) = floor_box {
         let (v, m) = box_values(&out.roughness_m, b);
         acc.floor = v;
@@ -508,7 +687,7 @@ fn score_row(
     }
     if cfg.mode == Mode::Rgb {
         if let Some(depth) = out.depth_m() {
-            acc.depth.add(&depth, sensor)?;
+            acc.depth.add(&depth, sensor_depth)?;
             acc.has_depth = true;
         }
     }
@@ -517,9 +696,38 @@ fn score_row(
     }
     acc.ms
         .insert("total".to_owned(), out.timings.total().as_secs_f64() * 1e3);
-    let map = out.roughness_m.clone();
+    let mut traversal = None;
+    if cfg.mode != Mode::Rgb {
+        let maps = out.sensor_maps(&loaded.input, cfg.mode, Some(sensor), None)?;
+        let mut t = TraversalAcc::default();
+        t.add(&maps, loaded, floor_box);
+        acc.traversal = Some(t);
+        traversal = Some(maps.traversal);
+    }
+    let maps = RowMaps {
+        roughness_m: out.roughness_m.clone(),
+        traversal,
+    };
     pipeline.recycle(out);
-    Ok((acc, map))
+    Ok((acc, maps))
+}
+
+/// One configuration's maps on a frame, for the contact sheet.
+pub struct RowMaps {
+    /// Roughness, metres (NaN: none).
+    pub roughness_m: Grid<f64>,
+    /// The three-state map, for modes that read sensor depth.
+    pub traversal: Option<Grid<Traversal>>,
+}
+
+/// The noise model of a frame's sensor: the camera file's, when it names one, else `default`.
+pub fn frame_sensor(frame: &RealFrame, default: &SensorNoise) -> SensorNoise {
+    frame
+        .camera
+        .sensor
+        .as_ref()
+        .and_then(|s| s.noise())
+        .unwrap_or(*default)
 }
 
 /// `x` as a percentage with one decimal, `–` for NaN.
@@ -611,8 +819,35 @@ pub fn markdown(report: &RealReport) -> String {
             );
         }
     }
+    traversal_table(&mut out, report);
     depth_table(&mut out, report);
     out
+}
+
+/// The three-state maps, pooled: shares over every pixel and the three checks.
+fn traversal_table(out: &mut String, report: &RealReport) {
+    use std::fmt::Write;
+    out.push_str("\nThree-state traversability under the sensor's noise model (slope left out: the mountings are unknown), pooled:\n\n| row | traversable | hazard | unknown | floor boxes within 2 m: traversable | … unknown | beyond 4 m, spec ≥ 5 cm: unknown | … hazard | drops (spec ≥ 10 cm) within 4 m: hazard | median uncertainty < 2 m / 2–4 m / > 4 m (cm) |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    for r in &report.pooled {
+        let Some(t) = &r.traversal else { continue };
+        let u = |k: &str| num(t.median_uncertainty_m.get(k).map(|u| 100.0 * u), 2);
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} / {} / {} |",
+            r.key,
+            pct(t.all.traversable),
+            pct(t.all.hazard),
+            pct(t.all.unknown),
+            t.near_floor.map_or("–".to_owned(), |f| pct(f.traversable)),
+            t.near_floor.map_or("–".to_owned(), |f| pct(f.unknown)),
+            pct(t.far_spec_rough.unknown),
+            pct(t.far_spec_rough.hazard),
+            pct(t.near_drops.hazard),
+            u("under_2m"),
+            u("2m_to_4m"),
+            u("over_4m"),
+        );
+    }
 }
 
 /// The `rgb` mode's depth errors against the sensor, per frame and pooled.
@@ -666,7 +901,7 @@ fn max_pool2(map: &Grid<f64>) -> Grid<f64> {
 pub fn sheet_panels(
     loaded: &LoadedFrame,
     rows: &[(String, PipelineConfig)],
-    maps: &[Grid<f64>],
+    maps: &[RowMaps],
 ) -> Vec<Panel> {
     let colour = |m: &Grid<f64>| roughness_panel(&max_pool2(m), SHEET_MAX_M);
     let mut panels = Vec::new();
@@ -680,9 +915,45 @@ pub fn sheet_panels(
         colour(&loaded.spec.roughness_m),
     ));
     for ((key, _), map) in rows.iter().zip(maps) {
-        panels.push(Panel::new(key.clone(), colour(map)));
+        panels.push(Panel::new(key.clone(), colour(&map.roughness_m)));
+    }
+    // The three-state map of the geometric mode (the spec), else of the first that has one.
+    let with_map = || {
+        rows.iter()
+            .zip(maps)
+            .filter_map(|(r, m)| m.traversal.as_ref().map(|t| (r, t)))
+    };
+    let spec_first = with_map()
+        .find(|((_, c), _)| c.mode == Mode::Geometric && c.geometric == GeometricMethod::Spec)
+        .or_else(|| with_map().next());
+    if let Some(((key, _), t)) = spec_first {
+        let half = Grid::from_fn(t.width().div_ceil(2), t.height().div_ceil(2), |x, y| {
+            t[(2 * x, 2 * y)]
+        });
+        panels.push(Panel::new(
+            format!("{key}: three-state"),
+            traversal_panel(&half),
+        ));
     }
     panels
+}
+
+/// Colours of the three states on the contact sheets.
+pub const STATE_COLOURS: [(&str, Rgb<u8>); 3] = [
+    ("traversable", Rgb([60, 170, 90])),
+    ("hazard", Rgb([210, 40, 40])),
+    ("unknown (noise or no data)", Rgb([150, 150, 220])),
+];
+
+/// A three-state map in [`STATE_COLOURS`].
+fn traversal_panel(t: &Grid<Traversal>) -> image::RgbImage {
+    image::RgbImage::from_fn(t.width() as u32, t.height() as u32, |x, y| {
+        match t[(x as usize, y as usize)] {
+            Traversal::Traversable => STATE_COLOURS[0].1,
+            Traversal::Hazard => STATE_COLOURS[1].1,
+            Traversal::Unknown => STATE_COLOURS[2].1,
+        }
+    })
 }
 
 /// Writes `DIR/<sequence>_<depth stem>.png`: the frame's panels in a grid of three columns
@@ -696,12 +967,15 @@ pub fn write_sheet(
     frame: &RealFrame,
     loaded: &LoadedFrame,
     rows: &[(String, PipelineConfig)],
-    maps: &[Grid<f64>],
+    maps: &[RowMaps],
 ) -> anyhow::Result<()> {
     let panels = sheet_panels(loaded, rows, maps);
     let width = panels.first().map_or(320, |p| p.image.width()) * 2;
-    let legend = colour_bar_legend(width, SHEET_MAX_M, &[0.0, 1.0, 2.0, 5.0, 10.0]);
-    let sheet = contact_sheet(&panels, 3, Some(&legend));
+    let legend = stack(&[
+        colour_bar_legend(width, SHEET_MAX_M, &[0.0, 1.0, 2.0, 5.0, 10.0]),
+        categorical_legend(&STATE_COLOURS),
+    ]);
+    let sheet = contact_sheet(&panels, 4, Some(&legend));
     let stem = frame
         .depth_rel
         .trim_end_matches(".png")
