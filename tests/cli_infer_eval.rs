@@ -474,6 +474,17 @@ fn eval_real_scores_every_mode_on_one_frame_and_writes_json_and_a_sheet() {
     assert_eq!(rows[2]["all"]["roughness"]["rmse_cm"], 0.0);
     // The surface-only baseline misses the drops.
     assert!(rows[3]["all"]["edge_recall"].as_f64().unwrap() < 0.2);
+    // The three-state map under the Kinect model: for the modes that read sensor depth only;
+    // the spec's near floor traversable, its drops hazards.
+    assert!(rows[0]["traversal"].is_null());
+    let states = &rows[2]["traversal"];
+    assert!(states["near_floor"]["traversable"].as_f64().unwrap() > 0.9, "{states}");
+    assert!(states["near_drops"]["hazard"].as_f64().unwrap() > 0.9, "{states}");
+    let shares = ["traversable", "hazard", "unknown"]
+        .map(|k| states["all"][k].as_f64().unwrap())
+        .iter()
+        .sum::<f64>();
+    assert!((shares - 1.0).abs() < 1e-9, "{states}");
     // Depth errors only for rgb, against the sensor.
     let depth = &rows[0]["depth"];
     assert!(depth["abs_rel"].as_f64().unwrap() > 0.0);
