@@ -455,7 +455,7 @@ fn eval_real_scores_every_mode_on_one_frame_and_writes_json_and_a_sheet() {
         );
         assert!(r["ms"]["total"].as_f64().unwrap() > 0.0, "{key}");
         let ranges: Vec<&String> = r["by_range"].as_object().unwrap().keys().collect();
-        assert_eq!(ranges, ["2m_to_4m", "over_4m", "under_2m"], "{key}");
+        assert_eq!(ranges, ["0_2m", "2_4m", "4m_up"], "{key}");
         let pixels: u64 = r["by_range"]
             .as_object()
             .unwrap()

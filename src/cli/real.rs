@@ -843,9 +843,9 @@ fn traversal_table(out: &mut String, report: &RealReport) {
             pct(t.far_spec_rough.unknown),
             pct(t.far_spec_rough.hazard),
             pct(t.near_drops.hazard),
-            u("under_2m"),
-            u("2m_to_4m"),
-            u("over_4m"),
+            u("0_2m"),
+            u("2_4m"),
+            u("4m_up"),
         );
     }
 }

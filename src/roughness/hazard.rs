@@ -15,9 +15,9 @@ pub const FLAT_M: f64 = 0.01;
 
 /// The range bins, by sensor depth: `(name, from_m, to_m)`, from inclusive, to exclusive.
 pub const RANGE_BINS: [(&str, f64, f64); 3] = [
-    ("under_2m", 0.0, 2.0),
-    ("2m_to_4m", 2.0, 4.0),
-    ("over_4m", 4.0, f64::INFINITY),
+    ("0_2m", 0.0, 2.0),
+    ("2_4m", 2.0, 4.0),
+    ("4m_up", 4.0, f64::INFINITY),
 ];
 
 /// Pooled edge recall and false hazards over frames.
