@@ -930,8 +930,9 @@ pub fn sheet_panels(
         let half = Grid::from_fn(t.width().div_ceil(2), t.height().div_ceil(2), |x, y| {
             t[(2 * x, 2 * y)]
         });
+        let mode = key.split(':').next().unwrap_or(key);
         panels.push(Panel::new(
-            format!("{key}: three-state"),
+            format!("three-state ({mode})"),
             traversal_panel(&half),
         ));
     }
