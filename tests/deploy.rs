@@ -18,11 +18,12 @@ const BUILD_ENV: &[&str] = &["TRE_ORT_NO_FETCH"];
 
 /// Memory budget of `tre serve`, from measurements (two workers: about 450 MB resident after
 /// serving frames; each frame in flight about 60 bytes per pixel for RGB frames, from 5 to 40
-/// Mpx, and up to about 105 for a depth-only frame, which the geometric mode runs at its own
-/// size: 4096 × 4096 peaked at 1.78 GB): per worker, its sessions plus one frame of
-/// `TRE_MAX_PIXELS` at the worst case; plus every concurrent request's body.
+/// Mpx, and up to about 146 for a depth-only frame, which the geometric mode runs at its own
+/// size with every map of the spec: `tre infer --depth` on 4096 × 4096 peaked at 2.45 GB): per
+/// worker, its sessions plus one frame of `TRE_MAX_PIXELS` at the worst case; plus every
+/// concurrent request's body.
 const SESSIONS_BYTES_PER_WORKER: u64 = 256 << 20;
-const BYTES_PER_PIXEL_IN_FLIGHT: u64 = 112;
+const BYTES_PER_PIXEL_IN_FLIGHT: u64 = 150;
 
 /// The memory `tre serve` may need with these settings, bytes.
 fn memory_needed(env: &BTreeMap<String, String>, file: &str) -> u64 {
