@@ -478,8 +478,14 @@ fn eval_real_scores_every_mode_on_one_frame_and_writes_json_and_a_sheet() {
     // the spec's near floor traversable, its drops hazards.
     assert!(rows[0]["traversal"].is_null());
     let states = &rows[2]["traversal"];
-    assert!(states["near_floor"]["traversable"].as_f64().unwrap() > 0.9, "{states}");
-    assert!(states["near_drops"]["hazard"].as_f64().unwrap() > 0.9, "{states}");
+    assert!(
+        states["near_floor"]["traversable"].as_f64().unwrap() > 0.9,
+        "{states}"
+    );
+    assert!(
+        states["near_drops"]["hazard"].as_f64().unwrap() > 0.9,
+        "{states}"
+    );
     let shares = ["traversable", "hazard", "unknown"]
         .map(|k| states["all"][k].as_f64().unwrap())
         .iter()

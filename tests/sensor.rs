@@ -320,6 +320,28 @@ fn real_kinect_frames_near_floor_traversable_far_rough_unknown_drops_hazard() {
 }
 
 /// The TUM frame's depth and camera (whose `sensor` is free text, naming no preset).
+/// `tre annotate`'s roughness of the TUM frame's depth as the service's 16-bit PNG values.
+fn spec_png16() -> Vec<u16> {
+    let (depth, camera) = tum();
+    let (cam, k) = tre::io::read_camera(&camera).unwrap();
+    let depth_m = tre::io::read_depth(&depth, cam.depth_scale.unwrap()).unwrap();
+    let input = tre::roughness::AnnotateInput {
+        depth_m: &depth_m,
+        intrinsics: &k,
+        normals: None,
+        labels: None,
+    };
+    let spec = tre::roughness::annotate(&input, &Default::default()).unwrap();
+    let hazards = spec
+        .roughness_m
+        .as_slice()
+        .iter()
+        .filter(|&&r| r >= 0.1)
+        .count();
+    assert!(hazards > 1000, "the frame has drops: {hazards}");
+    tre::io::roughness_png16(&spec.roughness_m).into_raw()
+}
+
 fn tum() -> (PathBuf, PathBuf) {
     (
         common::real("slambook2_ch7/1_depth.png"),
@@ -462,6 +484,14 @@ fn http_and_stream_answer_the_sensor_maps() {
         assert_eq!(names, ["roughness", "uncertainty", "traversal"]);
         let (w, h, _) = common::png16_values(&parts[1].1);
         assert_eq!((w, h), (640, 480));
+        // The geometric mode served over HTTP is the spec: the same 16-bit map as the annotator
+        // on the same depth (drops included).
+        let (_, _, served) = common::png16_values(&parts[0].1);
+        assert_eq!(
+            served,
+            spec_png16(),
+            "HTTP geometric map differs from the spec"
+        );
         let c = traversal_values(&parts[2].1);
         assert!(c.iter().all(|&n| n > 1000), "{c:?}");
         let resp = post("mode=geometric&sensor=kinect&outputs=traversal")
@@ -517,6 +547,13 @@ async fn stream(server: &common::Server, depth: &[u8]) {
             pb::server_message::Msg::Result(r) => {
                 let n = (r.width * r.height) as usize;
                 assert_eq!((r.traversal.len(), r.uncertainty.len()), (n, 4 * n));
+                // The stream's geometric map is the spec too.
+                let (_, _, served) = common::png16_values(&r.roughness);
+                assert_eq!(
+                    served,
+                    spec_png16(),
+                    "stream geometric map differs from the spec"
+                );
                 assert!(r.traversal.iter().all(|&t| t <= 2));
                 assert!(
                     r.traversal.contains(&0)
