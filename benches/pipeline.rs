@@ -3,7 +3,8 @@
 //! stage printed after each bench from the pipeline's own stage timings; the same at 256×256 as
 //! a server worker does it (PNG bytes decoded, the pipeline, the 16-bit roughness PNG encoded);
 //! the LS normals alone against the same right after a net run; and the geometric mode (the
-//! annotation spec) on a real Kinect frame at 640×480 and 256×192 beside `tre annotate`.
+//! annotation spec) on a real Kinect frame at 640×480 and 256×192 beside `tre annotate`, with
+//! the cost of its uncertainty and three-state maps.
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use std::collections::BTreeMap;
@@ -22,6 +23,7 @@ use tre::pipeline::{
     CentroidMethod, FrameInput, GeometricMethod, Method, Mode, NormalsMethod, Pipeline,
     PipelineConfig, StageTimings,
 };
+use tre::roughness::noise::{SensorNoise, SensorPreset};
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 use tre::server::request::{
     config_for, decode_frame, encode_reply, DecodeLimits, FrameDefaults, FrameOptions, FrameRequest,
@@ -363,6 +365,16 @@ fn geometric_real(c: &mut Criterion) {
                 );
             }
         }
+        // The uncertainty and three-state maps (Kinect v1), on top of the mode's output.
+        let cfg = PipelineConfig::for_mode(Mode::Geometric);
+        let out = pipeline.run(&input, &cfg).expect("the frame runs");
+        let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
+        group.bench_function(format!("sensor_maps_{w}x{h}"), |b| {
+            b.iter(|| {
+                out.sensor_maps(&input, Mode::Geometric, Some(&kinect), None)
+                    .expect("maps")
+            })
+        });
         let depth = input.depth_m.as_ref().expect("depth");
         let k = input.intrinsics.expect("intrinsics");
         let ann = AnnotateInput {
