@@ -116,8 +116,8 @@ impl SensorModel {
                 ..off
             },
             SensorPreset::AzureKinect => Self {
-                min_range_m: 0.25,
-                max_range_m: 5.46,
+                min_range_m: 0.5,
+                max_range_m: 3.86,
                 native_focal_px: 504.0,
                 grazing_start_deg: 80.0,
                 grazing_end_deg: 89.0,
