@@ -456,20 +456,7 @@ fn write_frame(out: &FrameOut<'_>, f: &RenderedFrame) -> Result<RgbImage, FrameE
         &dir.join("depth.png"),
         &DynamicImage::ImageLuma16(io::depth_png16(&f.depth_m)),
     )?;
-    let sensor_depth = simulate(
-        &model,
-        &SensorInput {
-            depth_m: &f.depth_m,
-            normals_cam: &f.normals_cam,
-            rgb: &f.rgb,
-            intrinsics: k,
-        },
-        out.sensor.1,
-    );
-    io::save(
-        &dir.join("depth_sensor.png"),
-        &DynamicImage::ImageLuma16(io::depth_png16(&sensor_depth)),
-    )?;
+    write_sensor_depth(dir, f, k, &model, out.sensor.1)?;
     io::write_normals_npy(&dir.join("normals.npy"), &f.normals_cam)?;
     let labels = f.labels.map(|&l| l as u8);
     io::save(
@@ -500,6 +487,30 @@ fn write_frame(out: &FrameOut<'_>, f: &RenderedFrame) -> Result<RgbImage, FrameE
         )?;
     }
     Ok(tiles(f, &ann.roughness_m))
+}
+
+/// Writes `depth_sensor.png`: the model's depth, or a copy of `depth.png` (written before)
+/// for the exact sensor.
+fn write_sensor_depth(
+    dir: &Path,
+    f: &RenderedFrame,
+    k: &crate::geometry::Intrinsics,
+    model: &SensorModel,
+    seed: u64,
+) -> Result<(), IoError> {
+    let path = dir.join("depth_sensor.png");
+    if model.sensor == SensorPreset::Exact {
+        std::fs::copy(dir.join("depth.png"), path)?;
+        return Ok(());
+    }
+    let input = SensorInput {
+        depth_m: &f.depth_m,
+        normals_cam: &f.normals_cam,
+        rgb: &f.rgb,
+        intrinsics: k,
+    };
+    let depth_m = simulate(model, &input, seed);
+    io::save(&path, &DynamicImage::ImageLuma16(io::depth_png16(&depth_m)))
 }
 
 /// One contact-sheet row: rgb | depth | normals | labels | roughness (0–5 cm).

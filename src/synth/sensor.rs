@@ -109,7 +109,7 @@ impl SensorModel {
                 correlated_share: 0.8,
                 grazing_start_deg: 80.0,
                 grazing_end_deg: 89.0,
-                min_texture: 0.004,
+                min_texture: 0.0015,
                 dropout_cell_native_px: 4.0,
                 left_band: true,
                 fatten_native_px: 3.0,
