@@ -8,6 +8,7 @@ use std::path::Path;
 use tre::geometry::{is_valid_point, Grid, Intrinsics, Mounting, Vec3};
 use tre::roughness::noise::SensorPreset;
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation};
+use tre::synth::imaging::ImageEffect;
 use tre::synth::terrain::{Region, Steps};
 use tre::synth::{
     render, Category, Conditions, HeightGrid, Lighting, RenderedFrame, Scene, SynthConfig, Terrain,
@@ -22,6 +23,7 @@ fn small_config(out: &Path, seed: u64) -> SynthConfig {
         size: (64, 48),
         views: 3,
         sensors: SensorPreset::ALL.to_vec(),
+        effects: ImageEffect::ALL.to_vec(),
         ..SynthConfig::default()
     }
 }
@@ -754,4 +756,36 @@ fn eval_reads_sensor_depth_against_exact_ground_truth() {
         sensor > exact + 0.05,
         "exact {exact} cm, sensor {sensor} cm"
     );
+}
+
+#[test]
+fn image_effects_change_only_the_image_and_are_recorded() {
+    let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let cfg = |out: &Path, effects: Vec<ImageEffect>| SynthConfig {
+        effects,
+        sensors: vec![SensorPreset::KinectV1],
+        ply: false,
+        ..small_config(out, 8)
+    };
+    tre::synth::generate(&cfg(a.path(), vec![])).unwrap();
+    tre::synth::generate(&cfg(b.path(), ImageEffect::ALL.to_vec())).unwrap();
+    let (fa, fb) = (files(a.path()), files(b.path()));
+    let mut rgb_differs = 0;
+    for ((na, ba), (_, bb)) in fa.iter().zip(&fb) {
+        if na.ends_with("rgb.png") {
+            rgb_differs += usize::from(ba != bb);
+        } else if !na.ends_with(".json") && !na.ends_with("contact_sheet.png") {
+            // Depth, sensor depth (drawn from the clean render), labels and ground truth.
+            assert!(ba == bb, "{na} changed with the image effects");
+        }
+    }
+    assert_eq!(rgb_differs, 2 * 3);
+    let cam: serde_json::Value =
+        serde_json::from_slice(&fb.iter().find(|f| f.0.ends_with("camera.json")).unwrap().1)
+            .unwrap();
+    let im = &cam["imaging"];
+    assert_eq!(im["effects"].as_array().unwrap().len(), 7);
+    let q = im["jpeg_quality"].as_u64().unwrap();
+    assert!((40..=95).contains(&q), "{im}");
+    assert!(im["exposure_stops"].as_f64().unwrap().abs() <= 1.0);
 }

@@ -6,6 +6,7 @@ use std::time::Instant;
 use clap::Args;
 
 use crate::roughness::noise::SensorPreset;
+use crate::synth::imaging::ImageEffect;
 use crate::synth::{generate, SynthConfig};
 
 /// Generate a synthetic terrain dataset.
@@ -50,6 +51,11 @@ pub struct Synth {
         default_value = "exact"
     )]
     pub sensor: Vec<SensorPreset>,
+    /// Image-formation effects on rgb.png, each drawn per frame: exposure, white_balance,
+    /// vignetting, defocus, motion_blur, noise, jpeg (comma-separated; leave one out to turn it
+    /// off; none by default). Ranges in docs/synth.md.
+    #[arg(long, env = "TRE_SYNTH_EFFECTS", value_delimiter = ',')]
+    pub effects: Vec<ImageEffect>,
 }
 
 impl Synth {
@@ -66,6 +72,7 @@ impl Synth {
             test_fraction: self.test_fraction,
             ply: !self.no_ply,
             sensors: self.sensor,
+            effects: self.effects,
             ..SynthConfig::default()
         };
         let start = Instant::now();

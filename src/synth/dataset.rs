@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::appearance::{Conditions, Lighting, Weather};
 use super::heightgrid::HeightGrid;
+use super::imaging::{ImageEffect, Imaging};
 use super::render::{render, RenderedFrame, Scene, View};
 use super::sensor::{simulate, SensorInput, SensorModel};
 use super::terrain::{Category, Terrain};
@@ -49,6 +50,10 @@ pub struct SynthConfig {
     /// (uniformly, from the frame's seed). `exact` copies the exact depth.
     #[serde(default = "default_sensors")]
     pub sensors: Vec<SensorPreset>,
+    /// Image-formation effects applied to `rgb.png`, each drawn per frame (none by default:
+    /// the rendered image as it is).
+    #[serde(default)]
+    pub effects: Vec<ImageEffect>,
 }
 
 fn default_sensors() -> Vec<SensorPreset> {
@@ -70,6 +75,7 @@ impl Default for SynthConfig {
             cell_m: 0.004,
             ply: true,
             sensors: default_sensors(),
+            effects: Vec::new(),
         }
     }
 }
@@ -320,6 +326,7 @@ fn generate_scene(cfg: &SynthConfig, s: u32) -> Result<(SceneEntry, Vec<RgbImage
                 view,
                 cond: &cond,
                 sensor,
+                imaging: Imaging::draw(&cfg.effects, sensor.1 ^ 0x1A6E),
                 ply: cfg.ply,
             };
             let tiles = write_frame(&out, &frame).map_err(|e| match e {
@@ -400,6 +407,8 @@ pub struct FrameCamera {
     pub sensor: SensorPreset,
     /// That sensor's model parameters and noise seed.
     pub sensor_model: SensorMeta,
+    /// The image formation of `rgb.png` (effects on, their drawn parameters).
+    pub imaging: Imaging,
 }
 
 /// A frame's depth-sensor model with the seed its noise was drawn from.
@@ -418,6 +427,7 @@ struct FrameOut<'a> {
     view: &'a View,
     cond: &'a Conditions,
     sensor: (SensorPreset, u64),
+    imaging: Imaging,
     ply: bool,
 }
 
@@ -445,13 +455,12 @@ fn write_frame(out: &FrameOut<'_>, f: &RenderedFrame) -> Result<RgbImage, FrameE
             seed: out.sensor.1,
             model,
         },
+        imaging: out.imaging.clone(),
     };
     let json = serde_json::to_string_pretty(&cam).map_err(|e| IoError::Npy(e.to_string()))?;
     std::fs::write(dir.join("camera.json"), json).map_err(IoError::from)?;
-    io::save(
-        &dir.join("rgb.png"),
-        &DynamicImage::ImageRgb8(f.rgb.clone()),
-    )?;
+    let rgb = out.imaging.apply(&f.rgb);
+    io::save(&dir.join("rgb.png"), &DynamicImage::ImageRgb8(rgb.clone()))?;
     io::save(
         &dir.join("depth.png"),
         &DynamicImage::ImageLuma16(io::depth_png16(&f.depth_m)),
@@ -483,7 +492,7 @@ fn write_frame(out: &FrameOut<'_>, f: &RenderedFrame) -> Result<RgbImage, FrameE
         io::write_ply(
             &dir.join("points.ply"),
             &k.back_project_map(&f.depth_m),
-            &f.rgb,
+            &rgb,
         )?;
     }
     Ok(tiles(f, &ann.roughness_m))

@@ -5,6 +5,7 @@
 pub mod appearance;
 pub mod dataset;
 pub mod heightgrid;
+pub mod imaging;
 pub mod noise;
 pub mod render;
 pub mod sensor;
