@@ -1,10 +1,13 @@
 //! Criterion benches of the synthetic dataset generator at 512×512 on the paper's camera:
-//! rendering one view, annotating it, and a whole frame written to disk.
+//! rendering one view, annotating it, and a whole frame written to disk; rendering and each
+//! depth-sensor model at 640×480.
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use tre::roughness::noise::SensorPreset;
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 use tre::synth::dataset::{build_scene, scene_views, view_conditions};
+use tre::synth::sensor::{simulate, SensorInput, SensorModel};
 use tre::synth::{render, SynthConfig};
 
 fn synth(c: &mut Criterion) {
@@ -29,6 +32,34 @@ fn synth(c: &mut Criterion) {
             };
             annotate(&input, &AnnotateConfig::default()).expect("ground in view")
         })
+    });
+    let k640 = tre::geometry::Intrinsics::from_hfov(640, 480, 60.0).expect("valid hfov");
+    let view640 = tre::synth::View {
+        intrinsics: k640,
+        width: 640,
+        height: 480,
+        ..views[4]
+    };
+    let f640 = render(&scene, &view640, &cond);
+    for sensor in [
+        SensorPreset::KinectV1,
+        SensorPreset::RealsenseD435,
+        SensorPreset::AzureKinect,
+        SensorPreset::Lidar,
+    ] {
+        let model = SensorModel::preset(sensor);
+        let input = SensorInput {
+            depth_m: &f640.depth_m,
+            normals_cam: &f640.normals_cam,
+            rgb: &f640.rgb,
+            intrinsics: &k640,
+        };
+        c.bench_function(&format!("synth/sensor_{sensor}_640x480"), |b| {
+            b.iter(|| simulate(&model, &input, 1))
+        });
+    }
+    c.bench_function("synth/render_640x480", |b| {
+        b.iter(|| render(&scene, &view640, &cond))
     });
     let dir = tempfile::tempdir().expect("temp dir");
     let one = SynthConfig {

@@ -1,11 +1,14 @@
 //! Synthetic dataset: determinism, depth and normals against the rendered geometry, and the
-//! annotator on known scenes (flat pavement, stairs).
+//! annotator on known scenes (flat pavement, stairs), and the depth-sensor models (noise against
+//! their presets, holes, realism against real Kinect floor).
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use std::path::Path;
 
 use tre::geometry::{is_valid_point, Grid, Intrinsics, Mounting, Vec3};
+use tre::roughness::noise::SensorPreset;
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation};
+use tre::synth::imaging::ImageEffect;
 use tre::synth::terrain::{Region, Steps};
 use tre::synth::{
     render, Category, Conditions, HeightGrid, Lighting, RenderedFrame, Scene, SynthConfig, Terrain,
@@ -19,6 +22,8 @@ fn small_config(out: &Path, seed: u64) -> SynthConfig {
         seed,
         size: (64, 48),
         views: 3,
+        sensors: SensorPreset::ALL.to_vec(),
+        effects: ImageEffect::ALL.to_vec(),
         ..SynthConfig::default()
     }
 }
@@ -57,7 +62,7 @@ fn same_seed_same_bytes() {
     let (fa, fb, fc) = (files(a.path()), files(b.path()), files(c.path()));
     assert_eq!(
         fa.len(),
-        2 + 2 * 3 * 9,
+        2 + 2 * 3 * 10,
         "{:?}",
         fa.iter().map(|f| &f.0).collect::<Vec<_>>()
     );
@@ -296,4 +301,491 @@ fn eval_scores_the_geometric_baseline_on_a_generated_split() {
         !bad.status.success()
             && String::from_utf8_lossy(&bad.stderr).contains("no frames in split")
     );
+}
+
+mod sensors {
+    //! Depth-sensor models on analytic planes and steps, and against real Kinect floor.
+
+    use super::*;
+    use image::RgbImage;
+    use tre::geometry::hash::uniform;
+    use tre::synth::sensor::{simulate, SensorInput, SensorModel};
+
+    /// A textured grey image (values 60–200, per-pixel hash).
+    fn textured(w: usize, h: usize) -> RgbImage {
+        RgbImage::from_fn(w as u32, h as u32, |x, y| {
+            let v = (60.0 + 140.0 * uniform(9, u64::from(y) << 16 | u64::from(x), 0, 0)) as u8;
+            image::Rgb([v; 3])
+        })
+    }
+
+    /// Fronto-parallel planes: depth `z_of(x)` per column, normals facing the camera.
+    fn columns(w: usize, h: usize, z_of: impl Fn(usize) -> f64) -> (Grid<f64>, Grid<Vec3>) {
+        (
+            Grid::from_fn(w, h, |x, _| z_of(x)),
+            Grid::new(w, h, Vec3::new(0.0, 0.0, -1.0)),
+        )
+    }
+
+    fn run(sensor: SensorPreset, depth: &Grid<f64>, normals: &Grid<Vec3>, f: f64) -> Grid<f64> {
+        let (w, h) = depth.size();
+        let k = Intrinsics::new(f, f, w as f64 / 2.0, h as f64 / 2.0).unwrap();
+        let rgb = textured(w, h);
+        let input = SensorInput {
+            depth_m: depth,
+            normals_cam: normals,
+            rgb: &rgb,
+            intrinsics: &k,
+        };
+        simulate(&SensorModel::preset(sensor), &input, 42)
+    }
+
+    /// Standard deviation of the error (along the optical axis, or along the ray for time of
+    /// flight and LiDAR) over valid pixels, and the share of valid pixels.
+    fn error_sd(sensor: SensorPreset, z: f64, f: f64) -> (f64, f64) {
+        let (w, h) = (320, 240);
+        let (depth, normals) = columns(w, h, |_| z);
+        let out = run(sensor, &depth, &normals, f);
+        let along_ray = matches!(sensor, SensorPreset::AzureKinect | SensorPreset::Lidar);
+        let errs: Vec<f64> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .filter(|&p| out[p] > 0.0)
+            .map(|(x, y)| {
+                let ray = if along_ray {
+                    let (u, v) = (
+                        (x as f64 - w as f64 / 2.0) / f,
+                        (y as f64 - h as f64 / 2.0) / f,
+                    );
+                    (1.0 + u * u + v * v).sqrt()
+                } else {
+                    1.0
+                };
+                (out[(x, y)] - z) * ray
+            })
+            .collect();
+        let n = errs.len() as f64;
+        let mean = errs.iter().sum::<f64>() / n;
+        let sd = (errs.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / n).sqrt();
+        (sd, n / (w * h) as f64)
+    }
+
+    #[test]
+    fn flat_plane_error_has_the_preset_sigma_within_10_percent() {
+        let cases = [
+            (SensorPreset::KinectV1, [1.0, 2.0, 3.0]),
+            (SensorPreset::RealsenseD435, [1.0, 2.0, 3.0]),
+            (SensorPreset::AzureKinect, [1.0, 2.0, 3.0]),
+            (SensorPreset::Lidar, [2.0, 5.0, 10.0]),
+        ];
+        for (sensor, ranges) in cases {
+            for z in ranges {
+                let (sd, valid) = error_sd(sensor, z, 300.0);
+                let want = sensor.sigma_z_m(z);
+                eprintln!(
+                    "{sensor} {z} m: sd {:.2} mm, preset {:.2} mm, valid {valid:.3}",
+                    sd * 1e3,
+                    want * 1e3
+                );
+                assert!(
+                    (sd / want - 1.0).abs() < 0.10,
+                    "{sensor} at {z} m: sd {sd}, preset {want}"
+                );
+                assert!(valid > 0.02, "{sensor} at {z} m: {valid} valid");
+            }
+        }
+        let (sd, valid) = error_sd(SensorPreset::Exact, 2.0, 300.0);
+        assert!(sd == 0.0 && valid == 1.0);
+        // Out of range: a Kinect v1 sees nothing at 5 m, a D435 nothing at 0.15 m.
+        assert_eq!(error_sd(SensorPreset::KinectV1, 5.0, 300.0).1, 0.0);
+        assert_eq!(error_sd(SensorPreset::RealsenseD435, 0.15, 300.0).1, 0.0);
+    }
+
+    #[test]
+    fn lidar_returns_are_a_sparse_ring_pattern() {
+        let (depth, normals) = columns(320, 240, |_| 5.0);
+        let out = run(SensorPreset::Lidar, &depth, &normals, 300.0);
+        // Near the centre column each of the 64 rings crosses one row (they bend at the sides).
+        let rows_hit = (0..240)
+            .filter(|&y| (158..163).any(|x| out[(x, y)] > 0.0))
+            .count();
+        let valid = out.as_slice().iter().filter(|&&z| z > 0.0).count();
+        assert!((60..=68).contains(&rows_hit), "{rows_hit} rows");
+        assert!(valid > 64 * 200 && valid < 320 * 240 / 2, "{valid} returns");
+    }
+
+    /// A box face at 1.5 m over columns [140, 220) in front of a wall at 2 m.
+    fn step_scene() -> (Grid<f64>, Grid<Vec3>) {
+        columns(
+            320,
+            240,
+            |x| if (140..220).contains(&x) { 1.5 } else { 2.0 },
+        )
+    }
+
+    #[test]
+    fn structured_light_shadow_lies_left_of_the_nearer_surface() {
+        let (depth, normals) = step_scene();
+        let out = run(SensorPreset::KinectV1, &depth, &normals, 600.0);
+        // The projector 75 mm to the right misses f·b·(1/1.5 − 1/2) = 7.5 px left of the box.
+        let hole = |x: usize| (0..240).all(|y| out[(x, y)] == 0.0);
+        assert!((133..140).all(hole), "shadow band");
+        let valid_share = |xs: std::ops::Range<usize>| {
+            let n = xs.len() * 240;
+            xs.flat_map(|x| (0..240).map(move |y| (x, y)))
+                .filter(|&p| out[p] > 0.0)
+                .count() as f64
+                / n as f64
+        };
+        assert!(valid_share(120..131) > 0.99, "left of the shadow");
+        assert!(
+            valid_share(140..240) > 0.99,
+            "box and its right side: no shadow"
+        );
+    }
+
+    #[test]
+    fn time_of_flight_flies_and_drops_at_depth_edges_only() {
+        let (depth, normals) = step_scene();
+        let out = run(SensorPreset::AzureKinect, &depth, &normals, 300.0);
+        let edge: [usize; 4] = [139, 140, 219, 220];
+        let (mut holes, mut mixed, mut n) = (0, 0, 0);
+        for x in edge {
+            for y in 0..240 {
+                n += 1;
+                let z = out[(x, y)];
+                if z == 0.0 {
+                    holes += 1;
+                } else if z > 1.56 && z < 1.94 {
+                    mixed += 1;
+                }
+            }
+        }
+        assert!(
+            holes > n / 4 && mixed > n / 8,
+            "{holes} holes, {mixed} mixed of {n}"
+        );
+        let away = (0..320)
+            .filter(|x: &usize| edge.iter().all(|e| x.abs_diff(*e) > 2))
+            .flat_map(|x| (0..240).map(move |y| (x, y)));
+        assert!(away.clone().all(|p| out[p] > 0.0), "holes away from edges");
+    }
+
+    #[test]
+    fn active_stereo_has_its_left_band_and_fattens_edges() {
+        let (depth, normals) = step_scene();
+        let out = run(SensorPreset::RealsenseD435, &depth, &normals, 300.0);
+        // Invalid band: x < f·b/z = 300·0.05/2 = 7.5 px.
+        assert!((0..240).all(|y| (0..8).all(|x| out[(x, y)] == 0.0)));
+        // Fattening: the wall just right of the box reads the box's depth (3 native px ≈ 2 px).
+        let fat = (0..240)
+            .filter(|&y| (out[(221, y)] - 1.5).abs() < 0.1)
+            .count();
+        assert!(fat > 200, "{fat} rows fattened");
+        assert!((0..240).all(|y| (out[(230, y)] - 2.0).abs() < 0.1));
+    }
+
+    #[test]
+    fn same_seed_same_depth_and_the_exact_frame_is_untouched() {
+        let (depth, normals) = step_scene();
+        for s in SensorPreset::ALL {
+            assert!(run(s, &depth, &normals, 300.0) == run(s, &depth, &normals, 300.0));
+        }
+        let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+        let cfg = |out: &Path, sensor| SynthConfig {
+            sensors: vec![sensor],
+            ply: false,
+            ..small_config(out, 3)
+        };
+        tre::synth::generate(&cfg(a.path(), SensorPreset::Exact)).unwrap();
+        tre::synth::generate(&cfg(b.path(), SensorPreset::KinectV1)).unwrap();
+        let (fa, fb) = (files(a.path()), files(b.path()));
+        let mut sensor_differs = 0;
+        for ((na, ba), (nb, bb)) in fa.iter().zip(&fb) {
+            assert_eq!(na, nb);
+            if na.ends_with("depth_sensor.png") {
+                sensor_differs += usize::from(ba != bb);
+            } else if !na.ends_with("camera.json") && !na.ends_with("dataset.json") {
+                assert!(ba == bb, "{na} changed with the sensor");
+            }
+        }
+        assert_eq!(sensor_differs, 2 * 3);
+        let cam: serde_json::Value =
+            serde_json::from_slice(&fb.iter().find(|f| f.0.ends_with("camera.json")).unwrap().1)
+                .unwrap();
+        assert_eq!(cam["sensor"], "kinect_v1");
+        assert_eq!(cam["sensor_model"]["baseline_m"], 0.075);
+        // The exact sensor writes the exact depth.
+        let exact = |suffix: &str| {
+            fa.iter()
+                .find(|f| f.0.ends_with(&format!("view_0/{suffix}")))
+                .unwrap()
+                .1
+                .clone()
+        };
+        assert!(exact("depth.png") == exact("depth_sensor.png"));
+    }
+}
+
+mod realism {
+    //! The Kinect model's spec roughness on synthetic flat floor against real Kinect floor.
+
+    use super::*;
+    use std::path::PathBuf;
+    use tre::io::sheet::{
+        colour_bar_legend, contact_sheet, depth_panel, fit_within, roughness_panel, Panel,
+    };
+    use tre::synth::sensor::{simulate, SensorInput, SensorModel};
+
+    /// Range bins (depth, metres) centred on 2, 2.5 and 3 m: the real floor boxes lie at
+    /// 1.4–3.0 m (71 of their pixels nearer than 1.2 m), so 1 m cannot be compared.
+    const BINS: [(f64, f64); 3] = [(1.75, 2.25), (2.25, 2.75), (2.75, 3.25)];
+
+    fn bin_of(z: f64) -> Option<usize> {
+        BINS.iter().position(|&(a, b)| z >= a && z < b)
+    }
+
+    fn median(mut v: Vec<f64>) -> f64 {
+        if v.is_empty() {
+            return f64::NAN;
+        }
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    }
+
+    fn spec(depth: &Grid<f64>, k: &Intrinsics) -> Annotation {
+        let input = AnnotateInput {
+            depth_m: depth,
+            intrinsics: k,
+            normals: None,
+            labels: None,
+        };
+        annotate(&input, &AnnotateConfig::default()).unwrap()
+    }
+
+    #[derive(serde::Deserialize)]
+    struct Fixture {
+        frames: Vec<RealFloor>,
+    }
+
+    #[derive(serde::Deserialize)]
+    struct RealFloor {
+        dir: String,
+        depth: String,
+        floor: [usize; 4],
+    }
+
+    fn real_data() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd")
+    }
+
+    /// Spec roughness of the real floor boxes' pixels, by range bin.
+    fn real_floor() -> [Vec<f64>; 3] {
+        let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/real_floor.json");
+        let fx: Fixture = serde_json::from_slice(&std::fs::read(fixture).unwrap()).unwrap();
+        let mut bins: [Vec<f64>; 3] = Default::default();
+        for f in &fx.frames {
+            let dir = real_data().join(&f.dir);
+            let (cam, k) = tre::io::read_camera(&dir.join("intrinsics.json")).unwrap();
+            let depth = tre::io::read_depth(&dir.join(&f.depth), cam.depth_scale.unwrap()).unwrap();
+            let r = spec(&depth, &k).roughness_m;
+            let [x0, y0, x1, y1] = f.floor;
+            for (x, y) in (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))) {
+                if let (Some(b), true) = (bin_of(depth[(x, y)]), r[(x, y)].is_finite()) {
+                    bins[b].push(r[(x, y)]);
+                }
+            }
+        }
+        bins
+    }
+
+    /// A flat floor seen by a 640×480 Kinect-like camera (f = 525 px) mounted as the real
+    /// frames are (their floor planes lie 1.3–1.55 m below the camera; floor at 2 m depth in
+    /// the bottom rows): 1.45 m up, pitched 22° down. Returns the frame, its view and the
+    /// sensor depth.
+    fn synthetic_floor(model: &SensorModel, seed: u64) -> (RenderedFrame, View, Grid<f64>) {
+        let view = View {
+            mounting: Mounting::new(22f64.to_radians(), 1.45).unwrap(),
+            yaw_rad: 0.0,
+            intrinsics: Intrinsics::new(525.0, 525.0, 319.5, 239.5).unwrap(),
+            width: 640,
+            height: 480,
+        };
+        let terrain = Terrain::uniform(Category::Pavement, 1);
+        let grid = HeightGrid::sample(&terrain, (-4.5, -0.8), (4.5, 6.0), 0.01);
+        let f = render(&Scene { terrain, grid }, &view, &clear_noon());
+        let input = SensorInput {
+            depth_m: &f.depth_m,
+            normals_cam: &f.normals_cam,
+            rgb: &f.rgb,
+            intrinsics: &view.intrinsics,
+        };
+        let d = simulate(model, &input, seed);
+        (f, view, d)
+    }
+
+    /// Spec roughness of the synthetic floor's interior pixels by range bin, with the frame,
+    /// its sensor depth and roughness map.
+    fn synthetic_bins(model: &SensorModel) -> ([Vec<f64>; 3], RenderedFrame, Grid<f64>, Grid<f64>) {
+        let (frame, view, sensor) = synthetic_floor(model, 7);
+        let rough = spec(&sensor, &view.intrinsics).roughness_m;
+        let mut syn: [Vec<f64>; 3] = Default::default();
+        for y in 8..472 {
+            for x in 8..632 {
+                let r = rough[(x, y)];
+                if let (Some(b), true) = (bin_of(sensor[(x, y)]), r.is_finite()) {
+                    syn[b].push(r);
+                }
+            }
+        }
+        (syn, frame, sensor, rough)
+    }
+
+    #[test]
+    fn kinect_floor_roughness_median_within_30_percent_of_real_floor() {
+        let real = real_floor();
+        let kinect = SensorModel::preset(SensorPreset::KinectV1);
+        let (syn, frame, sensor, rough) = synthetic_bins(&kinect);
+        // The same noise drawn independently per pixel, for comparison (not asserted).
+        let white = SensorModel {
+            correlated_share: 0.0,
+            ..kinect
+        };
+        let (syn_white, ..) = synthetic_bins(&white);
+        let mut compared = 0;
+        for (b, (lo, hi)) in BINS.iter().enumerate() {
+            let m_real = median(real[b].clone());
+            let (m_syn, m_white) = (median(syn[b].clone()), median(syn_white[b].clone()));
+            eprintln!(
+                "| {lo}–{hi} | {} | {:.3} | {} | {:.3} | {:.2} | {:.3} | {:.2} |",
+                real[b].len(),
+                m_real * 100.0,
+                syn[b].len(),
+                m_syn * 100.0,
+                m_syn / m_real,
+                m_white * 100.0,
+                m_white / m_real
+            );
+            if real[b].len() >= 500 {
+                compared += 1;
+                assert!((m_syn / m_real - 1.0).abs() < 0.3, "bin {lo}–{hi} m");
+            }
+        }
+        assert!(
+            compared >= 2,
+            "real floor pixels by bin: {:?}",
+            real.map(|v| v.len())
+        );
+        if let Ok(out) = std::env::var("TRE_SYNTH_SHEET") {
+            write_sheet(Path::new(&out), &frame, &sensor, &rough);
+        }
+    }
+
+    /// Synthetic and real frame side by side: RGB, sensor depth, spec roughness (0–5 cm).
+    fn write_sheet(out: &Path, f: &RenderedFrame, sensor: &Grid<f64>, rough: &Grid<f64>) {
+        let dir = real_data().join("slambook2_ch5");
+        let (cam, k) = tre::io::read_camera(&dir.join("intrinsics.json")).unwrap();
+        let depth =
+            tre::io::read_depth(&dir.join("depth/1.png"), cam.depth_scale.unwrap()).unwrap();
+        let real_rgb = tre::io::read_image(&dir.join("color/1.png"))
+            .unwrap()
+            .to_rgb8();
+        let real_rough = spec(&depth, &k).roughness_m;
+        let fit = |img: image::RgbImage| fit_within(&img, 256, 192);
+        let panels = vec![
+            Panel::new("synthetic RGB", fit(f.rgb.clone())),
+            Panel::new("kinect_v1 model depth", fit(depth_panel(sensor, 5.0))),
+            Panel::new("spec roughness", fit(roughness_panel(rough, 0.05))),
+            Panel::new("real Kinect RGB", fit(real_rgb)),
+            Panel::new("real Kinect depth", fit(depth_panel(&depth, 5.0))),
+            Panel::new("spec roughness", fit(roughness_panel(&real_rough, 0.05))),
+        ];
+        let legend = colour_bar_legend(480, 0.05, &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0]);
+        let sheet = contact_sheet(&panels, 3, Some(&legend));
+        tre::io::save(out, &image::DynamicImage::ImageRgb8(sheet)).unwrap();
+    }
+}
+
+/// RMSE (cm) printed by `tre eval --mode geometric` on `data`'s split with `--depth-source`.
+fn eval_rmse(data: &Path, split: &str, source: &str) -> f64 {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tre"))
+        .args([
+            "eval",
+            "--data",
+            data.to_str().unwrap(),
+            "--mode",
+            "geometric",
+        ])
+        .args(["--split", split, "--depth-source", source])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    text.split("RMSE ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+#[test]
+fn eval_reads_sensor_depth_against_exact_ground_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = SynthConfig {
+        out: dir.path().to_owned(),
+        scenes: 2,
+        seed: 4,
+        size: (128, 96),
+        views: 2,
+        ply: false,
+        test_fraction: 0.0,
+        sensors: vec![SensorPreset::KinectV1],
+        ..SynthConfig::default()
+    };
+    tre::synth::generate(&cfg).unwrap();
+    let exact = eval_rmse(dir.path(), "train", "exact");
+    let sensor = eval_rmse(dir.path(), "train", "sensor");
+    // Kinect noise and holes make the spec on sensor depth differ more from the exact truth.
+    assert!(
+        sensor > exact + 0.05,
+        "exact {exact} cm, sensor {sensor} cm"
+    );
+}
+
+#[test]
+fn image_effects_change_only_the_image_and_are_recorded() {
+    let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let cfg = |out: &Path, effects: Vec<ImageEffect>| SynthConfig {
+        effects,
+        sensors: vec![SensorPreset::KinectV1],
+        ply: false,
+        ..small_config(out, 8)
+    };
+    tre::synth::generate(&cfg(a.path(), vec![])).unwrap();
+    tre::synth::generate(&cfg(b.path(), ImageEffect::ALL.to_vec())).unwrap();
+    let (fa, fb) = (files(a.path()), files(b.path()));
+    let mut rgb_differs = 0;
+    for ((na, ba), (_, bb)) in fa.iter().zip(&fb) {
+        if na.ends_with("rgb.png") {
+            rgb_differs += usize::from(ba != bb);
+        } else if !na.ends_with(".json") && !na.ends_with("contact_sheet.png") {
+            // Depth, sensor depth (drawn from the clean render), labels and ground truth.
+            assert!(ba == bb, "{na} changed with the image effects");
+        }
+    }
+    assert_eq!(rgb_differs, 2 * 3);
+    let cam: serde_json::Value =
+        serde_json::from_slice(&fb.iter().find(|f| f.0.ends_with("camera.json")).unwrap().1)
+            .unwrap();
+    let im = &cam["imaging"];
+    assert_eq!(im["effects"].as_array().unwrap().len(), 7);
+    let q = im["jpeg_quality"].as_u64().unwrap();
+    assert!((40..=95).contains(&q), "{im}");
+    assert!(im["exposure_stops"].as_f64().unwrap().abs() <= 1.0);
 }

@@ -71,6 +71,35 @@ pub struct Eval {
     /// Also write the numbers as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Synthetic split: the depth the `rgbd` and `geometric` modes read, `exact` (depth.png)
+    /// or `sensor` (depth_sensor.png, the frame's depth-sensor model, docs/synth.md). Ground
+    /// truth is always the spec on the exact depth.
+    #[arg(
+        long,
+        value_enum,
+        default_value = "exact",
+        env = "TRE_EVAL_DEPTH_SOURCE"
+    )]
+    pub depth_source: DepthSource,
+}
+
+/// Which depth of a `tre synth` frame the modes read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DepthSource {
+    /// The exact rendered depth (`depth.png`).
+    Exact,
+    /// The depth-sensor model's depth (`depth_sensor.png`).
+    Sensor,
+}
+
+impl DepthSource {
+    /// The frame's file holding that depth.
+    fn file_name(self) -> &'static str {
+        match self {
+            Self::Exact => "depth.png",
+            Self::Sensor => "depth_sensor.png",
+        }
+    }
 }
 
 /// `--sensor`: a preset name or `a,b,c`.
@@ -165,7 +194,8 @@ impl Eval {
         let mut pipeline = self.stages.pipeline(&configs)?;
         let mut scores: Vec<Score> = specs.iter().map(|_| Score::default()).collect();
         for (i, dir) in dirs.iter().enumerate() {
-            let frame = read_frame(dir).with_context(|| format!("frame {}", dir.display()))?;
+            let frame = read_frame(dir, self.depth_source)
+                .with_context(|| format!("frame {}", dir.display()))?;
             for (spec, score) in specs.iter().zip(&mut scores) {
                 score_frame(&mut pipeline, &frame, spec, score)
                     .with_context(|| format!("frame {}, {}", dir.display(), spec.key))?;
@@ -273,13 +303,18 @@ pub fn row_key(cfg: &PipelineConfig) -> String {
     format!("{mode}:{}", cfg.label())
 }
 
-/// Reads a `tre synth` frame folder: inputs and ground truth.
-fn read_frame(dir: &Path) -> anyhow::Result<Frame> {
+/// Reads a `tre synth` frame folder: inputs (depth from `source`) and ground truth.
+fn read_frame(dir: &Path, source: DepthSource) -> anyhow::Result<Frame> {
     let (cam, k) = io::read_camera(&dir.join("camera.json"))?;
-    let depth_m = io::read_depth(&dir.join("depth.png"), cam.depth_scale.unwrap_or(1000.0))?;
+    let scale = cam.depth_scale.unwrap_or(1000.0);
+    let depth_m = io::read_depth(&dir.join("depth.png"), scale)?;
+    let input_depth_m = match source {
+        DepthSource::Exact => depth_m.clone(),
+        other => io::read_depth(&dir.join(other.file_name()), scale)?,
+    };
     let input = FrameInput {
         rgb: Some(io::read_image(&dir.join("rgb.png"))?.to_rgb8()),
-        depth_m: Some(depth_m.clone()),
+        depth_m: Some(input_depth_m),
         intrinsics: Some(k),
         mounting: cam.mounting()?,
     };

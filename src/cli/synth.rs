@@ -5,6 +5,8 @@ use std::time::Instant;
 
 use clap::Args;
 
+use crate::roughness::noise::SensorPreset;
+use crate::synth::imaging::ImageEffect;
 use crate::synth::{generate, SynthConfig};
 
 /// Generate a synthetic terrain dataset.
@@ -40,6 +42,20 @@ pub struct Synth {
     /// Skip the PLY point clouds (they are the largest files).
     #[arg(long)]
     pub no_ply: bool,
+    /// Depth sensor(s) of `depth_sensor.png`: kinect_v1, realsense_d435, azure_kinect, lidar or
+    /// exact; a comma-separated list draws one per frame (docs/synth.md).
+    #[arg(
+        long,
+        env = "TRE_SYNTH_SENSOR",
+        value_delimiter = ',',
+        default_value = "exact"
+    )]
+    pub sensor: Vec<SensorPreset>,
+    /// Image-formation effects on rgb.png, each drawn per frame: exposure, white_balance,
+    /// vignetting, defocus, motion_blur, noise, jpeg (comma-separated; leave one out to turn it
+    /// off; none by default). Ranges in docs/synth.md.
+    #[arg(long, env = "TRE_SYNTH_EFFECTS", value_delimiter = ',')]
+    pub effects: Vec<ImageEffect>,
 }
 
 impl Synth {
@@ -55,6 +71,8 @@ impl Synth {
             random_mounting: self.random_mounting,
             test_fraction: self.test_fraction,
             ply: !self.no_ply,
+            sensors: self.sensor,
+            effects: self.effects,
             ..SynthConfig::default()
         };
         let start = Instant::now();

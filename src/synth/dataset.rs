@@ -9,11 +9,14 @@ use serde::{Deserialize, Serialize};
 
 use super::appearance::{Conditions, Lighting, Weather};
 use super::heightgrid::HeightGrid;
+use super::imaging::{ImageEffect, Imaging};
 use super::render::{render, RenderedFrame, Scene, View};
+use super::sensor::{simulate, SensorInput, SensorModel};
 use super::terrain::{Category, Terrain};
 use crate::geometry::hash::splitmix64;
 use crate::geometry::{Grid, Intrinsics, Mounting, Vec3};
 use crate::io::{self, IoError};
+use crate::roughness::noise::SensorPreset;
 use crate::roughness::{annotate, AnnotateConfig, AnnotateInput, RoughnessError};
 
 /// Dataset settings, with the paper's camera by default.
@@ -43,6 +46,18 @@ pub struct SynthConfig {
     pub cell_m: f64,
     /// Write a PLY point cloud per frame.
     pub ply: bool,
+    /// Depth sensors: one is used for every frame; with several, each frame draws one
+    /// (uniformly, from the frame's seed). `exact` copies the exact depth.
+    #[serde(default = "default_sensors")]
+    pub sensors: Vec<SensorPreset>,
+    /// Image-formation effects applied to `rgb.png`, each drawn per frame (none by default:
+    /// the rendered image as it is).
+    #[serde(default)]
+    pub effects: Vec<ImageEffect>,
+}
+
+fn default_sensors() -> Vec<SensorPreset> {
+    vec![SensorPreset::Exact]
 }
 
 impl Default for SynthConfig {
@@ -59,6 +74,8 @@ impl Default for SynthConfig {
             test_fraction: 0.2,
             cell_m: 0.004,
             ply: true,
+            sensors: default_sensors(),
+            effects: Vec::new(),
         }
     }
 }
@@ -97,6 +114,13 @@ pub struct FrameEntry {
     pub lighting: Lighting,
     /// Weather.
     pub weather: Weather,
+    /// The depth sensor of `depth_sensor.png`.
+    #[serde(default = "exact_sensor")]
+    pub sensor: SensorPreset,
+}
+
+fn exact_sensor() -> SensorPreset {
+    SensorPreset::Exact
 }
 
 /// One scene's entry in the manifest.
@@ -182,6 +206,12 @@ fn check(cfg: &SynthConfig) -> Result<(), SynthError> {
     if cfg.scenes == 0 {
         return Err(SynthError::Config("need at least one scene".into()));
     }
+    if cfg.sensors.is_empty() {
+        return Err(SynthError::Config(format!(
+            "need at least one depth sensor (one of {})",
+            SensorPreset::names()
+        )));
+    }
     if !(0.0..=1.0).contains(&cfg.test_fraction) {
         return Err(SynthError::Config(format!(
             "the test fraction must be between 0 and 1, got {}",
@@ -259,6 +289,20 @@ pub fn view_conditions(cfg: &SynthConfig, s: u32, v: u32) -> Conditions {
     }
 }
 
+/// The depth sensor of view `v` of scene `s` and the seed of its noise.
+pub fn view_sensor(cfg: &SynthConfig, s: u32, v: u32) -> (SensorPreset, u64) {
+    let what = 0x5E45_0000 | u64::from(v);
+    let seed = splitmix64(splitmix64(cfg.seed ^ 0x5E45) ^ (u64::from(s) << 20) ^ what);
+    let n = cfg.sensors.len().max(1);
+    let pick = ((draw(cfg.seed, s, what) * n as f64) as usize).min(n - 1);
+    let sensor = cfg
+        .sensors
+        .get(pick)
+        .copied()
+        .unwrap_or(SensorPreset::Exact);
+    (sensor, seed)
+}
+
 fn generate_scene(cfg: &SynthConfig, s: u32) -> Result<(SceneEntry, Vec<RgbImage>), SynthError> {
     let views = scene_views(cfg, s);
     let scene = build_scene(cfg, s, &views);
@@ -276,22 +320,30 @@ fn generate_scene(cfg: &SynthConfig, s: u32) -> Result<(SceneEntry, Vec<RgbImage
             let cond = view_conditions(cfg, s, v);
             let dir = format!("scene_{s:05}/view_{v}");
             let frame = render(&scene, view, &cond);
-            let tiles = write_frame(&cfg.out.join(&dir), &frame, view, &cond, cfg.ply).map_err(
-                |e| match e {
-                    FrameError::Io(e) => SynthError::Io(e),
-                    FrameError::Annotate(source) => SynthError::Annotate {
-                        scene: s,
-                        view: v,
-                        source,
-                    },
+            let sensor = view_sensor(cfg, s, v);
+            let out = FrameOut {
+                dir: &cfg.out.join(&dir),
+                view,
+                cond: &cond,
+                sensor,
+                imaging: Imaging::draw(&cfg.effects, sensor.1 ^ 0x1A6E),
+                ply: cfg.ply,
+            };
+            let tiles = write_frame(&out, &frame).map_err(|e| match e {
+                FrameError::Io(e) => SynthError::Io(e),
+                FrameError::Annotate(source) => SynthError::Annotate {
+                    scene: s,
+                    view: v,
+                    source,
                 },
-            )?;
+            })?;
             let entry = FrameEntry {
                 dir,
                 view: v,
                 yaw_deg: view.yaw_rad.to_degrees(),
                 lighting: cond.lighting,
                 weather: cond.weather,
+                sensor: sensor.0,
             };
             Ok((entry, tiles))
         })
@@ -351,19 +403,41 @@ pub struct FrameCamera {
     pub yaw_deg: f64,
     /// Lighting and weather.
     pub conditions: Conditions,
+    /// The sensor of `depth_sensor.png` (a preset name, read by `tre infer` as the noise model).
+    pub sensor: SensorPreset,
+    /// That sensor's model parameters and noise seed.
+    pub sensor_model: SensorMeta,
+    /// The image formation of `rgb.png` (effects on, their drawn parameters).
+    pub imaging: Imaging,
+}
+
+/// A frame's depth-sensor model with the seed its noise was drawn from.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct SensorMeta {
+    /// Noise seed of this frame.
+    pub seed: u64,
+    /// The model's parameters.
+    #[serde(flatten)]
+    pub model: SensorModel,
+}
+
+/// Where and how one frame is written.
+struct FrameOut<'a> {
+    dir: &'a Path,
+    view: &'a View,
+    cond: &'a Conditions,
+    sensor: (SensorPreset, u64),
+    imaging: Imaging,
+    ply: bool,
 }
 
 /// Writes every file of one frame; returns the contact-sheet tiles (rgb, depth, normals,
 /// labels, roughness).
-fn write_frame(
-    dir: &Path,
-    f: &RenderedFrame,
-    view: &View,
-    cond: &Conditions,
-    ply: bool,
-) -> Result<RgbImage, FrameError> {
+fn write_frame(out: &FrameOut<'_>, f: &RenderedFrame) -> Result<RgbImage, FrameError> {
+    let (dir, view, cond) = (out.dir, out.view, out.cond);
     std::fs::create_dir_all(dir).map_err(IoError::from)?;
     let k = &view.intrinsics;
+    let model = SensorModel::preset(out.sensor.0);
     let cam = FrameCamera {
         fx: k.fx_px,
         fy: k.fy_px,
@@ -376,17 +450,22 @@ fn write_frame(
         height_m: view.mounting.height_m,
         yaw_deg: view.yaw_rad.to_degrees(),
         conditions: *cond,
+        sensor: out.sensor.0,
+        sensor_model: SensorMeta {
+            seed: out.sensor.1,
+            model,
+        },
+        imaging: out.imaging.clone(),
     };
     let json = serde_json::to_string_pretty(&cam).map_err(|e| IoError::Npy(e.to_string()))?;
     std::fs::write(dir.join("camera.json"), json).map_err(IoError::from)?;
-    io::save(
-        &dir.join("rgb.png"),
-        &DynamicImage::ImageRgb8(f.rgb.clone()),
-    )?;
+    let rgb = out.imaging.apply(&f.rgb);
+    io::save(&dir.join("rgb.png"), &DynamicImage::ImageRgb8(rgb.clone()))?;
     io::save(
         &dir.join("depth.png"),
         &DynamicImage::ImageLuma16(io::depth_png16(&f.depth_m)),
     )?;
+    write_sensor_depth(dir, f, k, &model, out.sensor.1)?;
     io::write_normals_npy(&dir.join("normals.npy"), &f.normals_cam)?;
     let labels = f.labels.map(|&l| l as u8);
     io::save(
@@ -409,14 +488,38 @@ fn write_frame(
         &dir.join("edge_weight.png"),
         &DynamicImage::ImageLuma16(io::metres_png16(&ann.edge_weight_m)),
     )?;
-    if ply {
+    if out.ply {
         io::write_ply(
             &dir.join("points.ply"),
             &k.back_project_map(&f.depth_m),
-            &f.rgb,
+            &rgb,
         )?;
     }
     Ok(tiles(f, &ann.roughness_m))
+}
+
+/// Writes `depth_sensor.png`: the model's depth, or a copy of `depth.png` (written before)
+/// for the exact sensor.
+fn write_sensor_depth(
+    dir: &Path,
+    f: &RenderedFrame,
+    k: &crate::geometry::Intrinsics,
+    model: &SensorModel,
+    seed: u64,
+) -> Result<(), IoError> {
+    let path = dir.join("depth_sensor.png");
+    if model.sensor == SensorPreset::Exact {
+        std::fs::copy(dir.join("depth.png"), path)?;
+        return Ok(());
+    }
+    let input = SensorInput {
+        depth_m: &f.depth_m,
+        normals_cam: &f.normals_cam,
+        rgb: &f.rgb,
+        intrinsics: k,
+    };
+    let depth_m = simulate(model, &input, seed);
+    io::save(&path, &DynamicImage::ImageLuma16(io::depth_png16(&depth_m)))
 }
 
 /// One contact-sheet row: rgb | depth | normals | labels | roughness (0–5 cm).

@@ -5,12 +5,15 @@
 pub mod appearance;
 pub mod dataset;
 pub mod heightgrid;
+pub mod imaging;
 pub mod noise;
 pub mod render;
+pub mod sensor;
 pub mod terrain;
 
 pub use appearance::{Conditions, Lighting, Weather};
 pub use dataset::{generate, SynthConfig};
 pub use heightgrid::HeightGrid;
 pub use render::{render, RenderedFrame, Scene, View};
+pub use sensor::{simulate, SensorInput, SensorModel};
 pub use terrain::{Category, Terrain};
