@@ -54,11 +54,11 @@ pub struct Serve {
     /// Largest request body, bytes.
     #[arg(long, env = "TRE_MAX_BODY_BYTES", default_value_t = 32 << 20)]
     pub max_body_bytes: usize,
-    /// Largest image, pixels (checked from the header, before decoding). A frame in flight
-    /// takes up to about 110 bytes per pixel (a depth-only frame, which the geometric mode
-    /// runs at its own size; RGB frames run at the working size and take far less): 16 Mpx is
-    /// up to about 2 GB per worker.
-    #[arg(long, env = "TRE_MAX_PIXELS", default_value_t = 16 << 20)]
+    /// Largest image, pixels (checked from the header, before decoding). The costliest frame
+    /// is depth-only in the geometric mode, which runs at the frame's own size: at 4 Mpx (the
+    /// default) about 1.6 s of one worker and 0.6 GB resident; at 16 Mpx 7.4 s and 1.3 GB
+    /// (docs/security.md). RGB frames run at the working size and cost far less.
+    #[arg(long, env = "TRE_MAX_PIXELS", default_value_t = 4 << 20)]
     pub max_pixels: usize,
     /// Longest image side, pixels (checked from the header, before decoding; beyond: 413).
     #[arg(long, env = "TRE_MAX_SIDE", default_value_t = 8192)]

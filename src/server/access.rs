@@ -47,14 +47,16 @@ pub async fn guard(State(app): State<Arc<AppState>>, mut req: Request, next: Nex
         .filter(|o| !same_origin(o, req.headers()));
     let open = OPEN_PATHS.contains(&path.as_str());
     let mut resp = if let Some(o) = cross.filter(|o| !open && !allowed(&app, o)) {
-        ApiError::new(
+        let e = ApiError::new(
             ErrorCode::Forbidden,
             format!("origin {o:?} is not allowed (--allow-origin)"),
-        )
-        .into_response()
+        );
+        drain(&app, req).await;
+        e.into_response()
     } else if cross.is_some() && is_preflight(&req) {
         preflight()
     } else if let Err(e) = check_key(&app, req.headers(), open) {
+        drain(&app, req).await;
         e.into_response()
     } else {
         req.extensions_mut().insert(RequestId(id.clone()));
@@ -82,6 +84,29 @@ pub async fn guard(State(app): State<Arc<AppState>>, mut req: Request, next: Nex
         }
     }
     resp
+}
+
+/// Reads and drops the body of a refused request (up to `--max-body-bytes`, within
+/// `--body-timeout-ms`), so that a client that sends everything before reading, like Python's
+/// `http.client`, hears the refusal rather than a reset connection.
+async fn drain(app: &AppState, req: Request) {
+    use axum::body::HttpBody;
+    use http_body_util::BodyExt;
+    let limit = app.cfg.max_body_bytes;
+    let mut body = req.into_body();
+    if usize::try_from(body.size_hint().lower()).map_or(true, |n| n > limit) {
+        return;
+    }
+    let read = async {
+        let mut seen = 0usize;
+        while let Some(Ok(frame)) = body.frame().await {
+            seen = seen.saturating_add(frame.data_ref().map_or(0, |d| d.len()));
+            if seen > limit {
+                break;
+            }
+        }
+    };
+    let _ = tokio::time::timeout(app.cfg.body_timeout, read).await;
 }
 
 /// The client's `X-Request-Id` if it is at most 64 characters of `[A-Za-z0-9._-]`, else a new

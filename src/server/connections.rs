@@ -125,10 +125,12 @@ pub async fn serve_connections(
             Err(_) => {
                 metrics.connection_refused();
                 let Ok(place) = refused.clone().try_acquire_owned() else {
-                    tracing::debug!(%peer, "connection closed unanswered: too many open and refused");
+                    let why = "closed unanswered: --max-connections open and as many being refused";
+                    refusals.refused("connection", &peer.to_string(), "overloaded", why);
                     continue;
                 };
-                tracing::debug!(%peer, "connection refused: --max-connections reached");
+                let why = "answered 503: --max-connections open";
+                refusals.refused("connection", &peer.to_string(), "overloaded", why);
                 (Place::refused(place), &refusing, refuse.clone())
             }
         };

@@ -115,7 +115,7 @@ impl Default for ServeConfig {
             },
             queue: 2 * cores,
             max_body_bytes: 32 << 20,
-            max_pixels: 16 << 20,
+            max_pixels: 4 << 20,
             max_side: 8192,
             max_aspect: 8,
             header_timeout: Duration::from_secs(10),

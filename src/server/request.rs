@@ -140,7 +140,7 @@ pub struct DecodeLimits {
 impl Default for DecodeLimits {
     fn default() -> Self {
         Self {
-            max_pixels: 16 << 20,
+            max_pixels: 4 << 20,
             max_side: 8192,
             max_aspect: 8,
         }
