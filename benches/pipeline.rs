@@ -177,6 +177,8 @@ fn request(frame: &FrameInput, depth: bool, normals: NormalsMethod) -> FrameRequ
 
 const LIMITS: DecodeLimits = DecodeLimits {
     max_pixels: 50_000_000,
+    max_side: 16384,
+    max_aspect: 8,
 };
 
 /// What a server worker does with one request (`run_job`): decode, choose the configuration,

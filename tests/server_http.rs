@@ -118,10 +118,7 @@ fn answers_equal_tre_infer_in_rgb_and_rgbd() {
         let form = Form::new()
             .part("rgb", Part::bytes(frame).file_name("1.png"))
             .part("depth", Part::bytes(std::fs::read(&depth_path).unwrap()))
-            .part(
-                "camera",
-                Part::text(std::fs::read_to_string(&camera_path).unwrap()),
-            );
+            .part("camera", Part::text(camera_part(&camera_path)));
         let resp = reqwest::Client::new()
             .post(format!("{}/v1/roughness?seed=3", server.url()))
             .multipart(form)
@@ -744,51 +741,105 @@ fn a_client_that_sends_a_whole_oversize_body_first_still_reads_the_413() {
     rt().block_on(still_serves(&server));
 }
 
-/// A client that sends its headers and a few bytes of body, then nothing: it holds one of the
-/// `--max-concurrent` places only until the request timeout, when it hears 503 `timeout`, and
-/// the next client is served.
+/// The camera JSON of a real frame with only the keys the service takes: the files carry
+/// notes (`source`, `licence`, ...) that `tre infer` reads past but HTTP refuses.
+fn camera_part(path: &std::path::Path) -> String {
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    let known = tre::server::request::CAMERA_KEYS;
+    let kept: serde_json::Map<_, _> = v
+        .as_object()
+        .unwrap()
+        .iter()
+        .filter(|(k, _)| known.contains(&k.as_str()))
+        .map(|(k, v)| (k.clone(), v.clone()))
+        .collect();
+    serde_json::Value::Object(kept).to_string()
+}
+
+/// A client that sends its headers and a few bytes of body, then nothing, holds none of the
+/// `--max-concurrent` places (the only one here): other clients are served meanwhile, and it
+/// hears 408 `request_timeout` at `--body-timeout-ms`.
 #[test]
-fn a_client_that_stalls_mid_upload_gives_its_place_back_at_the_timeout() {
+fn a_client_that_stalls_mid_upload_holds_no_place_and_hears_408() {
     use std::io::Read;
     let server = Server::start(&[
         "--workers",
         "1",
         "--max-concurrent",
         "1",
-        "--request-timeout-ms",
+        "--body-timeout-ms",
         "1500",
     ]);
-    let url = format!("{}/v1/roughness?mode=rgb", server.url());
     let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
     let mut stalled = TcpStream::connect(server.addr).unwrap();
     let head = "POST /v1/roughness HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nContent-Length: 100000\r\n\r\n";
     stalled.write_all(head.as_bytes()).unwrap();
     stalled.write_all(&frame[..4]).unwrap();
-    rt().block_on(async {
-        // While it holds the only place, the others are refused at once.
-        let mut refused = false;
-        for _ in 0..50 {
-            let resp = post(&url, "image/png", frame.clone()).await;
-            if resp.status().as_u16() == 429 {
-                refused = true;
-                break;
-            }
-            tokio::time::sleep(std::time::Duration::from_millis(20)).await;
-        }
-        assert!(refused, "the stalled upload never held the only place");
-    });
+    rt().block_on(still_serves(&server));
     stalled
         .set_read_timeout(Some(std::time::Duration::from_secs(30)))
         .unwrap();
     let mut answer = Vec::new();
     let _ = stalled.read_to_end(&mut answer);
     let answer = String::from_utf8_lossy(&answer);
-    assert!(answer.starts_with("HTTP/1.1 503"), "{answer}");
+    assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
     assert!(
-        answer.contains("\"timeout\"") && answer.contains("the body did not arrive"),
+        answer.contains("\"request_timeout\"") && answer.contains("--body-timeout-ms"),
         "{answer}"
     );
     rt().block_on(still_serves(&server));
+}
+
+/// Eighty connections sending a body at one byte a second (the defaults: 64 places) do not
+/// stop another client's frame: it is answered 200 while they trickle, and the trickling
+/// uploads end with 408 at `--body-timeout-ms`.
+#[test]
+fn eighty_trickling_uploads_do_not_starve_a_ready_request() {
+    let server = Server::start(&["--workers", "1", "--body-timeout-ms", "6000"]);
+    let head = "POST /v1/roughness HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nContent-Length: 100000\r\n\r\n";
+    let mut trickles: Vec<TcpStream> = (0..80)
+        .map(|_| {
+            let mut t = TcpStream::connect(server.addr).unwrap();
+            t.write_all(head.as_bytes()).unwrap();
+            t
+        })
+        .collect();
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let feeder = {
+        let mut writers: Vec<TcpStream> = trickles.iter().map(|t| t.try_clone().unwrap()).collect();
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                for w in &mut writers {
+                    let _ = w.write_all(b"x");
+                }
+                std::thread::sleep(std::time::Duration::from_secs(1));
+            }
+        })
+    };
+    std::thread::sleep(std::time::Duration::from_secs(1));
+    let started = std::time::Instant::now();
+    rt().block_on(still_serves(&server));
+    // Generous: the frame itself takes well under a second; the trickle lasts 6 s.
+    assert!(
+        started.elapsed() < std::time::Duration::from_secs(5),
+        "a ready frame waited {:?} behind trickling uploads",
+        started.elapsed()
+    );
+    let mut first = trickles.remove(0);
+    first
+        .set_read_timeout(Some(std::time::Duration::from_secs(30)))
+        .unwrap();
+    let mut answer = [0u8; 12];
+    std::io::Read::read_exact(&mut first, &mut answer).unwrap();
+    assert_eq!(
+        &answer,
+        b"HTTP/1.1 408",
+        "{}",
+        String::from_utf8_lossy(&answer)
+    );
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    feeder.join().unwrap();
 }
 
 /// Posts `frame` for `query` over a socket with a receive buffer of `recv_buffer` bytes (so that
@@ -906,18 +957,42 @@ fn closed_within(mut tcp: TcpStream, bytes: &[u8], within: std::time::Duration) 
 /// Request headers sent a byte at a time (slowloris), and a connection opened and left idle,
 /// were once kept until the server stopped: a task and a file descriptor each, so enough of
 /// them exhaust the process's descriptors. Now the headers must arrive within
-/// `--request-timeout-ms`, which also closes an idle kept-alive connection; requests that
-/// arrive in time are served, on new and kept-alive connections alike.
+/// `--header-timeout-ms`: a client that sent part of them hears 408, an idle kept-alive
+/// connection is closed without a word; requests that arrive in time are served, on new and
+/// kept-alive connections alike.
 #[test]
 fn request_headers_have_a_deadline_and_idle_connections_are_closed() {
-    let server = Server::start(&["--workers", "1", "--request-timeout-ms", "1500"]);
+    use std::io::Read;
+    let server = Server::start(&["--workers", "1", "--header-timeout-ms", "1500"]);
     let within = std::time::Duration::from_secs(8);
     let head = b"POST /v1/roughness HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nX-Pad: aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa";
-    let trickling = TcpStream::connect(server.addr).unwrap();
-    assert!(
-        closed_within(trickling, head, within),
-        "headers sent a byte every 0.2 s still held the connection 8 s on"
-    );
+    let mut trickling = TcpStream::connect(server.addr).unwrap();
+    let start = std::time::Instant::now();
+    trickling
+        .set_read_timeout(Some(std::time::Duration::from_millis(200)))
+        .unwrap();
+    let mut answer = Vec::new();
+    for b in head.iter().cycle() {
+        assert!(
+            start.elapsed() < within,
+            "headers sent a byte every 0.2 s still held the connection 8 s on"
+        );
+        let _ = trickling.write_all(&[*b]);
+        let mut buf = [0u8; 512];
+        match trickling.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => answer.extend_from_slice(&buf[..n]),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) => {}
+            Err(_) => break,
+        }
+    }
+    let answer = String::from_utf8_lossy(&answer);
+    assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
+    assert!(answer.contains("--header-timeout-ms"), "{answer}");
     let idle = TcpStream::connect(server.addr).unwrap();
     assert!(
         closed_within(idle, b"", within),
@@ -1139,6 +1214,174 @@ fn the_openapi_document_matches_what_the_server_takes() {
         for t in types.keys().filter(|t| !t.starts_with("multipart/")) {
             let resp = post(&url("normals=ls"), t, frame.clone()).await;
             assert_eq!(resp.status().as_u16(), 200, "Content-Type {t}");
+        }
+    });
+}
+
+/// Long thin images are refused from their header at once, naming the limit: the 49 KB kind
+/// of PNG that declares 16777216×1 (once 11 s of resizing) gets 413 `--max-side`, a 8192×2
+/// one 422 `--max-aspect`; a camera part with an unknown key or a height of 1e300 m is 422.
+#[test]
+fn long_thin_images_and_implausible_cameras_are_refused_at_once() {
+    let server = Server::start(&["--workers", "1"]);
+    let url = format!("{}/v1/roughness?mode=rgb", server.url());
+    rt().block_on(async {
+        for (w, h, status, says) in [
+            (1 << 24, 1, 413, "--max-side"),
+            (8192, 2, 422, "--max-aspect"),
+        ] {
+            let resp = post(&url, "image/png", png_with_header(w, h)).await;
+            let (got, _, message) = error_of(resp).await;
+            assert_eq!(got, status, "{w}×{h}: {message}");
+            assert!(message.contains(says), "{w}×{h}: {message}");
+        }
+        let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+        let camera = r#"{"fx": 520.9, "fy": 521.0, "cx": 325.1, "cy": 249.7"#;
+        for (extra, says) in [
+            (r#", "licence": "MIT"}"#, "unknown key \"licence\""),
+            (r#", "height_m": 1e300}"#, "height_m"),
+            (r#", "pitch_deg": 135}"#, "pitch_deg"),
+            (r#", "sensor": "a free-text description"}"#, ""),
+        ] {
+            let form = Form::new()
+                .part("rgb", Part::bytes(frame.clone()).file_name("1.png"))
+                .part("camera", Part::text(format!("{camera}{extra}")));
+            let resp = reqwest::Client::new()
+                .post(&url)
+                .multipart(form)
+                .send()
+                .await
+                .unwrap();
+            if says.is_empty() {
+                assert_eq!(resp.status().as_u16(), 200, "{extra}");
+                continue;
+            }
+            let (status, code, message) = error_of(resp).await;
+            assert_eq!((status, code.as_str()), (422, "bad_camera"), "{message}");
+            assert!(message.contains(says), "{message}");
+        }
+        let resp = post(
+            &format!("{url}&height_m=0&fx=500&fy=500&cx=320&cy=240"),
+            "image/png",
+            frame,
+        )
+        .await;
+        assert_eq!(error_of(resp).await.0, 422);
+        // A long query is not echoed in full.
+        let long = format!("{url}&{}=1", "q".repeat(20_000));
+        let (status, _, message) = error_of(post(&long, "image/png", Vec::new()).await).await;
+        assert_eq!(status, 400);
+        assert!(
+            message.chars().count() <= 401,
+            "{} characters",
+            message.len()
+        );
+    });
+}
+
+/// With `--api-key`, every route but `/healthz` and `/readyz` wants the Bearer key (401
+/// otherwise, with `WWW-Authenticate`), and foreign browser origins are refused (403) unless
+/// on `--allow-origin`, whose preflights are answered and answers carry their allow-origin.
+#[test]
+fn the_api_key_and_the_origin_allow_list_guard_every_route() {
+    let key = "0123456789abcdef0123";
+    let ops = "https://ops.example";
+    let server = Server::start(&["--workers", "1", "--api-key", key, "--allow-origin", ops]);
+    let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    let url = format!("{}/v1/roughness?mode=rgb", server.url());
+    rt().block_on(async {
+        let client = reqwest::Client::new();
+        for path in ["/healthz", "/readyz"] {
+            assert_eq!(get(server.addr, path).0, 200, "{path}");
+        }
+        for path in ["/metrics", "/v1/models", "/openapi.json", "/"] {
+            assert_eq!(get(server.addr, path).0, 401, "{path}");
+        }
+        let send = |auth: Option<String>, origin: Option<&str>| {
+            let mut req = client
+                .post(&url)
+                .header("content-type", "image/png")
+                .header("x-request-id", "robot-7.frame-1")
+                .body(frame.clone());
+            if let Some(a) = auth {
+                req = req.header("authorization", a);
+            }
+            if let Some(o) = origin {
+                req = req.header("origin", o);
+            }
+            req.send()
+        };
+        let resp = send(None, None).await.unwrap();
+        assert_eq!(resp.headers()["www-authenticate"], "Bearer realm=\"tre\"");
+        assert_eq!(resp.headers()["x-request-id"], "robot-7.frame-1");
+        assert_eq!(error_of(resp).await.1, "unauthorized");
+        let resp = send(Some("Bearer wrong-key-of-some-length".into()), None)
+            .await
+            .unwrap();
+        assert_eq!(error_of(resp).await.0, 401);
+        let bearer = format!("Bearer {key}");
+        let resp = send(Some(bearer.clone()), None).await.unwrap();
+        assert_eq!(resp.status().as_u16(), 200);
+        assert!(resp.headers().get("access-control-allow-origin").is_none());
+        let resp = send(Some(bearer.clone()), Some("http://evil.example"))
+            .await
+            .unwrap();
+        assert_eq!(error_of(resp).await.1, "forbidden");
+        let resp = send(Some(bearer.clone()), Some(ops)).await.unwrap();
+        assert_eq!(resp.status().as_u16(), 200);
+        assert_eq!(resp.headers()["access-control-allow-origin"], ops);
+        assert!(resp.headers()["access-control-expose-headers"]
+            .to_str()
+            .unwrap()
+            .contains("server-timing"));
+        let preflight = |origin: &'static str| {
+            client
+                .request(reqwest::Method::OPTIONS, &url)
+                .header("origin", origin)
+                .header("access-control-request-method", "POST")
+                .header(
+                    "access-control-request-headers",
+                    "authorization, content-type",
+                )
+                .send()
+        };
+        let resp = preflight("https://ops.example").await.unwrap();
+        assert_eq!(resp.status().as_u16(), 204);
+        assert_eq!(resp.headers()["access-control-allow-origin"], ops);
+        assert!(resp.headers()["access-control-allow-headers"]
+            .to_str()
+            .unwrap()
+            .contains("authorization"));
+        assert_eq!(
+            preflight("http://evil.example")
+                .await
+                .unwrap()
+                .status()
+                .as_u16(),
+            403
+        );
+        // The stream upgrade: no key 401, a foreign origin 403, the key 101.
+        use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+        let ws_url = format!("ws://{}/v1/stream", server.addr);
+        for (auth, origin, status) in [
+            (None, None, 401),
+            (Some(bearer.as_str()), Some("http://evil.example"), 403),
+            (Some(bearer.as_str()), None, 101),
+        ] {
+            let mut req = ws_url.as_str().into_client_request().unwrap();
+            if let Some(a) = auth {
+                req.headers_mut()
+                    .insert("authorization", a.parse().unwrap());
+            }
+            if let Some(o) = origin {
+                req.headers_mut().insert("origin", o.parse().unwrap());
+            }
+            let got = match tokio_tungstenite::connect_async(req).await {
+                Ok((_, resp)) => resp.status().as_u16(),
+                Err(tokio_tungstenite::tungstenite::Error::Http(resp)) => resp.status().as_u16(),
+                Err(e) => panic!("{e}"),
+            };
+            assert_eq!(got, status, "{auth:?} {origin:?}");
         }
     });
 }

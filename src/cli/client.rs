@@ -40,6 +40,9 @@ pub struct Client {
     /// Server: ws://host:port/v1/stream, ws://host:port, http://host:port or host:port.
     #[arg(long, env = "TRE_SERVER")]
     pub server: String,
+    /// API key of a server started with --api-key (sent as `Authorization: Bearer KEY`).
+    #[arg(long, env = "TRE_API_KEY", hide_env_values = true)]
+    pub api_key: Option<String>,
     /// Folder of frames (PNG or JPEG), sent in file-name order as they are on disk.
     #[arg(long, env = "TRE_CLIENT_FRAMES", required_unless_present_any = ["video", "device"], conflicts_with_all = ["video", "device"])]
     pub frames: Option<PathBuf>,
@@ -169,6 +172,7 @@ impl Client {
         let camera = self.camera.as_deref().map(io::read_camera).transpose()?;
         let session = ClientConfig {
             server: self.server.clone(),
+            api_key: self.api_key.clone(),
             camera: camera.map(|(c, _)| c),
             mode: self.mode.map(Into::into),
             format: match self.format {

@@ -38,6 +38,9 @@ pub struct Loadtest {
         default_value = "http://127.0.0.1:8080"
     )]
     pub url: String,
+    /// API key of a server started with --api-key (sent as `Authorization: Bearer KEY`).
+    #[arg(long, env = "TRE_API_KEY", hide_env_values = true)]
+    pub api_key: Option<String>,
     /// Allow a host name in --url that resolves to a non-loopback address (load a remote
     /// service on purpose).
     #[arg(long, env = "TRE_LOADTEST_ALLOW_REMOTE")]
@@ -122,6 +125,7 @@ impl Loadtest {
         };
         let cfg = LoadConfig {
             url: self.url.clone(),
+            api_key: self.api_key.clone(),
             allow_remote: self.allow_remote,
             protocol: match self.protocol {
                 ProtocolArg::Http => Protocol::Http,

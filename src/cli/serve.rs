@@ -27,8 +27,9 @@ pub enum ProviderArg {
 /// Serve roughness over HTTP (`POST /v1/roughness`) and WebSocket (`GET /v1/stream`).
 #[derive(Debug, Args)]
 pub struct Serve {
-    /// Address to listen on (port 0: any free port; the address is printed on stdout).
-    #[arg(long, env = "TRE_ADDR", default_value = "0.0.0.0:8080")]
+    /// Address to listen on (port 0: any free port; the address is printed on stdout). The
+    /// default is loopback only; to serve a network, give its address (and an --api-key).
+    #[arg(long, env = "TRE_ADDR", default_value = "127.0.0.1:8080")]
     pub addr: SocketAddr,
     /// Folder with manifest.json and the ONNX models. When not given: TRE_MODELS, then
     /// models/ beside the executable, ../share/tre/models relative to it, then models/ in the
@@ -53,17 +54,41 @@ pub struct Serve {
     /// Largest request body, bytes.
     #[arg(long, env = "TRE_MAX_BODY_BYTES", default_value_t = 32 << 20)]
     pub max_body_bytes: usize,
-    /// Largest image, pixels (checked from the header, before decoding). A frame in flight
-    /// takes up to about 110 bytes per pixel (a depth-only frame, which the geometric mode
-    /// runs at its own size; RGB frames run at the working size and take far less): 16 Mpx is
-    /// up to about 2 GB per worker.
-    #[arg(long, env = "TRE_MAX_PIXELS", default_value_t = 16 << 20)]
+    /// Largest image, pixels (checked from the header, before decoding). The costliest frame
+    /// is depth-only in the geometric mode, which runs at the frame's own size: at 4 Mpx (the
+    /// default) about 1.6 s of one worker and 0.6 GB resident; at 16 Mpx 7.4 s and 1.3 GB
+    /// (docs/security.md). RGB frames run at the working size and cost far less.
+    #[arg(long, env = "TRE_MAX_PIXELS", default_value_t = 4 << 20)]
     pub max_pixels: usize,
-    /// HTTP requests handled at once; beyond, requests get 429 at once.
+    /// Longest image side, pixels (checked from the header, before decoding; beyond: 413).
+    #[arg(long, env = "TRE_MAX_SIDE", default_value_t = 8192)]
+    pub max_side: usize,
+    /// Largest ratio of an image's longer side to its shorter one (checked from the header,
+    /// before decoding; beyond: 422). A 16777216×1 image otherwise costs seconds of resizing.
+    #[arg(long, env = "TRE_MAX_ASPECT", default_value_t = 8)]
+    pub max_aspect: usize,
+    /// Time a client has to send a request's headers, milliseconds: one that sent part of them
+    /// gets 408, an idle kept-alive connection is closed.
+    #[arg(long, env = "TRE_HEADER_TIMEOUT_MS", default_value_t = 10_000)]
+    pub header_timeout_ms: u64,
+    /// Time a client has to send a request's body once its headers are in, milliseconds (then
+    /// 408). Uploads hold no --max-concurrent place.
+    #[arg(long, env = "TRE_BODY_TIMEOUT_MS", default_value_t = 20_000)]
+    pub body_timeout_ms: u64,
+    /// API key: every route and the stream upgrade except /healthz and /readyz then want
+    /// `Authorization: Bearer KEY` (401 without). Prefer the environment to the command line.
+    #[arg(long, env = "TRE_API_KEY", hide_env_values = true)]
+    pub api_key: Option<String>,
+    /// Browser origins allowed to call the service and open the stream, such as
+    /// `https://ops.example` (repeat, or comma-separate; `*` allows any). Others get 403; a
+    /// page the server itself serves (the demo) is same-origin and always allowed.
+    #[arg(long, env = "TRE_ALLOW_ORIGIN", value_delimiter = ',')]
+    pub allow_origin: Vec<String>,
+    /// HTTP requests handled at once (counted once the body is in); beyond, 429 at once.
     #[arg(long, env = "TRE_MAX_CONCURRENT", default_value_t = 64)]
     pub max_concurrent: usize,
-    /// Time one HTTP request may take from its arrival, the upload of its body, the queue and
-    /// the run included, milliseconds (then 503).
+    /// Time one HTTP request may take once its body is in, the queue and the run, milliseconds
+    /// (then 503 `timeout`).
     #[arg(long, env = "TRE_REQUEST_TIMEOUT_MS", default_value_t = 30_000)]
     pub request_timeout_ms: u64,
     /// Largest WebSocket message, bytes (up to 4× this gets an error message; beyond, the
@@ -126,8 +151,16 @@ impl Serve {
             || self.ws_idle_timeout_ms == 0
             || self.stall_timeout_ms == 0
             || self.max_connections == 0
+            || self.max_side == 0
+            || self.max_aspect == 0
+            || self.header_timeout_ms == 0
+            || self.body_timeout_ms == 0
         {
-            bail!("--max-body-bytes, --max-pixels, --max-concurrent, --request-timeout-ms, --ws-max-message-bytes, --max-streams, --ws-idle-timeout-ms, --stall-timeout-ms and --max-connections must be positive");
+            bail!("--max-body-bytes, --max-pixels, --max-side, --max-aspect, --max-concurrent, --header-timeout-ms, --body-timeout-ms, --request-timeout-ms, --ws-max-message-bytes, --max-streams, --ws-idle-timeout-ms, --stall-timeout-ms and --max-connections must be positive");
+        }
+        let api_key = self.api_key.clone().filter(|k| !k.is_empty());
+        if let Some(k) = api_key.as_deref().filter(|k| k.len() < 16) {
+            bail!("--api-key: {} characters is too short to be a key; use at least 16 (e.g. `openssl rand -hex 32`)", k.len());
         }
         Ok(ServeConfig {
             addr: self.addr,
@@ -145,6 +178,12 @@ impl Serve {
             },
             max_body_bytes: self.max_body_bytes,
             max_pixels: self.max_pixels,
+            max_side: self.max_side,
+            max_aspect: self.max_aspect,
+            header_timeout: Duration::from_millis(self.header_timeout_ms),
+            body_timeout: Duration::from_millis(self.body_timeout_ms),
+            api_key,
+            allow_origins: self.allow_origin.clone(),
             max_concurrent: self.max_concurrent,
             request_timeout: Duration::from_millis(self.request_timeout_ms),
             ws_max_message_bytes: self.ws_max_message_bytes,
@@ -195,6 +234,12 @@ impl Serve {
                 dsac_hypotheses = cfg.defaults.dsac_hypotheses,
                 "listening; loading models"
             );
+            if !addr.ip().is_loopback() && cfg.api_key.is_none() {
+                tracing::warn!(
+                    %addr,
+                    "listening beyond loopback without an API key: anyone who can reach this address may use the service; set --api-key or TRE_API_KEY (see docs/security.md)"
+                );
+            }
             serve(cfg, listener, shutdown_signal()).await?;
             tracing::info!("stopped");
             Ok(())

@@ -89,6 +89,9 @@ pub struct ClientConfig {
     /// service's base URL; `/v1/stream` is appended) or `host:port`. TLS (`wss`, `https`) is
     /// not built in: put a TLS-terminating proxy in front or tunnel.
     pub server: String,
+    /// API key of a server started with `--api-key`, sent as `Authorization: Bearer KEY` on
+    /// the upgrade and the readiness check.
+    pub api_key: Option<String>,
     /// Intrinsics and mounting of the camera; `None`: the server's defaults (60° horizontal
     /// field of view, 60° pitch, 1 m height).
     pub camera: Option<CameraFile>,
@@ -138,6 +141,7 @@ impl Default for ClientConfig {
     fn default() -> Self {
         Self {
             server: "ws://127.0.0.1:8080/v1/stream".to_owned(),
+            api_key: None,
             camera: None,
             mode: None,
             format: Format::Png16,

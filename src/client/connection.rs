@@ -86,7 +86,12 @@ impl Link {
             // No idle connection is kept between checks: it would hold one of the server's
             // `--max-connections` places for the whole session, and on a server at its limit
             // keep the stream's own connection out.
+            let mut headers = reqwest::header::HeaderMap::new();
+            if let Some(key) = &cfg.api_key {
+                headers.insert(reqwest::header::AUTHORIZATION, bearer(key)?);
+            }
             let client = reqwest::Client::builder()
+                .default_headers(headers)
                 .timeout(cfg.connect_timeout)
                 .pool_max_idle_per_host(0)
                 .build()
@@ -439,7 +444,14 @@ async fn attempt(shared: Arc<Shared>) -> Result<(Ws, ServerInfo), ClientError> {
         .await??;
     }
     let url = shared.endpoints.stream.as_str();
-    let handshake = tokio_tungstenite::connect_async_with_config(url, None, true);
+    let mut request = tungstenite::client::IntoClientRequest::into_client_request(url)
+        .map_err(|e| handshake_error(url, e))?;
+    if let Some(key) = &shared.cfg.api_key {
+        request
+            .headers_mut()
+            .insert(tungstenite::http::header::AUTHORIZATION, bearer(key)?);
+    }
+    let handshake = tokio_tungstenite::connect_async_with_config(request, None, true);
     let (mut ws, _) = within(limit, "the WebSocket handshake", handshake)
         .await?
         .map_err(|e| handshake_error(url, e))?;
@@ -469,6 +481,18 @@ async fn within<T>(
 }
 
 /// `GET /readyz`: 200 (or 404: no such route behind a proxy) is ready.
+/// The `Authorization: Bearer KEY` value of `key`, marked sensitive.
+fn bearer(key: &str) -> Result<reqwest::header::HeaderValue, ClientError> {
+    let mut v = reqwest::header::HeaderValue::from_str(&format!("Bearer {key}")).map_err(|_| {
+        ClientError::BadConfig {
+            field: "api_key",
+            reason: "not a valid header value".into(),
+        }
+    })?;
+    v.set_sensitive(true);
+    Ok(v)
+}
+
 async fn check_ready(http: &reqwest::Client, url: &str) -> Result<(), ClientError> {
     let resp = http
         .get(url)

@@ -33,7 +33,12 @@ pub(super) async fn drive(
     target: &Target,
     frames: &Frames,
 ) -> Result<Report, LoadError> {
+    let mut headers = reqwest::header::HeaderMap::new();
+    if let Some(key) = &cfg.api_key {
+        headers.insert(reqwest::header::AUTHORIZATION, super::bearer(key)?);
+    }
     let client = Client::builder()
+        .default_headers(headers)
         .no_proxy()
         .timeout(cfg.timeout)
         .connect_timeout(cfg.timeout.min(CONNECT_TIMEOUT))

@@ -81,6 +81,8 @@ pub enum Load {
 pub struct LoadConfig {
     /// Base URL of the service (`http://host:port`, optionally with a path prefix).
     pub url: String,
+    /// API key of a server started with `--api-key`, sent as `Authorization: Bearer KEY`.
+    pub api_key: Option<String>,
     /// Accept host names that resolve to addresses other than loopback.
     pub allow_remote: bool,
     /// HTTP or WebSocket.
@@ -109,6 +111,7 @@ impl Default for LoadConfig {
     fn default() -> Self {
         Self {
             url: "http://127.0.0.1:8080".into(),
+            api_key: None,
             allow_remote: false,
             protocol: Protocol::Http,
             load: Load::Closed,
@@ -157,6 +160,14 @@ impl LoadConfig {
             Load::Closed => None,
         }
     }
+}
+
+/// The `Authorization: Bearer KEY` value of `key`, marked sensitive (kept out of debug output).
+pub(crate) fn bearer(key: &str) -> Result<reqwest::header::HeaderValue, LoadError> {
+    let mut v = reqwest::header::HeaderValue::from_str(&format!("Bearer {key}"))
+        .map_err(|_| LoadError::Config("--api-key: not a valid header value".into()))?;
+    v.set_sensitive(true);
+    Ok(v)
 }
 
 /// Errors of the load tester (answers of the service are outcomes, not errors).

@@ -111,7 +111,11 @@ fn frame(sequence: u64, frames: &Frames) -> Message {
 }
 
 /// Opens a stream, sends the Hello and waits for Ready.
-async fn connect(target: &Target, timeout: Duration) -> Result<Socket, LoadError> {
+async fn connect(
+    target: &Target,
+    timeout: Duration,
+    api_key: Option<&str>,
+) -> Result<Socket, LoadError> {
     let url = target.stream_url();
     let err = |why: String| LoadError::Stream {
         url: url.clone(),
@@ -122,7 +126,17 @@ async fn connect(target: &Target, timeout: Duration) -> Result<Socket, LoadError
             .await
             .map_err(|e| err(format!("connecting to {}: {e}", target.addr)))?;
         tcp.set_nodelay(true).map_err(|e| err(e.to_string()))?;
-        let (mut ws, _) = tokio_tungstenite::client_async(url.as_str(), tcp)
+        let mut request =
+            tokio_tungstenite::tungstenite::client::IntoClientRequest::into_client_request(
+                url.as_str(),
+            )
+            .map_err(|e| err(e.to_string()))?;
+        if let Some(key) = api_key {
+            request
+                .headers_mut()
+                .insert(reqwest::header::AUTHORIZATION, super::bearer(key)?);
+        }
+        let (mut ws, _) = tokio_tungstenite::client_async(request, tcp)
             .await
             .map_err(|e| err(format!("handshake: {e}")))?;
         ws.send(hello()).await.map_err(|e| err(e.to_string()))?;
@@ -150,7 +164,7 @@ pub(super) async fn drive(
 ) -> Result<Report, LoadError> {
     let mut sockets = Vec::with_capacity(cfg.connections);
     for _ in 0..cfg.connections {
-        sockets.push(connect(target, cfg.timeout).await?);
+        sockets.push(connect(target, cfg.timeout, cfg.api_key.as_deref()).await?);
     }
     let plan = Plan::new(cfg);
     let run = Arc::new(Run {

@@ -1,11 +1,12 @@
 //! The accept loop: every connection is served by hyper's HTTP/1 with upgrades (the WebSocket
 //! stream), with two limits on what a client may hold without doing anything:
 //!
-//! - its request headers must arrive within `--request-timeout-ms` of the server starting to
-//!   wait for them, which also ends a kept-alive connection left idle that long. Without it, a
-//!   client that sent its headers a byte at a time, or a connection left open with nothing on
-//!   it, was kept until the server stopped (a task and a file descriptor each, so enough of
-//!   them exhaust the process's descriptors);
+//! - its request headers must arrive within `--header-timeout-ms` of the server starting to
+//!   wait for them; a client that sent part of them is answered 408 `request_timeout` (and the
+//!   refusal logged), a kept-alive connection left idle that long is closed without a word.
+//!   Without it, a client that sent its headers a byte at a time, or a connection left open
+//!   with nothing on it, was kept until the server stopped (a task and a file descriptor each,
+//!   so enough of them exhaust the process's descriptors);
 //! - its writes are [`StallGuard`]ed (`--stall-timeout-ms`).
 //!
 //! and a limit on how many connections may be open at once (`--max-connections`; a stream
@@ -20,7 +21,11 @@
 //! no longer connections here: the caller waits for them.
 
 use std::future::Future;
+use std::io;
+use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
+use std::task::{Context, Poll};
 use std::time::Duration;
 
 use axum::body::{Bytes, HttpBody};
@@ -31,11 +36,13 @@ use http_body_util::BodyExt;
 use hyper::server::conn::http1;
 use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::service::TowerToHyperService;
-use tokio::net::TcpListener;
+use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
+use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
 use super::error::{ApiError, ErrorCode};
 use super::metrics::Metrics;
+use super::refusals::RefusalLog;
 use super::stall::StallGuard;
 
 /// What a client may hold without doing anything.
@@ -89,7 +96,7 @@ pub async fn serve_connections(
     mut listener: TcpListener,
     app: Router,
     limits: ConnectionLimits,
-    metrics: Arc<Metrics>,
+    (metrics, refusals): (Arc<Metrics>, Arc<RefusalLog>),
     signal: impl Future<Output = ()>,
 ) {
     let (stop_tx, stop_rx) = watch::channel(());
@@ -118,14 +125,30 @@ pub async fn serve_connections(
             Err(_) => {
                 metrics.connection_refused();
                 let Ok(place) = refused.clone().try_acquire_owned() else {
-                    tracing::debug!(%peer, "connection closed unanswered: too many open and refused");
+                    let why = "closed unanswered: --max-connections open and as many being refused";
+                    refusals.refused("connection", &peer.to_string(), "overloaded", why);
                     continue;
                 };
-                tracing::debug!(%peer, "connection refused: --max-connections reached");
+                let why = "answered 503: --max-connections open";
+                refusals.refused("connection", &peer.to_string(), "overloaded", why);
                 (Place::refused(place), &refusing, refuse.clone())
             }
         };
-        let io = TokioIo::new(StallGuard::new(io, limits.write_stall));
+        let (io, spare) = match spare_handle(io) {
+            Ok(both) => both,
+            Err(e) => {
+                tracing::warn!(%peer, error = %e, "connection dropped: its socket could not be set up");
+                continue;
+            }
+        };
+        let head = Arc::new(AtomicBool::new(false));
+        let io = HeadWatch {
+            io: StallGuard::new(io, limits.write_stall),
+            head_started: head.clone(),
+        };
+        let io = TokioIo::new(io);
+        let refusals = refusals.clone();
+        let header_read = limits.header_read;
         let conn = builder
             .serve_connection(io, TowerToHyperService::new(app))
             .with_upgrades();
@@ -138,7 +161,16 @@ pub async fn serve_connections(
                 tokio::select! {
                     served = conn.as_mut() => {
                         if let Err(e) = served {
-                            tracing::debug!(error = %e, "connection ended with an error");
+                            if e.is_timeout() && head.load(Ordering::Relaxed) {
+                                let why = format!(
+                                    "the request headers did not arrive within {} ms (--header-timeout-ms)",
+                                    header_read.as_millis()
+                                );
+                                refusals.refused("connection", &peer.to_string(), "request_timeout", &why);
+                                answer_408(spare.as_ref(), &why);
+                            } else {
+                                tracing::debug!(error = %e, "connection ended with an error");
+                            }
                         }
                         break;
                     }
@@ -156,6 +188,90 @@ pub async fn serve_connections(
     drop(open_rx);
     let _ = stop_tx.send(());
     open_tx.closed().await;
+}
+
+/// A second handle on the connection's socket, through which a 408 can still be written
+/// after hyper has given up the connection on its header timeout.
+fn spare_handle(io: TcpStream) -> io::Result<(TcpStream, Option<std::net::TcpStream>)> {
+    let std = io.into_std()?;
+    let spare = std.try_clone().ok();
+    Ok((TcpStream::from_std(std)?, spare))
+}
+
+/// Writes a 408 `request_timeout` and closes, best effort: the socket is non-blocking and the
+/// answer small, so it goes at once into the empty send buffer or not at all.
+fn answer_408(spare: Option<&std::net::TcpStream>, why: &str) {
+    use std::io::Write;
+    let Some(mut socket) = spare else { return };
+    let body =
+        serde_json::json!({"error": {"code": "request_timeout", "message": why}}).to_string();
+    let answer = format!(
+        "HTTP/1.1 408 Request Timeout\r\ncontent-type: application/json\r\ncontent-length: {}\r\nconnection: close\r\n\r\n{body}",
+        body.len()
+    );
+    let _ = socket.write_all(answer.as_bytes());
+    let _ = socket.shutdown(std::net::Shutdown::Write);
+}
+
+/// Notes whether bytes of a request head have arrived since the last answer was written, so
+/// that a header timeout can be told from an idle kept-alive connection. HTTP/1 without
+/// pipelining: what is read after an answer is the next request's head.
+struct HeadWatch<T> {
+    io: T,
+    head_started: Arc<AtomicBool>,
+}
+
+impl<T: AsyncRead + Unpin> AsyncRead for HeadWatch<T> {
+    fn poll_read(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &mut ReadBuf<'_>,
+    ) -> Poll<io::Result<()>> {
+        let before = buf.filled().len();
+        let poll = Pin::new(&mut self.io).poll_read(cx, buf);
+        if buf.filled().len() > before {
+            self.head_started.store(true, Ordering::Relaxed);
+        }
+        poll
+    }
+}
+
+impl<T: AsyncWrite + Unpin> AsyncWrite for HeadWatch<T> {
+    fn poll_write(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &[u8],
+    ) -> Poll<io::Result<usize>> {
+        let poll = Pin::new(&mut self.io).poll_write(cx, buf);
+        if matches!(poll, Poll::Ready(Ok(_))) {
+            self.head_started.store(false, Ordering::Relaxed);
+        }
+        poll
+    }
+
+    fn poll_write_vectored(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        bufs: &[io::IoSlice<'_>],
+    ) -> Poll<io::Result<usize>> {
+        let poll = Pin::new(&mut self.io).poll_write_vectored(cx, bufs);
+        if matches!(poll, Poll::Ready(Ok(_))) {
+            self.head_started.store(false, Ordering::Relaxed);
+        }
+        poll
+    }
+
+    fn is_write_vectored(&self) -> bool {
+        self.io.is_write_vectored()
+    }
+
+    fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.io).poll_flush(cx)
+    }
+
+    fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.io).poll_shutdown(cx)
+    }
 }
 
 /// A connection's place within `--max-connections` or among those being refused; a served

@@ -18,6 +18,13 @@ pub enum ErrorCode {
     NotFound,
     /// A route that exists, with another method (405).
     MethodNotAllowed,
+    /// No API key, or not the server's (401): `--api-key`.
+    Unauthorized,
+    /// A browser origin not on `--allow-origin` (403).
+    Forbidden,
+    /// The request's headers or body did not arrive in time (408): `--header-timeout-ms`,
+    /// `--body-timeout-ms`.
+    RequestTimeout,
     /// Body or WebSocket message larger than the limit, or an image with too many pixels (413).
     TooLarge,
     /// Not a PNG or JPEG (415).
@@ -49,6 +56,9 @@ impl ErrorCode {
             Self::BadRequest => StatusCode::BAD_REQUEST,
             Self::NotFound => StatusCode::NOT_FOUND,
             Self::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
+            Self::Unauthorized => StatusCode::UNAUTHORIZED,
+            Self::Forbidden => StatusCode::FORBIDDEN,
+            Self::RequestTimeout => StatusCode::REQUEST_TIMEOUT,
             Self::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             Self::UnsupportedMedia => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             Self::BadImage | Self::BadDepth | Self::BadCamera | Self::BadInput => {
@@ -66,6 +76,9 @@ impl ErrorCode {
             Self::BadRequest => "bad_request",
             Self::NotFound => "not_found",
             Self::MethodNotAllowed => "method_not_allowed",
+            Self::Unauthorized => "unauthorized",
+            Self::Forbidden => "forbidden",
+            Self::RequestTimeout => "request_timeout",
             Self::TooLarge => "too_large",
             Self::UnsupportedMedia => "unsupported_media",
             Self::BadImage => "bad_image",
@@ -89,10 +102,13 @@ impl ErrorCode {
     }
 
     /// Every code, for metrics and documentation.
-    pub const ALL: [ErrorCode; 14] = [
+    pub const ALL: [ErrorCode; 17] = [
         Self::BadRequest,
         Self::NotFound,
         Self::MethodNotAllowed,
+        Self::Unauthorized,
+        Self::Forbidden,
+        Self::RequestTimeout,
         Self::TooLarge,
         Self::UnsupportedMedia,
         Self::BadImage,
@@ -117,15 +133,26 @@ pub struct ApiError {
     pub message: String,
 }
 
+/// Longest message an error carries, characters: messages quote what the client sent (a
+/// query, a field name), and a client must not be able to make the server echo megabytes.
+pub const MAX_MESSAGE_CHARS: usize = 400;
+
 impl ApiError {
-    /// An error with `code` and `message`.
+    /// An error with `code` and `message`, cut to [`MAX_MESSAGE_CHARS`].
     pub fn new(code: ErrorCode, message: impl Into<String>) -> Self {
-        Self {
-            code,
-            message: message.into(),
-        }
+        let message = message.into();
+        let message = match super::refusals::cap(&message, MAX_MESSAGE_CHARS) {
+            std::borrow::Cow::Borrowed(_) => message,
+            std::borrow::Cow::Owned(cut) => cut,
+        };
+        Self { code, message }
     }
 }
+
+/// What a refused request was refused for, left in its response's extensions so that the
+/// request-id layer logs it ([`super::access`]).
+#[derive(Debug, Clone)]
+pub struct Refused(pub ApiError);
 
 impl From<PipelineError> for ApiError {
     fn from(e: PipelineError) -> Self {
@@ -191,6 +218,13 @@ impl IntoResponse for ApiError {
             resp.headers_mut()
                 .insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_S));
         }
+        if self.code == ErrorCode::Unauthorized {
+            resp.headers_mut().insert(
+                header::WWW_AUTHENTICATE,
+                HeaderValue::from_static("Bearer realm=\"tre\""),
+            );
+        }
+        resp.extensions_mut().insert(Refused(self));
         resp
     }
 }
@@ -210,5 +244,13 @@ mod tests {
             assert!((400..600).contains(&status), "{code:?} → {status}");
             assert_eq!(code.retryable(), status == 429 || status == 503);
         }
+    }
+
+    #[test]
+    fn messages_are_capped() {
+        let e = ApiError::new(ErrorCode::BadRequest, "x".repeat(100_000));
+        assert_eq!(e.message.chars().count(), MAX_MESSAGE_CHARS + 1);
+        let short = ApiError::new(ErrorCode::BadRequest, "short");
+        assert_eq!(short.message, "short");
     }
 }

@@ -13,7 +13,10 @@ use serde::Deserialize;
 
 use super::error::{ApiError, ErrorCode};
 use super::metrics::Gauges;
-use super::request::{Extras, Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
+use super::request::{
+    check_camera_ranges, image_header, strict_camera, DecodeLimits, Extras, Format, FrameOptions,
+    FrameReply, FrameRequest, SCALE_M,
+};
 use super::{AppState, OVERSIZE_READ_FACTOR};
 use crate::io::CameraFile;
 use crate::pipeline::{check_dsac_hypotheses, Mode, NormalsMethod, Traversability};
@@ -138,7 +141,7 @@ impl RoughnessQuery {
     }
 
     /// Camera from the query (all four intrinsics, or none of them).
-    fn camera(&self) -> Result<Option<CameraFile>, ApiError> {
+    fn camera(&self, limits: DecodeLimits) -> Result<Option<CameraFile>, ApiError> {
         let k = [self.fx, self.fy, self.cx, self.cy];
         let any = k.iter().any(Option::is_some)
             || self.pitch_deg.is_some()
@@ -153,7 +156,7 @@ impl RoughnessQuery {
                 "camera: give all of fx, fy, cx, cy",
             ));
         };
-        Ok(Some(CameraFile {
+        let cam = CameraFile {
             fx,
             fy,
             cx,
@@ -164,7 +167,9 @@ impl RoughnessQuery {
             pitch_deg: self.pitch_deg,
             height_m: self.height_m,
             sensor: None,
-        }))
+        };
+        check_camera_ranges(&cam, limits)?;
+        Ok(Some(cam))
     }
 }
 
@@ -179,10 +184,9 @@ pub async fn roughness(State(app): State<Arc<AppState>>, req: Request) -> Respon
         }
         Err(e) => {
             app.metrics.request("roughness", e.code.as_str(), None);
+            // Refusals are logged, rate-limited, by the access layer.
             if e.code == ErrorCode::Internal {
                 tracing::error!(error = %e.message, "request failed");
-            } else {
-                tracing::debug!(code = e.code.as_str(), error = %e.message, "request refused");
             }
             e.into_response()
         }
@@ -190,25 +194,10 @@ pub async fn roughness(State(app): State<Arc<AppState>>, req: Request) -> Respon
 }
 
 async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, ApiError> {
-    // One deadline for the whole request, upload included: a client that stops sending its
-    // body gives its place back when it passes, instead of holding it for good.
-    let timeout = app.cfg.request_timeout;
-    let deadline = tokio::time::Instant::now() + timeout;
-    let too_late = |what: &str| {
-        ApiError::new(
-            ErrorCode::Timeout,
-            format!("{what} within {} ms", timeout.as_millis()),
-        )
-    };
-    let _permit = app.concurrency.clone().try_acquire_owned().map_err(|_| {
-        ApiError::new(
-            ErrorCode::TooManyRequests,
-            format!(
-                "more than {} requests at once; retry later",
-                app.cfg.max_concurrent
-            ),
-        )
-    })?;
+    // The body has its own deadline (408), and a request takes a `--max-concurrent` place only
+    // once its body is in: clients still uploading, however slowly, hold none of the places
+    // that ready requests need (they are bounded by `--max-connections` and this deadline).
+    let body_timeout = app.cfg.body_timeout;
     let query = match req.uri().query() {
         None => Ok(RoughnessQuery::default()),
         Some(q) => Query::<RoughnessQuery>::try_from_uri(req.uri())
@@ -217,12 +206,31 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
     };
     // The body is read before a bad query is answered: a client still sending it would
     // otherwise meet a closed connection instead of the error.
-    let mut frame = tokio::time::timeout_at(deadline, read_body(app, req))
+    let mut frame = tokio::time::timeout(body_timeout, read_body(app, req))
         .await
-        .map_err(|_| too_late("the body did not arrive"))??;
+        .map_err(|_| {
+            ApiError::new(
+                ErrorCode::RequestTimeout,
+                format!(
+                    "the body did not arrive within {} ms (--body-timeout-ms)",
+                    body_timeout.as_millis()
+                ),
+            )
+        })??;
+    let timeout = app.cfg.request_timeout;
+    let deadline = tokio::time::Instant::now() + timeout;
+    let _permit = app.concurrency.clone().try_acquire_owned().map_err(|_| {
+        ApiError::new(
+            ErrorCode::TooManyRequests,
+            format!(
+                "more than {} requests at once (--max-concurrent); retry later",
+                app.cfg.max_concurrent
+            ),
+        )
+    })?;
     let query = query?;
     frame.options = query.options()?;
-    match (&frame.camera, query.camera()?) {
+    match (&frame.camera, query.camera(app.cfg.decode_limits())?) {
         (Some(_), Some(_)) => {
             return Err(bad(
                 "the camera is given both in the query and as a multipart part; give it once",
@@ -231,6 +239,7 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
         (None, from_query) => frame.camera = from_query,
         (Some(_), None) => {}
     }
+    check_shapes(&frame, app.cfg.decode_limits())?;
     let rx = app.workers.submit(frame)?;
     match tokio::time::timeout_at(deadline, rx).await {
         Ok(Ok((result, _queued))) => result,
@@ -238,8 +247,37 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
             ErrorCode::Internal,
             "the worker stopped before answering",
         )),
-        Err(_) => Err(too_late("no answer")),
+        Err(_) => Err(ApiError::new(
+            ErrorCode::Timeout,
+            format!(
+                "no answer within {} ms of the body's arrival (--request-timeout-ms)",
+                timeout.as_millis()
+            ),
+        )),
     }
+}
+
+/// The images' shapes from their headers, before the frame takes a place in the queue: a
+/// frame beyond the limits is refused at once rather than when a worker reaches it. (The
+/// worker checks again, and checks `.npy` depth, whose shape comes with its parsing.)
+fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result<(), ApiError> {
+    if let Some(rgb) = &frame.rgb {
+        image_header("rgb", rgb, limits)?;
+    }
+    if let Some(depth) = frame
+        .depth
+        .as_ref()
+        .filter(|d| !d.starts_with(b"\x93NUMPY"))
+    {
+        match image_header("depth", depth, limits) {
+            Err(e) if e.code == ErrorCode::TooLarge || e.message.contains("(--max-") => {
+                return Err(e)
+            }
+            // Other depth errors are answered by the worker, saying what depth may be.
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 /// Reads the body within the byte limit: a bare image, or multipart with `rgb`, `depth`,
@@ -259,7 +297,7 @@ async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiErro
         let multipart = Multipart::from_request(req, &())
             .await
             .map_err(|e| bad(format!("multipart: {}", e.body_text())))?;
-        return read_multipart(multipart).await;
+        return read_multipart(multipart, app.cfg.decode_limits()).await;
     }
     let image_type = [
         "",
@@ -318,7 +356,7 @@ async fn read_within(mut body: Body, limit: usize) -> Result<Bytes, ApiError> {
     Ok(Bytes::from(kept))
 }
 
-async fn read_multipart(mut m: Multipart) -> Result<FrameRequest, ApiError> {
+async fn read_multipart(mut m: Multipart, limits: DecodeLimits) -> Result<FrameRequest, ApiError> {
     let mut frame = FrameRequest::default();
     while let Some(field) = m
         .next_field()
@@ -333,10 +371,7 @@ async fn read_multipart(mut m: Multipart) -> Result<FrameRequest, ApiError> {
         match name.as_str() {
             "rgb" => set_once(&mut frame.rgb, &name, || Ok(data.to_vec()))?,
             "depth" => set_once(&mut frame.depth, &name, || Ok(data.to_vec()))?,
-            "camera" => set_once(&mut frame.camera, &name, || {
-                serde_json::from_slice::<CameraFile>(&data)
-                    .map_err(|e| ApiError::new(ErrorCode::BadCamera, format!("camera: not valid camera JSON ({{fx, fy, cx, cy, pitch_deg?, height_m?, depth_scale?}}): {e}")))
-            })?,
+            "camera" => set_once(&mut frame.camera, &name, || strict_camera(&data, limits))?,
             other => {
                 return Err(bad(format!(
                     "multipart: unknown field {other:?} (rgb, depth, camera)"
@@ -390,10 +425,6 @@ fn reply_response(reply: FrameReply) -> Response {
         format!("{}x{}", reply.working_size.0, reply.working_size.1),
     );
     set("server-timing", server_timing(&reply));
-    set(
-        "access-control-expose-headers",
-        "server-timing, x-roughness-scale-m, x-image-width, x-image-height, x-working-size".into(),
-    );
     if reply.extras.is_empty() {
         set("content-type", reply.format.content_type().into());
         return (StatusCode::OK, headers, reply.roughness).into_response();

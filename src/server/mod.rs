@@ -12,11 +12,13 @@
 //! # }
 //! ```
 
+pub mod access;
 pub mod connections;
 pub mod error;
 pub mod http;
 pub mod metrics;
 pub mod proto;
+pub mod refusals;
 pub mod request;
 pub mod stall;
 pub mod stream;
@@ -36,6 +38,7 @@ use tokio::sync::{watch, Semaphore};
 use crate::model::{Manifest, SessionConfig};
 use crate::pipeline::check_dsac_hypotheses;
 use metrics::Metrics;
+use refusals::RefusalLog;
 use request::{DecodeLimits, FrameDefaults};
 use workers::{PoolConfig, Workers};
 
@@ -62,9 +65,23 @@ pub struct ServeConfig {
     pub max_body_bytes: usize,
     /// Largest image, pixels (checked from the header before decoding).
     pub max_pixels: usize,
+    /// Longest image side, pixels (checked from the header before decoding).
+    pub max_side: usize,
+    /// Largest ratio of an image's longer side to its shorter one (from the header).
+    pub max_aspect: usize,
+    /// Time a client has to send a request's headers (408 when some came); an idle
+    /// kept-alive connection is closed after it.
+    pub header_timeout: Duration,
+    /// Time a client has to send a request's body once its headers have arrived (408).
+    pub body_timeout: Duration,
+    /// Bearer key wanted on every route but `/healthz` and `/readyz`; `None`: no key.
+    pub api_key: Option<String>,
+    /// Browser origins allowed to call the service and open the stream (`*`: any); a page
+    /// the server itself served is always allowed.
+    pub allow_origins: Vec<String>,
     /// Requests handled at once; more get 429.
     pub max_concurrent: usize,
-    /// Time an HTTP request may take from its arrival: body upload, queue and run.
+    /// Time an HTTP request may take once its body has arrived: queue wait and run.
     pub request_timeout: Duration,
     /// Largest WebSocket message, bytes.
     pub ws_max_message_bytes: usize,
@@ -89,7 +106,7 @@ impl Default for ServeConfig {
     fn default() -> Self {
         let cores = std::thread::available_parallelism().map_or(1, usize::from);
         Self {
-            addr: SocketAddr::from(([0, 0, 0, 0], 8080)),
+            addr: SocketAddr::from(([127, 0, 0, 1], 8080)),
             models: PathBuf::from("models"),
             workers: cores,
             session: SessionConfig {
@@ -98,7 +115,13 @@ impl Default for ServeConfig {
             },
             queue: 2 * cores,
             max_body_bytes: 32 << 20,
-            max_pixels: 16 << 20,
+            max_pixels: 4 << 20,
+            max_side: 8192,
+            max_aspect: 8,
+            header_timeout: Duration::from_secs(10),
+            body_timeout: Duration::from_secs(20),
+            api_key: None,
+            allow_origins: Vec::new(),
             max_concurrent: 64,
             request_timeout: Duration::from_secs(30),
             ws_max_message_bytes: 16 << 20,
@@ -131,6 +154,19 @@ pub struct AppState {
     pub model_names: Vec<String>,
     /// Becomes `true` when shutdown begins.
     pub shutdown: watch::Receiver<bool>,
+    /// The rate-limited log of refusals.
+    pub refusals: Arc<RefusalLog>,
+}
+
+impl ServeConfig {
+    /// The decoding limits of these settings.
+    pub fn decode_limits(&self) -> DecodeLimits {
+        DecodeLimits {
+            max_pixels: self.max_pixels,
+            max_side: self.max_side,
+            max_aspect: self.max_aspect,
+        }
+    }
 }
 
 /// Errors that keep the service from starting or serving.
@@ -164,6 +200,10 @@ pub fn router(state: Arc<AppState>) -> Router {
         .fallback(http::not_found)
         .method_not_allowed_fallback(http::method_not_allowed)
         .layer(DefaultBodyLimit::disable())
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            access::guard,
+        ))
         .with_state(state)
 }
 
@@ -187,9 +227,7 @@ pub async fn serve(
         queue: cfg.queue,
         models: cfg.models.clone(),
         session: cfg.session,
-        limits: DecodeLimits {
-            max_pixels: cfg.max_pixels,
-        },
+        limits: cfg.decode_limits(),
         defaults: cfg.defaults,
     };
     let workers = Workers::start(&pool, metrics.clone())?;
@@ -203,6 +241,15 @@ pub async fn serve(
         manifest_json,
         model_names,
         shutdown: stop_rx,
+        refusals: Arc::new(RefusalLog::default()),
+    });
+    let refusals = state.refusals.clone();
+    tokio::spawn(async move {
+        let mut every = tokio::time::interval(refusals::WINDOW);
+        loop {
+            every.tick().await;
+            refusals.flush();
+        }
     });
     let (failed_tx, failed_rx) = tokio::sync::oneshot::channel::<String>();
     tokio::spawn(watch_startup(state.clone(), failed_tx));
@@ -215,13 +262,18 @@ pub async fn serve(
         let _ = stop_tx.send(true);
     };
     let limits = connections::ConnectionLimits {
-        header_read: cfg.request_timeout,
+        header_read: cfg.header_timeout,
         write_stall: cfg.stall_timeout,
         max_open: cfg.max_connections,
         drain_bytes: cfg.max_body_bytes,
     };
-    let server =
-        connections::serve_connections(listener, app, limits, state.metrics.clone(), signal);
+    let server = connections::serve_connections(
+        listener,
+        app,
+        limits,
+        (state.metrics.clone(), state.refusals.clone()),
+        signal,
+    );
     // Upgraded streams are no longer connections of the server: it does not wait for them.
     // Each holds a stream permit until it has answered its frame in flight and closed, so
     // holding every permit means they are all done.

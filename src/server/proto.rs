@@ -97,6 +97,12 @@ impl TryFrom<pb::Camera> for CameraFile {
         let camera = |e| ApiError::new(ErrorCode::BadCamera, format!("camera: {e}"));
         cam.intrinsics().map_err(camera)?;
         cam.mounting().map_err(camera)?;
+        // The stated size is checked against each frame's; the side limit is the frame's.
+        let ranges = super::request::DecodeLimits {
+            max_side: usize::MAX,
+            ..super::request::DecodeLimits::default()
+        };
+        super::request::check_camera_ranges(&cam, ranges)?;
         if let Some(s) = cam.depth_scale.filter(|s| !(s.is_finite() && *s > 0.0)) {
             return Err(ApiError::new(
                 ErrorCode::BadCamera,

@@ -126,11 +126,75 @@ pub struct FrameRequest {
     pub options: FrameOptions,
 }
 
-/// Decoding limits.
+/// Decoding limits, all checked from the header before any pixel is decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct DecodeLimits {
-    /// Largest image, pixels (checked from the header, before decoding).
+    /// Largest image, pixels.
     pub max_pixels: usize,
+    /// Longest side, pixels.
+    pub max_side: usize,
+    /// Largest ratio of the longer side to the shorter one.
+    pub max_aspect: usize,
+}
+
+impl Default for DecodeLimits {
+    fn default() -> Self {
+        Self {
+            max_pixels: 4 << 20,
+            max_side: 8192,
+            max_aspect: 8,
+        }
+    }
+}
+
+impl DecodeLimits {
+    /// Checks a `w`×`h` image (`what`: `rgb` or `depth`) against the limits: 422 `bad_image`
+    /// without pixels or beyond the aspect ratio, 413 `too_large` beyond the side or the
+    /// pixel count; each message names the limit and its option.
+    pub fn check_shape(&self, what: &str, w: usize, h: usize) -> Result<(), ApiError> {
+        let (long, short) = (w.max(h), w.min(h));
+        // A depth part's shape is a depth error, as the rest of what is wrong with depth.
+        let bad_shape = if what == "depth" {
+            ErrorCode::BadDepth
+        } else {
+            ErrorCode::BadImage
+        };
+        let pixels = (w as u64).saturating_mul(h as u64);
+        if short == 0 {
+            return Err(ApiError::new(
+                bad_shape,
+                format!("{what}: the image is {w}×{h}, it has no pixels"),
+            ));
+        }
+        if long > self.max_side {
+            return Err(ApiError::new(
+                ErrorCode::TooLarge,
+                format!(
+                    "{what}: the image is {w}×{h}, a side longer than the limit of {} pixels (--max-side)",
+                    self.max_side
+                ),
+            ));
+        }
+        if pixels > self.max_pixels as u64 {
+            return Err(ApiError::new(
+                ErrorCode::TooLarge,
+                format!(
+                    "{what}: the image is {w}×{h} = {pixels} pixels, more than the limit of {} (--max-pixels)",
+                    self.max_pixels
+                ),
+            ));
+        }
+        if long > short.saturating_mul(self.max_aspect) {
+            return Err(ApiError::new(
+                bad_shape,
+                format!(
+                    "{what}: the image is {w}×{h}, its longer side more than {} times the shorter (--max-aspect)",
+                    self.max_aspect
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// One extra output map, encoded.
@@ -205,7 +269,7 @@ pub fn decode_image(
 
 /// The format and size of an image from its header, checked against the limits, without
 /// decoding its pixels.
-fn image_header(
+pub fn image_header(
     what: &str,
     bytes: &[u8],
     limits: DecodeLimits,
@@ -223,23 +287,79 @@ fn image_header(
     let (w, h) = ImageReader::with_format(Cursor::new(bytes), format)
         .into_dimensions()
         .map_err(bad)?;
-    let pixels = u64::from(w) * u64::from(h);
-    if pixels == 0 {
-        return Err(ApiError::new(
-            ErrorCode::BadImage,
-            format!("{what}: the image is {w}×{h}, it has no pixels"),
-        ));
-    }
-    if pixels > limits.max_pixels as u64 {
-        return Err(ApiError::new(
-            ErrorCode::TooLarge,
-            format!(
-                "{what}: the image is {w}×{h} = {pixels} pixels, more than the limit of {}",
-                limits.max_pixels
-            ),
-        ));
-    }
+    limits.check_shape(what, w as usize, h as usize)?;
     Ok((format, (w, h)))
+}
+
+/// Keys a camera JSON sent over HTTP or the stream may carry; any other is refused there
+/// (files read by the CLI keep their notes, such as `source` or `licence`).
+pub const CAMERA_KEYS: [&str; 10] = [
+    "fx",
+    "fy",
+    "cx",
+    "cy",
+    "width",
+    "height",
+    "depth_scale",
+    "pitch_deg",
+    "height_m",
+    "sensor",
+];
+
+/// Physical ranges of a camera sent by a client: focal lengths 1 px to 10⁶ px, pitch −90° to
+/// 90°, height above the ground 1 cm to 100 m, depth scale above 0 and at most 10⁶ units per
+/// metre, a stated size within the side limit. Anything else is 422 `bad_camera`.
+pub fn check_camera_ranges(cam: &CameraFile, limits: DecodeLimits) -> Result<(), ApiError> {
+    let within = |name: &str, v: Option<f64>, lo: f64, hi: f64, unit: &str| match v {
+        Some(x) if !(x.is_finite() && (lo..=hi).contains(&x)) => Err(ApiError::new(
+            ErrorCode::BadCamera,
+            format!("camera: {name} = {x} is outside {lo}–{hi} {unit}"),
+        )),
+        _ => Ok(()),
+    };
+    within("fx", Some(cam.fx), 1.0, 1e6, "px")?;
+    within("fy", Some(cam.fy), 1.0, 1e6, "px")?;
+    within("cx", Some(cam.cx), -1e6, 1e6, "px")?;
+    within("cy", Some(cam.cy), -1e6, 1e6, "px")?;
+    within("pitch_deg", cam.pitch_deg, -90.0, 90.0, "degrees")?;
+    within("height_m", cam.height_m, 0.01, 100.0, "m")?;
+    within("depth_scale", cam.depth_scale, 1e-3, 1e6, "units per metre")?;
+    for (name, side) in [("width", cam.width), ("height", cam.height)] {
+        if side.is_some_and(|s| s == 0 || s > limits.max_side) {
+            return Err(ApiError::new(
+                ErrorCode::BadCamera,
+                format!(
+                    "camera: {name} = {} is outside 1–{} px (--max-side)",
+                    side.unwrap_or(0),
+                    limits.max_side
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// A camera JSON from a client: only [`CAMERA_KEYS`], within [`check_camera_ranges`].
+pub fn strict_camera(json: &[u8], limits: DecodeLimits) -> Result<CameraFile, ApiError> {
+    let bad = |why: String| ApiError::new(ErrorCode::BadCamera, format!("camera: {why}"));
+    let value: serde_json::Value =
+        serde_json::from_slice(json).map_err(|e| bad(format!("not valid JSON ({e})")))?;
+    let Some(object) = value.as_object() else {
+        return Err(bad("expected a JSON object {fx, fy, cx, cy, ...}".into()));
+    };
+    if let Some(k) = object.keys().find(|k| !CAMERA_KEYS.contains(&k.as_str())) {
+        return Err(bad(format!(
+            "unknown key {k:?}; known: {}",
+            CAMERA_KEYS.join(", ")
+        )));
+    }
+    let cam: CameraFile = serde_json::from_value(value).map_err(|e| {
+        bad(format!(
+            "not valid camera JSON ({{fx, fy, cx, cy, pitch_deg?, height_m?, depth_scale?}}): {e}"
+        ))
+    })?;
+    check_camera_ranges(&cam, limits)?;
+    Ok(cam)
 }
 
 /// Decodes depth in metres: a 16-bit grey PNG at `units_per_m`, or a float `.npy`; depth that
@@ -262,18 +382,7 @@ fn depth_of(bytes: &[u8], units_per_m: f64, limits: DecodeLimits) -> Result<Grid
         let array = io::npy::read_npy(Cursor::new(bytes)).map_err(|e| bad(e.to_string()))?;
         let grid = io::npy_depth(array).map_err(bad)?;
         let (w, h) = grid.size();
-        if w * h == 0 {
-            return Err(bad(format!("the array is {w}×{h}, it has no pixels")));
-        }
-        if w * h > limits.max_pixels {
-            return Err(ApiError::new(
-                ErrorCode::TooLarge,
-                format!(
-                    "depth: {w}×{h} is more than the limit of {} pixels",
-                    limits.max_pixels
-                ),
-            ));
-        }
+        limits.check_shape("depth", w, h)?;
         return Ok(grid);
     }
     // Not an image, or a broken one: a depth error, saying what depth may be.
@@ -568,6 +677,8 @@ mod tests {
 
     const LIMITS: DecodeLimits = DecodeLimits {
         max_pixels: 1_000_000,
+        max_side: 4096,
+        max_aspect: 8,
     };
 
     fn png_bytes(w: u32, h: u32) -> Vec<u8> {
@@ -595,7 +706,10 @@ mod tests {
         );
         let e = decode_image("rgb", &good[..good.len() / 2], LIMITS).unwrap_err();
         assert_eq!(e.code, ErrorCode::BadImage, "{e}");
-        let small = DecodeLimits { max_pixels: 1000 };
+        let small = DecodeLimits {
+            max_pixels: 1000,
+            ..LIMITS
+        };
         assert_eq!(
             decode_image("rgb", &good, small).unwrap_err().code,
             ErrorCode::TooLarge
@@ -676,5 +790,31 @@ mod tests {
             let e = decode_frame(&request(rgb, geometric), LIMITS).unwrap_err();
             assert_eq!(e.code, code, "{e}");
         }
+    }
+
+    /// A file that declares a long thin image is refused from its header, naming the limit:
+    /// the side first (413), then the pixels (413), then the aspect ratio (422); depth alike.
+    #[test]
+    fn shapes_beyond_the_side_or_aspect_limits_are_refused_from_the_header() {
+        let limits = DecodeLimits {
+            max_pixels: 1 << 20,
+            max_side: 2048,
+            max_aspect: 8,
+        };
+        for (w, h, code, says) in [
+            (4096, 1, ErrorCode::TooLarge, "--max-side"),
+            (1, 4096, ErrorCode::TooLarge, "--max-side"),
+            (2048, 1024, ErrorCode::TooLarge, "--max-pixels"),
+            (2048, 255, ErrorCode::BadImage, "--max-aspect"),
+            (2048, 1, ErrorCode::BadImage, "--max-aspect"),
+        ] {
+            let e = decode_image("rgb", &png_bytes(w, h), limits).unwrap_err();
+            assert_eq!(e.code, code, "{w}×{h}: {e}");
+            assert!(e.message.contains(says), "{w}×{h}: {e}");
+        }
+        assert!(decode_image("rgb", &png_bytes(2048, 256), limits).is_ok());
+        let e = decode_depth(&npy_bytes(&[1, 100], &[1.0f32; 100]), 1000.0, limits).unwrap_err();
+        assert_eq!(e.code, ErrorCode::BadDepth, "{e}");
+        assert!(e.message.contains("--max-aspect"), "{e}");
     }
 }

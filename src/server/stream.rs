@@ -11,9 +11,11 @@ use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
 use axum::extract::State;
 use axum::response::{IntoResponse, Response};
+use axum::Extension;
 use futures_util::SinkExt;
 use tokio::sync::oneshot;
 
+use super::access::RequestId;
 use super::error::{ApiError, ErrorCode};
 use super::proto::{self, Incoming, StreamFrame, StreamSettings};
 use super::workers::JobResult;
@@ -27,8 +29,10 @@ const CLOSE_WAIT: Duration = Duration::from_secs(2);
 /// Upgrades the connection, unless `--max-streams` are open already (429 at once).
 pub async fn stream(
     State(app): State<Arc<AppState>>,
+    id: Option<Extension<RequestId>>,
     ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
 ) -> Response {
+    let id = id.map_or_else(|| "-".to_owned(), |Extension(RequestId(id))| id);
     let ws = match ws {
         Ok(ws) => ws,
         Err(e) => {
@@ -55,7 +59,7 @@ pub async fn stream(
         .max_frame_size(hard)
         .on_upgrade(move |socket| async move {
             app.metrics.stream_open(true);
-            Connection::new(app.clone(), socket).run().await;
+            Connection::new(app.clone(), socket, id).run().await;
             app.metrics.stream_open(false);
             drop(permit);
         })
@@ -85,6 +89,8 @@ struct Connection {
     waiting: Option<(StreamFrame, Instant)>,
     dropped_total: u64,
     last_heard: Instant,
+    /// The upgrade request's id, logged with the stream's refusals.
+    id: String,
 }
 
 /// What woke the connection up.
@@ -97,7 +103,7 @@ enum Event {
 }
 
 impl Connection {
-    fn new(app: Arc<AppState>, socket: WebSocket) -> Self {
+    fn new(app: Arc<AppState>, socket: WebSocket, id: String) -> Self {
         Self {
             app,
             socket,
@@ -106,6 +112,7 @@ impl Connection {
             waiting: None,
             dropped_total: 0,
             last_heard: Instant::now(),
+            id,
         }
     }
 
@@ -131,6 +138,12 @@ impl Connection {
                 Event::Message(Some(Err(e))) => {
                     tracing::debug!(error = %e, "stream read failed; closing");
                     if is_too_big(e) {
+                        let why = format!(
+                            "a message over {OVERSIZE_READ_FACTOR} × --ws-max-message-bytes; closed with 1009"
+                        );
+                        self.app
+                            .refusals
+                            .refused("stream", &self.id, "ws_close_1009", &why);
                         self.close(1009, "message too big").await;
                     }
                     false
@@ -219,6 +232,13 @@ impl Connection {
 
     async fn refuse(&mut self, seq: Option<u64>, e: &ApiError) -> bool {
         self.app.metrics.request("stream", e.code.as_str(), None);
+        if e.code == ErrorCode::Internal {
+            tracing::error!(request_id = %self.id, error = %e.message, "stream frame failed");
+        } else {
+            self.app
+                .refusals
+                .refused("stream", &self.id, e.code.as_str(), &e.message);
+        }
         self.send(proto::error(seq, e)).await
     }
 
