@@ -453,7 +453,17 @@ fn http_and_stream_answer_the_sensor_maps() {
     let server = common::Server::start(&["--workers", "1"]);
     let (depth, camera) = tum();
     let depth = std::fs::read(depth).unwrap();
-    let camera = std::fs::read_to_string(camera).unwrap();
+    // The service takes only the camera keys it knows: the shared file's intrinsics, its
+    // depth scale and its free-text sensor description (no noise model).
+    let file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(camera).unwrap()).unwrap();
+    let keys = ["fx", "fy", "cx", "cy", "depth_scale", "sensor"];
+    let camera = serde_json::Value::Object(
+        keys.iter()
+            .map(|k| ((*k).to_owned(), file[*k].clone()))
+            .collect(),
+    )
+    .to_string();
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
         let post = |query: &str| {
