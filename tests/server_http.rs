@@ -674,6 +674,9 @@ fn clients_that_left_give_their_queue_slots_to_new_frames() {
         "1",
         "--request-timeout-ms",
         "300",
+        // The slow frame is 12 Mpx, over the 4 Mi default.
+        "--max-pixels",
+        "12000000",
     ]);
     let url = format!("{}/v1/roughness", server.url());
     let small = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
