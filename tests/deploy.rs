@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
-use serde_yaml::Value;
+use serde_yaml_ng::Value;
 use tre::model::runtime::ORT_VERSION;
 
 /// Variables the deploy files may name that are not `tre serve` options: build-time settings.
@@ -74,7 +74,7 @@ fn read(rel: &str) -> String {
 }
 
 fn yaml(rel: &str) -> Value {
-    serde_yaml::from_str(&read(rel)).unwrap_or_else(|e| panic!("{rel} is not YAML: {e}"))
+    serde_yaml_ng::from_str(&read(rel)).unwrap_or_else(|e| panic!("{rel} is not YAML: {e}"))
 }
 
 /// The value at a dotted path (`spec.template.spec`; a number indexes a sequence); panics naming
