@@ -132,7 +132,7 @@ pub struct StageArgs {
     /// Seed of the DSAC sampler: the same seed gives the same output.
     #[arg(long, env = "TRE_SEED", default_value_t = 0)]
     pub seed: u64,
-    /// DSAC hypotheses per pixel, 1 to 64 (12: as trained; fewer are faster, see the README).
+    /// DSAC hypotheses per pixel, 1 to 64 (12: as trained; fewer are faster, see docs/evaluation.md).
     #[arg(long, env = "TRE_DSAC_HYPOTHESES", default_value_t = DEFAULT_DSAC_HYPOTHESES,
           value_parser = dsac_hypotheses_arg())]
     pub dsac_hypotheses: u32,

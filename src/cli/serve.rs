@@ -96,11 +96,11 @@ pub struct Serve {
     #[arg(long, env = "TRE_WS_MAX_MESSAGE_BYTES", default_value_t = 16 << 20)]
     pub ws_max_message_bytes: usize,
     /// Initial normals of frames that do not choose: dsac (the paper's method) or ls (faster;
-    /// see the README's accuracy and speed tables). Requests override it with `normals=`.
+    /// see docs/evaluation.md and docs/benchmarks.md). Requests override it with `normals=`.
     #[arg(long, env = "TRE_NORMALS", value_enum, default_value = "dsac")]
     pub normals: NormalsArg,
     /// DSAC hypotheses per pixel, 1 to 64: 12 as the neighbour net was trained; fewer are
-    /// faster at some cost in accuracy (see the README's table).
+    /// faster at some cost in accuracy (see docs/evaluation.md).
     #[arg(long, env = "TRE_DSAC_HYPOTHESES", default_value_t = DEFAULT_DSAC_HYPOTHESES,
           value_parser = dsac_hypotheses_arg())]
     pub dsac_hypotheses: u32,

@@ -165,7 +165,7 @@ pub struct PipelineConfig {
     pub seed: u64,
     /// DSAC hypotheses per pixel, K: 1 to [`MAX_DSAC_HYPOTHESES`]. The default,
     /// [`DEFAULT_DSAC_HYPOTHESES`], is what the neighbour net was trained with; fewer cost
-    /// less time (the README's table gives what they cost in accuracy). With the same seed,
+    /// less time (docs/evaluation.md gives what they cost in accuracy). With the same seed,
     /// hypothesis `j` is the same for every K above `j`, so a larger K never scores lower.
     #[serde(default = "default_dsac_hypotheses")]
     pub dsac_hypotheses: u32,
