@@ -260,7 +260,7 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
 /// The images' shapes from their headers, before the frame takes a place in the queue: a
 /// frame beyond the limits is refused at once rather than when a worker reaches it. (The
 /// worker checks again, and checks `.npy` depth, whose shape comes with its parsing.)
-fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result<(), ApiError> {
+pub(crate) fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result<(), ApiError> {
     if let Some(rgb) = &frame.rgb {
         image_header("rgb", rgb, limits)?;
     }
@@ -283,21 +283,34 @@ fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result<(), ApiErr
 /// Reads the body within the byte limit: a bare image, or multipart with `rgb`, `depth`,
 /// `camera`.
 async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiError> {
-    let limit = app.cfg.max_body_bytes;
     let content_type = req
         .headers()
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
         .unwrap_or("")
-        .to_ascii_lowercase();
-    let (parts, body) = req.into_parts();
-    let bytes = read_within(body, limit).await?;
-    if content_type.starts_with("multipart/form-data") {
-        let req = Request::from_parts(parts, Body::from(bytes));
+        .to_owned();
+    let bytes = read_within(req.into_body(), app.cfg.max_body_bytes).await?;
+    parse_body(&content_type, bytes, app.cfg.decode_limits()).await
+}
+
+/// The frame a body of `content_type` carries: a bare image, or multipart with `rgb`, `depth`,
+/// `camera` (the camera checked with [`strict_camera`]). The images are not decoded here.
+pub async fn parse_body(
+    content_type: &str,
+    bytes: Bytes,
+    limits: DecodeLimits,
+) -> Result<FrameRequest, ApiError> {
+    // The boundary keeps its case (browsers' mix both); only the type is compared lowercase.
+    let lower = content_type.to_ascii_lowercase();
+    if lower.starts_with("multipart/form-data") {
+        let req = Request::builder()
+            .header(header::CONTENT_TYPE, content_type)
+            .body(Body::from(bytes))
+            .map_err(|e| bad(format!("multipart: {e}")))?;
         let multipart = Multipart::from_request(req, &())
             .await
             .map_err(|e| bad(format!("multipart: {}", e.body_text())))?;
-        return read_multipart(multipart, app.cfg.decode_limits()).await;
+        return read_multipart(multipart, limits).await;
     }
     let image_type = [
         "",
@@ -306,7 +319,7 @@ async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiErro
         "image/jpg",
         "application/octet-stream",
     ];
-    let essence = content_type.split(';').next().unwrap_or("").trim();
+    let essence = lower.split(';').next().unwrap_or("").trim();
     if !image_type.contains(&essence) {
         return Err(ApiError::new(
             ErrorCode::UnsupportedMedia,

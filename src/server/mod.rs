@@ -15,6 +15,7 @@
 pub mod access;
 pub mod connections;
 pub mod error;
+pub mod fuzzing;
 pub mod http;
 pub mod metrics;
 pub mod proto;
