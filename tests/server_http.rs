@@ -404,10 +404,11 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
             ),
             (
                 // Its shape times the value size wraps around to a few bytes: this once
-                // passed the length check and stopped the only worker.
+                // passed the length check and stopped the only worker. Its shape is now
+                // beyond --max-pixels from the header, as a PNG's would be.
                 "depth .npy whose shape overflows",
                 with_depth(overflowing_npy()),
-                "bad_depth",
+                "too_large",
             ),
             (
                 "depth that is not an image",
@@ -431,7 +432,10 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
                 .unwrap();
             let (s, c, message) = error_of(resp).await;
             assert_eq!(c, code, "{what}: {message}");
-            assert!(s == 400 || s == 422, "{what}: status {s}");
+            assert!(
+                s == 400 || s == 422 || (s == 413 && c == "too_large"),
+                "{what}: status {s}"
+            );
             still_serves(&server).await;
         }
         let (s, c, _) =
@@ -490,7 +494,11 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
         metrics.contains("tre_requests_total{endpoint=\"roughness\",outcome=\"bad_image\"} 4"),
         "{metrics}"
     );
-    assert!(metrics.contains("tre_requests_total{endpoint=\"roughness\",outcome=\"too_large\"} 2"));
+    // Two oversize bodies and the depth .npy whose shape is beyond --max-pixels.
+    assert!(
+        metrics.contains("tre_requests_total{endpoint=\"roughness\",outcome=\"too_large\"} 3"),
+        "{metrics}"
+    );
 }
 
 #[test]
@@ -795,7 +803,7 @@ fn a_client_that_stalls_mid_upload_holds_no_place_and_hears_408() {
 
 /// Eighty connections sending a body at one byte a second (the defaults: 64 places) do not
 /// stop another client's frame: it is answered 200 while they trickle, and the trickling
-/// uploads end with 408 at `--body-timeout-ms`.
+/// uploads end with 408 (at the end of the first `--min-body-rate` window, 5 s).
 #[test]
 fn eighty_trickling_uploads_do_not_starve_a_ready_request() {
     let server = Server::start(&["--workers", "1", "--body-timeout-ms", "6000"]);
@@ -843,6 +851,77 @@ fn eighty_trickling_uploads_do_not_starve_a_ready_request() {
     );
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
     feeder.join().unwrap();
+}
+
+/// An RGB PNG of `w`×`h` that does not compress (a deterministic noise), about 3 B per pixel.
+fn noise_png(w: u32, h: u32) -> Vec<u8> {
+    let mut state = 0x2545_f491_u32;
+    let img = image::RgbImage::from_fn(w, h, |_, _| {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        let [a, b, c, _] = state.to_le_bytes();
+        image::Rgb([a, b, c])
+    });
+    let mut out = Vec::new();
+    image::DynamicImage::ImageRgb8(img)
+        .write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
+        .unwrap();
+    out
+}
+
+/// Sends `body` as a PNG upload at `chunk` bytes every `every` and returns the answer, read as
+/// it comes (the server may answer and close before the body is all sent).
+fn paced_upload(server: &Server, body: &[u8], chunk: usize, every: std::time::Duration) -> String {
+    use std::io::Read;
+    let mut tcp = TcpStream::connect(server.addr).unwrap();
+    let mut reader = tcp.try_clone().unwrap();
+    let reading = std::thread::spawn(move || {
+        let mut answer = Vec::new();
+        let _ = reader.read_to_end(&mut answer);
+        String::from_utf8_lossy(&answer).into_owned()
+    });
+    let head = format!(
+        "POST /v1/roughness?mode=rgb&normals=ls HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+        body.len()
+    );
+    tcp.write_all(head.as_bytes()).unwrap();
+    for piece in body.chunks(chunk) {
+        if reading.is_finished() || tcp.write_all(piece).is_err() {
+            break;
+        }
+        std::thread::sleep(every);
+    }
+    reading.join().unwrap()
+}
+
+/// `--min-body-rate` (1 KiB/s by default, over 5 s windows): an upload at about 100 B/s hears
+/// 408 naming the option after one window, long before `--body-timeout-ms` (60 s here); one at
+/// about 2.5 KiB/s, slow but above the rate, lasting beyond a window, is answered 200.
+#[test]
+fn a_body_below_the_minimum_rate_hears_408_and_one_above_it_is_served() {
+    let server = Server::start(&["--workers", "1", "--body-timeout-ms", "60000"]);
+    let frame = noise_png(96, 64);
+    assert!(frame.len() > 15_000, "{} bytes", frame.len());
+    let started = std::time::Instant::now();
+    let (slow, steady) = std::thread::scope(|s| {
+        let slow =
+            s.spawn(|| paced_upload(&server, &frame, 20, std::time::Duration::from_millis(200)));
+        let steady =
+            s.spawn(|| paced_upload(&server, &frame, 500, std::time::Duration::from_millis(200)));
+        (slow.join().unwrap(), steady.join().unwrap())
+    });
+    assert!(slow.starts_with("HTTP/1.1 408"), "{slow}");
+    assert!(
+        slow.contains("\"request_timeout\"") && slow.contains("--min-body-rate"),
+        "{slow}"
+    );
+    assert!(steady.starts_with("HTTP/1.1 200"), "{steady}");
+    assert!(
+        started.elapsed() < std::time::Duration::from_secs(30),
+        "took {:?}",
+        started.elapsed()
+    );
 }
 
 /// Posts `frame` for `query` over a socket with a receive buffer of `recv_buffer` bytes (so that

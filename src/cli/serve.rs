@@ -75,6 +75,11 @@ pub struct Serve {
     /// 408). Uploads hold no --max-concurrent place.
     #[arg(long, env = "TRE_BODY_TIMEOUT_MS", default_value_t = 20_000)]
     pub body_timeout_ms: u64,
+    /// Least rate of a request's body, bytes a second, averaged over each 5 s from the headers
+    /// on (the first 5 s are the grace): a body slower than this gets 408 at the end of the
+    /// window, before --body-timeout-ms. 0 turns it off.
+    #[arg(long, env = "TRE_MIN_BODY_RATE", default_value_t = 1024)]
+    pub min_body_rate: u64,
     /// API key: every route and the stream upgrade except /healthz and /readyz then want
     /// `Authorization: Bearer KEY` (401 without). Prefer the environment to the command line.
     #[arg(long, env = "TRE_API_KEY", hide_env_values = true)]
@@ -182,6 +187,7 @@ impl Serve {
             max_aspect: self.max_aspect,
             header_timeout: Duration::from_millis(self.header_timeout_ms),
             body_timeout: Duration::from_millis(self.body_timeout_ms),
+            min_body_rate: self.min_body_rate,
             api_key,
             allow_origins: self.allow_origin.clone(),
             max_concurrent: self.max_concurrent,

@@ -53,6 +53,14 @@ pub enum IoError {
     /// A malformed `.npy` file.
     #[error(".npy: {0}")]
     Npy(String),
+    /// A `.npy` whose header declares more values than allowed (checked before reading them).
+    #[error(".npy: shape {shape:?} holds more values than the limit of {limit}")]
+    NpyTooLarge {
+        /// The declared shape.
+        shape: Vec<usize>,
+        /// The most values allowed.
+        limit: usize,
+    },
     /// A malformed camera JSON file.
     #[error("{path}: bad camera JSON: {reason}")]
     Camera {

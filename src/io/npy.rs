@@ -141,7 +141,14 @@ impl NpyArray {
 }
 
 /// Reads a `.npy` file of any supported numeric dtype into f64.
-pub fn read_npy(mut r: impl Read) -> Result<NpyArray, IoError> {
+pub fn read_npy(r: impl Read) -> Result<NpyArray, IoError> {
+    read_npy_within(r, usize::MAX)
+}
+
+/// [`read_npy`], refusing from the header alone an array of more than `max_values` values, so
+/// that a client's file is bounded before it is converted (8 bytes per value, whatever its
+/// dtype: a float16 file would otherwise take four times its size).
+pub fn read_npy_within(mut r: impl Read, max_values: usize) -> Result<NpyArray, IoError> {
     let mut bytes = Vec::new();
     r.read_to_end(&mut bytes)?;
     let bad = |why: &str| IoError::Npy(why.to_string());
@@ -171,6 +178,12 @@ pub fn read_npy(mut r: impl Read) -> Result<NpyArray, IoError> {
         .iter()
         .try_fold(1usize, |n, &d| n.checked_mul(d))
         .ok_or_else(|| bad(&format!("shape {shape:?} holds more values than can exist")))?;
+    if count > max_values {
+        return Err(IoError::NpyTooLarge {
+            shape,
+            limit: max_values,
+        });
+    }
     let body = &bytes[start + header_len..];
     let dtype = descr.trim_matches('\'');
     let data = decode(dtype, body, count)?;
@@ -297,6 +310,27 @@ mod tests {
             .to_string()
             .contains("truncated"));
         assert!(read_npy(&b"hello"[..]).is_err());
+    }
+
+    /// A shape beyond the caller's limit is refused from the header, before its values are
+    /// read (a float16 file would otherwise take four times its size as f64).
+    #[test]
+    fn shapes_beyond_the_limit_are_refused_before_reading() {
+        let mut buf = Vec::new();
+        write_npy(&mut buf, &[3, 4], &[F16::from_f32(1.0); 12]).unwrap();
+        assert_eq!(read_npy_within(&buf[..], 12).unwrap().data.len(), 12);
+        match read_npy_within(&buf[..], 11) {
+            Err(IoError::NpyTooLarge { shape, limit }) => {
+                assert_eq!((shape, limit), (vec![3, 4], 11))
+            }
+            other => panic!("{other:?}"),
+        }
+        // The header alone is enough: no data behind it.
+        buf.truncate(buf.len() - 24);
+        assert!(matches!(
+            read_npy_within(&buf[..], 11),
+            Err(IoError::NpyTooLarge { .. })
+        ));
     }
 
     /// A header whose shape overflows when its dimensions (or its bytes) are multiplied: an

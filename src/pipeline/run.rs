@@ -129,6 +129,13 @@ impl Pipeline {
         out.give_maps(&mut self.scratch.spares);
     }
 
+    /// Drops every buffer kept from frame to frame (tensors, geometry scratch, the spec's maps,
+    /// recycled maps), so that a large frame does not pin its memory until the process ends;
+    /// the next frame allocates afresh, as the first one did. The models keep theirs.
+    pub fn release_buffers(&mut self) {
+        self.scratch = Scratch::default();
+    }
+
     /// Time spent inside ONNX Runtime by the loaded models so far.
     fn onnx_runtime_time(&self) -> Duration {
         self.models

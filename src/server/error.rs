@@ -23,7 +23,7 @@ pub enum ErrorCode {
     /// A browser origin not on `--allow-origin` (403).
     Forbidden,
     /// The request's headers or body did not arrive in time (408): `--header-timeout-ms`,
-    /// `--body-timeout-ms`.
+    /// `--body-timeout-ms`, `--min-body-rate`.
     RequestTimeout,
     /// Body or WebSocket message larger than the limit, or an image with too many pixels (413).
     TooLarge,

@@ -260,7 +260,7 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
 /// The images' shapes from their headers, before the frame takes a place in the queue: a
 /// frame beyond the limits is refused at once rather than when a worker reaches it. (The
 /// worker checks again, and checks `.npy` depth, whose shape comes with its parsing.)
-fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result<(), ApiError> {
+pub(crate) fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result<(), ApiError> {
     if let Some(rgb) = &frame.rgb {
         image_header("rgb", rgb, limits)?;
     }
@@ -283,21 +283,35 @@ fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result<(), ApiErr
 /// Reads the body within the byte limit: a bare image, or multipart with `rgb`, `depth`,
 /// `camera`.
 async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiError> {
-    let limit = app.cfg.max_body_bytes;
     let content_type = req
         .headers()
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
         .unwrap_or("")
-        .to_ascii_lowercase();
-    let (parts, body) = req.into_parts();
-    let bytes = read_within(body, limit).await?;
-    if content_type.starts_with("multipart/form-data") {
-        let req = Request::from_parts(parts, Body::from(bytes));
+        .to_owned();
+    let pace = BodyPace::new(app.cfg.min_body_rate);
+    let bytes = read_within(req.into_body(), app.cfg.max_body_bytes, pace).await?;
+    parse_body(&content_type, bytes, app.cfg.decode_limits()).await
+}
+
+/// The frame a body of `content_type` carries: a bare image, or multipart with `rgb`, `depth`,
+/// `camera` (the camera checked with [`strict_camera`]). The images are not decoded here.
+pub async fn parse_body(
+    content_type: &str,
+    bytes: Bytes,
+    limits: DecodeLimits,
+) -> Result<FrameRequest, ApiError> {
+    // The boundary keeps its case (browsers' mix both); only the type is compared lowercase.
+    let lower = content_type.to_ascii_lowercase();
+    if lower.starts_with("multipart/form-data") {
+        let req = Request::builder()
+            .header(header::CONTENT_TYPE, content_type)
+            .body(Body::from(bytes))
+            .map_err(|e| bad(format!("multipart: {e}")))?;
         let multipart = Multipart::from_request(req, &())
             .await
             .map_err(|e| bad(format!("multipart: {}", e.body_text())))?;
-        return read_multipart(multipart, app.cfg.decode_limits()).await;
+        return read_multipart(multipart, limits).await;
     }
     let image_type = [
         "",
@@ -306,7 +320,7 @@ async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiErro
         "image/jpg",
         "application/octet-stream",
     ];
-    let essence = content_type.split(';').next().unwrap_or("").trim();
+    let essence = lower.split(';').next().unwrap_or("").trim();
     if !image_type.contains(&essence) {
         return Err(ApiError::new(
             ErrorCode::UnsupportedMedia,
@@ -319,10 +333,10 @@ async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiErro
     })
 }
 
-/// The body, if it has at most `limit` bytes; a 413 otherwise, once the rest has been read (up to
-/// [`OVERSIZE_READ_FACTOR`] × `limit`) and discarded, or at once when the declared length is
-/// beyond that.
-async fn read_within(mut body: Body, limit: usize) -> Result<Bytes, ApiError> {
+/// The body, if it has at most `limit` bytes and arrives at `pace`; a 413 otherwise, once the
+/// rest has been read (up to [`OVERSIZE_READ_FACTOR`] × `limit`) and discarded, or at once when
+/// the declared length is beyond that; a 408 when it falls below the pace.
+async fn read_within(mut body: Body, limit: usize, mut pace: BodyPace) -> Result<Bytes, ApiError> {
     let most = limit.saturating_mul(OVERSIZE_READ_FACTOR);
     let too_large = || {
         ApiError::new(
@@ -338,13 +352,24 @@ async fn read_within(mut body: Body, limit: usize) -> Result<Bytes, ApiError> {
     let mut kept = Vec::with_capacity(declared.min(limit));
     let mut seen = 0usize;
     while seen <= most {
-        let Some(frame) = body.frame().await else {
+        let next = match pace.deadline() {
+            None => body.frame().await,
+            Some(at) => match tokio::time::timeout_at(at, body.frame()).await {
+                Ok(next) => next,
+                Err(_) => {
+                    pace.check(0, tokio::time::Instant::now())?;
+                    continue;
+                }
+            },
+        };
+        let Some(frame) = next else {
             break;
         };
         let frame = frame.map_err(|e| bad(format!("reading the body: {e}")))?;
         let Ok(data) = frame.into_data() else {
             continue;
         };
+        pace.check(data.len(), tokio::time::Instant::now())?;
         seen = seen.saturating_add(data.len());
         if seen <= limit {
             kept.extend_from_slice(&data);
@@ -354,6 +379,61 @@ async fn read_within(mut body: Body, limit: usize) -> Result<Bytes, ApiError> {
         return Err(too_large());
     }
     Ok(Bytes::from(kept))
+}
+
+/// Window over which a body's rate is averaged (`--min-body-rate`); the first one is the grace
+/// a client has before its rate counts.
+pub const BODY_RATE_WINDOW: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// The pace a body must keep: on average at least `--min-body-rate` bytes a second over each
+/// [`BODY_RATE_WINDOW`] from the headers on (a tumbling window: a body sent quickly and then
+/// stopped is caught one window later, not after its earlier bytes have been used up).
+#[derive(Debug, Clone, Copy)]
+struct BodyPace {
+    /// Bytes a second; 0: no pace.
+    min_bytes_per_s: u64,
+    /// Start of the current window.
+    since: tokio::time::Instant,
+    /// Bytes in it.
+    bytes: usize,
+}
+
+impl BodyPace {
+    fn new(min_bytes_per_s: u64) -> Self {
+        Self {
+            min_bytes_per_s,
+            since: tokio::time::Instant::now(),
+            bytes: 0,
+        }
+    }
+
+    /// When the current window ends; `None` without a pace.
+    fn deadline(&self) -> Option<tokio::time::Instant> {
+        (self.min_bytes_per_s > 0).then(|| self.since + BODY_RATE_WINDOW)
+    }
+
+    /// Counts `n` bytes arrived at `now`; at the end of a window, a 408 if it held too few,
+    /// else the next window starts.
+    fn check(&mut self, n: usize, now: tokio::time::Instant) -> Result<(), ApiError> {
+        self.bytes = self.bytes.saturating_add(n);
+        if !self.deadline().is_some_and(|end| now >= end) {
+            return Ok(());
+        }
+        let secs = (now - self.since).as_secs_f64();
+        let rate = self.bytes as f64 / secs;
+        if rate < self.min_bytes_per_s as f64 {
+            return Err(ApiError::new(
+                ErrorCode::RequestTimeout,
+                format!(
+                    "the body arrived at {rate:.0} bytes/s over {secs:.1} s, below the minimum of {} bytes/s (--min-body-rate)",
+                    self.min_bytes_per_s
+                ),
+            ));
+        }
+        self.since = now;
+        self.bytes = 0;
+        Ok(())
+    }
 }
 
 async fn read_multipart(mut m: Multipart, limits: DecodeLimits) -> Result<FrameRequest, ApiError> {
@@ -538,4 +618,29 @@ pub async fn demo() -> impl IntoResponse {
         [(header::CONTENT_TYPE, "text/html; charset=utf-8")],
         DEMO_PAGE,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    /// Within a window nothing is judged; at its end, too few bytes is a 408 naming the option,
+    /// enough starts the next window afresh (earlier bytes do not carry over).
+    #[test]
+    fn body_pace_judges_each_window() {
+        let mut pace = BodyPace::new(1024);
+        let t0 = pace.since;
+        assert_eq!(pace.deadline(), Some(t0 + BODY_RATE_WINDOW));
+        pace.check(10, t0 + Duration::from_secs(1)).unwrap();
+        pace.check(6000, t0 + BODY_RATE_WINDOW).unwrap();
+        assert_eq!((pace.since, pace.bytes), (t0 + BODY_RATE_WINDOW, 0));
+        let e = pace.check(100, t0 + 2 * BODY_RATE_WINDOW).unwrap_err();
+        assert_eq!(e.code, ErrorCode::RequestTimeout);
+        assert!(e.message.contains("--min-body-rate"), "{e}");
+        assert!(e.message.contains("20 bytes/s"), "{e}");
+        let mut off = BodyPace::new(0);
+        assert_eq!(off.deadline(), None);
+        off.check(0, t0 + Duration::from_secs(3600)).unwrap();
+    }
 }

@@ -15,6 +15,7 @@
 pub mod access;
 pub mod connections;
 pub mod error;
+pub mod fuzzing;
 pub mod http;
 pub mod metrics;
 pub mod proto;
@@ -74,6 +75,9 @@ pub struct ServeConfig {
     pub header_timeout: Duration,
     /// Time a client has to send a request's body once its headers have arrived (408).
     pub body_timeout: Duration,
+    /// Least average rate of a request's body, bytes a second over each
+    /// [`http::BODY_RATE_WINDOW`] (408 below it); 0: none.
+    pub min_body_rate: u64,
     /// Bearer key wanted on every route but `/healthz` and `/readyz`; `None`: no key.
     pub api_key: Option<String>,
     /// Browser origins allowed to call the service and open the stream (`*`: any); a page
@@ -120,6 +124,7 @@ impl Default for ServeConfig {
             max_aspect: 8,
             header_timeout: Duration::from_secs(10),
             body_timeout: Duration::from_secs(20),
+            min_body_rate: 1024,
             api_key: None,
             allow_origins: Vec::new(),
             max_concurrent: 64,

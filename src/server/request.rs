@@ -379,7 +379,16 @@ pub fn decode_depth(
 fn depth_of(bytes: &[u8], units_per_m: f64, limits: DecodeLimits) -> Result<Grid<f64>, ApiError> {
     let bad = |m: String| ApiError::new(ErrorCode::BadDepth, format!("depth: {m}"));
     if bytes.starts_with(b"\x93NUMPY") {
-        let array = io::npy::read_npy(Cursor::new(bytes)).map_err(|e| bad(e.to_string()))?;
+        // The shape is bounded from the header, before any value is converted; the pixel limit
+        // is then checked with the side and aspect limits, naming each.
+        let array = io::npy::read_npy_within(Cursor::new(bytes), limits.max_pixels).map_err(
+            |e| match e {
+                io::IoError::NpyTooLarge { .. } => {
+                    ApiError::new(ErrorCode::TooLarge, format!("depth: {e} (--max-pixels)"))
+                }
+                e => bad(e.to_string()),
+            },
+        )?;
         let grid = io::npy_depth(array).map_err(bad)?;
         let (w, h) = grid.size();
         limits.check_shape("depth", w, h)?;

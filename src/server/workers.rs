@@ -307,10 +307,36 @@ fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> Jo
     });
     let encoded = started.elapsed();
     pipeline.recycle(out);
+    let large = frame
+        .size()
+        .is_some_and(|(w, h)| w.saturating_mul(h) > LARGE_FRAME_PIXELS);
+    drop(frame);
+    if large {
+        pipeline.release_buffers();
+        give_back_freed_memory();
+    }
     let mut reply = reply?;
     reply.timings.add_first("decode", decoded);
     reply.timings.add("encode", encoded);
     Ok(reply)
+}
+
+/// Frames of more pixels than this (1280×1024) give their memory back once answered: the
+/// pipeline drops the buffers it keeps from frame to frame, and the allocator returns what is
+/// free to the system. Smaller frames, the usual sensor sizes, keep them warm.
+const LARGE_FRAME_PIXELS: usize = 1280 * 1024;
+
+/// Returns the heap's free pages to the system (glibc's `malloc_trim(0)`, which releases free
+/// memory inside every arena, not only at its top; a few milliseconds after a large frame).
+/// Elsewhere a no-op.
+#[allow(unsafe_code)] // One FFI call with no pointer arguments; glibc's malloc_trim is thread-safe.
+fn give_back_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim takes a size and touches only the allocator's own state, under its
+    // locks.
+    unsafe {
+        libc::malloc_trim(0);
+    }
 }
 
 /// Runs every mode once on a synthetic 256×192 frame, so that ONNX Runtime has allocated and
