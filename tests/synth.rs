@@ -1,6 +1,7 @@
 //! Synthetic dataset: determinism, depth and normals against the rendered geometry, and the
-//! annotator on known scenes (flat pavement, stairs), and the depth-sensor models (noise against
-//! their presets, holes, realism against real Kinect floor).
+//! annotator on known scenes (flat pavement, stairs), the depth-sensor models (noise against
+//! their presets, holes, realism against real Kinect floor), the indoor and urban content
+//! (objects, labels, edges in the ground truth, natural output unchanged) and resumed runs.
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use std::path::Path;
@@ -204,6 +205,7 @@ fn stairs_show_their_step_heights_on_the_boundaries() {
             seed: 3,
             steps: Some(steps),
         }],
+        ..Terrain::default()
     };
     let view = robot_view(256);
     let f = render(&scene_of(terrain), &view, &clear_noon());
@@ -788,4 +790,116 @@ fn image_effects_change_only_the_image_and_are_recorded() {
     let q = im["jpeg_quality"].as_u64().unwrap();
     assert!((40..=95).contains(&q), "{im}");
     assert!(im["exposure_stops"].as_f64().unwrap().abs() <= 1.0);
+}
+
+mod content {
+    //! Indoor and urban content: object profiles, layouts, labels in the frames, the spec's edges
+    //! on curbs, sills and boxes, natural output unchanged, and resumed runs.
+
+    use super::*;
+    use sha2::{Digest, Sha256};
+    use std::collections::BTreeSet;
+    use tre::synth::content::{indoor, urban, Content};
+    use tre::synth::objects::{Object, Profile, Shape};
+
+    fn object(category: Category, shape: Shape, profile: Profile) -> Object {
+        Object {
+            category,
+            seed: 1,
+            shape,
+            profile,
+        }
+    }
+
+    #[test]
+    fn profiles_give_their_heights() {
+        let rect = Shape::rect((0.0, 2.0), (0.5, 0.4), 0.0);
+        let flight = Profile::Flight {
+            base_m: 0.0,
+            riser_m: -0.15,
+            tread_m: 0.3,
+            steps: 3,
+        };
+        let flight = object(Category::Stairs, rect.clone(), flight);
+        // u from −0.5: first tread to −0.2, second to 0.1, then the third and the landing.
+        for (x, want) in [(-0.4, -0.15), (0.0, -0.30), (0.3, -0.45), (0.49, -0.45)] {
+            assert!((flight.height_over(x, 2.0, 0.0).unwrap() - want).abs() < 1e-12);
+        }
+        assert!(flight.height_over(0.6, 2.0, 0.0).is_none());
+        let ramp = Profile::Ramp {
+            low_m: -0.12,
+            high_m: 0.0,
+            flare_m: 0.1,
+        };
+        let ramp = object(Category::KerbRamp, rect, ramp);
+        assert!((ramp.height_over(-0.5, 2.0, 0.0).unwrap() + 0.12).abs() < 1e-12);
+        assert!((ramp.height_over(0.0, 2.0, 0.0).unwrap() + 0.06).abs() < 1e-12);
+        assert!(ramp.height_over(-0.5, 2.4, 0.0).unwrap().abs() < 1e-12); // flared side
+        let path = Shape::Path {
+            points: vec![(0.0, 0.0), (1.0, 0.0)],
+            radius_m: 0.005,
+        };
+        let cable = object(Category::Cable, path, Profile::Round { base_m: 0.0 });
+        assert!((cable.height_over(0.5, 0.0, 0.0).unwrap() - 0.01).abs() < 1e-12);
+        assert!(cable.height_over(0.5, 0.0, 0.02).is_none(), "under a box");
+        assert!(cable.height_over(0.5, 0.006, 0.0).is_none());
+        let drain = Profile::Grate {
+            top_m: 0.0,
+            recess_m: 0.015,
+            frame_m: 0.03,
+            slot_m: 0.02,
+            pitch_m: 0.04,
+            slot_depth_m: 0.05,
+        };
+        let drain = object(
+            Category::Drain,
+            Shape::rect((0.0, 0.0), (0.2, 0.15), 0.3),
+            drain,
+        );
+        let (s, c) = 0.3f64.sin_cos();
+        let at = |u: f64, v: f64| {
+            drain
+                .height_over(u * c - v * s, u * s + v * c, 0.0)
+                .unwrap()
+        };
+        assert_eq!(at(-0.19, 0.0), 0.0); // frame
+        assert!((at(-0.16, 0.0) + 0.065).abs() < 1e-9); // slot, 1 cm past the frame
+        assert!((at(-0.145, 0.0) + 0.015).abs() < 1e-9); // bar
+    }
+
+    #[test]
+    fn names_round_trip_and_mixed_draws_every_family() {
+        for c in Content::ALL {
+            assert_eq!(c.name().parse(), Ok(c));
+            assert_eq!(serde_json::to_string(&c).unwrap(), format!("\"{c}\""));
+        }
+        let families: BTreeSet<String> = (0..30)
+            .map(|s| Content::Mixed.family(7, s).to_string())
+            .collect();
+        assert_eq!(families.len(), 3);
+        assert_eq!(Content::Urban.family(7, 3), Content::Urban);
+        let labels: BTreeSet<u8> = Category::ALL.iter().map(|c| c.label()).collect();
+        assert_eq!(labels, (1..=20).collect(), "labels 1–20, each once");
+    }
+
+    #[test]
+    fn layouts_hold_every_object_of_their_family_and_repeat() {
+        for scene in 0..40 {
+            for reach in [2.2, 4.0] {
+                for (family, want) in [
+                    (Content::Indoor, &Category::INDOOR[..]),
+                    (Content::Urban, &Category::URBAN[..]),
+                ] {
+                    let terrain = family.terrain(3, scene, reach);
+                    let have: Vec<Category> = terrain.objects.iter().map(|o| o.category).collect();
+                    for c in want {
+                        assert!(have.contains(c), "scene {scene}: no {c:?} in {have:?}");
+                    }
+                    assert_eq!(terrain, family.terrain(3, scene, reach));
+                }
+            }
+        }
+        assert_ne!(indoor(3, 0, 2.2), indoor(4, 0, 2.2));
+        assert_ne!(urban(3, 0, 2.2), urban(3, 1, 2.2));
+    }
 }

@@ -7,7 +7,7 @@ use clap::Args;
 
 use crate::roughness::noise::SensorPreset;
 use crate::synth::imaging::ImageEffect;
-use crate::synth::{generate, SynthConfig};
+use crate::synth::{generate, Content, SynthConfig};
 
 /// Generate a synthetic terrain dataset.
 #[derive(Debug, Args)]
@@ -56,6 +56,15 @@ pub struct Synth {
     /// off; none by default). Ranges in docs/synth.md.
     #[arg(long, env = "TRE_SYNTH_EFFECTS", value_delimiter = ',')]
     pub effects: Vec<ImageEffect>,
+    /// What the scenes show: natural (the paper's six terrain categories), indoor (floors,
+    /// walls, sills, cables, boxes, furniture, stairs), urban (road, sidewalk, curb, kerb ramp,
+    /// drains, posts) or mixed (each scene draws one). Labels in docs/synth.md.
+    #[arg(long, env = "TRE_SYNTH_CONTENT", default_value = "natural")]
+    pub content: Content,
+    /// Continue an interrupted run into the same --out with the same settings: complete
+    /// frames are kept, the others written.
+    #[arg(long, env = "TRE_SYNTH_RESUME")]
+    pub resume: bool,
 }
 
 impl Synth {
@@ -73,6 +82,8 @@ impl Synth {
             ply: !self.no_ply,
             sensors: self.sensor,
             effects: self.effects,
+            content: self.content,
+            resume: self.resume,
             ..SynthConfig::default()
         };
         let start = Instant::now();

@@ -141,7 +141,9 @@ pub fn colourise(map: &Grid<f64>, lo: f64, hi: f64) -> RgbImage {
 
 /// A distinct colour per label (0: black).
 pub fn labels(map: &Grid<u32>) -> RgbImage {
-    const PALETTE: [[u8; 3]; 8] = [
+    // Labels 0–6 (void and the natural categories) keep their colours; 7–20 are the indoor and
+    // urban ones (docs/synth.md).
+    const PALETTE: [[u8; 3]; 21] = [
         [0, 0, 0],
         [160, 160, 160],
         [60, 170, 60],
@@ -150,9 +152,22 @@ pub fn labels(map: &Grid<u32>) -> RgbImage {
         [230, 200, 120],
         [220, 80, 60],
         [80, 160, 220],
+        [190, 130, 60],
+        [150, 60, 140],
+        [240, 240, 240],
+        [255, 160, 0],
+        [255, 0, 200],
+        [200, 170, 100],
+        [100, 60, 30],
+        [60, 60, 70],
+        [200, 110, 100],
+        [0, 200, 200],
+        [120, 220, 120],
+        [40, 80, 200],
+        [255, 240, 0],
     ];
     RgbImage::from_fn(map.width() as u32, map.height() as u32, |x, y| {
-        Rgb(PALETTE[map[(x as usize, y as usize)] as usize % 8])
+        Rgb(PALETTE[map[(x as usize, y as usize)] as usize % PALETTE.len()])
     })
 }
 

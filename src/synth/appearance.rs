@@ -1,10 +1,13 @@
-//! Appearance: material textures tied to each terrain category, four lightings (with cast
-//! shadows) and five weathers, so that an RGB network can learn geometry from shading.
+//! Appearance: material textures tied to each terrain category (natural, indoor and urban),
+//! four lightings (with cast shadows) and five weathers, so that an RGB network can learn
+//! geometry from shading.
 
 use serde::{Deserialize, Serialize};
 
 use super::noise;
-use super::terrain::{boulder, Category, Region};
+use super::terrain::{
+    boulder, joint_distance, paver, paver_joint_distance, plank_m, tile_size_m, Category, Region,
+};
 use crate::geometry::Vec3;
 
 /// Light of a frame.
@@ -182,6 +185,109 @@ fn material(region: &Region, p: &Vec3) -> [f64; 3] {
         }
         Category::Sand => scale([0.76, 0.66, 0.48], grain(0.02, 0.1)),
         Category::Stairs => scale([0.58, 0.57, 0.55], grain(0.04, 0.2)),
+        other => built_material(other, s, p),
+    }
+}
+
+/// One of `n` colours picked by `seed`.
+fn pick(seed: u64, colours: &[[f64; 3]]) -> [f64; 3] {
+    let k = (noise::lattice(seed ^ 0xC01, 0, 0) * colours.len() as f64) as usize;
+    colours[k.min(colours.len() - 1)]
+}
+
+/// Materials of the indoor and urban categories, at `p` in the material's own frame.
+fn built_material(category: Category, s: u64, p: &Vec3) -> [f64; 3] {
+    let grain = |scale: f64, amp: f64| 1.0 + amp * noise::fbm(s ^ 0x51, p.x, p.y, scale, 3);
+    match category {
+        Category::Tile => {
+            let size = tile_size_m(s);
+            let (i, j) = ((p.x / size).floor() as i64, (p.y / size).floor() as i64);
+            let joint = joint_distance(p.x, size).min(joint_distance(p.y, size)) < 0.004;
+            let base = pick(
+                s,
+                &[[0.78, 0.76, 0.72], [0.45, 0.44, 0.43], [0.70, 0.60, 0.48]],
+            );
+            let tone = 0.94 + 0.12 * noise::lattice(s ^ 0x7A, i, j);
+            if joint {
+                scale(base, 0.55)
+            } else {
+                scale(base, tone * grain(0.05, 0.05))
+            }
+        }
+        Category::Wood => {
+            let (width, length) = plank_m(s);
+            let row = (p.y / width).floor();
+            let shift = noise::lattice(s ^ 0x3D, row as i64, 0) * length;
+            let plank = ((p.x + shift) / length).floor() as i64;
+            let tone = 0.8 + 0.4 * noise::lattice(s ^ 0x3F, plank, row as i64);
+            let streak = 1.0 + 0.12 * noise::value(s ^ 0x40, p.x * 6.0, p.y * 250.0);
+            let base = pick(
+                s,
+                &[[0.55, 0.38, 0.22], [0.70, 0.55, 0.36], [0.36, 0.24, 0.15]],
+            );
+            scale(base, tone * streak)
+        }
+        Category::Carpet => {
+            let base = pick(
+                s,
+                &[[0.30, 0.32, 0.40], [0.45, 0.20, 0.18], [0.55, 0.50, 0.42]],
+            );
+            scale(
+                base,
+                0.9 + 0.2 * noise::value(s ^ 0xCB, p.x * 300.0, p.y * 300.0),
+            )
+        }
+        Category::Wall => scale([0.80, 0.78, 0.74], grain(0.3, 0.04)),
+        Category::Sill => pick(
+            s,
+            &[[0.55, 0.42, 0.28], [0.62, 0.62, 0.62], [0.40, 0.38, 0.36]],
+        ),
+        Category::Cable => pick(
+            s,
+            &[[0.03, 0.03, 0.03], [0.85, 0.85, 0.82], [0.15, 0.15, 0.35]],
+        ),
+        Category::Box => {
+            let tape = p.y.abs() < 0.025;
+            let base = [0.60, 0.45, 0.28];
+            if tape {
+                [0.70, 0.62, 0.48]
+            } else {
+                scale(base, grain(0.1, 0.06))
+            }
+        }
+        Category::Furniture => scale(
+            pick(
+                s,
+                &[[0.25, 0.28, 0.35], [0.50, 0.35, 0.22], [0.72, 0.70, 0.66]],
+            ),
+            grain(0.05, 0.08),
+        ),
+        Category::Asphalt => {
+            let speck = noise::value(s ^ 0xA7, p.x * 250.0, p.y * 250.0);
+            scale([0.11, 0.11, 0.12], (1.0 + 0.35 * speck) * grain(0.5, 0.15))
+        }
+        Category::Paving => {
+            let (block, row) = paver(p.x, p.y);
+            let joint = paver_joint_distance(p.x, p.y) < 0.004;
+            let base = pick(
+                s,
+                &[[0.55, 0.50, 0.46], [0.50, 0.32, 0.26], [0.42, 0.42, 0.44]],
+            );
+            let tone = 0.85 + 0.3 * noise::lattice(s ^ 0x9B, block, row);
+            if joint {
+                [0.30, 0.27, 0.22]
+            } else {
+                scale(base, tone * grain(0.03, 0.1))
+            }
+        }
+        Category::Curb => scale([0.62, 0.62, 0.60], grain(0.02, 0.15)),
+        Category::KerbRamp => scale([0.58, 0.57, 0.54], grain(0.03, 0.12)),
+        Category::Drain => scale([0.13, 0.13, 0.14], grain(0.02, 0.2)),
+        Category::Post => pick(
+            s,
+            &[[0.15, 0.15, 0.16], [0.50, 0.50, 0.52], [0.60, 0.45, 0.08]],
+        ),
+        _ => [0.5, 0.5, 0.5],
     }
 }
 

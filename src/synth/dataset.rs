@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::appearance::{Conditions, Lighting, Weather};
+use super::content::Content;
 use super::heightgrid::HeightGrid;
 use super::imaging::{ImageEffect, Imaging};
 use super::render::{render, RenderedFrame, Scene, View};
@@ -54,6 +55,14 @@ pub struct SynthConfig {
     /// the rendered image as it is).
     #[serde(default)]
     pub effects: Vec<ImageEffect>,
+    /// What the scenes show: natural terrain (the default, left out of `dataset.json` so that
+    /// natural datasets keep their bytes), indoor rooms, urban street edges, or a mix.
+    #[serde(default, skip_serializing_if = "Content::is_natural")]
+    pub content: Content,
+    /// Keep the complete frames of an interrupted run with the same settings and write only
+    /// the others (a run option, not written to the manifest).
+    #[serde(skip)]
+    pub resume: bool,
 }
 
 fn default_sensors() -> Vec<SensorPreset> {
@@ -76,6 +85,8 @@ impl Default for SynthConfig {
             ply: true,
             sensors: default_sensors(),
             effects: Vec::new(),
+            content: Content::Natural,
+            resume: false,
         }
     }
 }
@@ -134,7 +145,10 @@ pub struct SceneEntry {
     pub height_m: f64,
     /// Camera pitch, degrees below the horizon.
     pub pitch_deg: f64,
-    /// Categories of the scene's regions.
+    /// The scene's family (indoor or urban; left out for natural scenes).
+    #[serde(default, skip_serializing_if = "Content::is_natural")]
+    pub content: Content,
+    /// Categories of the scene's regions, then of its objects (indoor and urban scenes).
     pub categories: Vec<Category>,
     /// Frames.
     pub frames: Vec<FrameEntry>,
@@ -156,11 +170,15 @@ pub struct Manifest {
 /// Generates the dataset described by `cfg`; returns its manifest (also written to disk).
 pub fn generate(cfg: &SynthConfig) -> Result<Manifest, SynthError> {
     check(cfg)?;
-    std::fs::create_dir_all(&cfg.out).map_err(IoError::from)?;
+    start_run(cfg)?;
+    // Scenes in parallel, and the views of each (rayon's pool: every core).
+    let done: Vec<(SceneEntry, Vec<RgbImage>)> = (0..cfg.scenes)
+        .into_par_iter()
+        .map(|s| generate_scene(cfg, s))
+        .collect::<Result<_, _>>()?;
     let mut scenes = Vec::new();
     let mut sheet = Vec::new();
-    for s in 0..cfg.scenes {
-        let (entry, preview) = generate_scene(cfg, s)?;
+    for (entry, preview) in done {
         sheet.extend(preview);
         scenes.push(entry);
     }
@@ -171,8 +189,7 @@ pub fn generate(cfg: &SynthConfig) -> Result<Manifest, SynthError> {
             .map(|e| e.frames.len())
             .sum()
     };
-    let labels = Category::ALL
-        .iter()
+    let labels = (cfg.content.labels().iter())
         .map(|c| (c.label(), c.name().to_string()))
         .collect();
     let manifest = Manifest {
@@ -188,7 +205,48 @@ pub fn generate(cfg: &SynthConfig) -> Result<Manifest, SynthError> {
         &cfg.out.join("contact_sheet.png"),
         &DynamicImage::ImageRgb8(contact_sheet(&sheet)),
     )?;
+    std::fs::remove_file(cfg.out.join(RUN_FILE)).map_err(IoError::from)?;
     Ok(manifest)
+}
+
+/// The settings of a run in progress, beside its frames until `dataset.json` is written.
+pub const RUN_FILE: &str = "dataset.partial.json";
+
+/// Creates the output folder and records the run's settings in [`RUN_FILE`]. With `resume`, the
+/// settings of the run found there (in progress, or finished in `dataset.json`) must be these.
+fn start_run(cfg: &SynthConfig) -> Result<(), SynthError> {
+    std::fs::create_dir_all(&cfg.out).map_err(IoError::from)?;
+    let settings = serde_json::to_value(cfg).map_err(|e| SynthError::Config(e.to_string()))?;
+    let run_file = cfg.out.join(RUN_FILE);
+    if cfg.resume {
+        let read = |path: &Path| -> Option<serde_json::Value> {
+            let text = std::fs::read_to_string(path).ok()?;
+            serde_json::from_str(&text).ok()
+        };
+        let previous = read(&run_file)
+            .or_else(|| read(&cfg.out.join("dataset.json")).map(|m| m["config"].clone()));
+        match previous {
+            Some(p) if p != settings => {
+                return Err(SynthError::Config(format!(
+                    "cannot resume {}: it was started with other settings ({}); use them, \
+                     or another --out",
+                    cfg.out.display(),
+                    serde_json::to_string(&p).unwrap_or_default()
+                )))
+            }
+            None if cfg.out.join("scene_00000").exists() => {
+                return Err(SynthError::Config(format!(
+                    "cannot resume {}: its frames carry no record of their settings",
+                    cfg.out.display()
+                )))
+            }
+            _ => {}
+        }
+    }
+    let json =
+        serde_json::to_string_pretty(&settings).map_err(|e| SynthError::Config(e.to_string()))?;
+    std::fs::write(run_file, json).map_err(IoError::from)?;
+    Ok(())
 }
 
 fn check(cfg: &SynthConfig) -> Result<(), SynthError> {
@@ -270,8 +328,24 @@ fn reach(view: &View) -> f64 {
 
 /// Builds scene `s`: terrain and its sampled grid, covering what its views can see.
 pub fn build_scene(cfg: &SynthConfig, s: u32, views: &[View]) -> Scene {
-    let r = views.iter().map(reach).fold(1.0f64, f64::max) + 0.5;
-    let terrain = Terrain::random(cfg.seed, u64::from(s), r.min(4.0));
+    let terrain = scene_terrain(cfg, s, views);
+    sample_scene(cfg, views, terrain)
+}
+
+/// How far the scene's grid reaches: the farthest ground its views see, plus 0.5 m.
+fn scene_reach(views: &[View]) -> f64 {
+    views.iter().map(reach).fold(1.0f64, f64::max) + 0.5
+}
+
+/// The terrain of scene `s` (of the dataset's content), with content within its views' reach.
+pub fn scene_terrain(cfg: &SynthConfig, s: u32, views: &[View]) -> Terrain {
+    let r = scene_reach(views);
+    cfg.content.terrain(cfg.seed, u64::from(s), r.min(4.0))
+}
+
+/// Samples `terrain`'s grid over what `views` can see.
+fn sample_scene(cfg: &SynthConfig, views: &[View], terrain: Terrain) -> Scene {
+    let r = scene_reach(views);
     let grid = HeightGrid::sample(&terrain, (-r, -0.8), (r, r), cfg.cell_m);
     Scene { terrain, grid }
 }
@@ -303,68 +377,153 @@ pub fn view_sensor(cfg: &SynthConfig, s: u32, v: u32) -> (SensorPreset, u64) {
     (sensor, seed)
 }
 
+/// The folder of view `v` of scene `s`, relative to the dataset root.
+fn frame_dir(s: u32, v: u32) -> String {
+    format!("scene_{s:05}/view_{v}")
+}
+
+/// Whether view `v` of scene `s` gives a row of the dataset's contact sheet.
+fn in_sheet(s: u32, v: u32) -> bool {
+    s < 2 && v % 4 == 0
+}
+
 fn generate_scene(cfg: &SynthConfig, s: u32) -> Result<(SceneEntry, Vec<RgbImage>), SynthError> {
     let views = scene_views(cfg, s);
-    let scene = build_scene(cfg, s, &views);
+    let terrain = scene_terrain(cfg, s, &views);
+    let categories = (terrain.regions.iter().map(|r| r.category))
+        .chain(terrain.objects.iter().map(|o| o.category))
+        .collect();
+    // A resumed run keeps complete frames (their folders exist: each is renamed into place
+    // once written); the scene is sampled only if a frame is missing or gives a sheet row.
+    let kept: Vec<bool> = (0..cfg.views)
+        .map(|v| cfg.resume && cfg.out.join(frame_dir(s, v)).is_dir())
+        .collect();
+    let needed = (0..cfg.views).any(|v| !kept[v as usize] || in_sheet(s, v));
+    let scene = needed.then(|| sample_scene(cfg, &views, terrain));
+    // Views render, annotate and encode in parallel (each also parallel inside).
+    let done: Vec<(FrameEntry, Option<RgbImage>)> = views
+        .par_iter()
+        .enumerate()
+        .map(|(v, view)| {
+            let v = v as u32;
+            let job = FrameJob { cfg, s, v, view };
+            let tiles = match &scene {
+                Some(scene) if !kept[v as usize] => Some(job.write(scene)?),
+                Some(scene) if in_sheet(s, v) => Some(job.preview(scene)?),
+                _ => None,
+            };
+            Ok((job.entry(), tiles))
+        })
+        .collect::<Result<_, SynthError>>()?;
+    let previews = done
+        .iter()
+        .filter(|(e, _)| in_sheet(s, e.view))
+        .filter_map(|(_, t)| t.clone())
+        .collect();
+    let frames = done.into_iter().map(|(e, _)| e).collect();
+    let m = views[0].mounting;
     let split = if draw(cfg.seed, s, 4) < cfg.test_fraction {
         "test"
     } else {
         "train"
     };
-    // Views render, annotate and encode in parallel (each also parallel inside).
-    let done: Vec<(FrameEntry, RgbImage)> = views
-        .par_iter()
-        .enumerate()
-        .map(|(v, view)| {
-            let v = v as u32;
-            let cond = view_conditions(cfg, s, v);
-            let dir = format!("scene_{s:05}/view_{v}");
-            let frame = render(&scene, view, &cond);
-            let sensor = view_sensor(cfg, s, v);
-            let out = FrameOut {
-                dir: &cfg.out.join(&dir),
-                view,
-                cond: &cond,
-                sensor,
-                imaging: Imaging::draw(&cfg.effects, sensor.1 ^ 0x1A6E),
-                ply: cfg.ply,
-            };
-            let tiles = write_frame(&out, &frame).map_err(|e| match e {
-                FrameError::Io(e) => SynthError::Io(e),
-                FrameError::Annotate(source) => SynthError::Annotate {
-                    scene: s,
-                    view: v,
-                    source,
-                },
-            })?;
-            let entry = FrameEntry {
-                dir,
-                view: v,
-                yaw_deg: view.yaw_rad.to_degrees(),
-                lighting: cond.lighting,
-                weather: cond.weather,
-                sensor: sensor.0,
-            };
-            Ok((entry, tiles))
-        })
-        .collect::<Result<_, SynthError>>()?;
-    let previews = done
-        .iter()
-        .filter(|(e, _)| s < 2 && e.view % 4 == 0)
-        .map(|(_, t)| t.clone())
-        .collect();
-    let frames = done.into_iter().map(|(e, _)| e).collect();
-    let categories = scene.terrain.regions.iter().map(|r| r.category).collect();
-    let m = views[0].mounting;
     let entry = SceneEntry {
         scene: s,
         split: split.into(),
         height_m: m.height_m,
         pitch_deg: m.pitch_rad.to_degrees(),
+        content: cfg.content.family(cfg.seed, u64::from(s)),
         categories,
         frames,
     };
     Ok((entry, previews))
+}
+
+/// One frame of the dataset: view `v` of scene `s`.
+struct FrameJob<'a> {
+    cfg: &'a SynthConfig,
+    s: u32,
+    v: u32,
+    view: &'a View,
+}
+
+impl FrameJob<'_> {
+    fn entry(&self) -> FrameEntry {
+        let cond = view_conditions(self.cfg, self.s, self.v);
+        FrameEntry {
+            dir: frame_dir(self.s, self.v),
+            view: self.v,
+            yaw_deg: self.view.yaw_rad.to_degrees(),
+            lighting: cond.lighting,
+            weather: cond.weather,
+            sensor: view_sensor(self.cfg, self.s, self.v).0,
+        }
+    }
+
+    fn error(&self, e: FrameError) -> SynthError {
+        match e {
+            FrameError::Io(e) => SynthError::Io(e),
+            FrameError::Annotate(source) => SynthError::Annotate {
+                scene: self.s,
+                view: self.v,
+                source,
+            },
+        }
+    }
+
+    /// Renders and writes the frame into `view_V.partial`, then renames that folder to
+    /// `view_V` (replacing an older one): a frame folder is complete or absent. Returns its
+    /// contact-sheet row.
+    fn write(&self, scene: &Scene) -> Result<RgbImage, SynthError> {
+        let (cfg, s, v) = (self.cfg, self.s, self.v);
+        let cond = view_conditions(cfg, s, v);
+        let frame = render(scene, self.view, &cond);
+        let sensor = view_sensor(cfg, s, v);
+        let dir = cfg.out.join(frame_dir(s, v));
+        let partial = dir.with_extension("partial");
+        remove_dir_if_there(&partial)?;
+        let out = FrameOut {
+            dir: &partial,
+            view: self.view,
+            cond: &cond,
+            sensor,
+            imaging: Imaging::draw(&cfg.effects, sensor.1 ^ 0x1A6E),
+            ply: cfg.ply,
+        };
+        let tiles = write_frame(&out, &frame).map_err(|e| self.error(e))?;
+        remove_dir_if_there(&dir)?;
+        std::fs::rename(&partial, &dir).map_err(IoError::from)?;
+        Ok(tiles)
+    }
+
+    /// The contact-sheet row of a kept frame, rendered and annotated again (not written).
+    fn preview(&self, scene: &Scene) -> Result<RgbImage, SynthError> {
+        let cond = view_conditions(self.cfg, self.s, self.v);
+        let f = render(scene, self.view, &cond);
+        let ann = annotate_frame(&f, &self.view.intrinsics).map_err(|e| self.error(e))?;
+        Ok(tiles(&f, &ann.roughness_m))
+    }
+}
+
+fn remove_dir_if_there(dir: &Path) -> Result<(), IoError> {
+    match std::fs::remove_dir_all(dir) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e.into()),
+        _ => Ok(()),
+    }
+}
+
+/// Spec v1 on a rendered frame's exact depth, normals and labels.
+fn annotate_frame(
+    f: &RenderedFrame,
+    k: &crate::geometry::Intrinsics,
+) -> Result<crate::roughness::Annotation, FrameError> {
+    let input = AnnotateInput {
+        depth_m: &f.depth_m,
+        intrinsics: k,
+        normals: Some(&f.normals_cam),
+        labels: Some(&f.labels),
+    };
+    annotate(&input, &AnnotateConfig::default()).map_err(FrameError::Annotate)
 }
 
 enum FrameError {
@@ -472,13 +631,7 @@ fn write_frame(out: &FrameOut<'_>, f: &RenderedFrame) -> Result<RgbImage, FrameE
         &dir.join("labels.png"),
         &DynamicImage::ImageLuma8(io::gray8(&labels)),
     )?;
-    let input = AnnotateInput {
-        depth_m: &f.depth_m,
-        intrinsics: k,
-        normals: Some(&f.normals_cam),
-        labels: Some(&f.labels),
-    };
-    let ann = annotate(&input, &AnnotateConfig::default()).map_err(FrameError::Annotate)?;
+    let ann = annotate_frame(f, k)?;
     io::save(
         &dir.join("roughness.png"),
         &DynamicImage::ImageLumaA16(io::roughness_png16(&ann.roughness_m)),

@@ -19,6 +19,9 @@ pub struct HeightGrid {
     nx: usize,
     ny: usize,
     heights: Vec<f32>,
+    /// Per vertex, 1 + the index of the terrain object whose surface it is (0: a region's);
+    /// empty when the terrain has no objects.
+    owners: Vec<u16>,
     block_max: Vec<f32>,
     bnx: usize,
     max_h: f64,
@@ -35,15 +38,34 @@ impl HeightGrid {
         let nx = ((x1 - x0) / cell_m).ceil().max(1.0) as usize;
         let ny = ((y1 - y0) / cell_m).ceil().max(1.0) as usize;
         let mut heights = vec![0f32; (nx + 1) * (ny + 1)];
-        heights
-            .par_chunks_mut(nx + 1)
-            .enumerate()
-            .for_each(|(j, row)| {
-                for (i, h) in row.iter_mut().enumerate() {
-                    *h = terrain.height(x0 + i as f64 * cell_m, y0 + j as f64 * cell_m) as f32;
-                }
-            });
-        Self::from_heights(x0, y0, cell_m, nx, ny, heights)
+        let mut owners = Vec::new();
+        if terrain.objects.is_empty() {
+            heights
+                .par_chunks_mut(nx + 1)
+                .enumerate()
+                .for_each(|(j, row)| {
+                    for (i, h) in row.iter_mut().enumerate() {
+                        *h = terrain.height(x0 + i as f64 * cell_m, y0 + j as f64 * cell_m) as f32;
+                    }
+                });
+        } else {
+            owners = vec![0u16; heights.len()];
+            heights
+                .par_chunks_mut(nx + 1)
+                .zip(owners.par_chunks_mut(nx + 1))
+                .enumerate()
+                .for_each(|(j, (row, own))| {
+                    for (i, (h, o)) in row.iter_mut().zip(own.iter_mut()).enumerate() {
+                        let (z, k) =
+                            terrain.height_owner(x0 + i as f64 * cell_m, y0 + j as f64 * cell_m);
+                        *h = z as f32;
+                        *o = k.map_or(0, |k| u16::try_from(k + 1).unwrap_or(u16::MAX));
+                    }
+                });
+        }
+        let mut grid = Self::from_heights(x0, y0, cell_m, nx, ny, heights);
+        grid.owners = owners;
+        grid
     }
 
     fn from_heights(
@@ -76,6 +98,7 @@ impl HeightGrid {
             nx,
             ny,
             heights,
+            owners: Vec::new(),
             block_max,
             bnx,
             max_h,
@@ -115,6 +138,23 @@ impl HeightGrid {
         let (i, j, u, v) = self.locate(x, y)?;
         let [a, b, c, e] = self.patch(i, j);
         Some(a + b * u + c * v + e * u * v)
+    }
+
+    /// The terrain object whose surface the rendered point `(x, y)` lies on, by its cell: of the
+    /// objects owning the cell's four vertices, the last drawn. So the face of a cell that
+    /// joins a floor to a box top (a step in the height field) belongs to the box. `None`: a
+    /// region's surface (also off the grid, or for a terrain without objects).
+    pub fn owner(&self, x: f64, y: f64) -> Option<usize> {
+        if self.owners.is_empty() {
+            return None;
+        }
+        let (i, j, _, _) = self.locate(x, y)?;
+        let at = |i: usize, j: usize| self.owners[j * (self.nx + 1) + i];
+        let k = at(i, j)
+            .max(at(i + 1, j))
+            .max(at(i, j + 1))
+            .max(at(i + 1, j + 1));
+        (k > 0).then(|| usize::from(k - 1))
     }
 
     /// Unit upward normal of the rendered surface at `(x, y)`, if on the grid.

@@ -130,13 +130,16 @@ fn render_pixel(
         .grid
         .normal(point.x, point.y)
         .expect("hit points lie on the grid; this is a bug");
-    let region = scene.terrain.region_at(point.x, point.y);
+    let (region, local) = match scene.grid.owner(point.x, point.y) {
+        None => (*scene.terrain.region_at(point.x, point.y), point),
+        Some(k) => scene.terrain.objects[k].surface(&point),
+    };
     let mut visible = [1.0; MAX_LIGHTS];
     for (vis, l) in visible.iter_mut().zip(lights) {
         *vis = visibility(&scene.grid, &point, &normal, l);
     }
     let colour = shade(&ShadeInput {
-        albedo: albedo(region, &point, &normal, conditions.weather),
+        albedo: albedo(&region, &local, &normal, conditions.weather),
         normal,
         point,
         to_camera: -dir,

@@ -1,14 +1,16 @@
-//! Procedural terrain: six categories with their own geometry (pavement, grass, gravel, rocks,
-//! sand, stairs and curbs), laid out as Voronoi regions of the ground around the robot.
+//! Procedural terrain: six natural categories with their own geometry (pavement, grass, gravel,
+//! rocks, sand, stairs and curbs), laid out as Voronoi regions of the ground around the robot,
+//! and the indoor and urban categories whose objects (`objects.rs`) are placed over them.
 
 use serde::{Deserialize, Serialize};
 
 use super::noise;
+use super::objects::Object;
 use crate::geometry::hash::splitmix64;
 
 /// Terrain categories; the value is the semantic label written with each frame (0 = void).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "snake_case")]
 pub enum Category {
     /// Flat paving with fine texture.
     Pavement = 1,
@@ -20,19 +22,94 @@ pub enum Category {
     Rocks = 4,
     /// Smooth undulation (±4 cm) with ripples.
     Sand = 5,
-    /// Planar steps of 5–20 cm (one step: a curb).
+    /// Planar steps of 5–20 cm (one step: a curb); indoors, flights of 3–5 steps up or down.
     Stairs = 6,
+    /// Indoor floor: ceramic tiles of 20–60 cm with 8 mm grout joints 1.5 mm deep.
+    Tile = 7,
+    /// Indoor floor: planks 10–20 cm wide with 1 mm deep joints.
+    Wood = 8,
+    /// Indoor floor or rug: pile of about ±1 mm.
+    Carpet = 9,
+    /// Walls: vertical faces 2.4–2.7 m high, 10–15 cm thick.
+    Wall = 10,
+    /// Door sills: 1–3 cm high across a doorway.
+    Sill = 11,
+    /// Cables on the floor: round, 8–12 mm across.
+    Cable = 12,
+    /// Boxes: 20–60 cm sides, 10–50 cm high.
+    Box = 13,
+    /// Furniture-like blocks: sofas (seat and back) and cabinets, 0.4–0.9 m high.
+    Furniture = 14,
+    /// Road: asphalt with 1.5 mm aggregate relief.
+    Asphalt = 15,
+    /// Sidewalk: block paving of 10×20 cm with 3 mm deep joints.
+    Paving = 16,
+    /// Curb stones: 12–18 cm wide, standing 10–15 cm above the road.
+    Curb = 17,
+    /// Kerb ramps: the sidewalk lowered to the road with flared sides.
+    KerbRamp = 18,
+    /// Drains: grates recessed 1–2 cm into the road, with 4–6 cm deep slots.
+    Drain = 19,
+    /// Posts (bollards): 5–10 cm in radius, 0.6–1.0 m high.
+    Post = 20,
 }
 
 impl Category {
-    /// All categories, in label order.
-    pub const ALL: [Category; 6] = [
+    /// The paper's six natural categories, in label order.
+    pub const NATURAL: [Category; 6] = [
         Category::Pavement,
         Category::Grass,
         Category::Gravel,
         Category::Rocks,
         Category::Sand,
         Category::Stairs,
+    ];
+
+    /// Indoor categories: floors, walls, sills, cables, boxes, furniture and stairs.
+    pub const INDOOR: [Category; 9] = [
+        Category::Tile,
+        Category::Wood,
+        Category::Carpet,
+        Category::Wall,
+        Category::Sill,
+        Category::Cable,
+        Category::Box,
+        Category::Furniture,
+        Category::Stairs,
+    ];
+
+    /// Urban categories: road, sidewalk, curbs, kerb ramps, drains and posts.
+    pub const URBAN: [Category; 6] = [
+        Category::Asphalt,
+        Category::Paving,
+        Category::Curb,
+        Category::KerbRamp,
+        Category::Drain,
+        Category::Post,
+    ];
+
+    /// All categories, in label order (labels 1–20).
+    pub const ALL: [Category; 20] = [
+        Category::Pavement,
+        Category::Grass,
+        Category::Gravel,
+        Category::Rocks,
+        Category::Sand,
+        Category::Stairs,
+        Category::Tile,
+        Category::Wood,
+        Category::Carpet,
+        Category::Wall,
+        Category::Sill,
+        Category::Cable,
+        Category::Box,
+        Category::Furniture,
+        Category::Asphalt,
+        Category::Paving,
+        Category::Curb,
+        Category::KerbRamp,
+        Category::Drain,
+        Category::Post,
     ];
 
     /// The semantic label.
@@ -49,6 +126,20 @@ impl Category {
             Category::Rocks => "rocks",
             Category::Sand => "sand",
             Category::Stairs => "stairs",
+            Category::Tile => "tile",
+            Category::Wood => "wood",
+            Category::Carpet => "carpet",
+            Category::Wall => "wall",
+            Category::Sill => "sill",
+            Category::Cable => "cable",
+            Category::Box => "box",
+            Category::Furniture => "furniture",
+            Category::Asphalt => "asphalt",
+            Category::Paving => "paving",
+            Category::Curb => "curb",
+            Category::KerbRamp => "kerb_ramp",
+            Category::Drain => "drain",
+            Category::Post => "post",
         }
     }
 }
@@ -83,23 +174,34 @@ pub struct Region {
 }
 
 /// The terrain of one scene.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Terrain {
     /// The regions; every ground point belongs to the one with the nearest centre.
     pub regions: Vec<Region>,
+    /// Objects placed over the regions, in drawing order (indoor and urban scenes; none in
+    /// natural ones).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub objects: Vec<Object>,
 }
 
 /// A stream of uniform numbers from a seed.
-struct Rng(u64);
+pub(crate) struct Rng(pub(crate) u64);
 
 impl Rng {
-    fn next(&mut self) -> f64 {
+    /// The next uniform number in [0, 1).
+    pub(crate) fn next(&mut self) -> f64 {
         self.0 = splitmix64(self.0);
         (self.0 >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+    /// A uniform number in [lo, hi).
+    pub(crate) fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.next()
+    }
+
+    /// True with probability `p`.
+    pub(crate) fn chance(&mut self, p: f64) -> bool {
+        self.next() < p
     }
 }
 
@@ -108,7 +210,7 @@ impl Terrain {
     /// `reach_m` of the robot (plus 4 beyond), with every category present among those 8.
     pub fn random(seed: u64, scene: u64, reach_m: f64) -> Self {
         let mut rng = Rng(splitmix64(seed ^ splitmix64(scene.wrapping_add(1))));
-        let mut cats = Category::ALL.to_vec();
+        let mut cats = Category::NATURAL.to_vec();
         for i in (1..cats.len()).rev() {
             cats.swap(i, (rng.next() * (i + 1) as f64) as usize);
         }
@@ -123,7 +225,7 @@ impl Terrain {
                 let category = if i < 6 {
                     cats[i]
                 } else {
-                    Category::ALL[(rng.next() * 6.0) as usize]
+                    Category::NATURAL[(rng.next() * 6.0) as usize]
                 };
                 let seed = splitmix64(rng.0 ^ i as u64);
                 let steps = (category == Category::Stairs).then(|| random_steps(&mut rng));
@@ -135,7 +237,10 @@ impl Terrain {
                 }
             })
             .collect();
-        Self { regions }
+        Self {
+            regions,
+            objects: Vec::new(),
+        }
     }
 
     /// Ground of one category everywhere (for tests and calibration).
@@ -154,6 +259,7 @@ impl Terrain {
                 seed,
                 steps,
             }],
+            objects: Vec::new(),
         }
     }
 
@@ -167,7 +273,24 @@ impl Terrain {
 
     /// Terrain height at `(x, y)`, metres.
     pub fn height(&self, x: f64, y: f64) -> f64 {
-        region_height(self.region_at(x, y), x, y)
+        if self.objects.is_empty() {
+            return region_height(self.region_at(x, y), x, y);
+        }
+        self.height_owner(x, y).0
+    }
+
+    /// Terrain height at `(x, y)`, metres, and the index of the object whose surface it is
+    /// (`None`: a region's). Objects are drawn in order, each over what lies below it.
+    pub fn height_owner(&self, x: f64, y: f64) -> (f64, Option<usize>) {
+        let mut h = region_height(self.region_at(x, y), x, y);
+        let mut owner = None;
+        for (k, o) in self.objects.iter().enumerate() {
+            if let Some(z) = o.height_over(x, y, h) {
+                h = z;
+                owner = Some(k);
+            }
+        }
+        (h, owner)
     }
 }
 
@@ -206,7 +329,82 @@ pub fn region_height(region: &Region, x: f64, y: f64) -> f64 {
         Category::Stairs => region
             .steps
             .map_or(0.0, |st| stairs(&st, region.centre, x, y)),
+        other => surface_height(other, s, x, y),
     }
+}
+
+/// Relief of the indoor and urban ground materials at `(u, v)` in the material's own frame
+/// (metres; 0 for the flat surfaces of walls, boxes and the like).
+pub fn surface_height(category: Category, seed: u64, u: f64, v: f64) -> f64 {
+    match category {
+        Category::Tile => {
+            let size = tile_size_m(seed);
+            groove(grid_joint_distance(u, v, size), 0.004, 0.0015)
+        }
+        Category::Wood => {
+            let (width, length) = plank_m(seed);
+            let row = (v / width).floor();
+            let shift = noise::lattice(seed ^ 0x3D, row as i64, 0) * length;
+            let across = joint_distance(v, width);
+            let along = joint_distance(u + shift, length);
+            groove(across.min(along), 0.003, 0.001)
+                + 0.0002 * noise::value(seed ^ 0x3E, u * 80.0, v * 400.0)
+        }
+        Category::Carpet => 0.0008 * noise::value(seed ^ 0xCA, u * 180.0, v * 180.0),
+        Category::Asphalt => {
+            0.0012 * noise::fbm(seed ^ 0xA5, u, v, 0.012, 2)
+                + 0.002 * noise::fbm(seed ^ 0xA6, u, v, 0.8, 2)
+        }
+        Category::Paving => {
+            let (block, row) = paver(u, v);
+            let offset = 0.0008 * (2.0 * noise::lattice(seed ^ 0x9A, block, row) - 1.0);
+            offset + groove(paver_joint_distance(u, v), 0.004, 0.003)
+        }
+        _ => 0.0,
+    }
+}
+
+/// Side of the square tiles of a tile floor: 20–60 cm in steps of 10 cm.
+pub(crate) fn tile_size_m(seed: u64) -> f64 {
+    0.2 + 0.1 * (noise::lattice(seed ^ 0x71, 0, 0) * 5.0).floor()
+}
+
+/// Width (10–20 cm) and length (0.8–1.5 m) of the planks of a wood floor.
+pub(crate) fn plank_m(seed: u64) -> (f64, f64) {
+    (
+        0.10 + 0.10 * noise::lattice(seed ^ 0x3B, 0, 0),
+        0.8 + 0.7 * noise::lattice(seed ^ 0x3C, 0, 0),
+    )
+}
+
+/// Distance from `t` to the nearest multiple of `period`.
+pub(crate) fn joint_distance(t: f64, period: f64) -> f64 {
+    let f = (t / period).rem_euclid(1.0);
+    f.min(1.0 - f) * period
+}
+
+/// Distance to the nearer of the two joint lines of a square grid of side `size`.
+fn grid_joint_distance(u: f64, v: f64, size: f64) -> f64 {
+    joint_distance(u, size).min(joint_distance(v, size))
+}
+
+/// A rounded groove `depth_m` deep and `2·half_m` wide at distance `d` from its axis.
+fn groove(d: f64, half_m: f64, depth_m: f64) -> f64 {
+    -depth_m * (1.0 - (d / half_m).powi(2)).max(0.0)
+}
+
+/// The block (index along its row) and the row of a 10×20 cm paver in stretcher bond.
+pub(crate) fn paver(u: f64, v: f64) -> (i64, i64) {
+    let row = (v / 0.1).floor();
+    let shift = if row.rem_euclid(2.0) == 0.0 { 0.0 } else { 0.1 };
+    (((u + shift) / 0.2).floor() as i64, row as i64)
+}
+
+/// Distance to the nearest joint of 10×20 cm pavers in stretcher bond.
+pub(crate) fn paver_joint_distance(u: f64, v: f64) -> f64 {
+    let row = (v / 0.1).floor();
+    let shift = if row.rem_euclid(2.0) == 0.0 { 0.0 } else { 0.1 };
+    joint_distance(v, 0.1).min(joint_distance(u + shift, 0.2))
 }
 
 /// Stones: domes of radius 0.9–1.5 cm and height 1–3 cm on a 2 mm base texture.
