@@ -1,0 +1,473 @@
+//! Scoring: every row of every frame against the spec, pooled and per frame, by range, with the three-state shares.
+
+use super::*;
+
+/// One configuration's scores on one frame or pooled over frames.
+#[derive(Debug, Clone, Serialize)]
+pub struct RealRow {
+    /// `mode:label`, as in `tre eval`.
+    pub key: String,
+    /// Over every pixel with spec roughness.
+    pub all: ScoreMetrics,
+    /// Per range bin (sensor depth).
+    pub by_range: BTreeMap<String, ScoreMetrics>,
+    /// Roughness inside the floor box, when there is one.
+    pub floor: Option<FloorStats>,
+    /// Depth errors against the sensor (`rgb` mode only).
+    pub depth: Option<DepthMetrics>,
+    /// The three-state map under the sensor's noise model (modes that read sensor depth).
+    pub traversal: Option<TraversalMetrics>,
+    /// Wall time per stage, ms (mean per frame when pooled).
+    pub ms: BTreeMap<String, f64>,
+}
+
+/// How the three-state map reads a frame (or pooled frames): shares of all pixels and per
+/// range bin, and the three checks of DESIGN.md: near floor traversable, far noisy range
+/// unknown, drops hazards.
+#[derive(Debug, Clone, Serialize)]
+pub struct TraversalMetrics {
+    /// Shares of every pixel of the frame (no depth: unknown).
+    pub all: StateShares,
+    /// Shares of the pixels with sensor depth in each range bin.
+    pub by_range: BTreeMap<String, StateShares>,
+    /// Median uncertainty (metres) of the pixels with depth in each range bin.
+    pub median_uncertainty_m: BTreeMap<String, f64>,
+    /// Floor-box pixels within 2 m: shares (when a floor box is given).
+    pub near_floor: Option<StateShares>,
+    /// Pixels beyond 4 m that the spec calls hazards (≥ 5 cm): shares.
+    pub far_spec_rough: StateShares,
+    /// Drops (spec ≥ 10 cm) within 4 m: shares.
+    pub near_drops: StateShares,
+}
+
+/// Shares of traversable, hazard and unknown pixels in a set.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct StateShares {
+    /// Pixels in the set.
+    pub pixels: u64,
+    /// Share traversable.
+    pub traversable: f64,
+    /// Share hazard.
+    pub hazard: f64,
+    /// Share unknown.
+    pub unknown: f64,
+}
+
+/// Counts of the three states in a set of pixels.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct StateCounts([u64; 3]);
+
+impl StateCounts {
+    fn add(&mut self, t: Traversal) {
+        self.0[t as usize] += 1;
+    }
+
+    fn merge(&mut self, o: &Self) {
+        (0..3).for_each(|i| self.0[i] += o.0[i]);
+    }
+
+    fn shares(&self) -> StateShares {
+        let n: u64 = self.0.iter().sum();
+        let share = |k: Traversal| {
+            if n == 0 {
+                f64::NAN
+            } else {
+                self.0[k as usize] as f64 / n as f64
+            }
+        };
+        StateShares {
+            pixels: n,
+            traversable: share(Traversal::Traversable),
+            hazard: share(Traversal::Hazard),
+            unknown: share(Traversal::Unknown),
+        }
+    }
+}
+
+/// Three-state accumulators of one configuration.
+#[derive(Debug, Clone, Default)]
+pub(super) struct TraversalAcc {
+    all: StateCounts,
+    by_range: [StateCounts; 3],
+    uncertainty: [Vec<f64>; 3],
+    near_floor: StateCounts,
+    far_spec_rough: StateCounts,
+    near_drops: StateCounts,
+}
+
+/// Spec roughness of a drop, metres.
+pub(super) const DROP_M: f64 = 0.10;
+
+impl TraversalAcc {
+    /// Adds one frame's three-state and uncertainty maps.
+    fn add(&mut self, maps: &SensorMaps, loaded: &LoadedFrame, floor_box: Option<[usize; 4]>) {
+        let Some(depth) = loaded.input.depth_m.as_ref() else {
+            return;
+        };
+        let (w, _) = depth.size();
+        let cells = maps.traversal.as_slice().iter().zip(depth.as_slice());
+        let spec = loaded.spec.roughness_m.as_slice();
+        let u = maps.uncertainty_m.as_slice();
+        for (i, (&t, &z)) in cells.enumerate() {
+            self.all.add(t);
+            if let Some(b) = RANGE_BINS.iter().position(|&(_, a, b)| z >= a && z < b) {
+                self.by_range[b].add(t);
+                if u[i].is_finite() {
+                    self.uncertainty[b].push(u[i]);
+                }
+            }
+            if z >= 4.0 && spec[i] >= HAZARD_M {
+                self.far_spec_rough.add(t);
+            }
+            if z > 0.0 && z < 4.0 && spec[i] >= DROP_M {
+                self.near_drops.add(t);
+            }
+            let (x, y) = (i % w, i / w);
+            let in_box = |[x0, y0, x1, y1]: [usize; 4]| x >= x0 && x < x1 && y >= y0 && y < y1;
+            if z > 0.0 && z < 2.0 && floor_box.is_some_and(in_box) {
+                self.near_floor.add(t);
+            }
+        }
+    }
+
+    fn merge(&mut self, o: &Self) {
+        self.all.merge(&o.all);
+        for b in 0..3 {
+            self.by_range[b].merge(&o.by_range[b]);
+            self.uncertainty[b].extend_from_slice(&o.uncertainty[b]);
+        }
+        self.near_floor.merge(&o.near_floor);
+        self.far_spec_rough.merge(&o.far_spec_rough);
+        self.near_drops.merge(&o.near_drops);
+    }
+
+    fn finish(&self, has_floor: bool) -> TraversalMetrics {
+        let names = RANGE_BINS.iter().map(|&(n, _, _)| n.to_owned());
+        TraversalMetrics {
+            all: self.all.shares(),
+            by_range: names
+                .clone()
+                .zip(self.by_range.iter().map(StateCounts::shares))
+                .collect(),
+            median_uncertainty_m: names
+                .zip(self.uncertainty.iter().map(|u| median(u.clone())))
+                .collect(),
+            near_floor: has_floor.then(|| self.near_floor.shares()),
+            far_spec_rough: self.far_spec_rough.shares(),
+            near_drops: self.near_drops.shares(),
+        }
+    }
+}
+
+/// The median of `values` (NaN for none).
+pub(super) fn median(mut values: Vec<f64>) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mid = values.len() / 2;
+    *values.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// The spec on one frame, or pooled.
+#[derive(Debug, Clone, Serialize)]
+pub struct SpecSummary {
+    /// Roughness inside the floor box, when there is one.
+    pub floor: Option<FloorStats>,
+    /// Pixels with depth.
+    pub valid_px: usize,
+    /// Boundary pixels.
+    pub boundary_px: usize,
+    /// Pixels at or above the hazard threshold.
+    pub hazard_px: usize,
+    /// Time of `annotate` on the frame, ms (mean when pooled).
+    pub ms: f64,
+}
+
+/// One frame's results.
+#[derive(Debug, Clone, Serialize)]
+pub struct FrameReport {
+    /// `sequence/depth`.
+    pub name: String,
+    /// The RGB file.
+    pub rgb: PathBuf,
+    /// The depth file.
+    pub depth: PathBuf,
+    /// `(width, height)`.
+    pub size: (usize, usize),
+    /// The floor box, if any.
+    pub floor_box: Option<[usize; 4]>,
+    /// The spec on the sensor depth.
+    pub spec: SpecSummary,
+    /// Each configuration.
+    pub rows: Vec<RealRow>,
+}
+
+/// The whole report (`--json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct RealReport {
+    /// The folder scored.
+    pub data: PathBuf,
+    /// Frames scored.
+    pub frames: usize,
+    /// Hazard threshold, metres.
+    pub hazard_m: f64,
+    /// Flat threshold of the false-hazard rate, metres.
+    pub flat_m: f64,
+    /// Range bins: `(name, from_m, to_m)`.
+    pub range_bins: Vec<(String, f64, f64)>,
+    /// The spec pooled over frames.
+    pub spec: SpecSummary,
+    /// Each configuration pooled over frames (pixels pooled).
+    pub pooled: Vec<RealRow>,
+    /// Each frame.
+    pub per_frame: Vec<FrameReport>,
+}
+
+/// The configurations scored: the learned modes asked for with `base`'s switches, and the
+/// geometric mode both as the spec (default) and as the paper's surface-only baseline; slope
+/// is left out of traversability (the frames' mountings are unknown).
+pub fn real_rows(modes: &[Mode], base: &PipelineConfig) -> Vec<(String, PipelineConfig)> {
+    // The frames' mountings are unknown, so slope (which needs the pitch) does not count:
+    // the three-state map judges roughness and noise alone.
+    let base = &PipelineConfig {
+        traversability: crate::pipeline::Traversability {
+            max_slope_rad: std::f64::consts::FRAC_PI_2,
+            ..base.traversability
+        },
+        ..*base
+    };
+    let mut cfgs = Vec::new();
+    for &mode in modes {
+        if mode == Mode::Geometric {
+            for geometric in [GeometricMethod::Spec, GeometricMethod::SurfaceOnly] {
+                cfgs.push(PipelineConfig {
+                    mode,
+                    geometric,
+                    ..*base
+                });
+            }
+        } else {
+            cfgs.push(PipelineConfig { mode, ..*base });
+        }
+    }
+    cfgs.into_iter()
+        .map(|c| (crate::cli::eval::row_key(&c), c))
+        .collect()
+}
+
+/// Accumulators of one configuration.
+#[derive(Default)]
+pub(super) struct RowAcc {
+    scores: RangeScores,
+    floor: Vec<f64>,
+    floor_missing: usize,
+    depth: DepthAccumulator,
+    has_depth: bool,
+    traversal: Option<TraversalAcc>,
+    ms: BTreeMap<String, f64>,
+}
+
+impl RowAcc {
+    fn finish(&self, key: &str, frames: usize, has_floor: bool) -> RealRow {
+        let n = frames.max(1) as f64;
+        RealRow {
+            key: key.to_owned(),
+            all: self.scores.all.finish(),
+            by_range: RANGE_BINS
+                .iter()
+                .zip(&self.scores.by_range)
+                .map(|(&(name, _, _), s)| (name.to_owned(), s.finish()))
+                .collect(),
+            floor: has_floor.then(|| floor_stats(self.floor.clone(), self.floor_missing)),
+            depth: self.has_depth.then(|| self.depth.finish()),
+            traversal: self.traversal.as_ref().map(|t| t.finish(has_floor)),
+            ms: self.ms.iter().map(|(k, v)| (k.clone(), v / n)).collect(),
+        }
+    }
+
+    fn merge(&mut self, other: &Self) {
+        self.scores.merge(&other.scores);
+        self.floor.extend_from_slice(&other.floor);
+        self.floor_missing += other.floor_missing;
+        self.depth.merge(&other.depth);
+        self.has_depth |= other.has_depth;
+        if let Some(t) = &other.traversal {
+            self.traversal.get_or_insert_with(Default::default).merge(t);
+        }
+        for (k, v) in &other.ms {
+            *self.ms.entry(k.clone()).or_default() += v;
+        }
+    }
+}
+
+/// Runs the benchmark: every frame, every configuration; the modes that read sensor depth also
+/// get the uncertainty and three-state maps under `sensor`'s noise model (or the frame's camera
+/// file's, when it names one). Calls `on_frame` with each frame's maps (for the contact
+/// sheets) once it is scored.
+///
+/// # Errors
+///
+/// When a frame does not read or a configuration fails on it.
+pub fn run_benchmark(
+    data: &Path,
+    frames: &[RealFrame],
+    floors: &Floors,
+    rows: &[(String, PipelineConfig)],
+    pipeline: &mut Pipeline,
+    sensor: &SensorNoise,
+    mut on_frame: impl FnMut(&RealFrame, &LoadedFrame, &[RowMaps]) -> anyhow::Result<()>,
+) -> anyhow::Result<RealReport> {
+    let mut pooled: Vec<RowAcc> = rows.iter().map(|_| RowAcc::default()).collect();
+    let (mut spec_floor, mut spec_missing, mut spec_ms) = (Vec::new(), 0, 0.0);
+    let (mut valid_px, mut boundary_px, mut hazard_px) = (0, 0, 0);
+    let mut per_frame = Vec::new();
+    let any_floor = frames
+        .iter()
+        .any(|f| floors.contains_key(&(f.sequence.clone(), f.depth_rel.clone())));
+    for (i, frame) in frames.iter().enumerate() {
+        let loaded = load_frame(frame).with_context(|| frame.name())?;
+        let floor_box = floors
+            .get(&(frame.sequence.clone(), frame.depth_rel.clone()))
+            .copied();
+        let spec = spec_summary(&loaded, floor_box);
+        if let Some(b) = floor_box {
+            let (v, m) = box_values(&loaded.spec.roughness_m, b);
+            spec_floor.extend(v);
+            spec_missing += m;
+        }
+        (valid_px, boundary_px, hazard_px, spec_ms) = (
+            valid_px + spec.valid_px,
+            boundary_px + spec.boundary_px,
+            hazard_px + spec.hazard_px,
+            spec_ms + spec.ms,
+        );
+        let mut maps = Vec::new();
+        let mut reports = Vec::new();
+        for ((key, cfg), acc) in rows.iter().zip(&mut pooled) {
+            let sensor = frame_sensor(frame, sensor);
+            let (one, map) = score_row(pipeline, &loaded, cfg, floor_box, &sensor)
+                .with_context(|| format!("{}: {key}", frame.name()))?;
+            reports.push(one.finish(key, 1, floor_box.is_some()));
+            acc.merge(&one);
+            maps.push(map);
+        }
+        on_frame(frame, &loaded, &maps)?;
+        per_frame.push(FrameReport {
+            name: frame.name(),
+            rgb: frame.rgb.clone(),
+            depth: frame.depth.clone(),
+            size: loaded.spec.roughness_m.size(),
+            floor_box,
+            spec,
+            rows: reports,
+        });
+        tracing::info!("{}/{} frames: {}", i + 1, frames.len(), frame.name());
+    }
+    let n = frames.len();
+    Ok(RealReport {
+        data: data.to_owned(),
+        frames: n,
+        hazard_m: HAZARD_M,
+        flat_m: FLAT_M,
+        range_bins: RANGE_BINS
+            .iter()
+            .map(|&(name, a, b)| (name.to_owned(), a, b))
+            .collect(),
+        spec: SpecSummary {
+            floor: any_floor.then(|| floor_stats(spec_floor, spec_missing)),
+            valid_px,
+            boundary_px,
+            hazard_px,
+            ms: spec_ms / n.max(1) as f64,
+        },
+        pooled: rows
+            .iter()
+            .zip(&pooled)
+            .map(|((key, _), acc)| acc.finish(key, n, any_floor))
+            .collect(),
+        per_frame,
+    })
+}
+
+/// The spec's own figures on a frame.
+pub(super) fn spec_summary(loaded: &LoadedFrame, floor_box: Option<[usize; 4]>) -> SpecSummary {
+    let r = &loaded.spec.roughness_m;
+    SpecSummary {
+        floor: floor_box.map(|b| {
+            let (v, m) = box_values(r, b);
+            floor_stats(v, m)
+        }),
+        valid_px: r.as_slice().iter().filter(|v| v.is_finite()).count(),
+        boundary_px: loaded
+            .spec
+            .boundary
+            .as_slice()
+            .iter()
+            .filter(|&&b| b)
+            .count(),
+        hazard_px: r.as_slice().iter().filter(|&&v| v >= HAZARD_M).count(),
+        ms: loaded.spec_ms,
+    }
+}
+
+/// Runs one configuration on a loaded frame and scores it; returns its roughness map too.
+pub(super) fn score_row(
+    pipeline: &mut Pipeline,
+    loaded: &LoadedFrame,
+    cfg: &PipelineConfig,
+    floor_box: Option<[usize; 4]>,
+    sensor: &SensorNoise,
+) -> anyhow::Result<(RowAcc, RowMaps)> {
+    let out = pipeline.run(&loaded.input, cfg)?;
+    let sensor_depth = loaded
+        .input
+        .depth_m
+        .as_ref()
+        .context("a real frame has depth")?;
+    let mut acc = RowAcc::default();
+    let spec = &loaded.spec;
+    acc.scores.add(
+        &out.roughness_m,
+        &spec.roughness_m,
+        &spec.boundary,
+        sensor_depth,
+    )?;
+    if let Some(b) = floor_box {
+        let (v, m) = box_values(&out.roughness_m, b);
+        acc.floor = v;
+        acc.floor_missing = m;
+    }
+    if cfg.mode == Mode::Rgb {
+        if let Some(depth) = out.depth_m() {
+            acc.depth.add(&depth, sensor_depth)?;
+            acc.has_depth = true;
+        }
+    }
+    for (name, took) in out.timings.iter() {
+        *acc.ms.entry(name.to_owned()).or_default() += took.as_secs_f64() * 1e3;
+    }
+    acc.ms
+        .insert("total".to_owned(), out.timings.total().as_secs_f64() * 1e3);
+    let mut traversal = None;
+    if cfg.mode != Mode::Rgb {
+        let maps = out.sensor_maps(&loaded.input, cfg.mode, Some(sensor), None)?;
+        let mut t = TraversalAcc::default();
+        t.add(&maps, loaded, floor_box);
+        acc.traversal = Some(t);
+        traversal = Some(maps.traversal);
+    }
+    let maps = RowMaps {
+        roughness_m: out.roughness_m.clone(),
+        traversal,
+    };
+    pipeline.recycle(out);
+    Ok((acc, maps))
+}
+
+/// One configuration's maps on a frame, for the contact sheet.
+pub struct RowMaps {
+    /// Roughness, metres (NaN: none).
+    pub roughness_m: Grid<f64>,
+    /// The three-state map, for modes that read sensor depth.
+    pub traversal: Option<Grid<Traversal>>,
+}

@@ -1,0 +1,151 @@
+//! The markdown tables of a [`RealReport`].
+
+use super::*;
+
+/// `x` as a percentage with one decimal, `–` for NaN.
+pub(super) fn pct(x: f64) -> String {
+    if x.is_nan() {
+        "–".to_owned()
+    } else {
+        format!("{:.1}%", 100.0 * x)
+    }
+}
+
+/// `x` with `d` decimals, `–` for NaN or none.
+pub(super) fn num(x: Option<f64>, d: usize) -> String {
+    match x {
+        Some(v) if v.is_finite() => format!("{v:.d$}"),
+        _ => "–".to_owned(),
+    }
+}
+
+/// The report as markdown: pooled figures, the split by range, each frame, and the `rgb`
+/// depth errors.
+pub fn markdown(report: &RealReport) -> String {
+    use std::fmt::Write;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "Real frames: {} from {}; the spec is annotation spec v1 on the same sensor depth \
+         (`tre annotate`). Edge recall: spec ≥ {} cm read ≥ {} cm; false hazards: spec < {} cm \
+         read ≥ {} cm.\n",
+        report.frames,
+        report.data.display(),
+        100.0 * report.hazard_m,
+        100.0 * report.hazard_m,
+        100.0 * report.flat_m,
+        100.0 * report.hazard_m
+    );
+    let floor =
+        |f: &Option<FloorStats>| (num(f.map(|f| f.median_cm), 2), num(f.map(|f| f.p90_cm), 2));
+    out.push_str("| row | RMSE | B-RMSE | F-RMSE | edge recall | false hazards | floor median (cm) | floor p90 (cm) | ms/frame |\n|---|---|---|---|---|---|---|---|---|\n");
+    let (m, p) = floor(&report.spec.floor);
+    let _ = writeln!(
+        out,
+        "| spec (`tre annotate`) | 0 | 0 | 0 | – | – | {m} | {p} | {:.1} |",
+        report.spec.ms
+    );
+    for r in &report.pooled {
+        let (m, p) = floor(&r.floor);
+        let rough = &r.all.roughness;
+        let _ = writeln!(
+            out,
+            "| {} | {:.3} | {:.3} | {:.3} | {} | {} | {m} | {p} | {} |",
+            r.key,
+            rough.rmse_cm,
+            rough.b_rmse_cm,
+            rough.f_rmse_cm,
+            pct(r.all.hazard.edge_recall),
+            pct(r.all.hazard.false_hazards),
+            num(r.ms.get("total").copied(), 1),
+        );
+    }
+    out.push_str("\nBy range (sensor depth), pooled:\n\n| row | range | px | RMSE (cm) | edge recall | false hazards |\n|---|---|---|---|---|---|\n");
+    for r in &report.pooled {
+        for (name, s) in &r.by_range {
+            let _ = writeln!(
+                out,
+                "| {} | {name} | {} | {} | {} | {} |",
+                r.key,
+                s.roughness.pixels,
+                num(Some(s.roughness.rmse_cm), 3),
+                pct(s.hazard.edge_recall),
+                pct(s.hazard.false_hazards),
+            );
+        }
+    }
+    out.push_str("\nPer frame:\n\n| frame | row | floor median (cm) | floor p90 (cm) | edge recall | false hazards | RMSE (cm) |\n|---|---|---|---|---|---|---|\n");
+    for f in &report.per_frame {
+        let (m, p) = floor(&f.spec.floor);
+        let _ = writeln!(out, "| {} | spec | {m} | {p} | – | – | 0 |", f.name);
+        for r in &f.rows {
+            let (m, p) = floor(&r.floor);
+            let _ = writeln!(
+                out,
+                "| {} | {} | {m} | {p} | {} | {} | {:.3} |",
+                f.name,
+                r.key,
+                pct(r.all.hazard.edge_recall),
+                pct(r.all.hazard.false_hazards),
+                r.all.roughness.rmse_cm,
+            );
+        }
+    }
+    traversal_table(&mut out, report);
+    depth_table(&mut out, report);
+    out
+}
+
+/// The three-state maps, pooled: shares over every pixel and the three checks.
+pub(super) fn traversal_table(out: &mut String, report: &RealReport) {
+    use std::fmt::Write;
+    out.push_str("\nThree-state traversability under the sensor's noise model (slope left out: the mountings are unknown), pooled:\n\n| row | traversable | hazard | unknown | floor boxes within 2 m: traversable | … unknown | beyond 4 m, spec ≥ 5 cm: unknown | … hazard | drops (spec ≥ 10 cm) within 4 m: hazard | median uncertainty < 2 m / 2–4 m / > 4 m (cm) |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    for r in &report.pooled {
+        let Some(t) = &r.traversal else { continue };
+        let u = |k: &str| num(t.median_uncertainty_m.get(k).map(|u| 100.0 * u), 2);
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} / {} / {} |",
+            r.key,
+            pct(t.all.traversable),
+            pct(t.all.hazard),
+            pct(t.all.unknown),
+            t.near_floor.map_or("–".to_owned(), |f| pct(f.traversable)),
+            t.near_floor.map_or("–".to_owned(), |f| pct(f.unknown)),
+            pct(t.far_spec_rough.unknown),
+            pct(t.far_spec_rough.hazard),
+            pct(t.near_drops.hazard),
+            u("0_2m"),
+            u("2_4m"),
+            u("4m_up"),
+        );
+    }
+}
+
+/// The `rgb` mode's depth errors against the sensor, per frame and pooled.
+pub(super) fn depth_table(out: &mut String, report: &RealReport) {
+    use std::fmt::Write;
+    let Some(pooled) = report.pooled.iter().find_map(|r| r.depth.map(|d| (r, d))) else {
+        return;
+    };
+    let _ = writeln!(
+        out,
+        "\nDepth of `{}` against the sensor:\n\n| frame | AbsRel | RMSE (m) | δ < 1.25 |\n|---|---|---|---|",
+        pooled.0.key
+    );
+    let line = |out: &mut String, name: &str, d: &DepthMetrics| {
+        let _ = writeln!(
+            out,
+            "| {name} | {:.3} | {:.3} | {} |",
+            d.abs_rel,
+            d.rmse_m,
+            pct(d.delta_1_25)
+        );
+    };
+    for f in &report.per_frame {
+        if let Some(d) = f.rows.iter().find_map(|r| r.depth) {
+            line(out, &f.name, &d);
+        }
+    }
+    line(out, "pooled", &pooled.1);
+}
