@@ -12,7 +12,7 @@
 #
 # With --frames N the same traffic runs until the workers have run N frames: the HTTP load test
 # and the side requests for 80% of them, then the stream for the rest (the count is the server's
-# own, `tre_batch_size_count`: every frame a worker ran, refused ones not included). With --out
+# own, `tre_batch_size_count`: every frame a worker ran, broken ones it refused included). With --out
 # DIR the samples (`soak.tsv`: seconds since ready, RSS MiB, frames run, frames/s over the last
 # 5 s) and the summary (`soak.txt`) are kept, and `soak.svg` plots them.
 #

@@ -37,12 +37,17 @@ pub enum FormatArg {
 /// Stream frames to `tre serve` and write the roughness maps it sends back.
 #[derive(Debug, Args)]
 pub struct Client {
-    /// Server: ws://host:port/v1/stream, ws://host:port, http://host:port or host:port.
+    /// Server: ws://host:port/v1/stream, ws://host:port, http://host:port or host:port;
+    /// wss:// or https:// for TLS (a TLS-terminating proxy in front of the service).
     #[arg(long, env = "TRE_SERVER")]
     pub server: String,
     /// API key of a server started with --api-key (sent as `Authorization: Bearer KEY`).
     #[arg(long, env = "TRE_API_KEY", hide_env_values = true)]
     pub api_key: Option<String>,
+    /// PEM file of a private CA to trust beside the public roots, for a wss:// or https://
+    /// server whose certificate it issued.
+    #[arg(long, env = "TRE_CA_CERT")]
+    pub ca_cert: Option<PathBuf>,
     /// Folder of frames (PNG or JPEG), sent in file-name order as they are on disk.
     #[arg(long, env = "TRE_CLIENT_FRAMES", required_unless_present_any = ["video", "device"], conflicts_with_all = ["video", "device"])]
     pub frames: Option<PathBuf>,
@@ -173,6 +178,7 @@ impl Client {
         let session = ClientConfig {
             server: self.server.clone(),
             api_key: self.api_key.clone(),
+            ca_cert: self.ca_cert.clone(),
             camera: camera.map(|(c, _)| c),
             mode: self.mode.map(Into::into),
             format: match self.format {
@@ -782,7 +788,7 @@ mod tests {
             &[
                 "--server", "h:1", "--frames", "f", "--rate", "-2", "-o", "o",
             ],
-            &["--server", "wss://h:1", "--frames", "f", "-o", "o"],
+            &["--server", "ftp://h:1", "--frames", "f", "-o", "o"],
             &[
                 "--server", "h:1", "--frames", "f", "--limit", "0", "-o", "o",
             ],

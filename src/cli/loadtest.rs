@@ -41,6 +41,10 @@ pub struct Loadtest {
     /// API key of a server started with --api-key (sent as `Authorization: Bearer KEY`).
     #[arg(long, env = "TRE_API_KEY", hide_env_values = true)]
     pub api_key: Option<String>,
+    /// PEM file of a private CA to trust beside the public roots, for an https:// --url whose
+    /// certificate it issued (the stream then goes over wss://).
+    #[arg(long, env = "TRE_CA_CERT")]
+    pub ca_cert: Option<std::path::PathBuf>,
     /// Allow a host name in --url that resolves to a non-loopback address (load a remote
     /// service on purpose).
     #[arg(long, env = "TRE_LOADTEST_ALLOW_REMOTE")]
@@ -126,6 +130,7 @@ impl Loadtest {
         let cfg = LoadConfig {
             url: self.url.clone(),
             api_key: self.api_key.clone(),
+            ca_cert: self.ca_cert.clone(),
             allow_remote: self.allow_remote,
             protocol: match self.protocol {
                 ProtocolArg::Http => Protocol::Http,

@@ -86,12 +86,16 @@ pub enum Format {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClientConfig {
     /// The server: `ws://host:port/v1/stream`, `ws://host:port`, `http://host:port` (the
-    /// service's base URL; `/v1/stream` is appended) or `host:port`. TLS (`wss`, `https`) is
-    /// not built in: put a TLS-terminating proxy in front or tunnel.
+    /// service's base URL; `/v1/stream` is appended) or `host:port`; `wss://` or `https://`
+    /// for TLS (rustls, [`tls`](super::tls)), as a TLS-terminating proxy in front of the
+    /// service serves it.
     pub server: String,
     /// API key of a server started with `--api-key`, sent as `Authorization: Bearer KEY` on
     /// the upgrade and the readiness check.
     pub api_key: Option<String>,
+    /// PEM file of a private CA whose certificates the server's may chain to, beside the
+    /// public roots (`wss://` and `https://` only).
+    pub ca_cert: Option<std::path::PathBuf>,
     /// Intrinsics and mounting of the camera; `None`: the server's defaults (60° horizontal
     /// field of view, 60° pitch, 1 m height).
     pub camera: Option<CameraFile>,
@@ -142,6 +146,7 @@ impl Default for ClientConfig {
         Self {
             server: "ws://127.0.0.1:8080/v1/stream".to_owned(),
             api_key: None,
+            ca_cert: None,
             camera: None,
             mode: None,
             format: Format::Png16,
@@ -168,10 +173,12 @@ impl Default for ClientConfig {
 /// The URLs a session talks to, derived from [`ClientConfig::server`].
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Endpoints {
-    /// The WebSocket stream, `ws://host:port[/prefix]/v1/stream`.
+    /// The WebSocket stream, `ws://host:port[/prefix]/v1/stream` (`wss://` with TLS).
     pub stream: String,
-    /// The readiness probe, `http://host:port[/prefix]/readyz`.
+    /// The readiness probe, `http://host:port[/prefix]/readyz` (`https://` with TLS).
     pub readyz: String,
+    /// Whether both go over TLS.
+    pub tls: bool,
 }
 
 impl ClientConfig {
@@ -245,6 +252,9 @@ impl ClientConfig {
 /// assert_eq!(e.readyz, "http://10.0.0.2:8080/readyz");
 /// let e = tre::client::endpoints("ws://robot-gw/tre/v1/stream").unwrap();
 /// assert_eq!(e.readyz, "http://robot-gw/tre/readyz");
+/// let e = tre::client::endpoints("https://tre.example").unwrap();
+/// assert_eq!(e.stream, "wss://tre.example/v1/stream");
+/// assert_eq!(e.readyz, "https://tre.example/readyz");
 /// ```
 pub fn endpoints(server: &str) -> Result<Endpoints, ClientError> {
     let bad = |reason: &str| ClientError::BadUrl {
@@ -256,15 +266,11 @@ pub fn endpoints(server: &str) -> Result<Endpoints, ClientError> {
         Some((scheme, rest)) => (scheme.to_ascii_lowercase(), rest),
         None => ("ws".to_owned(), s),
     };
-    match scheme.as_str() {
-        "ws" | "http" => {}
-        "wss" | "https" => {
-            return Err(bad(
-                "TLS is not built into this client; use ws:// or http:// through a TLS-terminating proxy or tunnel",
-            ))
-        }
-        _ => return Err(bad("the scheme must be ws:// or http://")),
-    }
+    let tls = match scheme.as_str() {
+        "ws" | "http" => false,
+        "wss" | "https" => true,
+        _ => return Err(bad("the scheme must be ws://, wss://, http:// or https://")),
+    };
     if rest.contains(['?', '#', ' ']) {
         return Err(bad("no query, fragment or spaces expected"));
     }
@@ -274,9 +280,15 @@ pub fn endpoints(server: &str) -> Result<Endpoints, ClientError> {
     }
     let path = path.trim_end_matches('/');
     let base = path.strip_suffix("/v1/stream").unwrap_or(path);
+    let (ws, http) = if tls {
+        ("wss", "https")
+    } else {
+        ("ws", "http")
+    };
     Ok(Endpoints {
-        stream: format!("ws://{authority}{base}/v1/stream"),
-        readyz: format!("http://{authority}{base}/readyz"),
+        stream: format!("{ws}://{authority}{base}/v1/stream"),
+        readyz: format!("{http}://{authority}{base}/readyz"),
+        tls,
     })
 }
 
@@ -296,14 +308,15 @@ mod tests {
             let e = endpoints(s).unwrap();
             assert_eq!(e.stream, "ws://127.0.0.1:8080/v1/stream", "{s}");
             assert_eq!(e.readyz, "http://127.0.0.1:8080/readyz", "{s}");
+            assert!(!e.tls);
         }
-        for s in [
-            "wss://h/v1/stream",
-            "ftp://h",
-            "ws://",
-            "ws://h/?x=1",
-            ":80",
-        ] {
+        for s in ["wss://h:8443/v1/stream", "https://h:8443", "WSS://h:8443/"] {
+            let e = endpoints(s).unwrap();
+            assert_eq!(e.stream, "wss://h:8443/v1/stream", "{s}");
+            assert_eq!(e.readyz, "https://h:8443/readyz", "{s}");
+            assert!(e.tls);
+        }
+        for s in ["ftp://h", "ws://", "ws://h/?x=1", ":80"] {
             assert!(
                 matches!(endpoints(s), Err(ClientError::BadUrl { .. })),
                 "{s}"

@@ -52,6 +52,8 @@ struct Shared {
     endpoints: Endpoints,
     hello: Vec<u8>,
     http: Option<reqwest::Client>,
+    /// TLS settings of `wss://` and `https://` servers.
+    tls: Option<Arc<rustls::ClientConfig>>,
 }
 
 /// Why a connection's pump returned.
@@ -82,6 +84,16 @@ impl Link {
         events: mpsc::Sender<Event>,
         state: watch::Sender<LinkState>,
     ) -> Result<Self, ClientError> {
+        let tls =
+            match endpoints.tls {
+                true => Some(super::tls::client_config(cfg.ca_cert.as_deref()).map_err(
+                    |reason| ClientError::BadConfig {
+                        field: "ca_cert",
+                        reason,
+                    },
+                )?),
+                false => None,
+            };
         let http = if cfg.wait_ready {
             // No idle connection is kept between checks: it would hold one of the server's
             // `--max-connections` places for the whole session, and on a server at its limit
@@ -90,15 +102,17 @@ impl Link {
             if let Some(key) = &cfg.api_key {
                 headers.insert(reqwest::header::AUTHORIZATION, bearer(key)?);
             }
-            let client = reqwest::Client::builder()
+            let mut builder = reqwest::Client::builder()
                 .default_headers(headers)
                 .timeout(cfg.connect_timeout)
-                .pool_max_idle_per_host(0)
-                .build()
-                .map_err(|e| ClientError::BadConfig {
-                    field: "wait_ready",
-                    reason: format!("cannot make an HTTP client: {e}"),
-                })?;
+                .pool_max_idle_per_host(0);
+            if let Some(tls) = &tls {
+                builder = builder.use_preconfigured_tls(rustls::ClientConfig::clone(tls));
+            }
+            let client = builder.build().map_err(|e| ClientError::BadConfig {
+                field: "wait_ready",
+                reason: format!("cannot make an HTTP client: {e}"),
+            })?;
             Some(client)
         } else {
             None
@@ -110,6 +124,7 @@ impl Link {
                 endpoints,
                 hello,
                 http,
+                tls,
             }),
             frames,
             frames_open: true,
@@ -451,7 +466,9 @@ async fn attempt(shared: Arc<Shared>) -> Result<(Ws, ServerInfo), ClientError> {
             .headers_mut()
             .insert(tungstenite::http::header::AUTHORIZATION, bearer(key)?);
     }
-    let handshake = tokio_tungstenite::connect_async_with_config(request, None, true);
+    let connector = shared.tls.clone().map(tokio_tungstenite::Connector::Rustls);
+    let handshake =
+        tokio_tungstenite::connect_async_tls_with_config(request, None, true, connector);
     let (mut ws, _) = within(limit, "the WebSocket handshake", handshake)
         .await?
         .map_err(|e| handshake_error(url, e))?;

@@ -40,6 +40,7 @@ mod event;
 mod proto;
 mod session;
 pub mod source;
+pub mod tls;
 
 pub use config::{endpoints, Backoff, ClientConfig, Endpoints, Format, Rate};
 pub use error::ClientError;

@@ -37,14 +37,19 @@ pub(super) async fn drive(
     if let Some(key) = &cfg.api_key {
         headers.insert(reqwest::header::AUTHORIZATION, super::bearer(key)?);
     }
-    let client = Client::builder()
+    let mut builder = Client::builder()
         .default_headers(headers)
         .no_proxy()
         .timeout(cfg.timeout)
         .connect_timeout(cfg.timeout.min(CONNECT_TIMEOUT))
         .tcp_nodelay(true)
-        .resolve(&target.host, target.addr)
-        .build()?;
+        .resolve(&target.host, target.addr);
+    if target.tls {
+        let tls =
+            crate::client::tls::client_config(cfg.ca_cert.as_deref()).map_err(LoadError::Config)?;
+        builder = builder.use_preconfigured_tls(rustls::ClientConfig::clone(&tls));
+    }
+    let client = builder.build()?;
     let plan = Plan::new(cfg);
     let shared = Arc::new(Shared {
         client,

@@ -79,10 +79,13 @@ pub enum Load {
 /// Settings of one load-test run; checked by [`LoadConfig::validate`].
 #[derive(Debug, Clone)]
 pub struct LoadConfig {
-    /// Base URL of the service (`http://host:port`, optionally with a path prefix).
+    /// Base URL of the service (`http://host:port`, optionally with a path prefix; `https://`
+    /// for TLS, the stream then over `wss://`).
     pub url: String,
     /// API key of a server started with `--api-key`, sent as `Authorization: Bearer KEY`.
     pub api_key: Option<String>,
+    /// PEM file of a private CA to trust beside the public roots (TLS only).
+    pub ca_cert: Option<std::path::PathBuf>,
     /// Accept host names that resolve to addresses other than loopback.
     pub allow_remote: bool,
     /// HTTP or WebSocket.
@@ -112,6 +115,7 @@ impl Default for LoadConfig {
         Self {
             url: "http://127.0.0.1:8080".into(),
             api_key: None,
+            ca_cert: None,
             allow_remote: false,
             protocol: Protocol::Http,
             load: Load::Closed,
@@ -176,7 +180,7 @@ pub enum LoadError {
     /// A bad setting.
     #[error("{0}")]
     Config(String),
-    /// The URL does not parse or is not `http://` / `ws://`.
+    /// The URL does not parse or is not `http(s)://` / `ws(s)://`.
     #[error("url {url:?}: {why}")]
     Url {
         /// The URL given.

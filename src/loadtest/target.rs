@@ -20,6 +20,8 @@ pub struct Target {
     pub addr: SocketAddr,
     /// Base path without a trailing slash (`""` for the root).
     pub base_path: String,
+    /// Whether the service is reached over TLS (`https://`, the stream over `wss://`).
+    pub tls: bool,
 }
 
 /// What the host part of a URL is.
@@ -31,21 +33,18 @@ pub enum HostKind {
     Name(String),
 }
 
-/// Splits `url` into its host, port and base path; only `http://` and `ws://` are accepted.
-pub fn parse(url: &str) -> Result<(HostKind, u16, String), LoadError> {
+/// Splits `url` into its host, port, base path and whether it is over TLS; `http://`, `ws://`,
+/// `https://` and `wss://` are accepted.
+pub fn parse(url: &str) -> Result<(HostKind, u16, String, bool), LoadError> {
     let bad = |why: &str| LoadError::Url {
         url: url.into(),
         why: why.into(),
     };
     let parsed = Url::parse(url).map_err(|e| bad(&e.to_string()))?;
-    let default_port = match parsed.scheme() {
-        "http" | "ws" => 80,
-        "https" | "wss" => {
-            return Err(bad(
-                "TLS is not supported; load the service's plain http:// port",
-            ))
-        }
-        _ => return Err(bad("expected http://host:port")),
+    let (default_port, tls) = match parsed.scheme() {
+        "http" | "ws" => (80, false),
+        "https" | "wss" => (443, true),
+        _ => return Err(bad("expected http://host:port or https://host:port")),
     };
     if parsed.query().is_some() || parsed.fragment().is_some() {
         return Err(bad("no query or fragment, only http://host:port[/prefix]"));
@@ -60,7 +59,7 @@ pub fn parse(url: &str) -> Result<(HostKind, u16, String), LoadError> {
     };
     let port = parsed.port().unwrap_or(default_port);
     let base = parsed.path().trim_end_matches('/').to_owned();
-    Ok((host, port, base))
+    Ok((host, port, base, tls))
 }
 
 /// Whether every address in `addrs` is loopback.
@@ -89,7 +88,7 @@ impl Target {
     /// A host name that resolves to any non-loopback address is refused unless
     /// `allow_remote`; an IP address written in the URL is taken as given.
     pub async fn resolve(url: &str, allow_remote: bool) -> Result<Self, LoadError> {
-        let (host, port, base_path) = parse(url)?;
+        let (host, port, base_path, tls) = parse(url)?;
         let (host, addrs) = match host {
             HostKind::Ip(ip) => (ip_host(ip), vec![SocketAddr::new(ip, port)]),
             HostKind::Name(name) => {
@@ -109,6 +108,7 @@ impl Target {
             host,
             addr,
             base_path,
+            tls,
         })
     }
 
@@ -118,6 +118,7 @@ impl Target {
             host: ip_host(addr.ip()),
             addr,
             base_path: String::new(),
+            tls: false,
         }
     }
 
@@ -128,12 +129,22 @@ impl Target {
 
     /// URL of `POST /v1/roughness`.
     pub fn roughness_url(&self) -> String {
-        format!("http://{}{}/v1/roughness", self.authority(), self.base_path)
+        let scheme = if self.tls { "https" } else { "http" };
+        format!(
+            "{scheme}://{}{}/v1/roughness",
+            self.authority(),
+            self.base_path
+        )
     }
 
     /// URL of the stream.
     pub fn stream_url(&self) -> String {
-        format!("ws://{}{}/v1/stream", self.authority(), self.base_path)
+        let scheme = if self.tls { "wss" } else { "ws" };
+        format!(
+            "{scheme}://{}{}/v1/stream",
+            self.authority(),
+            self.base_path
+        )
     }
 }
 
@@ -175,20 +186,18 @@ mod tests {
 
     #[test]
     fn urls_split_into_host_port_and_prefix() {
-        let (h, p, b) = parse("http://127.0.0.1:8080").expect("parses");
+        let (h, p, b, tls) = parse("http://127.0.0.1:8080").expect("parses");
         assert_eq!(h, HostKind::Ip(IpAddr::from([127, 0, 0, 1])));
-        assert_eq!((p, b.as_str()), (8080, ""));
-        let (h, p, b) = parse("http://localhost/tre/").expect("parses");
+        assert_eq!((p, b.as_str(), tls), (8080, "", false));
+        let (h, p, b, _) = parse("http://localhost/tre/").expect("parses");
         assert_eq!(h, HostKind::Name("localhost".into()));
         assert_eq!((p, b.as_str()), (80, "/tre"));
-        let (h, _, _) = parse("ws://[::1]:9000").expect("parses");
+        let (h, _, _, _) = parse("ws://[::1]:9000").expect("parses");
         assert_eq!(h, HostKind::Ip("::1".parse().expect("ip")));
-        for bad in [
-            "https://127.0.0.1",
-            "ftp://x",
-            "127.0.0.1:80",
-            "http://127.0.0.1/?a=1",
-        ] {
+        let (_, p, _, tls) = parse("https://localhost").expect("parses");
+        assert_eq!((p, tls), (443, true));
+        assert!(parse("wss://localhost:8443").expect("parses").3);
+        for bad in ["ftp://x", "127.0.0.1:80", "http://127.0.0.1/?a=1"] {
             assert!(parse(bad).is_err(), "{bad} should be refused");
         }
     }

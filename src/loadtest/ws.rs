@@ -16,7 +16,7 @@ use tokio::sync::mpsc;
 use tokio::task::JoinSet;
 use tokio::time::Instant;
 use tokio_tungstenite::tungstenite::Message;
-use tokio_tungstenite::WebSocketStream;
+use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
 use super::frames::Frames;
 use super::plan::Plan;
@@ -31,7 +31,7 @@ const DRAIN_POLL: Duration = Duration::from_millis(5);
 /// Error codes of the service that mean "overloaded, retry later".
 const RETRYABLE: [&str; 4] = ["too_many_requests", "overloaded", "not_ready", "timeout"];
 
-type Socket = WebSocketStream<TcpStream>;
+type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
 
 /// A server message, as far as the load test cares.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -110,11 +110,12 @@ fn frame(sequence: u64, frames: &Frames) -> Message {
     Message::Binary(msg.encode_to_vec().into())
 }
 
-/// Opens a stream, sends the Hello and waits for Ready.
+/// Opens a stream (over TLS with `tls`), sends the Hello and waits for Ready.
 async fn connect(
     target: &Target,
     timeout: Duration,
     api_key: Option<&str>,
+    tls: Option<&Arc<rustls::ClientConfig>>,
 ) -> Result<Socket, LoadError> {
     let url = target.stream_url();
     let err = |why: String| LoadError::Stream {
@@ -136,9 +137,11 @@ async fn connect(
                 .headers_mut()
                 .insert(reqwest::header::AUTHORIZATION, super::bearer(key)?);
         }
-        let (mut ws, _) = tokio_tungstenite::client_async(request, tcp)
-            .await
-            .map_err(|e| err(format!("handshake: {e}")))?;
+        let connector = tls.cloned().map(tokio_tungstenite::Connector::Rustls);
+        let (mut ws, _) =
+            tokio_tungstenite::client_async_tls_with_config(request, tcp, None, connector)
+                .await
+                .map_err(|e| err(format!("handshake: {e}")))?;
         ws.send(hello()).await.map_err(|e| err(e.to_string()))?;
         while let Some(msg) = ws.next().await {
             let Message::Binary(b) = msg.map_err(|e| err(e.to_string()))? else {
@@ -162,9 +165,16 @@ pub(super) async fn drive(
     target: &Target,
     frames: &Frames,
 ) -> Result<Report, LoadError> {
+    let tls = match target.tls {
+        true => Some(
+            crate::client::tls::client_config(cfg.ca_cert.as_deref()).map_err(LoadError::Config)?,
+        ),
+        false => None,
+    };
     let mut sockets = Vec::with_capacity(cfg.connections);
     for _ in 0..cfg.connections {
-        sockets.push(connect(target, cfg.timeout, cfg.api_key.as_deref()).await?);
+        let key = cfg.api_key.as_deref();
+        sockets.push(connect(target, cfg.timeout, key, tls.as_ref()).await?);
     }
     let plan = Plan::new(cfg);
     let run = Arc::new(Run {

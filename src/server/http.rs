@@ -416,7 +416,7 @@ impl BodyPace {
     /// else the next window starts.
     fn check(&mut self, n: usize, now: tokio::time::Instant) -> Result<(), ApiError> {
         self.bytes = self.bytes.saturating_add(n);
-        if !self.deadline().is_some_and(|end| now >= end) {
+        if self.deadline().is_none_or(|end| now < end) {
             return Ok(());
         }
         let secs = (now - self.since).as_secs_f64();
