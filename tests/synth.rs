@@ -1206,4 +1206,60 @@ mod content {
         tre::synth::generate(&cfg(root, true)).unwrap();
         assert_eq!(files(root).len(), fa.len());
     }
+
+    /// Set `TRE_SYNTH_CONTENT_SHEET=docs/synth-content-sheet.png` to redraw the contact sheet of
+    /// docs/synth.md: two indoor and two urban frames (RGB, labels, spec roughness 0–5 cm).
+    #[test]
+    fn content_contact_sheet() {
+        use tre::io::sheet::{
+            categorical_legend, colour_bar_legend, contact_sheet, fit_within, roughness_panel,
+            stack, Panel,
+        };
+        use tre::synth::dataset::{build_scene, scene_views, view_conditions};
+        let Ok(out) = std::env::var("TRE_SYNTH_CONTENT_SHEET") else {
+            return;
+        };
+        let mut panels = Vec::new();
+        for (content, seed, view) in [
+            (Content::Indoor, 1, 2),
+            (Content::Indoor, 4, 6),
+            (Content::Urban, 1, 5),
+            (Content::Urban, 2, 3),
+        ] {
+            let cfg = SynthConfig {
+                size: (384, 288),
+                seed,
+                content,
+                ..SynthConfig::default()
+            };
+            let views = scene_views(&cfg, 0);
+            let scene = build_scene(&cfg, 0, &views);
+            let f = render(&scene, &views[view], &view_conditions(&cfg, 0, view as u32));
+            let ann = annotate_frame(&f, &views[view]);
+            let fit = |img: image::RgbImage| fit_within(&img, 288, 216);
+            let title = format!("{content} seed {seed} view {view}");
+            panels.push(Panel::new(title, fit(f.rgb.clone())));
+            panels.push(Panel::new(
+                "labels",
+                fit(tre::io::colormap::labels(&f.labels)),
+            ));
+            panels.push(Panel::new(
+                "spec roughness",
+                fit(roughness_panel(&ann.roughness_m, 0.05)),
+            ));
+        }
+        let palette = tre::io::colormap::labels(&Grid::from_fn(21, 1, |u, _| u as u32));
+        let entries: Vec<(&str, image::Rgb<u8>)> = (Category::INDOOR.iter())
+            .chain(&Category::URBAN)
+            .chain([&Category::Pavement])
+            .map(|c| (c.name(), *palette.get_pixel(u32::from(c.label()), 0)))
+            .collect();
+        let legend = stack(&[
+            colour_bar_legend(480, 0.05, &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0]),
+            categorical_legend(&entries[..8]),
+            categorical_legend(&entries[8..]),
+        ]);
+        let sheet = contact_sheet(&panels, 3, Some(&legend));
+        tre::io::save(Path::new(&out), &image::DynamicImage::ImageRgb8(sheet)).unwrap();
+    }
 }

@@ -559,7 +559,9 @@ fn urban_ramp(l: &mut Layout, st: &Street) -> (f64, f64) {
     if st.on_walk {
         run = run.min((st.curb_b - 0.2).max(0.5));
     }
-    let b = st.curb_b + st.into_walk() * run / 2.0;
+    // It starts 1 cm into the road (at road level), covering the curb's blended outline there.
+    let run = run + 0.01;
+    let b = st.curb_b + st.into_walk() * (run / 2.0 - 0.01);
     // u points into the sidewalk: the frame's b axis (turned a quarter) or against it.
     let turn = if st.on_walk { -FRAC_PI_2 } else { FRAC_PI_2 };
     let shape = l.rect((a, b), (run / 2.0, width / 2.0), turn);
@@ -578,7 +580,7 @@ fn urban_drains(l: &mut Layout, st: &Street, (ramp_a, ramp_w): (f64, f64)) {
     for _ in 0..count {
         let along = l.rng.range(0.4, 0.7);
         let across = l.rng.range(0.3, 0.45);
-        let gap = l.rng.range(0.0, 0.12);
+        let gap = l.rng.range(0.01, 0.12);
         let b = st.curb_b - st.into_walk() * (gap + across / 2.0);
         let span = l.near_m.min(1.6);
         let spot = (0..40).map(|_| l.rng.range(-span, span)).find(|&a| {

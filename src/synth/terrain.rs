@@ -22,7 +22,7 @@ pub enum Category {
     Rocks = 4,
     /// Smooth undulation (±4 cm) with ripples.
     Sand = 5,
-    /// Planar steps of 5–20 cm (one step: a curb); indoors, flights of 3–5 steps up or down.
+    /// Planar steps of 5–20 cm (one step: a curb); indoors, flights of 3–4 risers up or down.
     Stairs = 6,
     /// Indoor floor: ceramic tiles of 20–60 cm, grout joints 12 mm wide and 0.4 mm deep.
     Tile = 7,
