@@ -484,7 +484,7 @@ impl Street {
     }
 
     /// Unit step (in b) from the curb line into the sidewalk.
-    fn into_walk(&self) -> f64 {
+    fn walk_dir(&self) -> f64 {
         if self.on_walk {
             -1.0
         } else {
@@ -519,8 +519,8 @@ fn band(l: &Layout, b0: f64, b1: f64) -> Shape {
 
 fn urban_ground(l: &mut Layout, st: &Street) {
     let c = st.curb_b;
-    let walk_side = c + st.into_walk() * FAR_M;
-    let road_side = c - st.into_walk() * FAR_M;
+    let walk_side = c + st.walk_dir() * FAR_M;
+    let road_side = c - st.walk_dir() * FAR_M;
     let walk = if l.rng.chance(0.7) {
         Category::Paving
     } else {
@@ -543,7 +543,7 @@ fn urban_ground(l: &mut Layout, st: &Street) {
     let width = l.rng.range(0.12, 0.18);
     l.add(
         Category::Curb,
-        band(l, c, c + st.into_walk() * width),
+        band(l, c, c + st.walk_dir() * width),
         Profile::Block { top_m: st.walk_z() },
     );
 }
@@ -561,7 +561,7 @@ fn urban_ramp(l: &mut Layout, st: &Street) -> (f64, f64) {
     }
     // It starts 1 cm into the road (at road level), covering the curb's blended outline there.
     let run = run + 0.01;
-    let b = st.curb_b + st.into_walk() * (run / 2.0 - 0.01);
+    let b = st.curb_b + st.walk_dir() * (run / 2.0 - 0.01);
     // u points into the sidewalk: the frame's b axis (turned a quarter) or against it.
     let turn = if st.on_walk { -FRAC_PI_2 } else { FRAC_PI_2 };
     let shape = l.rect((a, b), (run / 2.0, width / 2.0), turn);
@@ -581,7 +581,7 @@ fn urban_drains(l: &mut Layout, st: &Street, (ramp_a, ramp_w): (f64, f64)) {
         let along = l.rng.range(0.4, 0.7);
         let across = l.rng.range(0.3, 0.45);
         let gap = l.rng.range(0.01, 0.12);
-        let b = st.curb_b - st.into_walk() * (gap + across / 2.0);
+        let b = st.curb_b - st.walk_dir() * (gap + across / 2.0);
         let span = l.near_m.min(1.6);
         let spot = (0..40).map(|_| l.rng.range(-span, span)).find(|&a| {
             (a - ramp_a).abs() > (ramp_w + along) / 2.0 + 0.1
@@ -610,7 +610,7 @@ fn urban_posts(l: &mut Layout, st: &Street, (ramp_a, ramp_w): (f64, f64)) {
         let radius = l.rng.range(0.05, 0.10);
         let top = st.walk_z() + l.rng.range(0.6, 1.0);
         let into = l.rng.range(0.25, 0.45);
-        let b = st.curb_b + st.into_walk() * into;
+        let b = st.curb_b + st.walk_dir() * into;
         // The first flanks the ramp on the side of the view's centre; the others stand anywhere
         // along the curb; all within sight.
         let first = ramp_a - ramp_a.signum() * (ramp_w / 2.0 + 0.25);
