@@ -1122,6 +1122,23 @@ mod content {
             strip(Category::Sill, 1.0, 1.12, 10.0, 0.02),
         ]);
         let boxed = edge_scene(vec![strip(Category::Box, 0.7, 1.0, 0.3, 0.3)]);
+        // A face (a step of the height field) belongs to the object on top of it.
+        for (scene, category) in [(&boxed, Category::Box), (&curb_rise, Category::Curb)] {
+            let (f, view, _) = scene;
+            let rot = view.world_from_cam();
+            let mut faces = 0;
+            for (n, l) in f.normals_cam.as_slice().iter().zip(f.labels.as_slice()) {
+                if n.x.is_finite() && (rot * n).z.abs() < 0.5 {
+                    assert_eq!(
+                        *l,
+                        u32::from(category.label()),
+                        "a face of the {category:?}"
+                    );
+                    faces += 1;
+                }
+            }
+            assert!(faces > 500, "{category:?}: {faces} face pixels");
+        }
         // Edges that hide what lies beyond (the far edge of a curb seen from the sidewalk, of a
         // sill, of a box top): the 3-D gap across them is at least the height, and the spec's
         // edge term gives at least the height on 90% of their boundary pixels.
