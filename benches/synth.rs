@@ -1,6 +1,6 @@
 //! Criterion benches of the synthetic dataset generator at 512×512 on the paper's camera:
-//! rendering one view, annotating it, and a whole frame written to disk; rendering and each
-//! depth-sensor model at 640×480.
+//! rendering one view, annotating it, and a whole frame written to disk; rendering (natural,
+//! indoor and urban scenes) and each depth-sensor model at 640×480.
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -8,7 +8,7 @@ use tre::roughness::noise::SensorPreset;
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 use tre::synth::dataset::{build_scene, scene_views, view_conditions};
 use tre::synth::sensor::{simulate, SensorInput, SensorModel};
-use tre::synth::{render, SynthConfig};
+use tre::synth::{render, Content, SynthConfig};
 
 fn synth(c: &mut Criterion) {
     let cfg = SynthConfig::default();
@@ -61,6 +61,16 @@ fn synth(c: &mut Criterion) {
     c.bench_function("synth/render_640x480", |b| {
         b.iter(|| render(&scene, &view640, &cond))
     });
+    for content in [Content::Indoor, Content::Urban] {
+        let cfg = SynthConfig {
+            content,
+            ..SynthConfig::default()
+        };
+        let scene = build_scene(&cfg, 0, &views);
+        c.bench_function(&format!("synth/render_640x480_{content}"), |b| {
+            b.iter(|| render(&scene, &view640, &cond))
+        });
+    }
     let dir = tempfile::tempdir().expect("temp dir");
     let one = SynthConfig {
         out: dir.path().to_owned(),

@@ -109,24 +109,28 @@ impl FromStr for Content {
 }
 
 /// Distance kept free around the robot (its own footprint), metres.
-const ROBOT_CLEAR_M: f64 = 0.4;
+const ROBOT_CLEAR_M: f64 = 0.35;
 
 /// A layout in progress: a frame turned by `angle` (a: across, b: ahead of the robot), the
-/// objects so far and the circles they take.
+/// distance within which object centres stand (so that the views see them), the objects so far
+/// and the circles they take.
 struct Layout {
     rng: Rng,
     angle: f64,
+    near_m: f64,
     objects: Vec<Object>,
     taken: Vec<((f64, f64), f64)>,
 }
 
 impl Layout {
-    fn new(seed: u64, scene: u64, salt: u64) -> Self {
+    /// A layout for content within `reach_m` (the views' farthest ground plus 0.5 m).
+    fn new(seed: u64, scene: u64, salt: u64, reach_m: f64) -> Self {
         let mut rng = Rng(splitmix64(seed ^ salt ^ splitmix64(scene.wrapping_add(1))));
         let angle = rng.range(-0.45, 0.45);
         Self {
             rng,
             angle,
+            near_m: (reach_m - 0.5).max(1.0),
             objects: Vec::new(),
             taken: Vec::new(),
         }
@@ -161,23 +165,30 @@ impl Layout {
     }
 
     /// A free spot (frame coordinates) for a circle of radius `r` drawn by `spot`: clear of
-    /// the robot and of the circles taken, within `fits`. Tries 60 draws.
+    /// the robot and of the circles taken (circles may overlap by 30% of the smaller radius: they
+    /// bound rectangles loosely), within `fits(spot, radius)`. Tries 50 draws, then
+    /// 50 at each smaller scale (0.85, 0.7, 0.55) of the object; returns the spot and the scale.
     fn place(
         &mut self,
         r: f64,
         mut spot: impl FnMut(&mut Rng) -> (f64, f64),
-        fits: impl Fn((f64, f64)) -> bool,
-    ) -> Option<(f64, f64)> {
-        for _ in 0..60 {
-            let (a, b) = spot(&mut self.rng);
-            let w = self.world(a, b);
-            let clear = w.0.hypot(w.1) >= r + ROBOT_CLEAR_M
-                && self
-                    .taken
-                    .iter()
-                    .all(|(c, rc)| (c.0 - w.0).hypot(c.1 - w.1) >= r + rc + 0.05);
-            if clear && fits((a, b)) {
-                return Some((a, b));
+        fits: impl Fn((f64, f64), f64) -> bool,
+    ) -> Option<((f64, f64), f64)> {
+        for scale in [1.0, 0.85, 0.7, 0.55] {
+            let r = r * scale;
+            for _ in 0..50 {
+                let (a, b) = spot(&mut self.rng);
+                let w = self.world(a, b);
+                let d = w.0.hypot(w.1);
+                let clear = d >= r + ROBOT_CLEAR_M
+                    && d <= self.near_m
+                    && self
+                        .taken
+                        .iter()
+                        .all(|(c, rc)| (c.0 - w.0).hypot(c.1 - w.1) >= r + rc - 0.3 * r.min(*rc));
+                if clear && fits((a, b), r) {
+                    return Some(((a, b), scale));
+                }
             }
         }
         None
@@ -212,15 +223,15 @@ struct Room {
     side: Option<f64>,
 }
 
-/// An indoor scene: a room whose back wall stands 0.55–0.75 × `reach_m` ahead (at least 1.1 m)
+/// An indoor scene: a room whose back wall stands 0.75–0.95 × (`reach_m` − 0.5 m) ahead (at
+/// least 1 m)
 /// with a doorway and its sill; floors of tile, wood and carpet (the room split in two, the room
 /// beyond the third, sometimes a rug); a flight of stairs up or down; furniture-like blocks,
 /// boxes and cables. Everything stands in the robot's half-plane of view.
 pub fn indoor(seed: u64, scene: u64, reach_m: f64) -> Terrain {
-    let mut l = Layout::new(seed, scene, 0x1D00);
-    let reach = reach_m.max(1.5);
+    let mut l = Layout::new(seed, scene, 0x1D00, reach_m);
     let room = Room {
-        depth: (reach * l.rng.range(0.55, 0.75)).max(1.1),
+        depth: (l.near_m * l.rng.range(0.75, 0.95)).max(1.0),
         wall_m: l.rng.range(0.10, 0.15),
         side: l.rng.chance(0.6).then(|| {
             let a = l.rng.range(1.3, 2.2);
@@ -233,9 +244,15 @@ pub fn indoor(seed: u64, scene: u64, reach_m: f64) -> Terrain {
     };
     indoor_floors(&mut l, &room);
     indoor_stairs(&mut l, &room);
-    indoor_walls(&mut l, &room);
+    // Furniture is placed before the cables (it needs more room) but drawn after them, so
+    // that it stands on a cable rather than a cable lies over it.
+    let mark = l.objects.len();
     indoor_furniture(&mut l, &room);
-    indoor_boxes_and_cables(&mut l, &room);
+    let furniture = l.objects.len() - mark;
+    indoor_cables(&mut l, &room);
+    l.objects[mark..].rotate_left(furniture);
+    indoor_walls(&mut l, &room);
+    indoor_boxes(&mut l, &room);
     let floor = l.objects[0].category;
     l.into_terrain(floor, splitmix64(seed ^ scene))
 }
@@ -249,12 +266,12 @@ fn in_room(room: &Room, (a, b): (f64, f64), r: f64) -> bool {
             a - r > s + 0.02
         }
     });
-    b + r < room.depth - 0.02 && b - r > -0.6 && side_ok
+    b + r < room.depth - 0.02 && b - r > -0.75 && side_ok
 }
 
-/// A spot in the room's half-plane ahead: |a| ≤ 2.2 m, b from −0.3 m to the back wall.
+/// A spot in the room's half-plane ahead: |a| ≤ 2.4 m, b from −0.4 m to the back wall.
 fn room_spot(depth: f64) -> impl FnMut(&mut Rng) -> (f64, f64) {
-    move |rng: &mut Rng| (rng.range(-2.2, 2.2), rng.range(-0.3, depth))
+    move |rng: &mut Rng| (rng.range(-2.4, 2.4), rng.range(-0.4, depth))
 }
 
 fn indoor_floors(l: &mut Layout, room: &Room) {
@@ -291,21 +308,21 @@ fn indoor_floors(l: &mut Layout, room: &Room) {
 }
 
 fn indoor_stairs(l: &mut Layout, room: &Room) {
-    let steps = 3 + (l.rng.next() * 3.0) as u32;
+    let steps = 3 + (l.rng.next() * 2.0) as u32;
     let tread = l.rng.range(0.26, 0.32);
     let riser = l.rng.range(0.15, 0.19) * if l.rng.chance(0.5) { 1.0 } else { -1.0 };
-    let width = l.rng.range(0.9, 1.2);
+    let width = l.rng.range(0.8, 1.1);
     let half = ((f64::from(steps) * tread + 0.3) / 2.0, width / 2.0);
     let turn = f64::from((l.rng.next() * 4.0) as u32) * FRAC_PI_2;
     let r = half.0.hypot(half.1);
-    let spot = l.place(r, room_spot(room.depth), |c| in_room(room, c, r));
-    if let Some(c) = spot {
-        l.take(c, r);
-        let shape = l.rect(c, half, turn);
+    let spot = l.place(r, room_spot(room.depth), |c, r| in_room(room, c, r));
+    if let Some((c, k)) = spot {
+        l.take(c, r * k);
+        let shape = l.rect(c, (half.0 * k, half.1 * k), turn);
         let profile = Profile::Flight {
             base_m: 0.0,
             riser_m: riser,
-            tread_m: tread,
+            tread_m: tread * k,
             steps,
         };
         l.add(Category::Stairs, shape, profile);
@@ -316,8 +333,8 @@ fn indoor_stairs(l: &mut Layout, room: &Room) {
         let r = half.0.hypot(half.1);
         let turn = l.rng.range(-0.3, 0.3);
         let dz = l.rng.range(0.006, 0.012);
-        if let Some(c) = l.place(r, room_spot(room.depth), |c| in_room(room, c, r)) {
-            let shape = l.rect(c, half, turn);
+        if let Some((c, k)) = l.place(r, room_spot(room.depth), |c, r| in_room(room, c, r)) {
+            let shape = l.rect(c, (half.0 * k, half.1 * k), turn);
             l.add(Category::Carpet, shape, Profile::Layer { dz_m: dz });
         }
     }
@@ -328,7 +345,9 @@ fn indoor_walls(l: &mut Layout, room: &Room) {
     let wall = Profile::Block { top_m: height };
     let (t, b) = (room.wall_m, room.depth + room.wall_m / 2.0);
     let door_w = l.rng.range(0.8, 1.0);
-    let door_a = l.rng.range(-0.6, 0.6) * room.depth;
+    // Within sight: the doorway's centre no farther than the layout's near distance.
+    let span = (l.near_m.powi(2) - room.depth.powi(2)).max(0.04).sqrt();
+    let door_a = l.rng.range(-0.8, 0.8) * span;
     let (left, right) = (door_a - door_w / 2.0, door_a + door_w / 2.0);
     let piece = |from: f64, to: f64| (((from + to) / 2.0, b), ((to - from) / 2.0, t / 2.0));
     for (c, half) in [piece(-FAR_M, left), piece(right, FAR_M)] {
@@ -350,20 +369,21 @@ fn indoor_walls(l: &mut Layout, room: &Room) {
 
 /// One or two furniture-like blocks: a sofa (seat and back) or a cabinet.
 fn indoor_furniture(l: &mut Layout, room: &Room) {
-    let count = 1 + usize::from(l.rng.chance(0.4));
+    let count = 1 + usize::from(l.rng.chance(0.25));
     for _ in 0..count {
         let sofa = l.rng.chance(0.5);
         let half = if sofa {
-            (l.rng.range(0.6, 0.9), l.rng.range(0.35, 0.45))
+            (l.rng.range(0.5, 0.8), l.rng.range(0.3, 0.4))
         } else {
-            (l.rng.range(0.2, 0.6), l.rng.range(0.2, 0.3))
+            (l.rng.range(0.2, 0.5), l.rng.range(0.2, 0.3))
         };
         let turn = l.rng.range(-PI, PI);
         let r = half.0.hypot(half.1);
-        let Some(c) = l.place(r, room_spot(room.depth), |c| in_room(room, c, r)) else {
+        let Some((c, k)) = l.place(r, room_spot(room.depth), |c, r| in_room(room, c, r)) else {
             continue;
         };
-        l.take(c, r);
+        l.take(c, r * k);
+        let half = (half.0 * k, half.1 * k);
         if sofa {
             let seat = l.rng.range(0.40, 0.48);
             let back = l.rng.range(0.75, 0.9);
@@ -374,11 +394,11 @@ fn indoor_furniture(l: &mut Layout, room: &Room) {
             );
             // The back: the rectangle's outer 0.2 m along its v axis.
             let (s, co) = turn.sin_cos();
-            let off = half.1 - 0.1;
+            let off = half.1 - 0.1 * k;
             let bc = (c.0 - off * s, c.1 + off * co);
             l.add(
                 Category::Furniture,
-                l.rect(bc, (half.0, 0.1), turn),
+                l.rect(bc, (half.0, 0.1 * k), turn),
                 Profile::Block { top_m: back },
             );
         } else {
@@ -392,35 +412,40 @@ fn indoor_furniture(l: &mut Layout, room: &Room) {
     }
 }
 
-/// One to three boxes and one or two cables (polylines of three segments on the floor).
-fn indoor_boxes_and_cables(l: &mut Layout, room: &Room) {
-    let boxes = 1 + (l.rng.next() * 3.0) as usize;
+/// One to three boxes.
+fn indoor_boxes(l: &mut Layout, room: &Room) {
+    let boxes = 1 + usize::from(l.rng.chance(0.5)) + usize::from(l.rng.chance(0.25));
     for _ in 0..boxes {
         let half = (l.rng.range(0.1, 0.3), l.rng.range(0.1, 0.3));
         let top = l.rng.range(0.1, 0.5);
         let turn = l.rng.range(-PI, PI);
         let r = half.0.hypot(half.1);
-        if let Some(c) = l.place(r, room_spot(room.depth), |c| in_room(room, c, r)) {
-            l.take(c, r);
-            let shape = l.rect(c, half, turn);
+        if let Some((c, k)) = l.place(r, room_spot(room.depth), |c, r| in_room(room, c, r)) {
+            l.take(c, r * k);
+            let shape = l.rect(c, (half.0 * k, half.1 * k), turn);
             l.add(Category::Box, shape, Profile::Block { top_m: top });
         }
     }
+}
+
+/// One or two cables (polylines of three segments) on the floor, clear of the stairs; the
+/// furniture and boxes placed later keep clear of their middle only, so may stand on an end.
+fn indoor_cables(l: &mut Layout, room: &Room) {
     let cables = 1 + usize::from(l.rng.chance(0.5));
     for _ in 0..cables {
         let radius = l.rng.range(0.004, 0.006);
-        let (len, mut heading) = (l.rng.range(0.35, 0.6), l.rng.range(-PI, PI));
+        let (len, mut heading) = (l.rng.range(0.25, 0.4), l.rng.range(-PI, PI));
         let mut turns = [0.0; 3];
         for t in &mut turns {
             *t = heading;
             heading += l.rng.range(-0.8, 0.8);
         }
-        // Centred on its spot: the polyline's own circle must be free.
         let r = 1.5 * len;
-        let Some(c) = l.place(r, room_spot(room.depth), |c| in_room(room, c, r)) else {
+        let Some((c, k)) = l.place(r, room_spot(room.depth), |c, r| in_room(room, c, r)) else {
             continue;
         };
-        l.take(c, r);
+        l.take(c, 0.5 * r * k);
+        let len = len * k;
         let mut p = (
             c.0 - 1.5 * len * turns[1].cos(),
             c.1 - 1.5 * len * turns[1].sin(),
@@ -434,7 +459,7 @@ fn indoor_boxes_and_cables(l: &mut Layout, room: &Room) {
             points,
             radius_m: radius,
         };
-        l.add(Category::Cable, shape, Profile::Round { base_m: 0.0 });
+        l.add(Category::Cable, shape, Profile::Round);
     }
 }
 
@@ -459,7 +484,7 @@ impl Street {
     }
 
     /// Unit step (in b) from the curb line into the sidewalk.
-    fn into_walk(&self) -> f64 {
+    fn walk_dir(&self) -> f64 {
         if self.on_walk {
             -1.0
         } else {
@@ -468,15 +493,14 @@ impl Street {
     }
 }
 
-/// An urban scene: a curb line 0.35–0.55 × `reach_m` ahead (at least 0.7 m), turned up to ±26°,
+/// An urban scene: a curb line 0.35–0.55 × (`reach_m` − 0.5 m) ahead (at least 0.6 m), turned up to ±26°,
 /// with the robot on the sidewalk (the curb drops 10–15 cm to the road) or on the road (it
 /// rises); asphalt road, block paving or slab sidewalk, a curb strip, a kerb ramp with flared
 /// sides, one or two drains in the gutter and one to three posts on the sidewalk.
 pub fn urban(seed: u64, scene: u64, reach_m: f64) -> Terrain {
-    let mut l = Layout::new(seed, scene, 0x0B_A400);
-    let reach = reach_m.max(1.5);
+    let mut l = Layout::new(seed, scene, 0x0B_A400, reach_m);
     let st = Street {
-        curb_b: (reach * l.rng.range(0.35, 0.55)).max(0.7),
+        curb_b: (l.near_m * l.rng.range(0.35, 0.55)).max(0.6),
         curb_h: l.rng.range(0.10, 0.15),
         on_walk: l.rng.chance(0.5),
     };
@@ -495,8 +519,8 @@ fn band(l: &Layout, b0: f64, b1: f64) -> Shape {
 
 fn urban_ground(l: &mut Layout, st: &Street) {
     let c = st.curb_b;
-    let walk_side = c + st.into_walk() * FAR_M;
-    let road_side = c - st.into_walk() * FAR_M;
+    let walk_side = c + st.walk_dir() * FAR_M;
+    let road_side = c - st.walk_dir() * FAR_M;
     let walk = if l.rng.chance(0.7) {
         Category::Paving
     } else {
@@ -519,21 +543,25 @@ fn urban_ground(l: &mut Layout, st: &Street) {
     let width = l.rng.range(0.12, 0.18);
     l.add(
         Category::Curb,
-        band(l, c, c + st.into_walk() * width),
+        band(l, c, c + st.walk_dir() * width),
         Profile::Block { top_m: st.walk_z() },
     );
 }
 
 /// The kerb ramp; returns its centre along the curb and its width.
 fn urban_ramp(l: &mut Layout, st: &Street) -> (f64, f64) {
-    let a = l.rng.range(-1.0, 1.0) * st.curb_b.min(1.2);
-    let width = l.rng.range(1.4, 2.0);
-    let flare = l.rng.range(0.3, 0.45);
+    // Off the view's centre, so that a post fits beside it within sight.
+    let side = if l.rng.chance(0.5) { 1.0 } else { -1.0 };
+    let a = side * l.rng.range(0.25, 0.8) * st.curb_b.min(1.0);
+    let width = l.rng.range(1.0, 1.6);
+    let flare = l.rng.range(0.25, 0.4);
     let mut run = l.rng.range(0.8, 1.2);
     if st.on_walk {
         run = run.min((st.curb_b - 0.2).max(0.5));
     }
-    let b = st.curb_b + st.into_walk() * run / 2.0;
+    // It starts 1 cm into the road (at road level), covering the curb's blended outline there.
+    let run = run + 0.01;
+    let b = st.curb_b + st.walk_dir() * (run / 2.0 - 0.01);
     // u points into the sidewalk: the frame's b axis (turned a quarter) or against it.
     let turn = if st.on_walk { -FRAC_PI_2 } else { FRAC_PI_2 };
     let shape = l.rect((a, b), (run / 2.0, width / 2.0), turn);
@@ -552,9 +580,10 @@ fn urban_drains(l: &mut Layout, st: &Street, (ramp_a, ramp_w): (f64, f64)) {
     for _ in 0..count {
         let along = l.rng.range(0.4, 0.7);
         let across = l.rng.range(0.3, 0.45);
-        let gap = l.rng.range(0.0, 0.12);
-        let b = st.curb_b - st.into_walk() * (gap + across / 2.0);
-        let spot = (0..40).map(|_| l.rng.range(-1.6, 1.6)).find(|&a| {
+        let gap = l.rng.range(0.01, 0.12);
+        let b = st.curb_b - st.walk_dir() * (gap + across / 2.0);
+        let span = l.near_m.min(1.6);
+        let spot = (0..40).map(|_| l.rng.range(-span, span)).find(|&a| {
             (a - ramp_a).abs() > (ramp_w + along) / 2.0 + 0.1
                 && placed
                     .iter()
@@ -580,17 +609,17 @@ fn urban_posts(l: &mut Layout, st: &Street, (ramp_a, ramp_w): (f64, f64)) {
     for k in 0..count {
         let radius = l.rng.range(0.05, 0.10);
         let top = st.walk_z() + l.rng.range(0.6, 1.0);
-        let into = l.rng.range(0.3, 0.6);
-        let b = st.curb_b + st.into_walk() * into;
-        // The first flanks the ramp; the others stand anywhere along the curb.
-        let side = if l.rng.chance(0.5) { 1.0 } else { -1.0 };
-        let first = ramp_a + side * (ramp_w / 2.0 + 0.3);
+        let into = l.rng.range(0.25, 0.45);
+        let b = st.curb_b + st.walk_dir() * into;
+        // The first flanks the ramp on the side of the view's centre; the others stand anywhere
+        // along the curb; all within sight.
+        let first = ramp_a - ramp_a.signum() * (ramp_w / 2.0 + 0.25);
         let candidates: Vec<f64> = (0..40)
             .map(|i| {
                 if k == 0 && i == 0 {
                     first
                 } else {
-                    l.rng.range(-2.0, 2.0)
+                    l.rng.range(-1.0, 1.0) * l.near_m.min(2.0)
                 }
             })
             .collect();
@@ -598,6 +627,7 @@ fn urban_posts(l: &mut Layout, st: &Street, (ramp_a, ramp_w): (f64, f64)) {
             let w = l.world(a, b);
             (a - ramp_a).abs() > ramp_w / 2.0 + radius
                 && w.0.hypot(w.1) > ROBOT_CLEAR_M + 0.2
+                && w.0.hypot(w.1) < l.near_m - 0.1
                 && l.taken
                     .iter()
                     .all(|(c, r)| (c.0 - w.0).hypot(c.1 - w.1) > r + radius + 0.2)

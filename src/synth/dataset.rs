@@ -384,7 +384,7 @@ fn frame_dir(s: u32, v: u32) -> String {
 
 /// Whether view `v` of scene `s` gives a row of the dataset's contact sheet.
 fn in_sheet(s: u32, v: u32) -> bool {
-    s < 2 && v % 4 == 0
+    s < 2 && v.is_multiple_of(4)
 }
 
 fn generate_scene(cfg: &SynthConfig, s: u32) -> Result<(SceneEntry, Vec<RgbImage>), SynthError> {

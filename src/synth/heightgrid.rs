@@ -56,8 +56,8 @@ impl HeightGrid {
                 .enumerate()
                 .for_each(|(j, (row, own))| {
                     for (i, (h, o)) in row.iter_mut().zip(own.iter_mut()).enumerate() {
-                        let (z, k) =
-                            terrain.height_owner(x0 + i as f64 * cell_m, y0 + j as f64 * cell_m);
+                        let (x, y) = (x0 + i as f64 * cell_m, y0 + j as f64 * cell_m);
+                        let (z, k) = terrain.height_owner(x, y, cell_m);
                         *h = z as f32;
                         *o = k.map_or(0, |k| u16::try_from(k + 1).unwrap_or(u16::MAX));
                     }

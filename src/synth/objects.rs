@@ -77,6 +77,13 @@ impl Shape {
     /// assert!(r.locate(1.3, 0.0).is_none());
     /// ```
     pub fn locate(&self, x: f64, y: f64) -> Option<Local> {
+        self.locate_within(x, y, 0.0)
+            .and_then(|(l, inside)| (inside >= 0.0).then_some(l))
+    }
+
+    /// The point's place in the shape and its signed distance inside the outline (negative
+    /// outside), if it lies inside or within `margin_m` of the outline.
+    pub fn locate_within(&self, x: f64, y: f64, margin_m: f64) -> Option<(Local, f64)> {
         match self {
             Self::Rect {
                 centre,
@@ -84,18 +91,20 @@ impl Shape {
                 angle_rad,
             } => {
                 let (dx, dy) = (x - centre.0, y - centre.1);
-                let reach = a + b;
+                let reach = a + b + margin_m;
                 if dx.abs() > reach || dy.abs() > reach {
                     return None;
                 }
                 let (s, c) = angle_rad.sin_cos();
                 let (u, v) = (dx * c + dy * s, dy * c - dx * s);
-                (u.abs() <= *a && v.abs() <= *b).then_some(Local { u, v, d: 0.0 })
+                let inside = (a - u.abs()).min(b - v.abs());
+                (inside >= -margin_m).then_some((Local { u, v, d: 0.0 }, inside))
             }
             Self::Disc { centre, radius_m } => {
                 let (dx, dy) = (x - centre.0, y - centre.1);
                 let d = dx.hypot(dy);
-                (d <= *radius_m).then_some(Local { u: dx, v: dy, d })
+                let inside = radius_m - d;
+                (inside >= -margin_m).then_some((Local { u: dx, v: dy, d }, inside))
             }
             Self::Path { points, radius_m } => {
                 let d = points
@@ -103,11 +112,13 @@ impl Shape {
                     .map(|w| segment_distance(w[0], w[1], (x, y)))
                     .fold(f64::INFINITY, f64::min);
                 let o = self.centre();
-                (d < *radius_m).then_some(Local {
+                let inside = radius_m - d;
+                let l = Local {
                     u: x - o.0,
                     v: y - o.1,
-                    d,
-                })
+                    d: d.min(*radius_m),
+                };
+                (inside >= -margin_m).then_some((l, inside))
             }
         }
     }
@@ -161,12 +172,9 @@ pub enum Profile {
         /// Level of the top.
         top_m: f64,
     },
-    /// A round cable lying on `base_m`: its top is base + r + √(r² − d²), r the path's radius;
-    /// it only shows where it rises above what lies below.
-    Round {
-        /// Level it lies on.
-        base_m: f64,
-    },
+    /// A round cable lying on what lies below: its top is r + √(r² − d²) above it, r the
+    /// path's radius.
+    Round,
     /// A flight of stairs along the rectangle's u axis from its −u edge: `steps` risers of
     /// `riser_m` (negative: down) every `tread_m`, then a landing to the +u edge.
     Flight {
@@ -222,19 +230,34 @@ pub struct Object {
 
 impl Object {
     /// The object's height at `(x, y)` drawn over `below_m` (the height of what lies below),
-    /// if the object takes that point.
-    pub fn height_over(&self, x: f64, y: f64, below_m: f64) -> Option<f64> {
-        let l = self.shape.locate(x, y)?;
+    /// if the object takes that point. Its outline and the risers of a flight are blended over
+    /// `edge_m` (the grid's cell), so that a face at any angle is a plane, not a staircase of
+    /// cells; 0 gives hard edges.
+    pub fn height_over(&self, x: f64, y: f64, below_m: f64, edge_m: f64) -> Option<f64> {
+        let (l, inside) = self.shape.locate_within(x, y, edge_m / 2.0)?;
+        let cover = if edge_m > 0.0 {
+            (0.5 + inside / edge_m).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        if cover <= 0.0 {
+            return None;
+        }
+        let z = self.profile_height(&l, below_m, edge_m)?;
+        Some(below_m + cover * (z - below_m))
+    }
+
+    /// The profile's height at a point of the footprint.
+    fn profile_height(&self, l: &Local, below_m: f64, edge_m: f64) -> Option<f64> {
         let (a, b) = self.shape.half();
         let relief = || surface_height(self.category, self.seed, l.u, l.v);
         match self.profile {
             Profile::Floor { base_m } => Some(base_m + relief()),
             Profile::Layer { dz_m } => Some(below_m + dz_m + relief()),
             Profile::Block { top_m } => Some(top_m),
-            Profile::Round { base_m } => {
+            Profile::Round => {
                 let r = a;
-                let z = base_m + r + (r * r - l.d * l.d).max(0.0).sqrt();
-                (z > below_m).then_some(z)
+                Some(below_m + r + (r * r - l.d * l.d).max(0.0).sqrt())
             }
             Profile::Flight {
                 base_m,
@@ -242,8 +265,20 @@ impl Object {
                 tread_m,
                 steps,
             } => {
-                let k = (((l.u + a) / tread_m).floor() + 1.0).clamp(1.0, f64::from(steps));
-                Some(base_m + k * riser_m)
+                // Riser k stands at k·tread from the −u edge; each after the first (the
+                // outline's) is blended over edge_m.
+                let along = l.u + a;
+                let risen: f64 = (1..steps)
+                    .map(|k| {
+                        let past = along - f64::from(k) * tread_m;
+                        if edge_m > 0.0 {
+                            (0.5 + past / edge_m).clamp(0.0, 1.0)
+                        } else {
+                            f64::from(u8::from(past >= 0.0))
+                        }
+                    })
+                    .sum();
+                Some(base_m + (1.0 + risen) * riser_m)
             }
             Profile::Ramp {
                 low_m,

@@ -22,13 +22,13 @@ pub enum Category {
     Rocks = 4,
     /// Smooth undulation (±4 cm) with ripples.
     Sand = 5,
-    /// Planar steps of 5–20 cm (one step: a curb); indoors, flights of 3–5 steps up or down.
+    /// Planar steps of 5–20 cm (one step: a curb); indoors, flights of 3–4 risers up or down.
     Stairs = 6,
-    /// Indoor floor: ceramic tiles of 20–60 cm with 8 mm grout joints 1.5 mm deep.
+    /// Indoor floor: ceramic tiles of 20–60 cm, grout joints 12 mm wide and 0.4 mm deep.
     Tile = 7,
-    /// Indoor floor: planks 10–20 cm wide with 1 mm deep joints.
+    /// Indoor floor: planks 10–20 cm wide, 0.8–1.5 m long, joints 0.3 mm deep.
     Wood = 8,
-    /// Indoor floor or rug: pile of about ±1 mm.
+    /// Indoor floor or rug: pile of ±0.2 mm.
     Carpet = 9,
     /// Walls: vertical faces 2.4–2.7 m high, 10–15 cm thick.
     Wall = 10,
@@ -40,9 +40,9 @@ pub enum Category {
     Box = 13,
     /// Furniture-like blocks: sofas (seat and back) and cabinets, 0.4–0.9 m high.
     Furniture = 14,
-    /// Road: asphalt with 1.5 mm aggregate relief.
+    /// Road: asphalt, 0.3 mm aggregate relief on a ±2 mm undulation.
     Asphalt = 15,
-    /// Sidewalk: block paving of 10×20 cm with 3 mm deep joints.
+    /// Sidewalk: block paving of 10×20 cm in stretcher bond, joints 0.6 mm deep.
     Paving = 16,
     /// Curb stones: 12–18 cm wide, standing 10–15 cm above the road.
     Curb = 17,
@@ -276,16 +276,17 @@ impl Terrain {
         if self.objects.is_empty() {
             return region_height(self.region_at(x, y), x, y);
         }
-        self.height_owner(x, y).0
+        self.height_owner(x, y, 0.0).0
     }
 
     /// Terrain height at `(x, y)`, metres, and the index of the object whose surface it is
-    /// (`None`: a region's). Objects are drawn in order, each over what lies below it.
-    pub fn height_owner(&self, x: f64, y: f64) -> (f64, Option<usize>) {
+    /// (`None`: a region's). Objects are drawn in order, each over what lies below it, their
+    /// edges blended over `edge_m` (the grid's cell; 0: hard edges).
+    pub fn height_owner(&self, x: f64, y: f64, edge_m: f64) -> (f64, Option<usize>) {
         let mut h = region_height(self.region_at(x, y), x, y);
         let mut owner = None;
         for (k, o) in self.objects.iter().enumerate() {
-            if let Some(z) = o.height_over(x, y, h) {
+            if let Some(z) = o.height_over(x, y, h, edge_m) {
                 h = z;
                 owner = Some(k);
             }
@@ -337,9 +338,11 @@ pub fn region_height(region: &Region, x: f64, y: f64) -> f64 {
 /// (metres; 0 for the flat surfaces of walls, boxes and the like).
 pub fn surface_height(category: Category, seed: u64, u: f64, v: f64) -> f64 {
     match category {
+        // Joints and pile slope by less than the spec's 10° segment angle, so that flat floor
+        // of any material stays one segment and reads near zero.
         Category::Tile => {
             let size = tile_size_m(seed);
-            groove(grid_joint_distance(u, v, size), 0.004, 0.0015)
+            groove(grid_joint_distance(u, v, size), 0.006, 0.0004)
         }
         Category::Wood => {
             let (width, length) = plank_m(seed);
@@ -347,18 +350,16 @@ pub fn surface_height(category: Category, seed: u64, u: f64, v: f64) -> f64 {
             let shift = noise::lattice(seed ^ 0x3D, row as i64, 0) * length;
             let across = joint_distance(v, width);
             let along = joint_distance(u + shift, length);
-            groove(across.min(along), 0.003, 0.001)
-                + 0.0002 * noise::value(seed ^ 0x3E, u * 80.0, v * 400.0)
+            groove(across.min(along), 0.005, 0.0003)
         }
-        Category::Carpet => 0.0008 * noise::value(seed ^ 0xCA, u * 180.0, v * 180.0),
+        Category::Carpet => 0.0002 * noise::value(seed ^ 0xCA, u * 100.0, v * 100.0),
         Category::Asphalt => {
-            0.0012 * noise::fbm(seed ^ 0xA5, u, v, 0.012, 2)
+            0.0003 * noise::fbm(seed ^ 0xA5, u, v, 0.02, 2)
                 + 0.002 * noise::fbm(seed ^ 0xA6, u, v, 0.8, 2)
         }
         Category::Paving => {
-            let (block, row) = paver(u, v);
-            let offset = 0.0008 * (2.0 * noise::lattice(seed ^ 0x9A, block, row) - 1.0);
-            offset + groove(paver_joint_distance(u, v), 0.004, 0.003)
+            groove(paver_joint_distance(u, v), 0.008, 0.0006)
+                + 0.0015 * noise::fbm(seed ^ 0x9A, u, v, 0.6, 2)
         }
         _ => 0.0,
     }
