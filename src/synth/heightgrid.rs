@@ -144,6 +144,7 @@ impl HeightGrid {
     /// objects owning the cell's four vertices, the last drawn. So the face of a cell that
     /// joins a floor to a box top (a step in the height field) belongs to the box. `None`: a
     /// region's surface (also off the grid, or for a terrain without objects).
+    #[inline]
     pub fn owner(&self, x: f64, y: f64) -> Option<usize> {
         if self.owners.is_empty() {
             return None;

@@ -130,16 +130,21 @@ fn render_pixel(
         .grid
         .normal(point.x, point.y)
         .expect("hit points lie on the grid; this is a bug");
+    // An object's surface stands in as a region, with the point in the object's frame.
+    let object_surface;
     let (region, local) = match scene.grid.owner(point.x, point.y) {
-        None => (*scene.terrain.region_at(point.x, point.y), point),
-        Some(k) => scene.terrain.objects[k].surface(&point),
+        None => (scene.terrain.region_at(point.x, point.y), point),
+        Some(k) => {
+            object_surface = scene.terrain.objects[k].surface(&point);
+            (&object_surface.0, object_surface.1)
+        }
     };
     let mut visible = [1.0; MAX_LIGHTS];
     for (vis, l) in visible.iter_mut().zip(lights) {
         *vis = visibility(&scene.grid, &point, &normal, l);
     }
     let colour = shade(&ShadeInput {
-        albedo: albedo(&region, &local, &normal, conditions.weather),
+        albedo: albedo(region, &local, &normal, conditions.weather),
         normal,
         point,
         to_camera: -dir,
