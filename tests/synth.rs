@@ -85,6 +85,7 @@ fn robot_view(size: usize) -> View {
     View {
         mounting: Mounting::default(),
         yaw_rad: 0.0,
+        roll_rad: 0.0,
         intrinsics: Intrinsics::from_hfov(size, size, 60.0).unwrap(),
         width: size,
         height: size,
@@ -159,6 +160,84 @@ fn depth_and_normals_agree_with_the_rendered_surface() {
     }
     assert!(checked > 3 * 160 * 160 / 2, "{checked}");
     assert!(worst_png_mm <= 1.0, "{worst_png_mm} mm");
+}
+
+#[test]
+fn a_rolled_camera_sees_the_ground_where_its_recorded_pose_puts_it() {
+    // Flat pavement (height 0) seen with 8° of roll: every rendered point, taken to the world
+    // frame with the view's own pose, lies on the ground plane, and the image differs from the
+    // level camera's.
+    let scene = scene_of(Terrain::uniform(Category::Pavement, 1));
+    let level = robot_view(96);
+    let rolled = View {
+        roll_rad: 8f64.to_radians(),
+        ..level
+    };
+    let (a, b) = (
+        render(&scene, &level, &clear_noon()),
+        render(&scene, &rolled, &clear_noon()),
+    );
+    let points = rolled.intrinsics.back_project_map(&b.depth_m);
+    let (r, c) = (rolled.world_from_cam(), rolled.centre());
+    let mut on_ground = 0;
+    for p in points.as_slice().iter().filter(|p| is_valid_point(p)) {
+        let z = (r * p + c).z;
+        assert!(z.abs() < 1e-6, "a point {z} m off the ground");
+        on_ground += 1;
+    }
+    assert!(on_ground > 96 * 96 / 2, "{on_ground}");
+    let moved = a
+        .depth_m
+        .as_slice()
+        .iter()
+        .zip(b.depth_m.as_slice())
+        .filter(|(x, y)| (*x - *y).abs() > 1e-3)
+        .count();
+    assert!(moved > 96 * 96 / 4, "roll moved only {moved} pixels");
+}
+
+#[test]
+fn random_optics_draw_every_frame_within_the_documented_ranges() {
+    use tre::synth::dataset::OPTICS;
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = SynthConfig {
+        out: dir.path().to_owned(),
+        scenes: 2,
+        seed: 11,
+        size: (96, 72),
+        ply: false,
+        random_optics: true,
+        ..SynthConfig::default()
+    };
+    tre::synth::generate(&cfg).unwrap();
+    let within = |(lo, hi): (f64, f64), v: f64| v >= lo - 1e-9 && v <= hi + 1e-9;
+    let (mut shapes, mut pitches, mut rolls) = (Vec::new(), Vec::new(), Vec::new());
+    for s in 0..2 {
+        for v in 0..9 {
+            let dir = dir.path().join(format!("scene_{s:05}/view_{v}"));
+            let cam: serde_json::Value =
+                serde_json::from_slice(&std::fs::read(dir.join("camera.json")).unwrap()).unwrap();
+            let num = |k: &str| cam[k].as_f64().unwrap_or(0.0);
+            let (w, h) = (num("width"), num("height"));
+            assert_eq!(w, 96.0);
+            let depth = image::open(dir.join("depth.png")).unwrap();
+            assert_eq!((depth.width() as f64, depth.height() as f64), (w, h));
+            let hfov = 2.0 * (w / 2.0 / num("fx")).atan().to_degrees();
+            assert!(within(OPTICS.hfov_deg, hfov), "hfov {hfov}");
+            assert!(within(OPTICS.pitch_deg, num("pitch_deg")));
+            assert!(within(OPTICS.height_m, num("height_m")));
+            assert!(within(OPTICS.roll_deg, num("roll_deg")));
+            shapes.push(h as usize);
+            pitches.push(num("pitch_deg"));
+            rolls.push(num("roll_deg"));
+        }
+    }
+    shapes.sort_unstable();
+    shapes.dedup();
+    // 4:3, 16:9 and 1242:375 of a 96-pixel width, rounded to even heights.
+    assert_eq!(shapes, vec![28, 54, 72]);
+    assert!(rolls.iter().any(|&r| r < -1.0) && rolls.iter().any(|&r| r > 1.0));
+    assert!(pitches.iter().any(|&p| p < 30.0) && pitches.iter().any(|&p| p > 60.0));
 }
 
 #[test]
@@ -608,6 +687,7 @@ mod realism {
         let view = View {
             mounting: Mounting::new(22f64.to_radians(), 1.45).unwrap(),
             yaw_rad: 0.0,
+            roll_rad: 0.0,
             intrinsics: Intrinsics::new(525.0, 525.0, 319.5, 239.5).unwrap(),
             width: 640,
             height: 480,

@@ -36,6 +36,11 @@ pub struct Synth {
     /// Draw camera height (0.4–1.2 m) and pitch (40–75°) per scene instead of 1 m and 60°.
     #[arg(long)]
     pub random_mounting: bool,
+    /// Draw every frame's camera: pitch 0–85°, height 0.2–2.0 m, roll ±10°, horizontal field
+    /// of view 45–110° and shape 4:3, 16:9 or 1242:375 (the width stays --width); overrides
+    /// --random-mounting, --hfov-deg and --height.
+    #[arg(long)]
+    pub random_optics: bool,
     /// Share of scenes in the test split.
     #[arg(long, default_value_t = 0.2)]
     pub test_fraction: f64,
@@ -83,6 +88,7 @@ impl Synth {
             sensors: self.sensor,
             effects: self.effects,
             content: self.content,
+            random_optics: self.random_optics,
             resume: self.resume,
             ..SynthConfig::default()
         };

@@ -59,6 +59,11 @@ pub struct SynthConfig {
     /// natural datasets keep their bytes), indoor rooms, urban street edges, or a mix.
     #[serde(default, skip_serializing_if = "Content::is_natural")]
     pub content: Content,
+    /// Draw every frame's mounting and optics from [`OPTICS`]: pitch, height, roll, horizontal
+    /// field of view and frame shape (the width stays `size.0`). Overrides `random_mounting`,
+    /// `hfov_deg` and `size.1`. Left out of `dataset.json` when off.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub random_optics: bool,
     /// Keep the complete frames of an interrupted run with the same settings and write only
     /// the others (a run option, not written to the manifest).
     #[serde(skip)]
@@ -86,6 +91,7 @@ impl Default for SynthConfig {
             sensors: default_sensors(),
             effects: Vec::new(),
             content: Content::Natural,
+            random_optics: false,
             resume: false,
         }
     }
@@ -295,6 +301,58 @@ pub fn scene_mounting(cfg: &SynthConfig, scene: u32) -> Mounting {
     Mounting::new(pitch, height).expect("pitch and height drawn in range; this is a bug")
 }
 
+/// The ranges `--random-optics` draws each frame's camera from, uniformly.
+pub struct OpticsRanges {
+    /// Pitch below the horizon, degrees.
+    pub pitch_deg: (f64, f64),
+    /// Height above the ground, metres.
+    pub height_m: (f64, f64),
+    /// Roll about the optical axis, degrees.
+    pub roll_deg: (f64, f64),
+    /// Horizontal field of view, degrees.
+    pub hfov_deg: (f64, f64),
+    /// Frame shapes, height over width: 4:3, 16:9 and KITTI's 1242×375.
+    pub aspects: [f64; 3],
+}
+
+/// The documented ranges of `--random-optics`.
+pub const OPTICS: OpticsRanges = OpticsRanges {
+    pitch_deg: (0.0, 85.0),
+    height_m: (0.2, 2.0),
+    roll_deg: (-10.0, 10.0),
+    hfov_deg: (45.0, 110.0),
+    aspects: [3.0 / 4.0, 9.0 / 16.0, 375.0 / 1242.0],
+};
+
+/// A frame's view under `--random-optics`: every quantity drawn from [`OPTICS`] with the
+/// dataset seed, the scene and the view.
+fn random_view(cfg: &SynthConfig, scene: u32, view: u32, yaw_rad: f64) -> View {
+    let pick = |what: u64| {
+        draw(
+            cfg.seed,
+            scene,
+            (u64::from(view) << 32) | (0x0F71 << 8) | what,
+        )
+    };
+    let lerp = |(lo, hi): (f64, f64), t: f64| lo + (hi - lo) * t;
+    let pitch = lerp(OPTICS.pitch_deg, pick(1)).to_radians();
+    let height = lerp(OPTICS.height_m, pick(2));
+    let roll = lerp(OPTICS.roll_deg, pick(3)).to_radians();
+    let hfov = lerp(OPTICS.hfov_deg, pick(4));
+    let aspect = OPTICS.aspects[((pick(5) * 3.0) as usize).min(2)];
+    let w = cfg.size.0;
+    let h = ((w as f64 * aspect / 2.0).round() as usize * 2).max(2);
+    View {
+        mounting: Mounting::new(pitch, height)
+            .expect("pitch and height drawn in range; this is a bug"),
+        yaw_rad,
+        roll_rad: roll,
+        intrinsics: Intrinsics::from_hfov(w, h, hfov).expect("hfov drawn in range; this is a bug"),
+        width: w,
+        height: h,
+    }
+}
+
 /// The views of a scene.
 pub fn scene_views(cfg: &SynthConfig, scene: u32) -> Vec<View> {
     let (w, h) = cfg.size;
@@ -308,9 +366,13 @@ pub fn scene_views(cfg: &SynthConfig, scene: u32) -> Vec<View> {
                 f64::from(v) / f64::from(cfg.views - 1)
             };
             let yaw = (-cfg.yaw_span_deg + 2.0 * cfg.yaw_span_deg * f).to_radians();
+            if cfg.random_optics {
+                return random_view(cfg, scene, v, yaw);
+            }
             View {
                 mounting,
                 yaw_rad: yaw,
+                roll_rad: 0.0,
                 intrinsics: k,
                 width: w,
                 height: h,
@@ -537,6 +599,10 @@ impl From<IoError> for FrameError {
     }
 }
 
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
 /// Camera description written with each frame.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FrameCamera {
@@ -560,6 +626,9 @@ pub struct FrameCamera {
     pub height_m: f64,
     /// Heading, degrees.
     pub yaw_deg: f64,
+    /// Roll about the optical axis, degrees (left out when 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub roll_deg: f64,
     /// Lighting and weather.
     pub conditions: Conditions,
     /// The sensor of `depth_sensor.png` (a preset name, read by `tre infer` as the noise model).
@@ -608,6 +677,7 @@ fn write_frame(out: &FrameOut<'_>, f: &RenderedFrame) -> Result<RgbImage, FrameE
         pitch_deg: view.mounting.pitch_rad.to_degrees(),
         height_m: view.mounting.height_m,
         yaw_deg: view.yaw_rad.to_degrees(),
+        roll_deg: view.roll_rad.to_degrees(),
         conditions: *cond,
         sensor: out.sensor.0,
         sensor_model: SensorMeta {

@@ -21,6 +21,10 @@ pub struct View {
     pub mounting: Mounting,
     /// Heading, radians from +y towards +x.
     pub yaw_rad: f64,
+    /// Roll about the optical axis, radians (the camera frame turned about its z axis before
+    /// the mounting's pitch); 0 for a level camera.
+    #[serde(default)]
+    pub roll_rad: f64,
     /// Pinhole intrinsics.
     pub intrinsics: Intrinsics,
     /// Image width, pixels.
@@ -34,6 +38,7 @@ impl View {
     pub fn world_from_cam(&self) -> Matrix3<f64> {
         *Rotation3::from_axis_angle(&Vec3::z_axis(), -self.yaw_rad).matrix()
             * self.mounting.gravity_from_cam()
+            * Rotation3::from_axis_angle(&Vec3::z_axis(), self.roll_rad).matrix()
     }
 
     /// Camera centre in the world frame.
