@@ -355,9 +355,12 @@ fn random_view(cfg: &SynthConfig, scene: u32, view: u32, yaw_rad: f64) -> View {
 
 /// The views of a scene.
 pub fn scene_views(cfg: &SynthConfig, scene: u32) -> Vec<View> {
+    // The fixed camera of every view, unless each view draws its own.
     let (w, h) = cfg.size;
-    let k = Intrinsics::from_hfov(w, h, cfg.hfov_deg).expect("hfov checked; this is a bug");
-    let mounting = scene_mounting(cfg, scene);
+    let fixed = (!cfg.random_optics).then(|| {
+        let k = Intrinsics::from_hfov(w, h, cfg.hfov_deg).expect("hfov checked; this is a bug");
+        (k, scene_mounting(cfg, scene))
+    });
     (0..cfg.views)
         .map(|v| {
             let f = if cfg.views == 1 {
@@ -366,16 +369,16 @@ pub fn scene_views(cfg: &SynthConfig, scene: u32) -> Vec<View> {
                 f64::from(v) / f64::from(cfg.views - 1)
             };
             let yaw = (-cfg.yaw_span_deg + 2.0 * cfg.yaw_span_deg * f).to_radians();
-            if cfg.random_optics {
-                return random_view(cfg, scene, v, yaw);
-            }
-            View {
-                mounting,
-                yaw_rad: yaw,
-                roll_rad: 0.0,
-                intrinsics: k,
-                width: w,
-                height: h,
+            match fixed {
+                Some((intrinsics, mounting)) => View {
+                    mounting,
+                    yaw_rad: yaw,
+                    roll_rad: 0.0,
+                    intrinsics,
+                    width: w,
+                    height: h,
+                },
+                None => random_view(cfg, scene, v, yaw),
             }
         })
         .collect()
