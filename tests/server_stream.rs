@@ -632,3 +632,80 @@ fn a_client_that_stops_reading_is_dropped_after_the_stall_timeout() {
         drop(stuck);
     });
 }
+
+/// Opens a stream by hand on a raw socket (101 read), so that its bytes can be trickled.
+fn raw_stream(server: &Server) -> std::net::TcpStream {
+    use std::io::{Read, Write};
+    let mut t = std::net::TcpStream::connect(server.addr).unwrap();
+    let head = "GET /v1/stream HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
+    t.write_all(head.as_bytes()).unwrap();
+    let mut answer = Vec::new();
+    let mut byte = [0u8; 1];
+    while !answer.ends_with(b"\r\n\r\n") {
+        t.read_exact(&mut byte).unwrap();
+        answer.push(byte[0]);
+    }
+    let answer = String::from_utf8_lossy(&answer);
+    assert!(answer.starts_with("HTTP/1.1 101"), "{answer}");
+    // A masked binary frame of 60000 bytes: its header and mask now, the payload never whole.
+    t.write_all(&[0x82, 0xFE, 0xEA, 0x60, 1, 2, 3, 4]).unwrap();
+    t
+}
+
+/// Eighty streams trickling a message at one byte a second (the defaults: 64 `--max-streams`
+/// places) do not stop another client's stream: it is opened and its frame answered while they
+/// trickle, since a stream takes its place with its first whole message; the trickling streams
+/// are closed with 1008 at the end of their first whole `--min-body-rate` window (5 to 10 s).
+#[test]
+fn eighty_trickling_streams_do_not_starve_a_ready_stream() {
+    use std::io::{Read, Write};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let server = Server::start(&["--workers", "1"]);
+    let trickles: Vec<std::net::TcpStream> = (0..80).map(|_| raw_stream(&server)).collect();
+    let trickle_start = std::time::Instant::now();
+    let stop = std::sync::Arc::new(AtomicBool::new(false));
+    let feeder = {
+        let mut writers: Vec<std::net::TcpStream> =
+            trickles.iter().map(|t| t.try_clone().unwrap()).collect();
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            while !stop.load(Ordering::Relaxed) {
+                for w in &mut writers {
+                    let _ = w.write_all(b"x");
+                }
+                std::thread::sleep(Duration::from_secs(1));
+            }
+        })
+    };
+    std::thread::sleep(Duration::from_secs(1));
+    let started = std::time::Instant::now();
+    rt().block_on(async {
+        let mut ws = connect(&server).await;
+        handshake(&mut ws, pb::Format::Png16, pb::Mode::Rgb).await;
+        send(&mut ws, frame(1, common::pattern_png(64, 48))).await;
+        match next(&mut ws).await {
+            pb::server_message::Msg::Result(r) => assert_eq!(r.sequence, 1),
+            other => panic!("expected a result, got {other:?}"),
+        }
+    });
+    assert!(
+        started.elapsed() < Duration::from_secs(5),
+        "a ready stream waited {:?} behind trickling ones",
+        started.elapsed()
+    );
+    // The trickle stops before the first streams are judged (about 10 s in), so that no byte
+    // meets a closed socket (whose reset could discard the answer before it is read).
+    std::thread::sleep(Duration::from_secs(7).saturating_sub(trickle_start.elapsed()));
+    stop.store(true, Ordering::Relaxed);
+    feeder.join().unwrap();
+    // Each trickling stream gets an error and a close with 1008 (0x03F0), then the end.
+    for mut t in trickles.into_iter().take(3) {
+        t.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+        let mut got = Vec::new();
+        let _ = t.read_to_end(&mut got);
+        let close = got.windows(4).any(|w| w == [0x88, w[1], 0x03, 0xF0] && w[1] >= 2);
+        assert!(close, "no 1008 close in {} bytes: {got:?}", got.len());
+        let text = String::from_utf8_lossy(&got);
+        assert!(text.contains("--min-body-rate"), "{text}");
+    }
+}

@@ -9,6 +9,9 @@
 //!   so enough of them exhaust the process's descriptors);
 //! - its writes are [`StallGuard`]ed (`--stall-timeout-ms`).
 //!
+//! Every request carries the connection's [`ReadBytes`], the bytes read from its socket so far,
+//! from which a stream judges the pace of its messages ([`super::pace`]).
+//!
 //! and a limit on how many connections may be open at once (`--max-connections`; a stream
 //! counts until its upgrade, then against `--max-streams`). A connection over it gets its
 //! request answered with 503 `overloaded` and `Retry-After`, under the same two limits, and is
@@ -42,6 +45,7 @@ use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
 use super::error::{ApiError, ErrorCode};
 use super::metrics::Metrics;
+use super::pace::ReadBytes;
 use super::refusals::RefusalLog;
 use super::stall::StallGuard;
 
@@ -142,13 +146,16 @@ pub async fn serve_connections(
             }
         };
         let head = Arc::new(AtomicBool::new(false));
+        let read = ReadBytes::default();
         let io = HeadWatch {
             io: StallGuard::new(io, limits.write_stall),
             head_started: head.clone(),
+            read: read.clone(),
         };
         let io = TokioIo::new(io);
         let refusals = refusals.clone();
         let header_read = limits.header_read;
+        let app = WithReadBytes { app, read };
         let conn = builder
             .serve_connection(io, TowerToHyperService::new(app))
             .with_upgrades();
@@ -213,12 +220,39 @@ fn answer_408(spare: Option<&std::net::TcpStream>, why: &str) {
     let _ = socket.shutdown(std::net::Shutdown::Write);
 }
 
+/// The router with the connection's [`ReadBytes`] put into every request's extensions.
+#[derive(Clone)]
+struct WithReadBytes {
+    app: Router,
+    read: ReadBytes,
+}
+
+impl<B> tower_service::Service<hyper::Request<B>> for WithReadBytes
+where
+    Router: tower_service::Service<hyper::Request<B>>,
+{
+    type Response = <Router as tower_service::Service<hyper::Request<B>>>::Response;
+    type Error = <Router as tower_service::Service<hyper::Request<B>>>::Error;
+    type Future = <Router as tower_service::Service<hyper::Request<B>>>::Future;
+
+    fn poll_ready(&mut self, cx: &mut Context<'_>) -> Poll<Result<(), Self::Error>> {
+        tower_service::Service::<hyper::Request<B>>::poll_ready(&mut self.app, cx)
+    }
+
+    fn call(&mut self, mut req: hyper::Request<B>) -> Self::Future {
+        req.extensions_mut().insert(self.read.clone());
+        self.app.call(req)
+    }
+}
+
 /// Notes whether bytes of a request head have arrived since the last answer was written, so
-/// that a header timeout can be told from an idle kept-alive connection. HTTP/1 without
-/// pipelining: what is read after an answer is the next request's head.
+/// that a header timeout can be told from an idle kept-alive connection (HTTP/1 without
+/// pipelining: what is read after an answer is the next request's head), and counts the bytes
+/// read.
 struct HeadWatch<T> {
     io: T,
     head_started: Arc<AtomicBool>,
+    read: ReadBytes,
 }
 
 impl<T: AsyncRead + Unpin> AsyncRead for HeadWatch<T> {
@@ -229,8 +263,10 @@ impl<T: AsyncRead + Unpin> AsyncRead for HeadWatch<T> {
     ) -> Poll<io::Result<()>> {
         let before = buf.filled().len();
         let poll = Pin::new(&mut self.io).poll_read(cx, buf);
-        if buf.filled().len() > before {
+        let n = buf.filled().len() - before;
+        if n > 0 {
             self.head_started.store(true, Ordering::Relaxed);
+            self.read.add(n);
         }
         poll
     }

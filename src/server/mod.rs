@@ -18,6 +18,7 @@ pub mod error;
 pub mod fuzzing;
 pub mod http;
 pub mod metrics;
+pub mod pace;
 pub mod proto;
 pub mod refusals;
 pub mod request;
@@ -151,8 +152,10 @@ pub struct AppState {
     pub metrics: Arc<Metrics>,
     /// Permits for concurrent HTTP requests.
     pub concurrency: Arc<Semaphore>,
-    /// Permits for open streams.
+    /// Permits for open streams (`--max-streams`), taken with a stream's first message.
     pub streams: Arc<Semaphore>,
+    /// Permits for streams waiting for their first message (`--max-connections`).
+    pub waiting_streams: Arc<Semaphore>,
     /// The manifest, as served by `/v1/models`.
     pub manifest_json: String,
     /// Model names, for the stream's Ready.
@@ -240,6 +243,7 @@ pub async fn serve(
     let state = Arc::new(AppState {
         concurrency: Arc::new(Semaphore::new(cfg.max_concurrent)),
         streams: Arc::new(Semaphore::new(cfg.max_streams)),
+        waiting_streams: Arc::new(Semaphore::new(cfg.max_connections)),
         cfg: cfg.clone(),
         workers,
         metrics,
@@ -280,13 +284,16 @@ pub async fn serve(
         signal,
     );
     // Upgraded streams are no longer connections of the server: it does not wait for them.
-    // Each holds a stream permit until it has answered its frame in flight and closed, so
-    // holding every permit means they are all done.
+    // Each holds a stream permit (or, before its first message, a waiting one) until it has
+    // answered its frame in flight and closed, so holding every permit means they are all done.
     let streams = state.streams.clone();
     let all_streams = u32::try_from(cfg.max_streams).unwrap_or(u32::MAX);
+    let waiting = state.waiting_streams.clone();
+    let all_waiting = u32::try_from(cfg.max_connections).unwrap_or(u32::MAX);
     let drained = async move {
         server.await;
         let _closed = streams.acquire_many(all_streams).await;
+        let _none_waiting = waiting.acquire_many(all_waiting).await;
     };
     let grace = cfg.shutdown_grace;
     let mut stopping = state.shutdown.clone();

@@ -3,6 +3,12 @@
 //! with `Dropped`. Bad messages get an `Error` and the stream goes on. The server pings idle
 //! clients and drops one silent for `--ws-idle-timeout-ms` (one that stops reading is dropped
 //! by [`super::stall`]), and closes cleanly (1001) on shutdown, after the frame in flight.
+//!
+//! A stream takes its `--max-streams` place with its first whole message, not at the upgrade:
+//! a client that opens streams and trickles into them holds no place that working clients
+//! need (streams waiting for their first message are bounded by `--max-connections`). Every
+//! message must keep `--min-body-rate` while it arrives ([`super::pace`]), else the stream is
+//! closed (1008). Both refusals are logged.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -13,10 +19,12 @@ use axum::extract::State;
 use axum::response::{IntoResponse, Response};
 use axum::Extension;
 use futures_util::SinkExt;
-use tokio::sync::oneshot;
+use tokio::sync::{oneshot, OwnedSemaphorePermit};
+use tokio::time::MissedTickBehavior;
 
 use super::access::RequestId;
 use super::error::{ApiError, ErrorCode};
+use super::pace::{MessagePace, ReadBytes, PACE_WINDOW};
 use super::proto::{self, Incoming, StreamFrame, StreamSettings};
 use super::workers::JobResult;
 use super::{AppState, OVERSIZE_READ_FACTOR};
@@ -26,10 +34,12 @@ const PINGS_PER_IDLE_TIMEOUT: u32 = 4;
 /// How long a stream closed by the server waits for the client's close in reply.
 const CLOSE_WAIT: Duration = Duration::from_secs(2);
 
-/// Upgrades the connection, unless `--max-streams` are open already (429 at once).
+/// Upgrades the connection, unless `--max-streams` are open already or `--max-connections`
+/// streams wait for their first message (429 at once).
 pub async fn stream(
     State(app): State<Arc<AppState>>,
     id: Option<Extension<RequestId>>,
+    read: Option<Extension<ReadBytes>>,
     ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
 ) -> Response {
     let id = id.map_or_else(|| "-".to_owned(), |Extension(RequestId(id))| id);
@@ -40,14 +50,13 @@ pub async fn stream(
             return ApiError::new(ErrorCode::BadRequest, why).into_response();
         }
     };
-    let Ok(permit) = app.streams.clone().try_acquire_owned() else {
-        app.metrics
-            .request("stream", ErrorCode::TooManyRequests.as_str(), None);
-        let why = format!(
-            "{} streams are open, the limit; retry later",
-            app.cfg.max_streams
-        );
-        return ApiError::new(ErrorCode::TooManyRequests, why).into_response();
+    let waiting = if app.streams.available_permits() == 0 {
+        None
+    } else {
+        app.waiting_streams.clone().try_acquire_owned().ok()
+    };
+    let Some(waiting) = waiting else {
+        return too_many(&app, &id).into_response();
     };
     // Frames over the message limit but within this are answered with an error and the stream
     // goes on; larger ones close the connection (1009).
@@ -55,14 +64,29 @@ pub async fn stream(
         .cfg
         .ws_max_message_bytes
         .saturating_mul(OVERSIZE_READ_FACTOR);
+    let read = read.map(|Extension(read)| read);
     ws.max_message_size(hard)
         .max_frame_size(hard)
         .on_upgrade(move |socket| async move {
             app.metrics.stream_open(true);
-            Connection::new(app.clone(), socket, id).run().await;
+            Connection::new(app.clone(), socket, id, read, waiting)
+                .run()
+                .await;
             app.metrics.stream_open(false);
-            drop(permit);
         })
+}
+
+/// The 429 of a stream over `--max-streams`, counted and logged.
+fn too_many(app: &AppState, id: &str) -> ApiError {
+    app.metrics
+        .request("stream", ErrorCode::TooManyRequests.as_str(), None);
+    let why = format!(
+        "{} streams are open, the limit (--max-streams); retry later",
+        app.cfg.max_streams
+    );
+    app.refusals
+        .refused("stream", id, ErrorCode::TooManyRequests.as_str(), &why);
+    ApiError::new(ErrorCode::TooManyRequests, why)
 }
 
 /// Whether a read failed because the message was over the hard size limit.
@@ -91,6 +115,12 @@ struct Connection {
     last_heard: Instant,
     /// The upgrade request's id, logged with the stream's refusals.
     id: String,
+    /// The stream's `--max-streams` place, taken with its first whole message.
+    place: Option<OwnedSemaphorePermit>,
+    /// Its place among the streams waiting for their first message, until then.
+    waiting_place: Option<OwnedSemaphorePermit>,
+    /// The pace its messages keep; `None` where the connection's reads are not counted.
+    pace: Option<MessagePace>,
 }
 
 /// What woke the connection up.
@@ -99,12 +129,24 @@ enum Event {
     Done((JobResult, Duration)),
     WorkerGone,
     Ping,
+    Pace,
     Shutdown,
 }
 
 impl Connection {
-    fn new(app: Arc<AppState>, socket: WebSocket, id: String) -> Self {
+    fn new(
+        app: Arc<AppState>,
+        socket: WebSocket,
+        id: String,
+        read: Option<ReadBytes>,
+        waiting_place: OwnedSemaphorePermit,
+    ) -> Self {
+        let min_rate = app.cfg.min_body_rate;
+        let now = tokio::time::Instant::now();
         Self {
+            place: None,
+            waiting_place: Some(waiting_place),
+            pace: read.map(|read| MessagePace::new(read, min_rate, now)),
             app,
             socket,
             settings: None,
@@ -120,6 +162,10 @@ impl Connection {
         let every = self.app.cfg.ws_idle_timeout / PINGS_PER_IDLE_TIMEOUT;
         let mut ping = tokio::time::interval(every.max(Duration::from_millis(1)));
         ping.tick().await;
+        let mut pace = tokio::time::interval(PACE_WINDOW);
+        pace.set_missed_tick_behavior(MissedTickBehavior::Delay);
+        pace.tick().await;
+        let paced = self.pace.as_ref().is_some_and(MessagePace::enabled);
         let mut shutdown = self.app.shutdown.clone();
         loop {
             let event = tokio::select! {
@@ -128,12 +174,14 @@ impl Connection {
                     r.map_or(Event::WorkerGone, Event::Done)
                 }
                 _ = ping.tick() => Event::Ping,
+                _ = pace.tick(), if paced => Event::Pace,
                 _ = shutdown.changed() => Event::Shutdown,
             };
             let keep_going = match event {
                 Event::Message(Some(Ok(msg))) => {
                     self.last_heard = Instant::now();
-                    self.on_message(msg).await
+                    self.account(&msg);
+                    self.take_place(&msg).await && self.on_message(msg).await
                 }
                 Event::Message(Some(Err(e))) => {
                     tracing::debug!(error = %e, "stream read failed; closing");
@@ -157,6 +205,7 @@ impl Connection {
                     self.send(proto::error(frame, &e)).await && self.start_waiting().await
                 }
                 Event::Ping => self.on_ping().await,
+                Event::Pace => self.on_pace().await,
                 Event::Shutdown => {
                     self.shut_down().await;
                     false
@@ -184,6 +233,55 @@ impl Connection {
             reason: reason.into(),
         };
         let _ = self.send_message(Message::Close(Some(frame))).await;
+    }
+
+    /// Tells the pace which of the bytes read a whole message accounts for.
+    fn account(&mut self, msg: &Message) {
+        let Some(pace) = self.pace.as_mut() else {
+            return;
+        };
+        match msg {
+            Message::Ping(p) | Message::Pong(p) => pace.control_frame(p.len()),
+            Message::Binary(_) | Message::Text(_) | Message::Close(_) => {
+                pace.data_message();
+            }
+        }
+    }
+
+    /// Takes the stream's `--max-streams` place with its first data message; false (after an
+    /// error and a 1013 close) when none is free.
+    async fn take_place(&mut self, msg: &Message) -> bool {
+        if self.place.is_some() || !matches!(msg, Message::Binary(_) | Message::Text(_)) {
+            return true;
+        }
+        if let Ok(place) = self.app.streams.clone().try_acquire_owned() {
+            self.place = Some(place);
+            self.waiting_place = None;
+            return true;
+        }
+        let e = too_many(&self.app, &self.id);
+        let _ = self.send(proto::error(None, &e)).await;
+        self.close(1013, "try again later").await;
+        false
+    }
+
+    /// The end of a pace window: a message arriving too slowly closes the stream (1008).
+    async fn on_pace(&mut self) -> bool {
+        let now = tokio::time::Instant::now();
+        let Some(Err(slow)) = self.pace.as_mut().map(|p| p.end_window(now)) else {
+            return true;
+        };
+        let why = slow.to_string();
+        self.app
+            .refusals
+            .refused("stream", &self.id, "ws_close_1008_slow", &why);
+        self.app
+            .metrics
+            .request("stream", ErrorCode::RequestTimeout.as_str(), None);
+        let e = ApiError::new(ErrorCode::RequestTimeout, why);
+        let _ = self.send(proto::error(None, &e)).await;
+        self.close(1008, "message too slow").await;
+        false
     }
 
     async fn on_ping(&mut self) -> bool {
