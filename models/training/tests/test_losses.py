@@ -23,6 +23,22 @@ def test_depth_loss_is_zero_on_truth_and_ignores_missing_depth():
     assert abs(worse - math.log(1.1)) < 0.02  # the L1 term on log depth dominates
 
 
+def test_scale_invariant_and_gradient_terms():
+    gt = 1.0 + torch.rand(2, 1, 16, 16)
+    valid = torch.ones_like(gt, dtype=torch.bool)
+    delta = torch.full_like(gt, math.log(1.5))
+    # A uniform scale costs the SI term only 15% of its square and the gradient term nothing.
+    assert abs(losses.scale_invariant(delta, valid).item() - 0.15 * math.log(1.5) ** 2) < 1e-6
+    assert losses.gradient_match(delta, valid).item() < 1e-7
+    # A step in the error (a wrong edge) costs the gradient term.
+    step = torch.zeros_like(gt)
+    step[..., 8:] = 0.2
+    assert losses.gradient_match(step, valid).item() > 0.01
+    # Missing depth is left out: a step that only touches invalid pixels costs nothing.
+    valid[..., 8:] = False
+    assert losses.gradient_match(step, valid).item() < 1e-7
+
+
 def test_normal_loss_is_the_mean_angle():
     n = torch.zeros(1, 3, 4, 4)
     n[:, 2] = 1.0

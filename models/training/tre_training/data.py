@@ -4,7 +4,12 @@ Layout (one folder per frame, listed in `dataset.json` with its split): `rgb.png
 `depth.png` (16-bit, `depth_scale` units per metre, 0 = none), `normals.npy` (H×W×3 float16,
 camera frame, NaN = none), `labels.png` (8-bit, 0 = void), `roughness.png` (16-bit grey + alpha,
 0.1 mm per unit, alpha 0 = none), `boundary.png` (8-bit mask) and `camera.json` (fx, fy, cx, cy,
-`pitch_deg`, `height_m`).
+`pitch_deg`, `height_m`), and, where the dataset was made with a depth-sensor model,
+`depth_sensor.png` (the sensor's depth, same units; the inputs of sensor-depth training, while
+the ground truth stays on the exact depth).
+
+Frames of different shapes (`tre synth --random-optics`) are padded at the right and bottom to
+the largest shape of the split: no depth, no ground truth, black image.
 
 Other datasets: RougE and Hypersim-R are not redistributable. A user who holds them converts each
 frame to the files above (depth in mm, normals as float16 `.npy`, roughness from `tre annotate`)
@@ -43,6 +48,8 @@ class Frame:
     """H×W×3."""
     depth_m: NDArray[np.float32]
     """H×W, NaN where there is no depth."""
+    depth_sensor_m: NDArray[np.float32]
+    """H×W, the depth-sensor model's depth (`depth.png` again where there is none)."""
     normals: NDArray[np.float32]
     """H×W×3 unit normals in the camera frame, NaN where none."""
     roughness_m: NDArray[np.float32]
@@ -58,12 +65,36 @@ def load_frame(folder: Path) -> Frame:
     camera = json.loads((folder / "camera.json").read_text())
     rgb = read_png(folder / "rgb.png")[..., :3].astype(np.uint8)
     raw = read_png(folder / "depth.png")[..., 0].astype(np.float32)
-    depth = np.where(raw > 0, raw / np.float32(camera.get("depth_scale", 1000.0)), np.nan)
+    scale = np.float32(camera.get("depth_scale", 1000.0))
+    depth = np.where(raw > 0, raw / scale, np.nan)
+    sensor_png = folder / "depth_sensor.png"
+    if sensor_png.exists():
+        raw_s = read_png(sensor_png)[..., 0].astype(np.float32)
+        sensor = np.where(raw_s > 0, raw_s / scale, np.nan)
+    else:
+        sensor = depth
     normals = np.load(folder / "normals.npy").astype(np.float32)
     la = read_png(folder / "roughness.png")
     rough = np.where(la[..., 1] > 0, la[..., 0] * np.float32(ROUGHNESS_SCALE_M), np.nan)
     boundary = read_png(folder / "boundary.png")[..., 0] > 0
-    return Frame(rgb, depth.astype(np.float32), normals, rough.astype(np.float32), boundary, camera)
+    return Frame(
+        rgb,
+        depth.astype(np.float32),
+        sensor.astype(np.float32),
+        normals,
+        rough.astype(np.float32),
+        boundary,
+        camera,
+    )
+
+
+def pad_to(a: np.ndarray, h: int, w: int, fill: float | bool) -> np.ndarray:
+    """`a` (H×W or H×W×C) padded at the bottom and right to h×w with `fill`."""
+    if a.shape[:2] == (h, w):
+        return a
+    out = np.full((h, w, *a.shape[2:]), fill, dtype=a.dtype)
+    out[: a.shape[0], : a.shape[1]] = a
+    return out
 
 
 def frame_dirs(root: Path, split: str) -> list[Path]:
@@ -78,6 +109,7 @@ class Split:
 
     rgb: NDArray[np.uint8]
     depth_m: NDArray[np.float32]
+    depth_sensor_m: NDArray[np.float32]
     normals: NDArray[np.float32]
     roughness_m: NDArray[np.float32]
     boundary: NDArray[np.bool_]
@@ -98,12 +130,19 @@ def load_split(root: Path, split: str, cache: Path | None = None) -> Split:
     frames = [load_frame(d) for d in frame_dirs(root, split)]
     if not frames:
         raise ValueError(f"no frames in split {split!r} of {root}")
+    h = max(f.depth_m.shape[0] for f in frames)
+    w = max(f.depth_m.shape[1] for f in frames)
+
+    def stack(key: str, fill: float | bool) -> np.ndarray:
+        return np.stack([pad_to(getattr(f, key), h, w, fill) for f in frames])
+
     out = Split(
-        rgb=np.stack([f.rgb for f in frames]),
-        depth_m=np.stack([f.depth_m for f in frames]),
-        normals=np.stack([f.normals for f in frames]),
-        roughness_m=np.stack([f.roughness_m for f in frames]),
-        boundary=np.stack([f.boundary for f in frames]),
+        rgb=stack("rgb", 0),
+        depth_m=stack("depth_m", np.nan),
+        depth_sensor_m=stack("depth_sensor_m", np.nan),
+        normals=stack("normals", np.nan),
+        roughness_m=stack("roughness_m", np.nan),
+        boundary=stack("boundary", False),
         intrinsics=np.array(
             [[f.camera[k] for k in ("fx", "fy", "cx", "cy")] for f in frames], np.float32
         ),

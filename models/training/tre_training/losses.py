@@ -1,4 +1,5 @@
-"""Training losses: masked L1, SSIM (as monodepth computes it, 3×3 windows) and normal angles."""
+"""Training losses: masked L1, SSIM (as monodepth computes it, 3×3 windows), scale-invariant and
+gradient-matching depth terms, and normal angles."""
 
 from __future__ import annotations
 
@@ -30,15 +31,44 @@ def ssim(x: Tensor, y: Tensor) -> Tensor:
 
 
 def depth_loss(pred_m: Tensor, gt_m: Tensor) -> Tensor:
-    """L1 + 0.5 · SSIM loss on log depth (so near and far ground weigh alike), over pixels with
-    ground truth: `|log d − log d*| + 0.5 · (1 − SSIM)/2`."""
+    """L1 + 0.5 · SSIM on log depth (so near and far ground weigh alike), plus a scale-invariant
+    term and a gradient-matching term, over pixels with ground truth:
+    `|δ| + 0.5 · (1 − SSIM)/2 + 0.5 · SI(δ) + 0.5 · G(δ)` with `δ = log d − log d*`,
+    `SI = mean δ² − 0.85 · (mean δ)²` per image (Eigen et al.) and `G` the mean absolute
+    horizontal and vertical difference of δ over neighbouring valid pixels, at full and half
+    resolution (MegaDepth's gradient loss): relative depth, and steps, right."""
     valid = torch.isfinite(gt_m) & (gt_m > 0)
     lg = torch.log(torch.where(valid, gt_m, torch.ones_like(gt_m)))
     lp = torch.log(torch.clamp(pred_m, min=1e-3))
     lp_filled = torch.where(valid, lp, lg)
     l1 = masked_mean((lp - lg).abs(), valid)
     s = masked_mean((1 - ssim(lp_filled, lg)) / 2, valid)
-    return l1 + 0.5 * s
+    return l1 + 0.5 * s + 0.5 * scale_invariant(lp - lg, valid) + 0.5 * gradient_match(lp - lg, valid)
+
+
+def scale_invariant(delta: Tensor, valid: Tensor) -> Tensor:
+    """Eigen's scale-invariant log error (λ = 0.85), averaged over the images of a batch."""
+    m = valid.to(delta.dtype)
+    d = torch.where(valid, delta, torch.zeros_like(delta))
+    n = torch.clamp(m.sum((1, 2, 3)), min=1.0)
+    mean = d.sum((1, 2, 3)) / n
+    mean_sq = (d * d).sum((1, 2, 3)) / n
+    return (mean_sq - 0.85 * mean * mean).mean()
+
+
+def gradient_match(delta: Tensor, valid: Tensor, scales: int = 2) -> Tensor:
+    """Mean absolute spatial difference of the log-depth error over pairs of valid pixels,
+    summed over `scales` resolutions (halved by 2×2 subsampling)."""
+    total = delta.new_zeros(())
+    d, v = torch.where(valid, delta, torch.zeros_like(delta)), valid
+    for _ in range(scales):
+        vx = v[..., :, 1:] & v[..., :, :-1]
+        vy = v[..., 1:, :] & v[..., :-1, :]
+        gx = (d[..., :, 1:] - d[..., :, :-1]).abs()
+        gy = (d[..., 1:, :] - d[..., :-1, :]).abs()
+        total = total + masked_mean(gx, vx) + masked_mean(gy, vy)
+        d, v = d[..., ::2, ::2], v[..., ::2, ::2]
+    return total
 
 
 def angle_deg(pred: Tensor, gt: Tensor) -> Tensor:

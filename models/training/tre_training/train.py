@@ -12,8 +12,10 @@ Stages, in the order they depend on each other:
 - `centroid`: centroid net, L1 on the roughness `|n·(p − c)|` (Eq. 1) against annotation v1.
 - `e2e`: the end-to-end baseline, L1 on roughness.
 
-The geometric stages train on points from the true depth (the `rgbd` input); in the `rgb` mode
-they see the depth net's output. Adam (β = 0.9, 0.999, ε = 1e-8), learning rate 1e-3 halved at
+The geometric stages train on points from the true depth, or with `--depth sensor` from the
+depth-sensor model's depth of each frame (`depth_sensor.png`: the `rgbd` input as a real camera
+gives it), always against the ground truth on the exact depth; in the `rgb` mode they see the
+depth net's output (`--mix-pred` alternates it with the `--depth` source). Adam (β = 0.9, 0.999, ε = 1e-8), learning rate 1e-3 halved at
 half and three quarters of the time budget, random crops. Checkpoints and logs go to
 `checkpoints/STAGE.pt` and `checkpoints/STAGE.json` beside this package.
 """
@@ -57,15 +59,19 @@ class Data:
 
     def __init__(self, root: Path, split: str, depth: str = "gt") -> None:
         """`depth="pred"` swaps the true depth for the depth net's (cached by `cache-depth`), so
-        the geometric stages see what they see in the `rgb` mode; the caches of stage outputs
-        then carry a `_pred` suffix."""
+        the geometric stages see what they see in the `rgb` mode; `depth="sensor"` swaps it for
+        the depth-sensor model's. The caches of stage outputs then carry a `_pred` or `_sensor`
+        suffix. Only the network inputs change: ground truth stays on the exact depth."""
         self.root = root
         self.cache = root / ".cache"
         self.split_name = split
-        self.suffix = "" if depth == "gt" else "_pred"
+        self.depth = depth
+        self.suffix = "" if depth == "gt" else f"_{depth}"
         self.s: Split = load_split(root, split, self.cache / f"{split}.npz")
         if depth == "pred":
             self.s.depth_m = np.load(self.cache / f"{split}_pred_depth.npy")
+        elif depth == "sensor":
+            self.s.depth_m = self.s.depth_sensor_m
         self.extra: dict[str, np.ndarray] = {}
         self.frames = np.arange(len(self.s))
         """Frames batches are drawn from: all, or those the cached stage outputs cover."""
@@ -80,13 +86,16 @@ class Data:
     def __len__(self) -> int:
         return len(self.s)
 
-    def batch(self, idx: np.ndarray, x0: np.ndarray, y0: np.ndarray, crop: int) -> dict:
-        """Tensors for frames `idx` cropped at (x0, y0) to crop×crop (crop = H: whole frames)."""
+    def batch(
+        self, idx: np.ndarray, x0: np.ndarray, y0: np.ndarray, crop: int | tuple[int, int]
+    ) -> dict:
+        """Tensors for frames `idx` cropped at (x0, y0) to crop×crop, or to (height, width)."""
         s = self.s
+        ch, cw = (crop, crop) if isinstance(crop, int) else crop
 
         def cut(a: np.ndarray) -> np.ndarray:
             return np.stack(
-                [a[i, y : y + crop, x : x + crop] for i, x, y in zip(idx, x0, y0, strict=False)]
+                [a[i, y : y + ch, x : x + cw] for i, x, y in zip(idx, x0, y0, strict=False)]
             )
 
         rgb = torch.from_numpy(cut(s.rgb)).permute(0, 3, 1, 2).float() / 255.0
@@ -104,14 +113,14 @@ class Data:
             "boundary": torch.from_numpy(cut(s.boundary)).unsqueeze(1),
             "intrinsics": intr,
             "mounting": mount,
-            "prior_depth_m": prior_depth(intr, mount, crop, crop),
+            "prior_depth_m": prior_depth(intr, mount, ch, cw),
             "points_m": points,
             "valid": valid,
         }
         for name, arr in self.extra.items():
             c = np.stack(
                 [
-                    arr[self.row[int(i)], :, y : y + crop, x : x + crop]
+                    arr[self.row[int(i)], :, y : y + ch, x : x + cw]
                     for i, x, y in zip(idx, x0, y0, strict=False)
                 ]
             )
@@ -127,7 +136,7 @@ class Data:
 
     def whole(self, idx: np.ndarray) -> dict:
         z = np.zeros(len(idx), dtype=np.int64)
-        return self.batch(idx, z, z, self.s.depth_m.shape[1])
+        return self.batch(idx, z, z, self.s.depth_m.shape[1:])
 
 
 def inlier_target(points_m: Tensor, valid: Tensor, normals_gt: Tensor, tau: float) -> Tensor:
@@ -224,6 +233,7 @@ def train(
         "device": "cpu",
         "threads": torch.get_num_threads(),
         "train_frames": len(data),
+        "input_depth": data.depth,
         "mixed_predicted_depth": pred is not None,
         "init": None if init is None else init.name,
         "final_train": final,
@@ -292,7 +302,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--split", default="train", help="split for the cache-* stages")
     ap.add_argument("--frames", type=int, default=480, help="frames cache-n0 covers")
     ap.add_argument(
-        "--depth", choices=["gt", "pred"], default="gt", help="points from true or predicted depth"
+        "--depth",
+        choices=["gt", "sensor", "pred"],
+        default="gt",
+        help="points from the true, the depth-sensor model's or the predicted depth",
     )
     ap.add_argument("--mix-pred", action="store_true", help="alternate true and predicted depth")
     ap.add_argument("--init", type=Path, help="start from this checkpoint")
@@ -307,7 +320,7 @@ def main(argv: list[str] | None = None) -> int:
     batch, crop = DEFAULTS[args.stage]
     log = train(
         args.stage,
-        Data(args.data, "train"),
+        Data(args.data, "train", args.depth),
         args.minutes,
         args.batch or batch,
         args.crop or crop,
