@@ -28,7 +28,7 @@ t cache-n0 --depth sensor --frames "${N0_FRAMES:-400}"
 t refiner --depth sensor --minutes "$(m 8)"
 t cache-n --depth sensor
 t centroid --depth sensor --minutes "$(m 12)"
-t e2e --minutes "$(m 10)"
+t e2e --minutes "$(m 8)"
 # Fine-tune the refiner and the centroid net with every other batch on points from the depth
 # net's depth, so that one set of weights serves both the rgb and the rgbd modes: the chain
 # trained end to end on what each stage gets at serving time.

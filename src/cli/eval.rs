@@ -309,12 +309,12 @@ fn read_frame(dir: &Path, source: DepthSource) -> anyhow::Result<Frame> {
     let scale = cam.depth_scale.unwrap_or(1000.0);
     let depth_m = io::read_depth(&dir.join("depth.png"), scale)?;
     let input_depth_m = match source {
-        DepthSource::Exact => depth_m.clone(),
-        other => io::read_depth(&dir.join(other.file_name()), scale)?,
+        DepthSource::Exact => Some(depth_m.clone()),
+        other => read_sensor_depth(&dir.join(other.file_name()), scale)?,
     };
     let input = FrameInput {
         rgb: Some(io::read_image(&dir.join("rgb.png"))?.to_rgb8()),
-        depth_m: Some(input_depth_m),
+        depth_m: input_depth_m,
         intrinsics: Some(k),
         mounting: cam.mounting()?,
     };
@@ -327,13 +327,40 @@ fn read_frame(dir: &Path, source: DepthSource) -> anyhow::Result<Frame> {
     })
 }
 
-/// Runs one configuration on one frame and adds its errors and timings to `score`.
+/// A depth-sensor model's depth; `None` when the sensor saw nothing at all (every pixel 0, such
+/// as a Kinect whose whole view is beyond its range), which no depth mode can run on.
+fn read_sensor_depth(path: &Path, scale: f64) -> anyhow::Result<Option<Grid<f64>>> {
+    if let image::DynamicImage::ImageLuma16(img) = io::read_image(path)? {
+        if img.pixels().all(|p| p.0[0] == 0) {
+            tracing::warn!(
+                "{}: the sensor saw nothing; scored as every pixel without prediction",
+                path.display()
+            );
+            return Ok(None);
+        }
+    }
+    Ok(Some(io::read_depth(path, scale)?))
+}
+
+/// Runs one configuration on one frame and adds its errors and timings to `score`. A mode that
+/// reads depth on a frame whose sensor saw nothing predicts no pixel.
 fn score_frame(
     pipeline: &mut Pipeline,
     frame: &Frame,
     spec: &RowSpec,
     score: &mut Score,
 ) -> anyhow::Result<()> {
+    if frame.input.depth_m.is_none()
+        && spec.cfg.mode != Mode::Rgb
+        && spec.cfg.method != Method::EndToEnd
+    {
+        let (w, h) = frame.roughness_m.size();
+        let none = Grid::new(w, h, f64::NAN);
+        score
+            .roughness
+            .add(&none, &frame.roughness_m, &frame.boundary)?;
+        return Ok(());
+    }
     let out = pipeline.run(&frame.input, &spec.cfg)?;
     score
         .roughness

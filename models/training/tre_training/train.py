@@ -257,6 +257,14 @@ def cache_outputs(kind: str, data: Data, seed: int, frames: int) -> None:
     the split) or `n` (refined normals, for the frames `n0` covers), float16, F×3×H×W, and the
     frame indices beside them."""
     model = load("neighbour" if kind == "n0" else "refiner")
+    # Only the inputs of the stage being cached: outputs of an earlier run are rewritten.
+    data.extra.pop("n", None)
+    if kind == "n0":
+        data.extra = {}
+        data.frames = np.arange(len(data))
+    else:
+        data.frames = np.load(data.cache / f"{data.split_name}_n0{data.suffix}_index.npy")
+    data.row = {int(i): r for r, i in enumerate(data.frames)}
     h, w = data.s.depth_m.shape[1:]
     if kind == "n0":
         index = np.unique(np.linspace(0, len(data) - 1, min(frames, len(data))).astype(np.int64))
