@@ -703,7 +703,9 @@ fn eighty_trickling_streams_do_not_starve_a_ready_stream() {
         t.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
         let mut got = Vec::new();
         let _ = t.read_to_end(&mut got);
-        let close = got.windows(4).any(|w| w == [0x88, w[1], 0x03, 0xF0] && w[1] >= 2);
+        let close = got
+            .windows(4)
+            .any(|w| w == [0x88, w[1], 0x03, 0xF0] && w[1] >= 2);
         assert!(close, "no 1008 close in {} bytes: {got:?}", got.len());
         let text = String::from_utf8_lossy(&got);
         assert!(text.contains("--min-body-rate"), "{text}");

@@ -202,7 +202,9 @@ mod tests {
         read.add(6);
         pace.control_frame(0);
         read.add(10);
-        let slow = pace.end_window(tick()).expect_err("10 bytes of data in a window");
+        let slow = pace
+            .end_window(tick())
+            .expect_err("10 bytes of data in a window");
         assert_eq!(slow.bytes, 10, "the pong is not counted as the message's");
     }
 
