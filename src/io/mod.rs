@@ -227,8 +227,10 @@ struct CameraFileKeys {
     other: std::collections::BTreeMap<String, serde::de::IgnoredAny>,
 }
 
-/// The keys of a camera file.
-const CAMERA_KEYS: [&str; 10] = [
+/// The keys a camera file is read for. Over HTTP and the stream they are the only keys allowed
+/// ([`crate::server::request::CAMERA_KEYS`]); files read by the CLI may keep notes beside them,
+/// such as `source` or `licence`.
+pub const CAMERA_KEYS: [&str; 10] = [
     "fx",
     "fy",
     "cx",

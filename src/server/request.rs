@@ -291,20 +291,10 @@ pub fn image_header(
     Ok((format, (w, h)))
 }
 
-/// Keys a camera JSON sent over HTTP or the stream may carry; any other is refused there
-/// (files read by the CLI keep their notes, such as `source` or `licence`).
-pub const CAMERA_KEYS: [&str; 10] = [
-    "fx",
-    "fy",
-    "cx",
-    "cy",
-    "width",
-    "height",
-    "depth_scale",
-    "pitch_deg",
-    "height_m",
-    "sensor",
-];
+/// Keys a camera JSON sent over HTTP or the stream may carry, those a camera file is read for;
+/// any other is refused there (files read by the CLI keep their notes, such as `source` or
+/// `licence`).
+pub use crate::io::CAMERA_KEYS;
 
 /// Physical ranges of a camera sent by a client: focal lengths 1 px to 10⁶ px, pitch −90° to
 /// 90°, height above the ground 1 cm to 100 m, depth scale above 0 and at most 10⁶ units per
