@@ -328,18 +328,22 @@ fn read_frame(dir: &Path, source: DepthSource) -> anyhow::Result<Frame> {
 }
 
 /// A depth-sensor model's depth; `None` when the sensor saw nothing at all (every pixel 0, such
-/// as a Kinect whose whole view is beyond its range), which no depth mode can run on.
+/// as a Kinect whose whole view is beyond its range), which no depth mode can run on. The PNG is
+/// decoded once; anything else goes through [`io::read_depth`] and its checks.
 fn read_sensor_depth(path: &Path, scale: f64) -> anyhow::Result<Option<Grid<f64>>> {
-    if let image::DynamicImage::ImageLuma16(img) = io::read_image(path)? {
-        if img.pixels().all(|p| p.0[0] == 0) {
-            tracing::warn!(
-                "{}: the sensor saw nothing; scored as every pixel without prediction",
-                path.display()
-            );
-            return Ok(None);
-        }
+    let image::DynamicImage::ImageLuma16(img) = io::read_image(path)? else {
+        return Ok(Some(io::read_depth(path, scale)?));
+    };
+    if img.pixels().all(|p| p.0[0] == 0) {
+        tracing::warn!(
+            "{}: the sensor saw nothing; scored as every pixel without prediction",
+            path.display()
+        );
+        return Ok(None);
     }
-    Ok(Some(io::read_depth(path, scale)?))
+    let depth = io::depth_from_luma16(img, scale);
+    io::check_depth(&depth).map_err(|why| anyhow::anyhow!("{}: {why}", path.display()))?;
+    Ok(Some(depth))
 }
 
 /// Runs one configuration on one frame and adds its errors and timings to `score`. A mode that

@@ -56,7 +56,15 @@ pub async fn stream(
         app.waiting_streams.clone().try_acquire_owned().ok()
     };
     let Some(waiting) = waiting else {
-        return too_many(&app, &id).into_response();
+        let why = if app.streams.available_permits() == 0 {
+            streams_full(&app)
+        } else {
+            format!(
+                "{} streams wait for their first message, the limit (--max-connections); retry later",
+                app.cfg.max_connections
+            )
+        };
+        return too_many(&app, &id, why).into_response();
     };
     // Frames over the message limit but within this are answered with an error and the stream
     // goes on; larger ones close the connection (1009).
@@ -76,14 +84,18 @@ pub async fn stream(
         })
 }
 
-/// The 429 of a stream over `--max-streams`, counted and logged.
-fn too_many(app: &AppState, id: &str) -> ApiError {
-    app.metrics
-        .request("stream", ErrorCode::TooManyRequests.as_str(), None);
-    let why = format!(
+/// Why a stream is refused when every `--max-streams` place is held.
+fn streams_full(app: &AppState) -> String {
+    format!(
         "{} streams are open, the limit (--max-streams); retry later",
         app.cfg.max_streams
-    );
+    )
+}
+
+/// The 429 of a stream over a limit, counted and logged.
+fn too_many(app: &AppState, id: &str, why: String) -> ApiError {
+    app.metrics
+        .request("stream", ErrorCode::TooManyRequests.as_str(), None);
     app.refusals
         .refused("stream", id, ErrorCode::TooManyRequests.as_str(), &why);
     ApiError::new(ErrorCode::TooManyRequests, why)
@@ -115,12 +127,19 @@ struct Connection {
     last_heard: Instant,
     /// The upgrade request's id, logged with the stream's refusals.
     id: String,
-    /// The stream's `--max-streams` place, taken with its first whole message.
-    place: Option<OwnedSemaphorePermit>,
-    /// Its place among the streams waiting for their first message, until then.
-    waiting_place: Option<OwnedSemaphorePermit>,
+    /// Its place: among the streams waiting for their first message, then within
+    /// `--max-streams`.
+    place: Place,
     /// The pace its messages keep; `None` where the connection's reads are not counted.
     pace: Option<MessagePace>,
+}
+
+/// The permit a stream holds.
+enum Place {
+    /// Among the streams waiting for their first whole message (`--max-connections`).
+    Waiting { _permit: OwnedSemaphorePermit },
+    /// Within `--max-streams`, from its first whole message on.
+    Held { _permit: OwnedSemaphorePermit },
 }
 
 /// What woke the connection up.
@@ -144,8 +163,9 @@ impl Connection {
         let min_rate = app.cfg.min_body_rate;
         let now = tokio::time::Instant::now();
         Self {
-            place: None,
-            waiting_place: Some(waiting_place),
+            place: Place::Waiting {
+                _permit: waiting_place,
+            },
             pace: read.map(|read| MessagePace::new(read, min_rate, now)),
             app,
             socket,
@@ -251,15 +271,16 @@ impl Connection {
     /// Takes the stream's `--max-streams` place with its first data message; false (after an
     /// error and a 1013 close) when none is free.
     async fn take_place(&mut self, msg: &Message) -> bool {
-        if self.place.is_some() || !matches!(msg, Message::Binary(_) | Message::Text(_)) {
+        if matches!(self.place, Place::Held { .. })
+            || !matches!(msg, Message::Binary(_) | Message::Text(_))
+        {
             return true;
         }
         if let Ok(place) = self.app.streams.clone().try_acquire_owned() {
-            self.place = Some(place);
-            self.waiting_place = None;
+            self.place = Place::Held { _permit: place };
             return true;
         }
-        let e = too_many(&self.app, &self.id);
+        let e = too_many(&self.app, &self.id, streams_full(&self.app));
         let _ = self.send(proto::error(None, &e)).await;
         self.close(1013, "try again later").await;
         false

@@ -41,9 +41,10 @@ def depth_loss(pred_m: Tensor, gt_m: Tensor) -> Tensor:
     lg = torch.log(torch.where(valid, gt_m, torch.ones_like(gt_m)))
     lp = torch.log(torch.clamp(pred_m, min=1e-3))
     lp_filled = torch.where(valid, lp, lg)
-    l1 = masked_mean((lp - lg).abs(), valid)
+    delta = lp - lg
+    l1 = masked_mean(delta.abs(), valid)
     s = masked_mean((1 - ssim(lp_filled, lg)) / 2, valid)
-    return l1 + 0.5 * s + 0.5 * scale_invariant(lp - lg, valid) + 0.5 * gradient_match(lp - lg, valid)
+    return l1 + 0.5 * (s + scale_invariant(delta, valid) + gradient_match(delta, valid))
 
 
 def scale_invariant(delta: Tensor, valid: Tensor) -> Tensor:

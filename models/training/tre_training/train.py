@@ -15,8 +15,9 @@ Stages, in the order they depend on each other:
 The geometric stages train on points from the true depth, or with `--depth sensor` from the
 depth-sensor model's depth of each frame (`depth_sensor.png`: the `rgbd` input as a real camera
 gives it), always against the ground truth on the exact depth; in the `rgb` mode they see the
-depth net's output (`--mix-pred` alternates it with the `--depth` source). Adam (β = 0.9, 0.999, ε = 1e-8), learning rate 1e-3 halved at
-half and three quarters of the time budget, random crops. Checkpoints and logs go to
+depth net's output (`--mix-pred` alternates it with the `--depth` source). Adam (β = 0.9,
+0.999, ε = 1e-8), learning rate 1e-3 halved at half and three quarters of the time budget,
+random crops. Checkpoints and logs go to
 `checkpoints/STAGE.pt` and `checkpoints/STAGE.json` beside this package.
 """
 
@@ -258,11 +259,11 @@ def cache_outputs(kind: str, data: Data, seed: int, frames: int) -> None:
     frame indices beside them."""
     model = load("neighbour" if kind == "n0" else "refiner")
     # Only the inputs of the stage being cached: outputs of an earlier run are rewritten.
-    data.extra.pop("n", None)
     if kind == "n0":
         data.extra = {}
         data.frames = np.arange(len(data))
     else:
+        data.extra.pop("n", None)
         data.frames = np.load(data.cache / f"{data.split_name}_n0{data.suffix}_index.npy")
     data.row = {int(i): r for r, i in enumerate(data.frames)}
     h, w = data.s.depth_m.shape[1:]
