@@ -1,0 +1,380 @@
+//! Settings of the streaming client: where the server is, what to ask it for, how fast to send
+//! and how to reconnect, checked once by [`ClientConfig::validate`].
+
+use std::time::Duration;
+
+use super::ClientError;
+use tre_io::CameraFile;
+use tre_pipeline::{Mode, NormalsMethod};
+
+/// How fast frames go out.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Rate {
+    /// At most this many frames per second: `send` waits for the next tick. Frames sent while
+    /// the connection is down are reported lost at once, so the robot keeps its cadence.
+    Fixed(f64),
+    /// One frame at a time: `send` waits until the previous frame has its answer (result,
+    /// drop, error, timeout or loss) and the connection is up. Nothing is dropped by the server.
+    AsFastAsResults,
+}
+
+/// Exponential back-off between connection attempts: the first attempt is immediate, attempt
+/// `k + 1` waits `initial · factor^(k−1)`, capped at `max`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Backoff {
+    /// Wait before the second attempt.
+    pub initial: Duration,
+    /// Longest wait.
+    pub max: Duration,
+    /// Growth per attempt (≥ 1).
+    pub factor: f64,
+    /// Give up after this many failed attempts in a row; `None`: never.
+    pub give_up_after: Option<u32>,
+}
+
+impl Default for Backoff {
+    fn default() -> Self {
+        Self {
+            initial: Duration::from_millis(200),
+            max: Duration::from_secs(5),
+            factor: 2.0,
+            give_up_after: None,
+        }
+    }
+}
+
+impl Backoff {
+    /// The wait after `failed` failed attempts in a row (`failed ≥ 1`).
+    ///
+    /// ```
+    /// use std::time::Duration;
+    /// use tre_client::Backoff;
+    /// let b = Backoff { initial: Duration::from_millis(100), max: Duration::from_secs(1), factor: 2.0, give_up_after: None };
+    /// assert_eq!(b.delay(1), Duration::from_millis(100));
+    /// assert_eq!(b.delay(3), Duration::from_millis(400));
+    /// assert_eq!(b.delay(30), Duration::from_secs(1));
+    /// ```
+    pub fn delay(&self, failed: u32) -> Duration {
+        let exp = i32::try_from(failed.saturating_sub(1)).unwrap_or(i32::MAX);
+        let secs = self.initial.as_secs_f64() * self.factor.powi(exp);
+        if secs.is_finite() && secs < self.max.as_secs_f64() {
+            Duration::from_secs_f64(secs)
+        } else {
+            self.max
+        }
+    }
+
+    /// Whether `failed` failed attempts in a row exhaust the allowance.
+    pub fn exhausted(&self, failed: u32) -> bool {
+        self.give_up_after.is_some_and(|n| failed >= n)
+    }
+}
+
+/// Encoding of the roughness maps the server sends back.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Format {
+    /// 16-bit grey + alpha PNG at 0.1 mm per unit (as `tre infer` writes), decoded to metres.
+    #[default]
+    Png16,
+    /// 8-bit turbo colour map PNG of the frame's size (for display; not decoded to metres).
+    Color,
+    /// Raw little-endian float32 metres (NaN: no data), decoded to metres.
+    F32,
+}
+
+/// Settings of a stream session.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClientConfig {
+    /// The server: `ws://host:port/v1/stream`, `ws://host:port`, `http://host:port` (the
+    /// service's base URL; `/v1/stream` is appended) or `host:port`; `wss://` or `https://`
+    /// for TLS (rustls, [`tls`](super::tls)), as a TLS-terminating proxy in front of the
+    /// service serves it.
+    pub server: String,
+    /// API key of a server started with `--api-key`, sent as `Authorization: Bearer KEY` on
+    /// the upgrade and the readiness check.
+    pub api_key: Option<String>,
+    /// PEM file of a private CA whose certificates the server's may chain to, beside the
+    /// public roots (`wss://` and `https://` only).
+    pub ca_cert: Option<std::path::PathBuf>,
+    /// Intrinsics and mounting of the camera; `None`: the server's defaults (60° horizontal
+    /// field of view, 60° pitch, 1 m height).
+    pub camera: Option<CameraFile>,
+    /// Input mode; `None`: rgbd for frames with depth, else rgb.
+    pub mode: Option<Mode>,
+    /// Encoding of the maps.
+    pub format: Format,
+    /// Seed of the DSAC sampler (same seed, same output).
+    pub seed: u64,
+    /// Initial normals; `None`: the server's default (`tre serve --normals`, DSAC unless set).
+    pub normals: Option<NormalsMethod>,
+    /// DSAC hypotheses per pixel, 1 to 64; `None`: the server's default
+    /// (`tre serve --dsac-hypotheses`, 12 unless set).
+    pub dsac_hypotheses: Option<u32>,
+    /// Top of the colour scale of [`Format::Color`], metres; `None`: 0.05.
+    pub preview_max_m: Option<f64>,
+    /// Also ask for the traversability mask.
+    pub want_traversable: bool,
+    /// Also ask for the three-state traversability and uncertainty maps (the camera must name
+    /// a sensor noise model; modes with sensor depth only).
+    pub want_traversal: bool,
+    /// The mask's largest roughness, centimetres; `None`: 5.
+    pub max_roughness_cm: Option<f64>,
+    /// The mask's steepest slope, degrees; `None`: 20.
+    pub max_slope_deg: Option<f64>,
+    /// How fast frames go out.
+    pub rate: Rate,
+    /// Reconnection back-off (also used for the first connection).
+    pub reconnect: Backoff,
+    /// A frame without an answer after this long is reported lost (`LostReason::TimedOut`).
+    pub frame_timeout: Duration,
+    /// Limit of each connection step (readiness check, WebSocket handshake, Hello → Ready).
+    pub connect_timeout: Duration,
+    /// A connection on which nothing has been heard for this long is dropped and re-made (the
+    /// server pings every 15 s).
+    pub silence_timeout: Duration,
+    /// Before each connection, wait for `GET /readyz` to answer 200, so that frames do not
+    /// meet a server still loading its models (a 404 counts as ready: a proxy without it).
+    pub wait_ready: bool,
+    /// Frames awaiting an answer that are remembered; beyond, the oldest is reported lost.
+    pub max_pending: usize,
+    /// Events buffered for the application; when full, the connection stops reading.
+    pub event_capacity: usize,
+}
+
+impl Default for ClientConfig {
+    fn default() -> Self {
+        Self {
+            server: "ws://127.0.0.1:8080/v1/stream".to_owned(),
+            api_key: None,
+            ca_cert: None,
+            camera: None,
+            mode: None,
+            format: Format::Png16,
+            seed: 0,
+            normals: None,
+            dsac_hypotheses: None,
+            preview_max_m: None,
+            want_traversable: false,
+            want_traversal: false,
+            max_roughness_cm: None,
+            max_slope_deg: None,
+            rate: Rate::AsFastAsResults,
+            reconnect: Backoff::default(),
+            frame_timeout: Duration::from_secs(30),
+            connect_timeout: Duration::from_secs(10),
+            silence_timeout: Duration::from_secs(45),
+            wait_ready: true,
+            max_pending: 256,
+            event_capacity: 64,
+        }
+    }
+}
+
+/// The URLs a session talks to, derived from [`ClientConfig::server`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Endpoints {
+    /// The WebSocket stream, `ws://host:port[/prefix]/v1/stream` (`wss://` with TLS).
+    pub stream: String,
+    /// The readiness probe, `http://host:port[/prefix]/readyz` (`https://` with TLS).
+    pub readyz: String,
+    /// Whether both go over TLS.
+    pub tls: bool,
+}
+
+impl ClientConfig {
+    /// Checks every setting; returns the URLs to use.
+    pub fn validate(&self) -> Result<Endpoints, ClientError> {
+        let bad = |field, reason: String| Err(ClientError::BadConfig { field, reason });
+        if let Rate::Fixed(fps) = self.rate {
+            if !(fps.is_finite() && fps > 0.0) {
+                return bad(
+                    "rate",
+                    format!("frames per second must be positive, got {fps}"),
+                );
+            }
+        }
+        if let Err(reason) =
+            tre_pipeline::Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
+        {
+            return bad("traversability", reason);
+        }
+        let b = &self.reconnect;
+        if b.initial.is_zero() || b.max < b.initial {
+            return bad(
+                "reconnect",
+                format!(
+                    "need 0 < initial ≤ max, got {:?} and {:?}",
+                    b.initial, b.max
+                ),
+            );
+        }
+        if !(b.factor.is_finite() && b.factor >= 1.0) {
+            return bad("reconnect.factor", format!("must be ≥ 1, got {}", b.factor));
+        }
+        if b.give_up_after == Some(0) {
+            return bad(
+                "reconnect.give_up_after",
+                "must be ≥ 1 (None: never)".into(),
+            );
+        }
+        for (field, d) in [
+            ("frame_timeout", self.frame_timeout),
+            ("connect_timeout", self.connect_timeout),
+            ("silence_timeout", self.silence_timeout),
+        ] {
+            if d.is_zero() {
+                return bad(field, "must be positive".into());
+            }
+        }
+        if self.max_pending == 0 || self.event_capacity == 0 {
+            return bad("max_pending / event_capacity", "must be ≥ 1".into());
+        }
+        if let Some(m) = self.preview_max_m.filter(|m| !(m.is_finite() && *m > 0.0)) {
+            return bad("preview_max_m", format!("must be positive, got {m}"));
+        }
+        if let Some(c) = &self.camera {
+            c.intrinsics()
+                .and_then(|_| c.mounting())
+                .map_err(|e| ClientError::BadConfig {
+                    field: "camera",
+                    reason: e.to_string(),
+                })?;
+        }
+        endpoints(&self.server)
+    }
+}
+
+/// The stream and readiness URLs for a server address (see [`ClientConfig::server`]).
+///
+/// ```
+/// let e = tre_client::endpoints("http://10.0.0.2:8080").unwrap();
+/// assert_eq!(e.stream, "ws://10.0.0.2:8080/v1/stream");
+/// assert_eq!(e.readyz, "http://10.0.0.2:8080/readyz");
+/// let e = tre_client::endpoints("ws://robot-gw/tre/v1/stream").unwrap();
+/// assert_eq!(e.readyz, "http://robot-gw/tre/readyz");
+/// let e = tre_client::endpoints("https://tre.example").unwrap();
+/// assert_eq!(e.stream, "wss://tre.example/v1/stream");
+/// assert_eq!(e.readyz, "https://tre.example/readyz");
+/// ```
+pub fn endpoints(server: &str) -> Result<Endpoints, ClientError> {
+    let bad = |reason: &str| ClientError::BadUrl {
+        url: server.to_owned(),
+        reason: reason.to_owned(),
+    };
+    let s = server.trim();
+    let (scheme, rest) = match s.split_once("://") {
+        Some((scheme, rest)) => (scheme.to_ascii_lowercase(), rest),
+        None => ("ws".to_owned(), s),
+    };
+    let tls = match scheme.as_str() {
+        "ws" | "http" => false,
+        "wss" | "https" => true,
+        _ => return Err(bad("the scheme must be ws://, wss://, http:// or https://")),
+    };
+    if rest.contains(['?', '#', ' ']) {
+        return Err(bad("no query, fragment or spaces expected"));
+    }
+    let (authority, path) = rest.find('/').map_or((rest, ""), |i| rest.split_at(i));
+    if authority.is_empty() || authority.starts_with(':') {
+        return Err(bad("no host"));
+    }
+    let path = path.trim_end_matches('/');
+    let base = path.strip_suffix("/v1/stream").unwrap_or(path);
+    let (ws, http) = if tls {
+        ("wss", "https")
+    } else {
+        ("ws", "http")
+    };
+    Ok(Endpoints {
+        stream: format!("{ws}://{authority}{base}/v1/stream"),
+        readyz: format!("{http}://{authority}{base}/readyz"),
+        tls,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn addresses_become_stream_and_readiness_urls() {
+        for s in [
+            "ws://127.0.0.1:8080/v1/stream",
+            "ws://127.0.0.1:8080",
+            "http://127.0.0.1:8080/",
+            "127.0.0.1:8080",
+            "WS://127.0.0.1:8080/v1/stream/",
+        ] {
+            let e = endpoints(s).unwrap();
+            assert_eq!(e.stream, "ws://127.0.0.1:8080/v1/stream", "{s}");
+            assert_eq!(e.readyz, "http://127.0.0.1:8080/readyz", "{s}");
+            assert!(!e.tls);
+        }
+        for s in ["wss://h:8443/v1/stream", "https://h:8443", "WSS://h:8443/"] {
+            let e = endpoints(s).unwrap();
+            assert_eq!(e.stream, "wss://h:8443/v1/stream", "{s}");
+            assert_eq!(e.readyz, "https://h:8443/readyz", "{s}");
+            assert!(e.tls);
+        }
+        for s in ["ftp://h", "ws://", "ws://h/?x=1", ":80"] {
+            assert!(
+                matches!(endpoints(s), Err(ClientError::BadUrl { .. })),
+                "{s}"
+            );
+        }
+    }
+
+    #[test]
+    fn backoff_grows_to_its_cap_and_gives_up_when_told() {
+        let b = Backoff {
+            initial: Duration::from_millis(200),
+            max: Duration::from_secs(5),
+            factor: 2.0,
+            give_up_after: Some(3),
+        };
+        let waits: Vec<u128> = (1..=7).map(|k| b.delay(k).as_millis()).collect();
+        assert_eq!(waits, [200, 400, 800, 1600, 3200, 5000, 5000]);
+        assert_eq!(b.delay(u32::MAX), Duration::from_secs(5));
+        assert!(!b.exhausted(2) && b.exhausted(3));
+        assert!(!Backoff::default().exhausted(u32::MAX));
+    }
+
+    #[test]
+    fn nonsense_settings_name_the_field() {
+        let field = |cfg: ClientConfig| match cfg.validate() {
+            Err(ClientError::BadConfig { field, .. }) => field,
+            other => panic!("expected BadConfig, got {other:?}"),
+        };
+        let base = ClientConfig::default();
+        assert!(base.validate().is_ok());
+        let rate = ClientConfig {
+            rate: Rate::Fixed(0.0),
+            ..base.clone()
+        };
+        assert_eq!(field(rate), "rate");
+        let mut b = base.clone();
+        b.reconnect.factor = 0.5;
+        assert_eq!(field(b), "reconnect.factor");
+        let t = ClientConfig {
+            frame_timeout: Duration::ZERO,
+            ..base.clone()
+        };
+        assert_eq!(field(t), "frame_timeout");
+        let cam = ClientConfig {
+            camera: Some(CameraFile {
+                fx: -1.0,
+                fy: 1.0,
+                cx: 0.0,
+                cy: 0.0,
+                width: None,
+                height: None,
+                depth_scale: None,
+                pitch_deg: None,
+                height_m: None,
+                sensor: None,
+            }),
+            ..base
+        };
+        assert_eq!(field(cam), "camera");
+    }
+}

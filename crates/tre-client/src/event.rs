@@ -1,0 +1,198 @@
+//! What goes into a stream session ([`Frame`]) and what comes out of it ([`Event`]), in
+//! domain types: maps as [`Grid`]s in metres, times as [`Duration`]s.
+
+use std::time::Duration;
+
+use image::RgbImage;
+
+use super::config::Format;
+use tre_core::geometry::Grid;
+use tre_io::CameraFile;
+
+/// One camera frame to send.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Frame {
+    /// PNG or JPEG bytes, sent as they are (may be empty in geometric mode).
+    pub image: Vec<u8>,
+    /// Registered depth: 16-bit grey PNG (the camera's `depth_scale` units per metre, default
+    /// 1000) or float `.npy` in metres.
+    pub depth: Option<Vec<u8>>,
+    /// Overrides the session's camera for this frame.
+    pub camera: Option<CameraFile>,
+    /// Capture time, microseconds since the Unix epoch; `None`: the time of sending.
+    pub timestamp_us: Option<i64>,
+}
+
+impl Frame {
+    /// A frame of encoded RGB (PNG or JPEG) bytes.
+    pub fn rgb(image: Vec<u8>) -> Self {
+        Self {
+            image,
+            ..Self::default()
+        }
+    }
+
+    /// The same frame with registered depth.
+    pub fn with_depth(mut self, depth: Vec<u8>) -> Self {
+        self.depth = Some(depth);
+        self
+    }
+}
+
+/// The roughness map of a result.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Roughness {
+    /// Metres per pixel, NaN where there is no data ([`Format::Png16`], [`Format::F32`]).
+    Metres(Grid<f64>),
+    /// The colour map ([`Format::Color`]), the frame's size.
+    Colour(RgbImage),
+}
+
+/// The roughness of one frame, as the server computed it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameResult {
+    /// The frame's sequence number (assigned by [`FrameSender::send`](super::FrameSender::send)).
+    pub sequence: u64,
+    /// The frame's timestamp, echoed by the server.
+    pub timestamp_us: i64,
+    /// Width of the frame and the maps, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// The decoded map.
+    pub roughness: Roughness,
+    /// The map as the server sent it (`format`-encoded): a PNG16 can be written out as is.
+    pub encoded: Vec<u8>,
+    /// How `encoded` is encoded.
+    pub format: Format,
+    /// Traversability (`true`: traversable), if asked for.
+    pub traversable: Option<Grid<bool>>,
+    /// Three-state traversability, if asked for.
+    pub traversal: Option<Grid<tre_core::roughness::traversal::Traversal>>,
+    /// Uncertainty, metres (NaN: no data), if asked for.
+    pub uncertainty_m: Option<Grid<f64>>,
+    /// Wall time of each pipeline stage on the server.
+    pub timings: Vec<(String, Duration)>,
+    /// Round trip measured by the client: from [`FrameSender::send`](super::FrameSender::send)
+    /// stamping the frame to its result decoded (`received_unix_us − sent_unix_us`, measured
+    /// on the monotonic clock).
+    pub latency: Duration,
+    /// When `send` stamped the frame, microseconds since the Unix epoch (the start of
+    /// `latency`; also the frame's timestamp unless [`Frame::timestamp_us`] gave one).
+    pub sent_unix_us: i64,
+    /// When the result was decoded, microseconds since the Unix epoch (the end of `latency`).
+    pub received_unix_us: i64,
+    /// Time from the frame's arrival at the server to its result.
+    pub server_latency: Duration,
+    /// Frames of this connection the server has dropped so far (latest frame wins).
+    pub dropped_total: u64,
+}
+
+impl FrameResult {
+    /// The map in metres, unless the session asked for colour.
+    pub fn roughness_m(&self) -> Option<&Grid<f64>> {
+        match &self.roughness {
+            Roughness::Metres(m) => Some(m),
+            Roughness::Colour(_) => None,
+        }
+    }
+}
+
+/// Why a frame will get no answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LostReason {
+    /// It was in flight when the connection dropped.
+    Disconnected,
+    /// It was sent while the connection was down (fixed rate), so it never left.
+    NotConnected,
+    /// No answer within [`ClientConfig::frame_timeout`](super::ClientConfig::frame_timeout).
+    TimedOut,
+    /// More than [`ClientConfig::max_pending`](super::ClientConfig::max_pending) frames were
+    /// awaiting answers; the oldest was forgotten.
+    Evicted,
+}
+
+impl LostReason {
+    /// Short name (`disconnected`, `not_connected`, `timed_out`, `evicted`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Disconnected => "disconnected",
+            Self::NotConnected => "not_connected",
+            Self::TimedOut => "timed_out",
+            Self::Evicted => "evicted",
+        }
+    }
+}
+
+/// What the server said about itself when it accepted the Hello.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ServerInfo {
+    /// Largest message it accepts, bytes.
+    pub max_message_bytes: usize,
+    /// Models it runs.
+    pub models: Vec<String>,
+}
+
+/// Something that happened in a session. Every frame sent gets exactly one of `Result`,
+/// `Dropped`, `Error` (with its sequence) or `Lost`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// A frame's roughness.
+    Result(Box<FrameResult>),
+    /// The server skipped the frame: a newer one arrived before a worker was free.
+    Dropped {
+        /// The frame.
+        sequence: u64,
+        /// Frames of this connection dropped so far.
+        dropped_total: u64,
+    },
+    /// The server could not use a message (or the client could not decode its answer:
+    /// code `bad_result`).
+    Error {
+        /// The frame concerned, if any.
+        sequence: Option<u64>,
+        /// Stable code (`bad_image`, `overloaded`, `not_ready`, ...).
+        code: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// A frame that will get no answer.
+    Lost {
+        /// The frame.
+        sequence: u64,
+        /// Why.
+        reason: LostReason,
+    },
+    /// The connection dropped; the session is reconnecting.
+    Disconnected {
+        /// What ended it.
+        reason: String,
+    },
+    /// A new connection is up and the Hello was accepted again.
+    Reconnected {
+        /// Attempts it took.
+        attempts: u32,
+        /// Time without a connection.
+        downtime: Duration,
+        /// The server's Ready.
+        server: ServerInfo,
+    },
+    /// Reconnecting failed as often as allowed, or a new connection was refused; the session
+    /// has ended and this is its last event.
+    GaveUp {
+        /// What failed last.
+        reason: String,
+    },
+}
+
+impl Event {
+    /// The frame this event settles, if it is one's final answer.
+    pub fn settles(&self) -> Option<u64> {
+        match self {
+            Self::Result(r) => Some(r.sequence),
+            Self::Dropped { sequence, .. } | Self::Lost { sequence, .. } => Some(*sequence),
+            Self::Error { sequence, .. } => *sequence,
+            _ => None,
+        }
+    }
+}

@@ -1,0 +1,220 @@
+//! The frames a load test sends: files, a folder of images, or one synthetic terrain frame
+//! rendered in memory by [`tre_synth`]; each encoded once and cycled.
+
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+use image::{DynamicImage, ImageFormat};
+use tokio_tungstenite::tungstenite::Bytes;
+
+use super::LoadError;
+use tre_synth::dataset::{build_scene, scene_views, view_conditions};
+use tre_synth::{render, SynthConfig};
+
+/// Where the frames come from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum FrameSource {
+    /// One synthetic terrain frame of this size (width, height), rendered with a fixed seed.
+    Synthetic {
+        /// Width and height, pixels.
+        size: (usize, usize),
+    },
+    /// These PNG or JPEG files, in order.
+    Files(Vec<PathBuf>),
+    /// Every `.png`, `.jpg` and `.jpeg` file in this folder, by name.
+    Dir(PathBuf),
+}
+
+impl Default for FrameSource {
+    fn default() -> Self {
+        Self::Synthetic { size: (256, 256) }
+    }
+}
+
+/// One encoded frame.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// PNG or JPEG bytes.
+    pub bytes: Bytes,
+    /// `image/png` or `image/jpeg`.
+    pub content_type: &'static str,
+}
+
+/// The frames of a run, cycled by request index.
+#[derive(Debug, Clone)]
+pub struct Frames {
+    frames: Vec<Frame>,
+    /// What they are, for the report (`synthetic 256×256 PNG, 151 KB`).
+    pub description: String,
+}
+
+impl Frames {
+    /// Loads or renders the frames of `source`.
+    pub fn load(source: &FrameSource) -> Result<Self, LoadError> {
+        match source {
+            FrameSource::Synthetic { size } => synthetic(*size),
+            FrameSource::Files(paths) => from_files(paths),
+            FrameSource::Dir(dir) => from_files(&images_in(dir)?),
+        }
+    }
+
+    /// Frames from bytes already in memory (each a PNG or JPEG).
+    pub fn from_bytes(images: Vec<Vec<u8>>, description: impl Into<String>) -> Self {
+        let frames = images
+            .into_iter()
+            .map(|b| Frame {
+                content_type: content_type(&b).unwrap_or("image/png"),
+                bytes: Bytes::from(b),
+            })
+            .collect();
+        Self {
+            frames,
+            description: description.into(),
+        }
+    }
+
+    /// Frame for request `i` (cycling).
+    pub fn get(&self, i: u64) -> &Frame {
+        let n = self.frames.len().max(1) as u64;
+        &self.frames[(i % n) as usize]
+    }
+
+    /// Number of distinct frames.
+    pub fn len(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// Whether there is no frame (never, once loaded).
+    pub fn is_empty(&self) -> bool {
+        self.frames.is_empty()
+    }
+}
+
+/// `image/png` or `image/jpeg` from the magic bytes.
+pub fn content_type(bytes: &[u8]) -> Option<&'static str> {
+    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        Some("image/png")
+    } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        Some("image/jpeg")
+    } else {
+        None
+    }
+}
+
+/// View 4 (straight ahead) of scene 0 of seed 7, rendered at `size` and encoded as PNG.
+pub fn synthetic_png(size: (usize, usize)) -> Result<Vec<u8>, LoadError> {
+    let bad = |why: String| LoadError::Config(format!("synthetic frame: {why}"));
+    if size.0 == 0 || size.1 == 0 || size.0 * size.1 > 16_000_000 {
+        return Err(bad(format!("size {}×{} out of range", size.0, size.1)));
+    }
+    let cfg = SynthConfig {
+        seed: 7,
+        size,
+        views: 9,
+        ply: false,
+        ..SynthConfig::default()
+    };
+    let views = scene_views(&cfg, 0);
+    let view = views[4];
+    let scene = build_scene(&cfg, 0, &[view]);
+    let frame = render(&scene, &view, &view_conditions(&cfg, 0, 4));
+    let mut png = Cursor::new(Vec::new());
+    DynamicImage::ImageRgb8(frame.rgb)
+        .write_to(&mut png, ImageFormat::Png)
+        .map_err(|e| bad(e.to_string()))?;
+    Ok(png.into_inner())
+}
+
+fn synthetic(size: (usize, usize)) -> Result<Frames, LoadError> {
+    let png = synthetic_png(size)?;
+    let description = format!(
+        "synthetic {}×{} PNG, {} KB",
+        size.0,
+        size.1,
+        png.len().div_ceil(1024)
+    );
+    Ok(Frames::from_bytes(vec![png], description))
+}
+
+fn from_files(paths: &[PathBuf]) -> Result<Frames, LoadError> {
+    let mut frames = Vec::with_capacity(paths.len());
+    let mut total = 0;
+    for path in paths {
+        let bytes = std::fs::read(path).map_err(|e| LoadError::Frame {
+            path: path.clone(),
+            why: e.to_string(),
+        })?;
+        let content_type = content_type(&bytes).ok_or_else(|| LoadError::Frame {
+            path: path.clone(),
+            why: "not a PNG or JPEG".into(),
+        })?;
+        total += bytes.len();
+        frames.push(Frame {
+            bytes: Bytes::from(bytes),
+            content_type,
+        });
+    }
+    let description = match paths {
+        [one] => format!("{} ({} KB)", one.display(), total.div_ceil(1024)),
+        _ => format!("{} files, {} KB in all", paths.len(), total.div_ceil(1024)),
+    };
+    Ok(Frames {
+        frames,
+        description,
+    })
+}
+
+/// The image files of `dir`, sorted by name; an empty folder is an error.
+fn images_in(dir: &Path) -> Result<Vec<PathBuf>, LoadError> {
+    let err = |why: String| LoadError::Frame {
+        path: dir.to_path_buf(),
+        why,
+    };
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| err(e.to_string()))?
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg"))
+        })
+        .collect();
+    paths.sort();
+    if paths.is_empty() {
+        return Err(err("no .png, .jpg or .jpeg file in this folder".into()));
+    }
+    Ok(paths)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_synthetic_frame_is_a_png_of_the_asked_size_and_the_same_every_time() {
+        let a = synthetic_png((64, 48)).expect("renders");
+        assert_eq!(content_type(&a), Some("image/png"));
+        let img = image::load_from_memory(&a).expect("decodes");
+        assert_eq!((img.width(), img.height()), (64, 48));
+        assert_eq!(a, synthetic_png((64, 48)).expect("renders"));
+    }
+
+    #[test]
+    fn frames_cycle_and_bad_files_are_named() {
+        let f = Frames::from_bytes(
+            vec![b"\x89PNG\r\n\x1a\n1".to_vec(), vec![0xFF, 0xD8, 0xFF]],
+            "two",
+        );
+        assert_eq!(f.get(0).content_type, "image/png");
+        assert_eq!(f.get(3).content_type, "image/jpeg");
+        let dir = tempfile::tempdir().expect("tempdir");
+        let txt = dir.path().join("a.png");
+        std::fs::write(&txt, "hello").expect("write");
+        let e = Frames::load(&FrameSource::Files(vec![txt])).expect_err("not an image");
+        assert!(e.to_string().contains("not a PNG or JPEG"), "{e}");
+        let empty = tempfile::tempdir().expect("tempdir");
+        let e = Frames::load(&FrameSource::Dir(empty.path().into())).expect_err("empty");
+        assert!(e.to_string().contains("no .png"), "{e}");
+    }
+}

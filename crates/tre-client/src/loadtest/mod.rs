@@ -1,0 +1,300 @@
+//! Load testing of `tre serve`: open- and closed-loop load over HTTP and the WebSocket stream,
+//! latency measured from each request's intended send time (coordinated omission corrected),
+//! HDR histograms, text and JSON reports, a hand-written SVG plot and rate sweeps with their knee.
+//!
+//! In open loop the client sends request `i` at `t0 + i / rate` whatever the answers do, and
+//! measures its latency from that intended time: a stall in the service shows up in every
+//! request scheduled during it, not only in the one that met it. Closed loop is `N` clients that
+//! each send the next request when the previous answer is back.
+//!
+//! ```no_run
+//! # async fn demo() -> Result<(), tre_client::loadtest::LoadError> {
+//! use std::time::Duration;
+//! use tre_client::loadtest::{run, Load, LoadConfig};
+//! let cfg = LoadConfig {
+//!     load: Load::Open { rate_per_s: 10.0 },
+//!     duration: Some(Duration::from_secs(5)),
+//!     ..LoadConfig::default()
+//! };
+//! let report = run(&cfg).await?;
+//! println!("{}", tre_client::loadtest::report::text(&report));
+//! # Ok(())
+//! # }
+//! ```
+
+pub mod frames;
+mod http;
+mod plan;
+pub mod report;
+pub mod stats;
+pub mod svg;
+pub mod target;
+mod ws;
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+pub use frames::{FrameSource, Frames};
+pub use report::{Knee, SweepReport};
+pub use stats::{Percentiles, Report};
+pub use target::Target;
+
+/// Which interface of the service is loaded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Protocol {
+    /// `POST /v1/roughness`, one frame per request.
+    Http,
+    /// `GET /v1/stream`, protobuf frames over WebSocket connections.
+    Ws,
+}
+
+impl Protocol {
+    /// `http` or `ws`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Http => "http",
+            Self::Ws => "ws",
+        }
+    }
+}
+
+/// How requests are issued.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Load {
+    /// Requests at constant intended send times `t0 + i / rate_per_s`, whatever the answers do
+    /// (up to [`LoadConfig::max_in_flight`] outstanding); over WebSocket, round robin over the
+    /// connections.
+    Open {
+        /// Requests per second.
+        rate_per_s: f64,
+    },
+    /// [`LoadConfig::connections`] clients, each sending its next request when the previous
+    /// answer is back.
+    Closed,
+}
+
+/// Settings of one load-test run; checked by [`LoadConfig::validate`].
+#[derive(Debug, Clone)]
+pub struct LoadConfig {
+    /// Base URL of the service (`http://host:port`, optionally with a path prefix; `https://`
+    /// for TLS, the stream then over `wss://`).
+    pub url: String,
+    /// API key of a server started with `--api-key`, sent as `Authorization: Bearer KEY`.
+    pub api_key: Option<String>,
+    /// PEM file of a private CA to trust beside the public roots (TLS only).
+    pub ca_cert: Option<std::path::PathBuf>,
+    /// Accept host names that resolve to addresses other than loopback.
+    pub allow_remote: bool,
+    /// HTTP or WebSocket.
+    pub protocol: Protocol,
+    /// Open or closed loop.
+    pub load: Load,
+    /// Closed loop: concurrent clients; WebSocket open loop: connections, used round robin.
+    pub connections: usize,
+    /// Open loop: most requests outstanding at once; a request due beyond it is counted as
+    /// `client_saturated` instead of being sent late.
+    pub max_in_flight: usize,
+    /// Length of the measured window (after the warm-up); `None`: until `requests`.
+    pub duration: Option<Duration>,
+    /// Measured requests to issue; `None`: until `duration`. The run stops at whichever comes
+    /// first.
+    pub requests: Option<u64>,
+    /// Load before the measured window, left out of every statistic.
+    pub warmup: Duration,
+    /// Time one request may take before it counts as a `timeout` error.
+    pub timeout: Duration,
+    /// The frames sent, cycled.
+    pub frames: FrameSource,
+}
+
+impl Default for LoadConfig {
+    fn default() -> Self {
+        Self {
+            url: "http://127.0.0.1:8080".into(),
+            api_key: None,
+            ca_cert: None,
+            allow_remote: false,
+            protocol: Protocol::Http,
+            load: Load::Closed,
+            connections: 1,
+            max_in_flight: 256,
+            duration: Some(Duration::from_secs(10)),
+            requests: None,
+            warmup: Duration::ZERO,
+            timeout: Duration::from_secs(30),
+            frames: FrameSource::default(),
+        }
+    }
+}
+
+impl LoadConfig {
+    /// Checks the settings; the error names the bad one.
+    pub fn validate(&self) -> Result<(), LoadError> {
+        let bad = |msg: String| Err(LoadError::Config(msg));
+        if let Load::Open { rate_per_s } = self.load {
+            if !(rate_per_s.is_finite() && rate_per_s > 0.0) {
+                return bad(format!("rate: must be a positive number, got {rate_per_s}"));
+            }
+        }
+        if self.connections == 0 {
+            return bad("connections: must be at least 1".into());
+        }
+        if self.max_in_flight == 0 {
+            return bad("max-in-flight: must be at least 1".into());
+        }
+        if self.duration.is_none() && self.requests.is_none() {
+            return bad("give a duration, a number of requests or both".into());
+        }
+        if self.duration.is_some_and(|d| d.is_zero()) || self.requests == Some(0) {
+            return bad("duration and requests: must be positive".into());
+        }
+        if self.timeout.is_zero() {
+            return bad("timeout: must be positive".into());
+        }
+        Ok(())
+    }
+
+    /// The offered rate of an open-loop run.
+    pub fn rate_per_s(&self) -> Option<f64> {
+        match self.load {
+            Load::Open { rate_per_s } => Some(rate_per_s),
+            Load::Closed => None,
+        }
+    }
+}
+
+/// The `Authorization: Bearer KEY` value of `key`, marked sensitive (kept out of debug output).
+pub(crate) fn bearer(key: &str) -> Result<reqwest::header::HeaderValue, LoadError> {
+    let mut v = reqwest::header::HeaderValue::from_str(&format!("Bearer {key}"))
+        .map_err(|_| LoadError::Config("--api-key: not a valid header value".into()))?;
+    v.set_sensitive(true);
+    Ok(v)
+}
+
+/// Errors of the load tester (answers of the service are outcomes, not errors).
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// A bad setting.
+    #[error("{0}")]
+    Config(String),
+    /// The URL does not parse or is not `http(s)://` / `ws(s)://`.
+    #[error("url {url:?}: {why}")]
+    Url {
+        /// The URL given.
+        url: String,
+        /// What is wrong with it.
+        why: String,
+    },
+    /// The host name resolves to addresses that are not loopback and `allow_remote` is off.
+    #[error("{host} resolves to {addrs} (not loopback); pass --allow-remote to load a remote service, or give the IP address itself in --url")]
+    Remote {
+        /// The host name.
+        host: String,
+        /// The addresses it resolves to.
+        addrs: String,
+    },
+    /// The host name does not resolve.
+    #[error("cannot resolve {host}: {error}")]
+    Resolve {
+        /// The host name.
+        host: String,
+        /// Why.
+        error: std::io::Error,
+    },
+    /// No address of the target accepts connections.
+    #[error("cannot connect to {addrs}: {error}")]
+    Connect {
+        /// The addresses tried.
+        addrs: String,
+        /// The last failure.
+        error: std::io::Error,
+    },
+    /// A frame file cannot be read or is not a PNG or JPEG.
+    #[error("frame {path}: {why}")]
+    Frame {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        why: String,
+    },
+    /// The WebSocket handshake or the Hello failed.
+    #[error("websocket {url}: {why}")]
+    Stream {
+        /// The stream URL.
+        url: String,
+        /// Why.
+        why: String,
+    },
+    /// The HTTP client could not be built.
+    #[error("http client: {0}")]
+    Client(#[from] reqwest::Error),
+    /// A report file cannot be read or written.
+    #[error("report {path}: {why}")]
+    Report {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        why: String,
+    },
+}
+
+/// Runs one load test as `cfg` says and reports on its measured window.
+pub async fn run(cfg: &LoadConfig) -> Result<Report, LoadError> {
+    cfg.validate()?;
+    let target = Target::resolve(&cfg.url, cfg.allow_remote).await?;
+    let frames = Frames::load(&cfg.frames)?;
+    run_on(cfg, &target, &frames).await
+}
+
+/// Runs one load test against a resolved target with loaded frames (what [`run`] and
+/// [`sweep`] do per run).
+pub async fn run_on(
+    cfg: &LoadConfig,
+    target: &Target,
+    frames: &Frames,
+) -> Result<Report, LoadError> {
+    cfg.validate()?;
+    match cfg.protocol {
+        Protocol::Http => http::drive(cfg, target, frames).await,
+        Protocol::Ws => ws::drive(cfg, target, frames).await,
+    }
+}
+
+/// Runs `cfg` in open loop once per rate of `rates_per_s` (ascending), each for the configured
+/// duration and warm-up, and finds the knee: the first rate with refusals, errors, saturated
+/// client or a p99 above `slo_ms`.
+pub async fn sweep(
+    cfg: &LoadConfig,
+    rates_per_s: &[f64],
+    slo_ms: f64,
+    mut progress: impl FnMut(&Report),
+) -> Result<SweepReport, LoadError> {
+    if rates_per_s.is_empty() {
+        return Err(LoadError::Config("sweep: give at least one rate".into()));
+    }
+    if !(slo_ms.is_finite() && slo_ms > 0.0) {
+        return Err(LoadError::Config(format!(
+            "slo-ms: must be positive, got {slo_ms}"
+        )));
+    }
+    let mut rates = rates_per_s.to_vec();
+    rates.sort_by(f64::total_cmp);
+    rates.dedup();
+    cfg.validate()?;
+    let target = Target::resolve(&cfg.url, cfg.allow_remote).await?;
+    let frames = Frames::load(&cfg.frames)?;
+    let mut rows = Vec::with_capacity(rates.len());
+    for rate_per_s in rates {
+        let one = LoadConfig {
+            load: Load::Open { rate_per_s },
+            ..cfg.clone()
+        };
+        let row = run_on(&one, &target, &frames).await?;
+        progress(&row);
+        rows.push(row);
+    }
+    Ok(SweepReport::new(rows, slo_ms))
+}

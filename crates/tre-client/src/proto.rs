@@ -1,0 +1,461 @@
+//! The client's edge with the stream protocol: domain types to `roughness.v1` messages and
+//! back (functions and `From` / `TryFrom`, errors naming the bad field). Nothing else in the client sees a
+//! protobuf type.
+
+use std::time::Duration;
+
+use image::{DynamicImage, ImageFormat};
+use prost::Message;
+
+use super::config::{ClientConfig, Format};
+use super::event::{Frame, FrameResult, Roughness, ServerInfo};
+use super::session::Stamp;
+use super::ClientError;
+use tre_core::geometry::Grid;
+use tre_core::roughness::noise::SensorNoise;
+use tre_core::roughness::traversal::Traversal;
+use tre_io::{self as io, CameraFile, ROUGHNESS_PNG_SCALE_M};
+use tre_pipeline::{Mode, NormalsMethod};
+use tre_proto::v1 as pb;
+
+/// A camera file as the stream message that carries it.
+fn pb_camera(c: &CameraFile) -> pb::Camera {
+    pb::Camera {
+        fx: c.fx,
+        fy: c.fy,
+        cx: c.cx,
+        cy: c.cy,
+        pitch_deg: c.pitch_deg,
+        height_m: c.height_m,
+        depth_scale: c.depth_scale,
+        width: c.width.map(|w| u32::try_from(w).unwrap_or(u32::MAX)),
+        height: c.height.map(|h| u32::try_from(h).unwrap_or(u32::MAX)),
+        sensor: match &c.sensor {
+            Some(io::SensorSpec::Model(SensorNoise::Preset(p))) => Some(p.name().to_string()),
+            Some(io::SensorSpec::Description(d)) => Some(d.clone()),
+            _ => None,
+        },
+        sensor_sigma_mm: match &c.sensor {
+            Some(io::SensorSpec::Model(SensorNoise::Coefficients { sigma_mm })) => {
+                sigma_mm.to_vec()
+            }
+            _ => Vec::new(),
+        },
+    }
+}
+
+/// The mode asked for (none: the server's default) as the protocol's enum.
+fn pb_mode(m: Option<Mode>) -> pb::Mode {
+    match m {
+        None => pb::Mode::Unspecified,
+        Some(Mode::Rgb) => pb::Mode::Rgb,
+        Some(Mode::Rgbd) => pb::Mode::Rgbd,
+        Some(Mode::Geometric) => pb::Mode::Geometric,
+    }
+}
+
+impl From<Format> for pb::Format {
+    fn from(f: Format) -> Self {
+        match f {
+            Format::Png16 => Self::Png16,
+            Format::Color => Self::Color,
+            Format::F32 => Self::F32,
+        }
+    }
+}
+
+/// The normals method asked for (none: the server's default) as the protocol's enum.
+fn pb_normals(n: Option<NormalsMethod>) -> pb::Normals {
+    match n {
+        None => pb::Normals::Unspecified,
+        Some(NormalsMethod::Dsac) => pb::Normals::Dsac,
+        Some(NormalsMethod::Ls) => pb::Normals::Ls,
+    }
+}
+
+impl From<&ClientConfig> for pb::Hello {
+    fn from(cfg: &ClientConfig) -> Self {
+        Self {
+            camera: cfg.camera.as_ref().map(pb_camera),
+            mode: pb_mode(cfg.mode) as i32,
+            format: pb::Format::from(cfg.format) as i32,
+            seed: cfg.seed,
+            preview_max_m: cfg.preview_max_m,
+            want_traversable: cfg.want_traversable,
+            want_traversal: cfg.want_traversal,
+            want_uncertainty: cfg.want_traversal,
+            normals: pb_normals(cfg.normals) as i32,
+            dsac_hypotheses: cfg.dsac_hypotheses.unwrap_or(0),
+            max_roughness_cm: cfg.max_roughness_cm,
+            max_slope_deg: cfg.max_slope_deg,
+        }
+    }
+}
+
+/// The three-state map from its bytes (0 unknown, 1 traversable, 2 hazard; none: `None`).
+fn decode_traversal(
+    bytes: &[u8],
+    (w, h): (usize, usize),
+) -> Result<Option<Grid<Traversal>>, String> {
+    if bytes.is_empty() {
+        return Ok(None);
+    }
+    if bytes.len() != w * h {
+        return Err(format!(
+            "traversal: {} bytes for {w}×{h} pixels",
+            bytes.len()
+        ));
+    }
+    let states = bytes
+        .iter()
+        .map(|&b| match b {
+            0 => Ok(Traversal::Unknown),
+            1 => Ok(Traversal::Traversable),
+            2 => Ok(Traversal::Hazard),
+            other => Err(format!("traversal: byte {other} is not 0, 1 or 2")),
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Grid::from_vec(w, h, states)
+        .map(Some)
+        .map_err(|e| format!("traversal: {e}"))
+}
+
+/// The encoded Hello for `cfg`.
+pub(crate) fn hello(cfg: &ClientConfig) -> Vec<u8> {
+    let msg = pb::client_message::Msg::Hello(pb::Hello::from(cfg));
+    pb::ClientMessage { msg: Some(msg) }.encode_to_vec()
+}
+
+/// The encoded Frame message for `frame` as `sequence`, stamped `timestamp_us`.
+pub(crate) fn frame(frame: Frame, sequence: u64, timestamp_us: i64) -> Vec<u8> {
+    let msg = pb::client_message::Msg::Frame(pb::Frame {
+        sequence,
+        timestamp_us: frame.timestamp_us.unwrap_or(timestamp_us),
+        image: frame.image,
+        depth: frame.depth.unwrap_or_default(),
+        camera: frame.camera.as_ref().map(pb_camera),
+    });
+    pb::ClientMessage { msg: Some(msg) }.encode_to_vec()
+}
+
+/// A Result as received: its map is decoded once the client knows the latency.
+#[derive(Debug)]
+pub(crate) struct WireResult(pb::Result);
+
+impl WireResult {
+    /// The frame's sequence number.
+    pub(crate) fn sequence(&self) -> u64 {
+        self.0.sequence
+    }
+}
+
+/// A server message in domain terms.
+#[derive(Debug)]
+pub(crate) enum Incoming {
+    Ready(ServerInfo),
+    Result(WireResult),
+    Dropped {
+        sequence: u64,
+        dropped_total: u64,
+    },
+    Error {
+        sequence: Option<u64>,
+        code: String,
+        message: String,
+    },
+}
+
+impl TryFrom<pb::ServerMessage> for Incoming {
+    type Error = ClientError;
+
+    fn try_from(m: pb::ServerMessage) -> Result<Self, ClientError> {
+        use pb::server_message::Msg;
+        Ok(match m.msg {
+            Some(Msg::Ready(r)) => Self::Ready(ServerInfo {
+                max_message_bytes: usize::try_from(r.max_message_bytes).unwrap_or(usize::MAX),
+                models: r.models,
+            }),
+            Some(Msg::Result(r)) => Self::Result(WireResult(r)),
+            Some(Msg::Dropped(d)) => Self::Dropped {
+                sequence: d.sequence,
+                dropped_total: d.dropped_total,
+            },
+            Some(Msg::Error(e)) => Self::Error {
+                sequence: e.sequence,
+                code: e.code,
+                message: e.message,
+            },
+            None => return Err(ClientError::Protocol("empty ServerMessage".into())),
+        })
+    }
+}
+
+/// Decodes one binary WebSocket message from the server.
+pub(crate) fn decode_server(bytes: &[u8]) -> Result<Incoming, ClientError> {
+    let msg = pb::ServerMessage::decode(bytes)
+        .map_err(|e| ClientError::Protocol(format!("not a roughness.v1.ServerMessage: {e}")))?;
+    Incoming::try_from(msg)
+}
+
+impl TryFrom<(WireResult, Stamp)> for FrameResult {
+    type Error = ClientError;
+
+    /// The result with its map decoded, its frame having been stamped `sent`: the latency runs
+    /// to the end of the decoding.
+    fn try_from((WireResult(r), sent): (WireResult, Stamp)) -> Result<Self, ClientError> {
+        let sequence = r.sequence;
+        let bad = |reason: String| ClientError::BadResult { sequence, reason };
+        let (w, h) = (r.width as usize, r.height as usize);
+        if w == 0 || h == 0 {
+            return Err(bad(format!("width × height is {w}×{h}")));
+        }
+        let format = match pb::Format::try_from(r.format) {
+            Ok(pb::Format::Unspecified | pb::Format::Png16) => Format::Png16,
+            Ok(pb::Format::Color) => Format::Color,
+            Ok(pb::Format::F32) => Format::F32,
+            Err(_) => return Err(bad(format!("format: unknown value {}", r.format))),
+        };
+        let roughness = decode_map(&r.roughness, format, r.scale_m, (w, h)).map_err(bad)?;
+        let traversable = match r.traversable.len() {
+            0 => None,
+            n if n == w * h => Some(
+                Grid::from_vec(w, h, r.traversable.iter().map(|&t| t != 0).collect())
+                    .map_err(|e| bad(format!("traversable: {e}")))?,
+            ),
+            n => return Err(bad(format!("traversable: {n} bytes for {w}×{h} pixels"))),
+        };
+        let traversal = decode_traversal(&r.traversal, (w, h)).map_err(bad)?;
+        let uncertainty_m = match r.uncertainty.len() {
+            0 => None,
+            _ => match decode_map(&r.uncertainty, Format::F32, r.scale_m, (w, h)) {
+                Ok(Roughness::Metres(m)) => Some(m),
+                Ok(Roughness::Colour(_)) => None,
+                Err(e) => return Err(bad(format!("uncertainty: {e}"))),
+            },
+        };
+        let ms = |field: &str, ms: f64| {
+            Duration::try_from_secs_f64(ms / 1e3).map_err(|_| bad(format!("{field}: {ms} ms")))
+        };
+        let timings = r
+            .timings
+            .iter()
+            .map(|t| Ok((t.stage.clone(), ms("timings", t.ms)?)))
+            .collect::<Result<_, ClientError>>()?;
+        let server_latency = ms("latency_ms", r.latency_ms)?;
+        let received = Stamp::now();
+        Ok(Self {
+            sequence,
+            timestamp_us: r.timestamp_us,
+            width: w,
+            height: h,
+            roughness,
+            encoded: r.roughness,
+            format,
+            traversable,
+            traversal,
+            uncertainty_m,
+            timings,
+            latency: received.at.saturating_duration_since(sent.at),
+            sent_unix_us: sent.unix_us,
+            received_unix_us: received.unix_us,
+            server_latency,
+            dropped_total: r.dropped_total,
+        })
+    }
+}
+
+/// Decodes the map of a Result and checks its size.
+fn decode_map(
+    bytes: &[u8],
+    format: Format,
+    scale_m: f64,
+    (w, h): (usize, usize),
+) -> Result<Roughness, String> {
+    let png = || {
+        image::load_from_memory_with_format(bytes, ImageFormat::Png)
+            .map_err(|e| format!("roughness: not a readable PNG: {e}"))
+    };
+    let check = |(iw, ih): (u32, u32)| {
+        if (iw as usize, ih as usize) == (w, h) {
+            Ok(())
+        } else {
+            Err(format!("roughness: a {iw}×{ih} image for a {w}×{h} frame"))
+        }
+    };
+    match format {
+        Format::Png16 => {
+            let img = png()?;
+            if !matches!(img, DynamicImage::ImageLumaA16(_)) {
+                return Err(format!(
+                    "roughness: expected 16-bit grey + alpha, got {:?}",
+                    img.color()
+                ));
+            }
+            check((img.width(), img.height()))?;
+            let mut m = io::decode_roughness_png16(&img);
+            if scale_m > 0.0 && scale_m != ROUGHNESS_PNG_SCALE_M {
+                let k = scale_m / ROUGHNESS_PNG_SCALE_M;
+                m.as_mut_slice().iter_mut().for_each(|v| *v *= k);
+            }
+            Ok(Roughness::Metres(m))
+        }
+        Format::Color => {
+            let img = png()?.to_rgb8();
+            check(img.dimensions())?;
+            Ok(Roughness::Colour(img))
+        }
+        Format::F32 => {
+            if bytes.len() != 4 * w * h {
+                return Err(format!(
+                    "roughness: {} bytes of float32 for {w}×{h} pixels",
+                    bytes.len()
+                ));
+            }
+            let data = bytes
+                .chunks_exact(4)
+                .map(|b| f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+                .collect();
+            Grid::from_vec(w, h, data)
+                .map(Roughness::Metres)
+                .map_err(|e| e.to_string())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wire(format: pb::Format, roughness: Vec<u8>, (w, h): (u32, u32)) -> WireResult {
+        WireResult(pb::Result {
+            sequence: 7,
+            width: w,
+            height: h,
+            format: format as i32,
+            scale_m: ROUGHNESS_PNG_SCALE_M,
+            roughness,
+            latency_ms: 12.5,
+            ..Default::default()
+        })
+    }
+
+    #[test]
+    fn png16_and_f32_decode_to_the_same_metres_with_holes() {
+        let truth = Grid::from_vec(3, 2, vec![0.0, 0.0123, f64::NAN, 6.5535, 0.5, 1e-4]).unwrap();
+        let mut png = Vec::new();
+        io::encode_png(
+            &DynamicImage::ImageLumaA16(io::roughness_png16(&truth)),
+            &mut png,
+        )
+        .unwrap();
+        let f32s: Vec<u8> = truth
+            .as_slice()
+            .iter()
+            .flat_map(|&v| (v as f32).to_le_bytes())
+            .collect();
+        for (format, bytes) in [(pb::Format::Png16, png), (pb::Format::F32, f32s)] {
+            let r = FrameResult::try_from((wire(format, bytes, (3, 2)), Stamp::now())).unwrap();
+            let m = r.roughness_m().unwrap();
+            for (got, want) in m.as_slice().iter().zip(truth.as_slice()) {
+                assert!(
+                    (got.is_nan() && want.is_nan()) || (got - want).abs() < 1e-6,
+                    "{format:?}: {got} vs {want}"
+                );
+            }
+            assert_eq!(r.server_latency, Duration::from_micros(12_500));
+        }
+    }
+
+    #[test]
+    fn a_map_of_the_wrong_size_names_the_frame() {
+        let e = FrameResult::try_from((wire(pb::Format::F32, vec![0; 8], (3, 2)), Stamp::now()))
+            .unwrap_err();
+        assert!(
+            matches!(&e, ClientError::BadResult { sequence: 7, reason } if reason.contains("3×2")),
+            "{e}"
+        );
+        let e = FrameResult::try_from((
+            wire(pb::Format::Png16, b"not a png".to_vec(), (3, 2)),
+            Stamp::now(),
+        ))
+        .unwrap_err();
+        assert!(matches!(e, ClientError::BadResult { sequence: 7, .. }));
+    }
+
+    #[test]
+    fn three_state_and_uncertainty_bytes_decode_and_bad_ones_name_the_field() {
+        let mut w = wire(pb::Format::F32, vec![0; 24], (3, 2));
+        w.0.traversal = vec![0, 1, 2, 2, 1, 0];
+        w.0.uncertainty = [0.01f32, f32::NAN, 0.0, 0.02, 0.5, 0.001]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let r = FrameResult::try_from((WireResult(w.0.clone()), Stamp::now())).unwrap();
+        let t = r.traversal.unwrap();
+        assert_eq!(t[(2, 0)], Traversal::Hazard);
+        assert_eq!(t[(1, 0)], Traversal::Traversable);
+        assert_eq!(t[(0, 0)], Traversal::Unknown);
+        let u = r.uncertainty_m.unwrap();
+        assert!(u[(1, 0)].is_nan() && (u[(1, 1)] - 0.5).abs() < 1e-7);
+        w.0.traversal[3] = 7;
+        let e = FrameResult::try_from((w, Stamp::now())).unwrap_err();
+        assert!(e.to_string().contains("traversal: byte 7"), "{e}");
+    }
+
+    #[test]
+    fn camera_sensor_goes_out_as_a_name_or_coefficients() {
+        let mut cam: CameraFile =
+            serde_json::from_str(r#"{"fx": 500, "fy": 500, "cx": 1, "cy": 1, "sensor": "lidar"}"#)
+                .unwrap();
+        let pb_cam = pb_camera(&cam);
+        assert_eq!(pb_cam.sensor.as_deref(), Some("lidar"));
+        assert!(pb_cam.sensor_sigma_mm.is_empty());
+        cam.sensor = Some(io::SensorSpec::Model(SensorNoise::Coefficients {
+            sigma_mm: [1.0, 0.0, 2.0],
+        }));
+        let pb_cam = pb_camera(&cam);
+        assert_eq!(
+            (pb_cam.sensor, pb_cam.sensor_sigma_mm),
+            (None, vec![1.0, 0.0, 2.0])
+        );
+    }
+
+    #[test]
+    fn garbage_from_the_server_is_a_protocol_error() {
+        assert!(matches!(
+            decode_server(&[0xFF, 0xFF, 0xFF]),
+            Err(ClientError::Protocol(_))
+        ));
+        assert!(matches!(decode_server(&[]), Err(ClientError::Protocol(_))));
+    }
+
+    #[test]
+    fn hello_carries_the_settings() {
+        let cfg = ClientConfig {
+            mode: Some(Mode::Rgbd),
+            format: Format::F32,
+            seed: 42,
+            normals: Some(NormalsMethod::Ls),
+            dsac_hypotheses: Some(4),
+            want_traversable: true,
+            ..ClientConfig::default()
+        };
+        let m = pb::ClientMessage::decode(&hello(&cfg)[..]).unwrap();
+        let Some(pb::client_message::Msg::Hello(h)) = m.msg else {
+            panic!("not a hello")
+        };
+        assert_eq!(
+            (h.mode, h.format, h.seed, h.want_traversable, h.normals),
+            (
+                pb::Mode::Rgbd as i32,
+                pb::Format::F32 as i32,
+                42,
+                true,
+                pb::Normals::Ls as i32
+            )
+        );
+        assert_eq!(h.dsac_hypotheses, 4);
+        let default = pb::Hello::from(&ClientConfig::default());
+        assert_eq!(default.dsac_hypotheses, 0, "0 leaves the server's default");
+    }
+}

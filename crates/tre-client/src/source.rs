@@ -1,0 +1,598 @@
+//! Frame sources for the client: a folder of images (with an optional folder of depth frames of
+//! the same stems), or a video file or V4L2 camera decoded by an `ffmpeg` process (spawned when
+//! `ffmpeg` is on `PATH`; no video library is linked in).
+//!
+//! Frames are sent as the encoded bytes they are read as (PNG or JPEG): nothing is decoded or
+//! re-encoded on the robot.
+
+use std::ffi::OsStr;
+use std::io::{BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdout, Command, Stdio};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::thread::JoinHandle;
+
+use super::ClientError;
+
+/// Where frames come from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SourceSpec {
+    /// Every `.png`, `.jpg` and `.jpeg` file of `frames`, in file-name order (byte order:
+    /// zero-pad numbers). With `depth`, frame `frames/<stem>.<ext>` takes its depth from
+    /// `depth/<stem>.png` (16-bit) or `depth/<stem>.npy`; every frame must have one.
+    Folder {
+        /// The frames.
+        frames: PathBuf,
+        /// Depth frames with the same stems.
+        depth: Option<PathBuf>,
+    },
+    /// A video file, decoded by `ffmpeg`; frames are named `<file stem>_<index>`.
+    Video(PathBuf),
+    /// A V4L2 camera (`/dev/videoN`) read by `ffmpeg`; the newest frame wins (frames the
+    /// client has no time for are skipped), named `<device>_<index>`.
+    Device(PathBuf),
+}
+
+/// One frame from a source.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SourceFrame {
+    /// A name for outputs: the file stem, or `<video>_<index>`.
+    pub name: String,
+    /// PNG or JPEG bytes.
+    pub image: Vec<u8>,
+    /// Depth bytes (16-bit PNG or `.npy`), if the source has depth.
+    pub depth: Option<Vec<u8>>,
+}
+
+/// An open frame source: an iterator of frames, ending at the end of the folder or video.
+#[derive(Debug)]
+pub enum FrameSource {
+    /// A folder listing.
+    Folder(FolderSource),
+    /// An `ffmpeg` process.
+    Ffmpeg(FfmpegSource),
+}
+
+impl FrameSource {
+    /// Opens `spec`: lists and pairs a folder, or starts `ffmpeg`.
+    pub fn open(spec: &SourceSpec) -> Result<Self, ClientError> {
+        Ok(match spec {
+            SourceSpec::Folder { frames, depth } => {
+                Self::Folder(FolderSource::open(frames, depth.as_deref())?)
+            }
+            SourceSpec::Video(path) => Self::Ffmpeg(FfmpegSource::video(path)?),
+            SourceSpec::Device(path) => Self::Ffmpeg(FfmpegSource::device(path)?),
+        })
+    }
+}
+
+impl Iterator for FrameSource {
+    type Item = Result<SourceFrame, ClientError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        match self {
+            Self::Folder(f) => f.next(),
+            Self::Ffmpeg(f) => f.next(),
+        }
+    }
+}
+
+/// The frames of a folder, read one at a time.
+#[derive(Debug)]
+pub struct FolderSource {
+    files: std::vec::IntoIter<(PathBuf, Option<PathBuf>)>,
+}
+
+impl FolderSource {
+    /// Lists `frames` and pairs each frame with its depth file in `depth`.
+    pub fn open(frames: &Path, depth: Option<&Path>) -> Result<Self, ClientError> {
+        let mut images = list_images(frames)?;
+        images.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
+        if images.is_empty() {
+            return Err(source_err(frames, "no .png, .jpg or .jpeg files"));
+        }
+        let files = images
+            .into_iter()
+            .map(|img| {
+                let d = depth.map(|dir| depth_for(&img, dir)).transpose()?;
+                Ok((img, d))
+            })
+            .collect::<Result<Vec<_>, ClientError>>()?;
+        Ok(Self {
+            files: files.into_iter(),
+        })
+    }
+}
+
+impl Iterator for FolderSource {
+    type Item = Result<SourceFrame, ClientError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let (image, depth) = self.files.next()?;
+        let read = |p: &Path| std::fs::read(p).map_err(|e| source_err(p, e));
+        Some((|| {
+            Ok(SourceFrame {
+                name: stem(&image),
+                image: read(&image)?,
+                depth: depth.as_deref().map(read).transpose()?,
+            })
+        })())
+    }
+}
+
+fn source_err(path: &Path, reason: impl std::fmt::Display) -> ClientError {
+    ClientError::Source {
+        path: path.to_owned(),
+        reason: reason.to_string(),
+    }
+}
+
+fn stem(path: &Path) -> String {
+    path.file_stem()
+        .map_or_else(|| "frame".to_owned(), |s| s.to_string_lossy().into_owned())
+}
+
+/// The image files (by extension) directly in `dir`.
+fn list_images(dir: &Path) -> Result<Vec<PathBuf>, ClientError> {
+    let entries = std::fs::read_dir(dir).map_err(|e| source_err(dir, e))?;
+    let mut out = Vec::new();
+    for entry in entries {
+        let path = entry.map_err(|e| source_err(dir, e))?.path();
+        let ext = path.extension().and_then(OsStr::to_str).unwrap_or("");
+        if path.is_file()
+            && ["png", "jpg", "jpeg"]
+                .iter()
+                .any(|e| ext.eq_ignore_ascii_case(e))
+        {
+            out.push(path);
+        }
+    }
+    Ok(out)
+}
+
+/// `dir/<stem>.png` or `dir/<stem>.npy` for `image`.
+fn depth_for(image: &Path, dir: &Path) -> Result<PathBuf, ClientError> {
+    let s = stem(image);
+    ["png", "npy"]
+        .iter()
+        .map(|ext| dir.join(format!("{s}.{ext}")))
+        .find(|p| p.is_file())
+        .ok_or_else(|| {
+            source_err(
+                dir,
+                format!("no depth for frame {s}: expected {s}.png or {s}.npy"),
+            )
+        })
+}
+
+/// Frames decoded by an `ffmpeg` child process, read as a stream of PNGs from its stdout.
+#[derive(Debug)]
+pub struct FfmpegSource {
+    input: String,
+    prefix: String,
+    index: u64,
+    child: Child,
+    frames: FfmpegFrames,
+    stderr: Option<JoinHandle<String>>,
+    done: bool,
+}
+
+/// How frames leave the pipe: in order (a file), or newest only (a live camera).
+#[derive(Debug)]
+enum FfmpegFrames {
+    InOrder(BufReader<ChildStdout>),
+    Latest(Arc<LatestSlot>, Option<JoinHandle<()>>),
+}
+
+impl FfmpegSource {
+    /// Decodes a video file.
+    pub fn video(path: &Path) -> Result<Self, ClientError> {
+        let input = path.display().to_string();
+        if !path.is_file() {
+            return Err(source_err(path, "no such video file"));
+        }
+        Self::spawn(&input, stem(path), &[], path.as_os_str(), false)
+    }
+
+    /// Reads a V4L2 camera device.
+    pub fn device(path: &Path) -> Result<Self, ClientError> {
+        let input = path.display().to_string();
+        let name = path
+            .file_name()
+            .map_or_else(|| "camera".to_owned(), |s| s.to_string_lossy().into_owned());
+        Self::spawn(&input, name, &["-f", "v4l2"], path.as_os_str(), true)
+    }
+
+    fn spawn(
+        input: &str,
+        prefix: String,
+        input_args: &[&str],
+        path: &OsStr,
+        live: bool,
+    ) -> Result<Self, ClientError> {
+        let ffmpeg =
+            find_executable("ffmpeg", std::env::var_os("PATH").as_deref()).ok_or_else(|| {
+                ClientError::FfmpegMissing {
+                    input: input.to_owned(),
+                }
+            })?;
+        let mut child = Command::new(ffmpeg)
+            .args(["-hide_banner", "-loglevel", "error", "-nostdin"])
+            .args(input_args)
+            .arg("-i")
+            .arg(path)
+            .args([
+                "-f",
+                "image2pipe",
+                "-vcodec",
+                "png",
+                "-pix_fmt",
+                "rgb24",
+                "-",
+            ])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| ClientError::Ffmpeg {
+                input: input.to_owned(),
+                reason: format!("cannot start ffmpeg: {e}"),
+            })?;
+        let io_err = |what: &str| ClientError::Ffmpeg {
+            input: input.to_owned(),
+            reason: format!("no {what} pipe"),
+        };
+        let stdout = BufReader::new(child.stdout.take().ok_or_else(|| io_err("stdout"))?);
+        let stderr = child.stderr.take().ok_or_else(|| io_err("stderr"))?;
+        let stderr = spawn_named("tre-ffmpeg-stderr", move || tail(stderr, 4096))?;
+        let frames = if live {
+            let slot = Arc::new(LatestSlot::default());
+            let writer = slot.clone();
+            let reader = spawn_named("tre-ffmpeg-frames", move || writer.fill(stdout))?;
+            FfmpegFrames::Latest(slot, Some(reader))
+        } else {
+            FfmpegFrames::InOrder(stdout)
+        };
+        Ok(Self {
+            input: input.to_owned(),
+            prefix,
+            index: 0,
+            child,
+            frames,
+            stderr: Some(stderr),
+            done: false,
+        })
+    }
+
+    /// The next PNG, `Ok(None)` at the end of the stream.
+    fn next_png(&mut self) -> Result<Option<Vec<u8>>, String> {
+        match &mut self.frames {
+            FfmpegFrames::InOrder(r) => read_png(r),
+            FfmpegFrames::Latest(slot, _) => slot.take(),
+        }
+    }
+
+    /// At the end of the stream: ffmpeg's verdict.
+    fn finish(&mut self) -> Option<Result<SourceFrame, ClientError>> {
+        let status = self.child.wait();
+        let stderr = self
+            .stderr
+            .take()
+            .and_then(|h| h.join().ok())
+            .unwrap_or_default();
+        let failed = |reason: String| {
+            Some(Err(ClientError::Ffmpeg {
+                input: self.input.clone(),
+                reason,
+            }))
+        };
+        match status {
+            Ok(s) if s.success() && self.index > 0 => None,
+            Ok(s) if s.success() => failed("no frames decoded".into()),
+            Ok(s) => failed(format!("{s}: {}", stderr.trim())),
+            Err(e) => failed(e.to_string()),
+        }
+    }
+}
+
+impl Iterator for FfmpegSource {
+    type Item = Result<SourceFrame, ClientError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        match self.next_png() {
+            Ok(Some(image)) => {
+                self.index += 1;
+                Some(Ok(SourceFrame {
+                    name: format!("{}_{:06}", self.prefix, self.index),
+                    image,
+                    depth: None,
+                }))
+            }
+            Ok(None) => {
+                self.done = true;
+                self.finish()
+            }
+            Err(reason) => {
+                self.done = true;
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+                Some(Err(ClientError::Ffmpeg {
+                    input: self.input.clone(),
+                    reason,
+                }))
+            }
+        }
+    }
+}
+
+impl Drop for FfmpegSource {
+    fn drop(&mut self) {
+        if !self.done {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+        if let FfmpegFrames::Latest(slot, reader) = &mut self.frames {
+            slot.close();
+            if let Some(h) = reader.take() {
+                let _ = h.join();
+            }
+        }
+    }
+}
+
+/// Starts a named thread.
+fn spawn_named<T: Send + 'static>(
+    name: &str,
+    f: impl FnOnce() -> T + Send + 'static,
+) -> Result<JoinHandle<T>, ClientError> {
+    std::thread::Builder::new()
+        .name(name.to_owned())
+        .spawn(f)
+        .map_err(|e| ClientError::Ffmpeg {
+            input: name.to_owned(),
+            reason: format!("cannot start a thread: {e}"),
+        })
+}
+
+/// The last `max` bytes of what `r` gives until its end, as text.
+fn tail(mut r: impl Read, max: usize) -> String {
+    let mut kept = Vec::new();
+    let mut buf = [0u8; 1024];
+    while let Ok(n) = r.read(&mut buf) {
+        if n == 0 {
+            break;
+        }
+        kept.extend_from_slice(&buf[..n]);
+        if kept.len() > max {
+            kept.drain(..kept.len() - max);
+        }
+    }
+    String::from_utf8_lossy(&kept).into_owned()
+}
+
+/// One frame slot between a live camera's reader thread and the client: a new frame replaces
+/// one not yet taken.
+#[derive(Debug, Default)]
+struct LatestSlot {
+    state: Mutex<SlotState>,
+    changed: Condvar,
+}
+
+#[derive(Debug, Default)]
+struct SlotState {
+    frame: Option<Vec<u8>>,
+    /// Set at the end of the stream: `Ok` for a clean end.
+    end: Option<Result<(), String>>,
+    closed: bool,
+}
+
+impl LatestSlot {
+    /// Reads PNGs from `r` into the slot until the stream ends or the slot is closed.
+    fn fill(&self, mut r: impl Read) {
+        loop {
+            let next = read_png(&mut r);
+            let mut s = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+            if s.closed {
+                return;
+            }
+            match next {
+                Ok(Some(png)) => s.frame = Some(png),
+                Ok(None) => s.end = Some(Ok(())),
+                Err(e) => s.end = Some(Err(e)),
+            }
+            let ended = s.end.is_some();
+            drop(s);
+            self.changed.notify_all();
+            if ended {
+                return;
+            }
+        }
+    }
+
+    /// The newest frame, waiting for one; `Ok(None)` at the end.
+    fn take(&self) -> Result<Option<Vec<u8>>, String> {
+        let mut s = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        loop {
+            if let Some(f) = s.frame.take() {
+                return Ok(Some(f));
+            }
+            if let Some(end) = &s.end {
+                return end.clone().map(|()| None);
+            }
+            s = self.changed.wait(s).unwrap_or_else(PoisonError::into_inner);
+        }
+    }
+
+    fn close(&self) {
+        self.state
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .closed = true;
+        self.changed.notify_all();
+    }
+}
+
+const PNG_SIGNATURE: [u8; 8] = *b"\x89PNG\r\n\x1a\n";
+/// Largest PNG accepted from the pipe, bytes.
+const MAX_PNG_BYTES: usize = 256 << 20;
+
+/// Reads one PNG from a stream of concatenated PNGs (`ffmpeg -f image2pipe -vcodec png`):
+/// the signature, then chunks up to `IEND`. `Ok(None)` at a clean end of the stream.
+pub fn read_png(r: &mut impl Read) -> Result<Option<Vec<u8>>, String> {
+    let mut sig = [0u8; 8];
+    let n = read_full(r, &mut sig)?;
+    if n == 0 {
+        return Ok(None);
+    }
+    if n < sig.len() || sig != PNG_SIGNATURE {
+        return Err("the stream is not a sequence of PNG images".into());
+    }
+    let mut out = sig.to_vec();
+    loop {
+        let mut head = [0u8; 8];
+        if read_full(r, &mut head)? < head.len() {
+            return Err("the stream ended inside a PNG".into());
+        }
+        let len = u32::from_be_bytes([head[0], head[1], head[2], head[3]]) as usize;
+        let start = out.len() + head.len();
+        if start + len + 4 > MAX_PNG_BYTES {
+            return Err(format!("a PNG larger than {MAX_PNG_BYTES} bytes"));
+        }
+        out.extend_from_slice(&head);
+        out.resize(start + len + 4, 0);
+        if read_full(r, &mut out[start..])? < len + 4 {
+            return Err("the stream ended inside a PNG".into());
+        }
+        if &head[4..] == b"IEND" {
+            return Ok(Some(out));
+        }
+    }
+}
+
+/// Fills `buf` unless the stream ends first; returns the bytes read.
+fn read_full(r: &mut impl Read, buf: &mut [u8]) -> Result<usize, String> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e.to_string()),
+        }
+    }
+    Ok(n)
+}
+
+/// The first executable file called `name` in the directories of `path_var` (a `PATH` value).
+pub fn find_executable(name: &str, path_var: Option<&OsStr>) -> Option<PathBuf> {
+    std::env::split_paths(path_var?)
+        .map(|dir| dir.join(name))
+        .find(|p| is_executable(p))
+}
+
+#[cfg(unix)]
+fn is_executable(p: &Path) -> bool {
+    use std::os::unix::fs::PermissionsExt;
+    p.metadata()
+        .is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
+}
+
+#[cfg(not(unix))]
+fn is_executable(p: &Path) -> bool {
+    p.is_file() || p.with_extension("exe").is_file()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn png(w: u32, h: u32) -> Vec<u8> {
+        let mut out = Vec::new();
+        tre_io::encode_png(&image::DynamicImage::new_rgb8(w, h), &mut out).unwrap();
+        out
+    }
+
+    #[test]
+    fn a_png_stream_splits_into_its_images() {
+        let (a, b) = (png(3, 2), png(5, 4));
+        let stream = [a.clone(), b.clone()].concat();
+        let mut r = &stream[..];
+        assert_eq!(read_png(&mut r).unwrap(), Some(a));
+        assert_eq!(read_png(&mut r).unwrap(), Some(b.clone()));
+        assert_eq!(read_png(&mut r).unwrap(), None);
+        let mut cut = &b[..b.len() - 3];
+        assert!(read_png(&mut cut).unwrap_err().contains("ended inside"));
+        let mut junk = &b"GIF89a not a png"[..];
+        assert!(read_png(&mut junk).is_err());
+    }
+
+    #[test]
+    fn the_latest_slot_keeps_only_the_newest_frame() {
+        let (a, b) = (png(1, 1), png(2, 2));
+        let slot = LatestSlot::default();
+        slot.fill(&[a, b.clone()].concat()[..]);
+        assert_eq!(slot.take().unwrap(), Some(b));
+        assert_eq!(slot.take().unwrap(), None);
+    }
+
+    #[test]
+    fn a_folder_pairs_frames_with_depth_by_stem() {
+        let dir = tempfile::tempdir().unwrap();
+        let (rgb, depth) = (dir.path().join("rgb"), dir.path().join("depth"));
+        std::fs::create_dir_all(&rgb).unwrap();
+        std::fs::create_dir_all(&depth).unwrap();
+        for name in ["b.png", "a.jpg", "c.PNG", "notes.txt"] {
+            std::fs::write(rgb.join(name), name).unwrap();
+        }
+        for name in ["a.png", "b.npy", "c.png"] {
+            std::fs::write(depth.join(name), format!("depth of {name}")).unwrap();
+        }
+        let frames: Vec<SourceFrame> = FolderSource::open(&rgb, Some(&depth))
+            .unwrap()
+            .collect::<Result<_, _>>()
+            .unwrap();
+        let names: Vec<&str> = frames.iter().map(|f| f.name.as_str()).collect();
+        assert_eq!(names, ["a", "b", "c"]);
+        assert_eq!(frames[1].image, b"b.png");
+        assert_eq!(frames[1].depth.as_deref(), Some(&b"depth of b.npy"[..]));
+        std::fs::remove_file(depth.join("c.png")).unwrap();
+        let e = FolderSource::open(&rgb, Some(&depth)).unwrap_err();
+        assert!(e.to_string().contains("no depth for frame c"), "{e}");
+        let empty = dir.path().join("empty");
+        std::fs::create_dir_all(&empty).unwrap();
+        assert!(FolderSource::open(&empty, None).is_err());
+    }
+
+    #[test]
+    fn ffmpeg_is_looked_up_on_the_path_and_its_absence_is_explained() {
+        let dir = tempfile::tempdir().unwrap();
+        assert_eq!(
+            find_executable("ffmpeg", Some(dir.path().as_os_str())),
+            None
+        );
+        assert_eq!(find_executable("ffmpeg", None), None);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let exe = dir.path().join("ffmpeg");
+            std::fs::write(&exe, "#!/bin/sh\n").unwrap();
+            assert_eq!(
+                find_executable("ffmpeg", Some(dir.path().as_os_str())),
+                None
+            );
+            std::fs::set_permissions(&exe, std::fs::Permissions::from_mode(0o755)).unwrap();
+            assert_eq!(
+                find_executable("ffmpeg", Some(dir.path().as_os_str())),
+                Some(exe)
+            );
+        }
+        let msg = ClientError::FfmpegMissing {
+            input: "run.mp4".into(),
+        }
+        .to_string();
+        assert!(msg.contains("ffmpeg") && msg.contains("--frames"), "{msg}");
+    }
+}

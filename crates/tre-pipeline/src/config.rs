@@ -1,0 +1,337 @@
+//! What one run of the pipeline does: input mode, method, the ablation switches of the paper's
+//! Table IV, the DSAC seed, the working size and the traversability thresholds.
+
+use serde::{Deserialize, Serialize};
+
+use super::PipelineError;
+use tre_core::geometry::Neighbourhood;
+
+/// Where depth comes from (the paper's Table IV rows).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// One RGB frame; the depth net predicts depth.
+    Rgb,
+    /// RGB plus a depth-sensor frame; the depth net is skipped.
+    Rgbd,
+    /// Depth only, no networks: annotation spec v1 as `tre annotate` computes it without
+    /// labels (LS normals, window centroids, surface and edge terms), or the paper's
+    /// surface-only baseline ([`GeometricMethod`]); the switches are ignored.
+    Geometric,
+}
+
+/// What the `geometric` mode computes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GeometricMethod {
+    /// The whole of annotation spec v1: surface term and edge term with its transient, so
+    /// drops and steps read as hazards. Equal to `tre annotate` on the same depth.
+    #[default]
+    Spec,
+    /// The paper's classical baseline: Eq. 1 with LS normals and window centroids, no edge
+    /// term (every drop is missed). What the paper's tables use.
+    SurfaceOnly,
+}
+
+/// The full pipeline or the end-to-end baseline of the paper's Table II.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// The staged pipeline of Fig. 5 (the switches choose its stages).
+    #[default]
+    Pipeline,
+    /// `end_to_end.onnx`: RGB and the flat-ground prior straight to roughness (needs RGB; the
+    /// mode and switches are ignored; no depth, normals or slope come out).
+    EndToEnd,
+}
+
+/// How initial normals are estimated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum NormalsMethod {
+    /// Least-squares planes over the metric neighbourhood (no network).
+    Ls,
+    /// Neighbour net probabilities and DSAC plane hypotheses.
+    Dsac,
+}
+
+/// How the local-plane centroid of Eq. 1 is found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CentroidMethod {
+    /// The centroid net (edge- and semantics-aware).
+    Net,
+    /// The mean of the neighbourhood's points (no network).
+    Window,
+}
+
+/// Thresholds of the traversability map: a pixel is traversable when its roughness and its
+/// slope are both at most these (pixels without data are not traversable).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Traversability {
+    /// Largest roughness a robot drives over, metres (default 0.05).
+    pub max_roughness_m: f64,
+    /// Steepest slope a robot drives on, radians from horizontal (default 20°).
+    pub max_slope_rad: f64,
+}
+
+impl Default for Traversability {
+    fn default() -> Self {
+        Self {
+            max_roughness_m: 0.05,
+            max_slope_rad: 20f64.to_radians(),
+        }
+    }
+}
+
+impl Traversability {
+    /// The thresholds as a robot states them: roughness in centimetres (above 0) and slope in
+    /// degrees (0 to 90), each defaulting to [`Traversability::default`]'s (5 cm, 20°); for
+    /// values that cannot be thresholds, why not.
+    ///
+    /// ```
+    /// use tre_pipeline::Traversability;
+    /// let t = Traversability::from_cm_deg(Some(2.0), None).unwrap();
+    /// assert_eq!((t.max_roughness_m, t.max_slope_rad), (0.02, 20f64.to_radians()));
+    /// assert!(Traversability::from_cm_deg(Some(0.0), None).is_err());
+    /// assert!(Traversability::from_cm_deg(None, Some(95.0)).is_err());
+    /// ```
+    pub fn from_cm_deg(
+        max_roughness_cm: Option<f64>,
+        max_slope_deg: Option<f64>,
+    ) -> Result<Self, String> {
+        let default = Self::default();
+        if let Some(cm) = max_roughness_cm.filter(|cm| !(cm.is_finite() && *cm > 0.0)) {
+            return Err(format!("max_roughness_cm: must be positive, got {cm}"));
+        }
+        if let Some(deg) = max_slope_deg.filter(|d| !(0.0..=90.0).contains(d)) {
+            return Err(format!("max_slope_deg: must be 0 to 90, got {deg}"));
+        }
+        Ok(Self {
+            max_roughness_m: max_roughness_cm.map_or(default.max_roughness_m, |cm| cm / 100.0),
+            max_slope_rad: max_slope_deg.map_or(default.max_slope_rad, f64::to_radians),
+        })
+    }
+}
+
+/// Largest input frame accepted by default, pixels (about 40 MP).
+pub const DEFAULT_MAX_INPUT_PIXELS: usize = 40_000_000;
+
+/// Largest working size accepted, pixels per side.
+pub const MAX_WORKING_SIDE: usize = 4096;
+
+/// DSAC hypotheses per pixel that the models were trained with (DESIGN.md: K = 12).
+pub const DEFAULT_DSAC_HYPOTHESES: u32 = 12;
+
+/// Most DSAC hypotheses per pixel accepted.
+pub const MAX_DSAC_HYPOTHESES: u32 = 64;
+
+/// `k` when it is a number of DSAC hypotheses the pipeline accepts (1 to
+/// [`MAX_DSAC_HYPOTHESES`]).
+///
+/// # Errors
+///
+/// [`PipelineError::BadHypotheses`] otherwise.
+pub fn check_dsac_hypotheses(k: u32) -> Result<u32, PipelineError> {
+    if (1..=MAX_DSAC_HYPOTHESES).contains(&k) {
+        Ok(k)
+    } else {
+        Err(PipelineError::BadHypotheses { got: k })
+    }
+}
+
+fn default_dsac_hypotheses() -> u32 {
+    DEFAULT_DSAC_HYPOTHESES
+}
+
+/// Everything one run of the pipeline needs besides the frame. The default is the full
+/// pipeline on RGB: depth net, DSAC normals, refiner, centroid net.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PipelineConfig {
+    /// Where depth comes from.
+    pub mode: Mode,
+    /// Staged pipeline or end-to-end baseline.
+    pub method: Method,
+    /// Initial normals (ignored in geometric mode, which uses LS).
+    pub normals: NormalsMethod,
+    /// Run the normal refiner (ignored in geometric mode).
+    pub refine: bool,
+    /// Centroids (ignored in geometric mode, which uses windows).
+    pub centroid: CentroidMethod,
+    /// What the geometric mode computes (ignored in the other modes).
+    #[serde(default)]
+    pub geometric: GeometricMethod,
+    /// Seed of the DSAC sampler for this request: the same seed gives the same output.
+    pub seed: u64,
+    /// DSAC hypotheses per pixel, K: 1 to [`MAX_DSAC_HYPOTHESES`]. The default,
+    /// [`DEFAULT_DSAC_HYPOTHESES`], is what the neighbour net was trained with; fewer cost
+    /// less time (docs/evaluation.md gives what they cost in accuracy). With the same seed,
+    /// hypothesis `j` is the same for every K above `j`, so a larger K never scores lower.
+    #[serde(default = "default_dsac_hypotheses")]
+    pub dsac_hypotheses: u32,
+    /// Size the stages run at, `(width, height)`. `None`: when any network runs, the longer
+    /// side of the frame takes the manifest's working size (256 without models) and the other
+    /// keeps the aspect ratio ([`fit_aspect`](super::run::fit_aspect)); in geometric mode, the
+    /// input's own size.
+    /// With networks, both sides must be multiples of the manifest's stride.
+    pub working_size: Option<(usize, usize)>,
+    /// Neighbourhood of LS normals and window centroids.
+    pub neighbourhood: Neighbourhood,
+    /// Traversability thresholds.
+    pub traversability: Traversability,
+    /// Largest input frame, pixels.
+    pub max_input_pixels: usize,
+}
+
+impl Default for PipelineConfig {
+    fn default() -> Self {
+        Self {
+            mode: Mode::Rgb,
+            method: Method::Pipeline,
+            normals: NormalsMethod::Dsac,
+            refine: true,
+            centroid: CentroidMethod::Net,
+            geometric: GeometricMethod::Spec,
+            seed: 0,
+            dsac_hypotheses: DEFAULT_DSAC_HYPOTHESES,
+            working_size: None,
+            neighbourhood: Neighbourhood::default(),
+            traversability: Traversability::default(),
+            max_input_pixels: DEFAULT_MAX_INPUT_PIXELS,
+        }
+    }
+}
+
+impl PipelineConfig {
+    /// The full pipeline in `mode` (geometric mode: the classical baseline).
+    pub fn for_mode(mode: Mode) -> Self {
+        Self {
+            mode,
+            ..Self::default()
+        }
+    }
+
+    /// The stages that actually run: geometric mode forces LS normals, no refiner and window
+    /// centroids.
+    pub fn effective(&self) -> (NormalsMethod, bool, CentroidMethod) {
+        match self.mode {
+            Mode::Geometric => (NormalsMethod::Ls, false, CentroidMethod::Window),
+            Mode::Rgb | Mode::Rgbd => (self.normals, self.refine, self.centroid),
+        }
+    }
+
+    /// This configuration with the switches that run: in the geometric mode, LS normals, no
+    /// refiner and window centroids whatever was asked (for records of what ran).
+    ///
+    /// ```
+    /// use tre_pipeline::{CentroidMethod, Mode, NormalsMethod, PipelineConfig};
+    /// let asked = PipelineConfig { mode: Mode::Geometric, ..PipelineConfig::default() };
+    /// let ran = asked.as_run();
+    /// assert_eq!((ran.normals, ran.refine, ran.centroid), (NormalsMethod::Ls, false, CentroidMethod::Window));
+    /// assert_eq!(ran.label(), asked.label());
+    /// ```
+    pub fn as_run(&self) -> Self {
+        let (normals, refine, centroid) = self.effective();
+        Self {
+            normals,
+            refine,
+            centroid,
+            ..*self
+        }
+    }
+
+    /// DSAC in [`label`](Self::label): `DSAC`, or `DSAC(K=4)` with other than
+    /// [`DEFAULT_DSAC_HYPOTHESES`] hypotheses.
+    pub fn dsac_label(&self) -> String {
+        match self.dsac_hypotheses {
+            DEFAULT_DSAC_HYPOTHESES => "DSAC".to_owned(),
+            k => format!("DSAC(K={k})"),
+        }
+    }
+
+    /// The networks this configuration runs, by manifest name (empty: no models needed).
+    pub fn networks(&self) -> Vec<&'static str> {
+        use tre_model::{CENTROID_NET, DEPTH_NET, END_TO_END, NEIGHBOUR_NET, NORMAL_REFINER};
+        if self.method == Method::EndToEnd {
+            return vec![END_TO_END];
+        }
+        let (normals, refine, centroid) = self.effective();
+        let mut nets = Vec::new();
+        if self.mode == Mode::Rgb {
+            nets.push(DEPTH_NET);
+        }
+        if normals == NormalsMethod::Dsac {
+            nets.push(NEIGHBOUR_NET);
+        }
+        if refine {
+            nets.push(NORMAL_REFINER);
+        }
+        if centroid == CentroidMethod::Net {
+            nets.push(CENTROID_NET);
+        }
+        nets
+    }
+
+    /// A short name of the stages, in the paper's notation: `DE+DSAC+NR+ESR`, `LS+window+edge`
+    /// (the geometric mode's spec), `LS+window` (its surface-only baseline), `E2E`;
+    /// DSAC with other than [`DEFAULT_DSAC_HYPOTHESES`] hypotheses reads `DSAC(K=4)`.
+    pub fn label(&self) -> String {
+        if self.method == Method::EndToEnd {
+            return "E2E".to_owned();
+        }
+        let (normals, refine, centroid) = self.effective();
+        let mut parts = Vec::new();
+        if self.mode == Mode::Rgb {
+            parts.push("DE");
+        }
+        let dsac = self.dsac_label();
+        parts.push(match normals {
+            NormalsMethod::Ls => "LS",
+            NormalsMethod::Dsac => &dsac,
+        });
+        if refine {
+            parts.push("NR");
+        }
+        parts.push(match centroid {
+            CentroidMethod::Net => "ESR",
+            CentroidMethod::Window => "window",
+        });
+        if self.mode == Mode::Geometric && self.geometric == GeometricMethod::Spec {
+            parts.push("edge");
+        }
+        parts.join("+")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn geometric_mode_needs_no_network_and_the_default_needs_all_four() {
+        assert!(PipelineConfig::for_mode(Mode::Geometric)
+            .networks()
+            .is_empty());
+        assert_eq!(PipelineConfig::default().networks().len(), 4);
+        assert_eq!(PipelineConfig::default().label(), "DE+DSAC+NR+ESR");
+        let rgbd_ls = PipelineConfig {
+            mode: Mode::Rgbd,
+            normals: NormalsMethod::Ls,
+            refine: false,
+            centroid: CentroidMethod::Window,
+            ..PipelineConfig::default()
+        };
+        assert!(rgbd_ls.networks().is_empty());
+        assert_eq!(rgbd_ls.label(), "LS+window");
+        let fewer = PipelineConfig {
+            dsac_hypotheses: 4,
+            ..PipelineConfig::default()
+        };
+        assert_eq!(fewer.label(), "DE+DSAC(K=4)+NR+ESR");
+        let ls_fewer = PipelineConfig {
+            normals: NormalsMethod::Ls,
+            ..fewer
+        };
+        assert_eq!(ls_fewer.label(), "DE+LS+NR+ESR");
+    }
+}

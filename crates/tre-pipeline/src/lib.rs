@@ -1,0 +1,130 @@
+//! One frame through all stages of the paper's Fig. 5: resize to the working size, depth
+//! ([`depth`]), back-projection, normals ([`normals`]: LS or DSAC, optional refiner),
+//! centroids and Eq. 1 ([`centroid`]), then slope, traversability and the maps back at the
+//! frame's size ([`run`]). The learned stages run through [`tre_model::Models`]; everything
+//! else is the native geometry of [`tre_core::geometry`].
+//!
+//! ```no_run
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! use tre_model::{Models, SessionConfig};
+//! use tre_pipeline::{FrameInput, Pipeline, PipelineConfig};
+//! let models = Models::load("models".as_ref(), &SessionConfig::default())?;
+//! let mut pipeline = Pipeline::new(Some(models));
+//! let rgb = image::open("frame.png")?.to_rgb8();
+//! let frame = FrameInput { rgb: Some(rgb), ..FrameInput::default() };
+//! let out = pipeline.run(&frame, &PipelineConfig::default())?;
+//! println!("{:?}", out.timings);
+//! // Done with this frame's maps: the next frames write into their buffers.
+//! pipeline.recycle(out);
+//! # Ok(())
+//! # }
+//! ```
+
+pub mod centroid;
+pub mod config;
+pub mod depth;
+pub mod frame;
+pub mod normals;
+pub mod resize;
+pub mod run;
+mod spares;
+pub mod tensors;
+
+pub use config::{
+    check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod,
+    PipelineConfig, Traversability, DEFAULT_DSAC_HYPOTHESES, DEFAULT_MAX_INPUT_PIXELS,
+    MAX_DSAC_HYPOTHESES, MAX_WORKING_SIDE,
+};
+pub use depth::{prior_depth, MAX_PRIOR_DEPTH_M};
+pub use frame::{FrameInput, FrameOutput, SensorMaps, StageTimings, DEFAULT_HFOV_DEG};
+pub use run::{check_input, Pipeline, DEFAULT_WORKING_SIZE};
+
+use tre_core::geometry::GeometryError;
+use tre_model::ModelError;
+
+/// Errors of the pipeline layer: bad frames, bad settings, and failures of the stages.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    /// An image or depth map with no pixels.
+    #[error("the {what} is empty ({}×{})", size.0, size.1)]
+    EmptyImage {
+        /// `rgb` or `depth`.
+        what: &'static str,
+        /// Its `(width, height)`.
+        size: (usize, usize),
+    },
+    /// A frame larger than the configured limit.
+    #[error("the frame is {}×{} = {} pixels, more than the limit of {max_pixels}", size.0, size.1, size.0 * size.1)]
+    TooLarge {
+        /// `(width, height)`.
+        size: (usize, usize),
+        /// The limit, pixels.
+        max_pixels: usize,
+    },
+    /// A depth map whose size differs from the RGB frame's.
+    #[error("the depth map is {}×{} but the RGB frame is {}×{}; they must be registered and the same size", depth.0, depth.1, rgb.0, rgb.1)]
+    DepthSizeMismatch {
+        /// RGB `(width, height)`.
+        rgb: (usize, usize),
+        /// Depth `(width, height)`.
+        depth: (usize, usize),
+    },
+    /// An input the mode needs is absent.
+    #[error("{mode} needs {input}, which the frame does not have")]
+    MissingInput {
+        /// The mode or method, in words.
+        mode: &'static str,
+        /// `rgb` or `depth`.
+        input: &'static str,
+    },
+    /// The configuration runs networks that are not loaded.
+    #[error("{label} runs {}, but {}", networks.join(", "), if *loaded { "the manifest does not list them" } else { "no models are loaded (give a models folder)" })]
+    ModelsRequired {
+        /// The configuration's label (e.g. `DE+DSAC+NR+ESR`).
+        label: String,
+        /// The networks it needs, by manifest name.
+        networks: Vec<&'static str>,
+        /// Whether models are loaded at all.
+        loaded: bool,
+    },
+    /// A working size that is zero, too large, or not a multiple of the stride.
+    #[error("working size {}×{} must be positive, at most {MAX_WORKING_SIDE} per side{}", size.0, size.1, stride.map_or(" (without networks, the geometric mode works at the frame's own size unless one is set)".to_string(), |s| format!(" and a multiple of the models' stride {s}")))]
+    BadWorkingSize {
+        /// `(width, height)`.
+        size: (usize, usize),
+        /// The stride the networks need, if any run.
+        stride: Option<usize>,
+    },
+    /// A number of DSAC hypotheses outside 1 to [`MAX_DSAC_HYPOTHESES`].
+    #[error("DSAC hypotheses per pixel must be 1 to {MAX_DSAC_HYPOTHESES}, not {got}")]
+    BadHypotheses {
+        /// The number asked for.
+        got: u32,
+    },
+    /// Uncertainty or three-state maps asked for without sensor depth.
+    #[error(
+        "the uncertainty and three-state maps need sensor depth (modes rgbd and geometric); the \
+         {mode} mode's depth comes from the depth net, whose error no sensor model describes"
+    )]
+    NoSensorDepth {
+        /// The mode or method, in words.
+        mode: &'static str,
+    },
+    /// Uncertainty or three-state maps asked for without a sensor noise model.
+    #[error(
+        "the uncertainty and three-state maps need the depth sensor's noise model: name it as \
+         the camera's \"sensor\" (one of {presets}) or give {{\"sigma_mm\": [a, b, c]}}{described}"
+    )]
+    NoSensorModel {
+        /// The preset names.
+        presets: String,
+        /// What the camera said instead, if anything, in words.
+        described: String,
+    },
+    /// Bad intrinsics or mounting, or geometry inputs that do not fit.
+    #[error(transparent)]
+    Geometry(#[from] GeometryError),
+    /// A learned stage failed.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+}

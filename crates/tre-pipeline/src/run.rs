@@ -1,0 +1,538 @@
+//! [`Pipeline`]: checks a frame, runs the stages in order at the working size, and brings the
+//! maps back to the frame's size. It owns the models and the tensors and maps it reuses across
+//! frames; like [`Models`], it belongs to one worker thread.
+
+use std::time::Duration;
+
+use ndarray::Array4;
+
+use super::centroid::net_centroids;
+use super::depth::{prior_depth_into, MAX_PRIOR_DEPTH_M};
+use super::frame::{FrameInput, FrameOutput, StageMaps, StageTimings, DEFAULT_HFOV_DEG};
+use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
+use super::resize::{resize_nearest_reusing, resize_rgb};
+use super::spares::Spares;
+use super::tensors::{depth_from_tensor_into, points_tensors, rgb_tensor, scalar_tensor};
+use super::{
+    check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod,
+    PipelineConfig, PipelineError, MAX_WORKING_SIDE,
+};
+use tre_core::geometry::dsac::DsacScratch;
+use tre_core::geometry::normals::{window_centroids_into, PackedPoints};
+use tre_core::geometry::{DsacConfig, Grid, Intrinsics, LocalPlanes, PointMap, Vec3};
+use tre_core::roughness::annotate::{spec_roughness_into, surface_term_into, SpecMaps, SpecPlanes};
+use tre_core::roughness::AnnotateConfig;
+use tre_model::Models;
+
+/// Working size when no models are loaded, `(width, height)`.
+pub const DEFAULT_WORKING_SIZE: (usize, usize) = (256, 256);
+/// Stride assumed for network inputs when no models are loaded.
+const DEFAULT_STRIDE: usize = 16;
+
+/// The working size for a `(w0, h0)` frame: the longer side takes the manifest's size for it,
+/// the shorter side keeps the frame's aspect ratio, rounded to a multiple of `stride` (at least
+/// one stride), so the nets never see a stretched image.
+///
+/// ```
+/// # use tre_pipeline::run::fit_aspect;
+/// assert_eq!(fit_aspect((256, 256), (640, 480), 16), (256, 192));
+/// assert_eq!(fit_aspect((256, 256), (375, 1242), 16), (80, 256));
+/// assert_eq!(fit_aspect((256, 256), (512, 512), 16), (256, 256));
+/// assert_eq!(fit_aspect((256, 256), (4000, 1), 16), (256, 16));
+/// ```
+pub fn fit_aspect(
+    working: (usize, usize),
+    (w0, h0): (usize, usize),
+    stride: usize,
+) -> (usize, usize) {
+    let round = |v: f64| ((v / stride as f64).round() as usize).max(1) * stride;
+    if w0 >= h0 {
+        (
+            working.0,
+            round(working.0 as f64 * h0 as f64 / w0.max(1) as f64),
+        )
+    } else {
+        (
+            round(working.1 as f64 * w0 as f64 / h0.max(1) as f64),
+            working.1,
+        )
+    }
+}
+
+/// Tensors and geometry buffers reused from frame to frame (reallocated only when the working
+/// size grows), and the maps of earlier frames handed back by [`Pipeline::recycle`].
+#[derive(Debug, Default)]
+struct Scratch {
+    rgb: Array4<f32>,
+    prior_m: Grid<f64>,
+    prior: Array4<f32>,
+    points: Array4<f32>,
+    valid: Array4<f32>,
+    normals: Array4<f32>,
+    packed: PackedPoints,
+    dsac: DsacScratch,
+    spec: SpecMaps,
+    spares: Spares,
+}
+
+/// The frame at the working size, as the stages see it.
+struct Working {
+    size: (usize, usize),
+    k: Intrinsics,
+}
+
+/// The pipeline: optional models (geometric mode needs none) and scratch buffers.
+#[derive(Debug)]
+pub struct Pipeline {
+    models: Option<Models>,
+    scratch: Scratch,
+}
+
+impl Pipeline {
+    /// A pipeline over `models` (`None`: only configurations without networks can run).
+    pub fn new(models: Option<Models>) -> Self {
+        Self {
+            models,
+            scratch: Scratch::default(),
+        }
+    }
+
+    /// The loaded models, if any.
+    pub fn models(&self) -> Option<&Models> {
+        self.models.as_ref()
+    }
+
+    /// Runs every stage `cfg` chooses on one frame.
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError`] for a frame that is empty, too large, lacks an input the mode needs
+    /// or has depth of another size than its RGB; for a configuration whose networks are not
+    /// loaded or whose working size is bad; and when a stage fails.
+    pub fn run(
+        &mut self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+    ) -> Result<FrameOutput, PipelineError> {
+        let before = self.onnx_runtime_time();
+        let mut out = self.run_stages(input, cfg)?;
+        let onnx = self.onnx_runtime_time().saturating_sub(before);
+        out.timings.set_onnx_runtime(onnx);
+        Ok(out)
+    }
+
+    /// Takes back the maps of a frame's output once the caller is done with it, so that the
+    /// next frames write into their buffers instead of allocating new ones. Optional: a
+    /// pipeline whose outputs are simply dropped allocates its maps afresh for every frame.
+    /// The next frames' outputs are the same either way.
+    pub fn recycle(&mut self, out: FrameOutput) {
+        out.give_maps(&mut self.scratch.spares);
+    }
+
+    /// Drops every buffer kept from frame to frame (tensors, geometry scratch, the spec's maps,
+    /// recycled maps), so that a large frame does not pin its memory until the process ends;
+    /// the next frame allocates afresh, as the first one did. The models keep theirs.
+    pub fn release_buffers(&mut self) {
+        self.scratch = Scratch::default();
+    }
+
+    /// Time spent inside ONNX Runtime by the loaded models so far.
+    fn onnx_runtime_time(&self) -> Duration {
+        self.models
+            .as_ref()
+            .map_or(Duration::ZERO, Models::onnx_runtime_time)
+    }
+
+    /// [`run`](Self::run) without the ONNX Runtime tally.
+    fn run_stages(
+        &mut self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+    ) -> Result<FrameOutput, PipelineError> {
+        let size = check_input(input, cfg)?;
+        check_dsac_hypotheses(cfg.dsac_hypotheses)?;
+        self.check_models(cfg)?;
+        let work = self.working(input, cfg, size)?;
+        let mut timings = StageTimings::default();
+        // RGB goes only to the networks: the geometric mode leaves a frame's image alone.
+        let nets_rgb = input.rgb.as_ref().filter(|_| !cfg.networks().is_empty());
+        let rgb = timings.time("resize", || {
+            nets_rgb.map(|rgb| {
+                let small = resize_rgb(rgb, work.size.0, work.size.1);
+                rgb_tensor(&small, &mut self.scratch.rgb);
+            })
+        });
+        // Some only when a network runs.
+        let has_rgb = rgb.is_some();
+        if cfg.method == Method::EndToEnd {
+            return self.end_to_end(input, cfg, &work, size, timings);
+        }
+        let depth_m = timings.time("depth", || self.depth(input, cfg, &work))?;
+        let points = timings.time("back_project", || {
+            let mut points = self.scratch.spares.take();
+            work.k.back_project_map_into(&depth_m, &mut points);
+            if has_rgb {
+                points_tensors(&points, &mut self.scratch.points, &mut self.scratch.valid);
+            }
+            points
+        });
+        let (normals, centroids) = self.normals_and_centroids(cfg, &work, &points, &mut timings)?;
+        let mut roughness_m = self.scratch.spares.take();
+        timings.time("roughness", || {
+            roughness_m.reset(work.size.0, work.size.1, f64::NAN);
+            if cfg.mode == Mode::Geometric && cfg.geometric == GeometricMethod::Spec {
+                let planes = SpecPlanes {
+                    points: &points,
+                    normals: &normals,
+                    centroids: &centroids,
+                };
+                let spec = AnnotateConfig {
+                    hood: cfg.neighbourhood,
+                    ..AnnotateConfig::default()
+                };
+                let maps = &mut self.scratch.spec;
+                spec_roughness_into(&planes, None, &spec, maps, &mut roughness_m);
+            } else {
+                surface_term_into(&points, &normals, &centroids, &mut roughness_m);
+            }
+        });
+        self.scratch.spares.keep(centroids);
+        let maps = StageMaps {
+            depth_m,
+            points,
+            normals,
+        };
+        let mut out = timings.time("outputs", || {
+            let up = input.mounting.up_in_cam();
+            let (limits, spares) = (cfg.traversability, &mut self.scratch.spares);
+            let mut out = FrameOutput::new(size, roughness_m, Some(maps), up, limits, spares);
+            if let (Mode::Rgbd | Mode::Geometric, Some(given)) = (cfg.mode, &input.depth_m) {
+                out.keep_holes(given);
+            }
+            out
+        });
+        out.timings = timings;
+        Ok(out)
+    }
+
+    /// Normals (initial, refined) and centroids, each timed as its stage.
+    fn normals_and_centroids(
+        &mut self,
+        cfg: &PipelineConfig,
+        work: &Working,
+        points: &PointMap,
+        timings: &mut StageTimings,
+    ) -> Result<(Grid<Vec3>, PointMap), PipelineError> {
+        let (normals_method, do_refine, centroid_method) = cfg.effective();
+        let mut stages = Stages::new(&mut self.models, &mut self.scratch, points);
+        let start = std::time::Instant::now();
+        let InitialNormals {
+            mut normals,
+            window_centroids,
+        } = stages.initial_normals(normals_method, work.k.fx_px, cfg)?;
+        timings.add("normals", start.elapsed());
+        if do_refine {
+            let start = std::time::Instant::now();
+            normals = stages.refined(normals)?;
+            timings.add("refine", start.elapsed());
+        }
+        let start = std::time::Instant::now();
+        let centroids = match (centroid_method, window_centroids) {
+            (CentroidMethod::Window, Some(c)) => c,
+            (CentroidMethod::Window, None) => stages.window_centroids(work.k.fx_px, cfg),
+            (CentroidMethod::Net, unused) => stages.net_centroids(&normals, unused)?,
+        };
+        timings.add("centroid", start.elapsed());
+        Ok((normals, centroids))
+    }
+
+    /// Depth at the working size: the depth net on RGB and the prior, or the given depth
+    /// resized nearest-neighbour.
+    fn depth(
+        &mut self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+        work: &Working,
+    ) -> Result<Grid<f64>, PipelineError> {
+        let (w, h) = work.size;
+        if cfg.mode != Mode::Rgb {
+            let given = input.depth_m.as_ref().ok_or(PipelineError::MissingInput {
+                mode: "this mode",
+                input: "depth",
+            })?;
+            let mut depth_m = self.scratch.spares.take();
+            resize_nearest_reusing(given, (w, h), 0.0, &mut depth_m);
+            return Ok(depth_m);
+        }
+        self.prior_tensor(work, input);
+        let models = loaded(&mut self.models)?;
+        let (rgb, prior) = (self.scratch.rgb.view(), self.scratch.prior.view());
+        let mut depth_m = self.scratch.spares.take();
+        models.depth_with(rgb, prior, |t| depth_from_tensor_into(t, &mut depth_m))?;
+        Ok(depth_m)
+    }
+
+    /// The flat-ground prior depth at the working size into the prior tensor (both buffers
+    /// reused across frames).
+    fn prior_tensor(&mut self, work: &Working, input: &FrameInput) {
+        let (w, h) = work.size;
+        let grid = &mut self.scratch.prior_m;
+        if grid.size() != (w, h) {
+            *grid = Grid::new(w, h, MAX_PRIOR_DEPTH_M);
+        }
+        prior_depth_into(&work.k, &input.mounting, grid);
+        scalar_tensor(grid, &mut self.scratch.prior);
+    }
+
+    /// The end-to-end baseline: RGB and the prior straight to roughness.
+    fn end_to_end(
+        &mut self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+        work: &Working,
+        size: (usize, usize),
+        mut timings: StageTimings,
+    ) -> Result<FrameOutput, PipelineError> {
+        let start = std::time::Instant::now();
+        self.prior_tensor(work, input);
+        let models = loaded(&mut self.models)?;
+        let r = models.end_to_end(self.scratch.rgb.view(), self.scratch.prior.view())?;
+        // Non-positive and non-finite values read as 0: no negative roughness.
+        let mut roughness_m = self.scratch.spares.take();
+        depth_from_tensor_into(r.view(), &mut roughness_m);
+        timings.add("end_to_end", start.elapsed());
+        let mut out = timings.time("outputs", || {
+            let (up, limits) = (input.mounting.up_in_cam(), cfg.traversability);
+            let spares = &mut self.scratch.spares;
+            FrameOutput::new(size, roughness_m, None, up, limits, spares)
+        });
+        out.timings = timings;
+        Ok(out)
+    }
+
+    /// Fails when `cfg` runs networks that are not loaded.
+    fn check_models(&self, cfg: &PipelineConfig) -> Result<(), PipelineError> {
+        let networks = cfg.networks();
+        let missing = match &self.models {
+            None => !networks.is_empty(),
+            Some(m) => networks.contains(&tre_model::END_TO_END) && !m.has_end_to_end(),
+        };
+        if missing {
+            return Err(PipelineError::ModelsRequired {
+                label: cfg.label(),
+                networks,
+                loaded: self.models.is_some(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The working size and the intrinsics scaled to it.
+    fn working(
+        &self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+        (w0, h0): (usize, usize),
+    ) -> Result<Working, PipelineError> {
+        let nets = !cfg.networks().is_empty();
+        let stride = nets.then(|| self.models.as_ref().map_or(DEFAULT_STRIDE, Models::stride));
+        let size = match (cfg.working_size, cfg.mode, nets) {
+            (Some(size), _, _) => size,
+            (None, Mode::Geometric, false) => (w0, h0),
+            (None, _, _) => fit_aspect(
+                self.models
+                    .as_ref()
+                    .map_or(DEFAULT_WORKING_SIZE, Models::working_size),
+                (w0, h0),
+                stride.unwrap_or(DEFAULT_STRIDE),
+            ),
+        };
+        let fits = |s: usize| {
+            s > 0 && s <= MAX_WORKING_SIDE && stride.is_none_or(|st| s.is_multiple_of(st))
+        };
+        if !(fits(size.0) && fits(size.1)) {
+            return Err(PipelineError::BadWorkingSize { size, stride });
+        }
+        let k0 = match input.intrinsics {
+            Some(k) => {
+                k.check_for(w0, h0)?;
+                k
+            }
+            None => Intrinsics::from_hfov(w0, h0, DEFAULT_HFOV_DEG)?,
+        };
+        let k = k0.scaled(size.0 as f64 / w0 as f64, size.1 as f64 / h0 as f64)?;
+        Ok(Working { size, k })
+    }
+}
+
+/// The normal and centroid stages of one frame: the models, the network inputs and the buffers
+/// they write into, borrowed from the pipeline.
+struct Stages<'a> {
+    models: &'a mut Option<Models>,
+    net: NetInputs<'a>,
+    points: &'a PointMap,
+    normals_t: &'a mut Array4<f32>,
+    packed: &'a mut PackedPoints,
+    dsac: &'a mut DsacScratch,
+    spares: &'a mut Spares,
+}
+
+impl<'a> Stages<'a> {
+    fn new(models: &'a mut Option<Models>, scratch: &'a mut Scratch, points: &'a PointMap) -> Self {
+        let Scratch {
+            rgb,
+            points: points_m,
+            valid,
+            normals,
+            packed,
+            dsac,
+            spares,
+            ..
+        } = scratch;
+        Self {
+            models,
+            net: NetInputs {
+                rgb,
+                points_m,
+                valid,
+            },
+            points,
+            normals_t: normals,
+            packed,
+            dsac,
+            spares,
+        }
+    }
+
+    /// LS normals (with their window centroids) or the neighbour net and DSAC.
+    fn initial_normals(
+        &mut self,
+        method: NormalsMethod,
+        fx_px: f64,
+        cfg: &PipelineConfig,
+    ) -> Result<InitialNormals, PipelineError> {
+        Ok(match method {
+            NormalsMethod::Ls => {
+                let planes = LocalPlanes {
+                    centroid: self.spares.take(),
+                    normal: self.spares.take(),
+                };
+                let hood = &cfg.neighbourhood;
+                ls_normals(self.points, fx_px, hood, self.packed, planes)
+            }
+            NormalsMethod::Dsac => {
+                let (models, out) = (loaded(self.models)?, self.spares.take());
+                let (net, points) = (&self.net, self.points);
+                let dsac = DsacConfig {
+                    hypotheses: cfg.dsac_hypotheses,
+                    seed: cfg.seed,
+                    ..DsacConfig::default()
+                };
+                dsac_normals_from_net(models, net, points, &dsac, self.dsac, out)?
+            }
+        })
+    }
+
+    /// The refiner's normals from `initial`, whose buffer goes back to the spares.
+    fn refined(&mut self, initial: Grid<Vec3>) -> Result<Grid<Vec3>, PipelineError> {
+        let (out, models) = (self.spares.take(), loaded(self.models)?);
+        let refined = refine(
+            models,
+            &self.net,
+            self.points,
+            &initial,
+            self.normals_t,
+            out,
+        )?;
+        self.spares.keep(initial);
+        Ok(refined)
+    }
+
+    /// Window centroids computed alone (normals from DSAC).
+    fn window_centroids(&mut self, fx_px: f64, cfg: &PipelineConfig) -> PointMap {
+        let mut out = self.spares.take();
+        let hood = &cfg.neighbourhood;
+        window_centroids_into(self.points, fx_px, hood, self.packed, &mut out);
+        out
+    }
+
+    /// The centroid net's centroids for `normals`; `unused` (the LS window centroids, if any)
+    /// goes back to the spares.
+    fn net_centroids(
+        &mut self,
+        normals: &Grid<Vec3>,
+        unused: Option<PointMap>,
+    ) -> Result<PointMap, PipelineError> {
+        if let Some(c) = unused {
+            self.spares.keep(c);
+        }
+        let (out, models) = (self.spares.take(), loaded(self.models)?);
+        net_centroids(models, &self.net, self.points, normals, self.normals_t, out)
+    }
+}
+
+/// The models, or the error that says they are needed (checked up front; kept for safety).
+fn loaded(models: &mut Option<Models>) -> Result<&mut Models, PipelineError> {
+    models
+        .as_mut()
+        .ok_or_else(|| PipelineError::ModelsRequired {
+            label: "this configuration".to_owned(),
+            networks: Vec::new(),
+            loaded: false,
+        })
+}
+
+/// Checks a frame against the configuration without running anything (as [`Pipeline::run`]
+/// does first): the inputs the mode needs are there, depth and RGB agree in size, the frame is
+/// neither empty nor too large. Returns its `(width, height)`.
+///
+/// # Errors
+///
+/// [`PipelineError::MissingInput`], [`PipelineError::DepthSizeMismatch`],
+/// [`PipelineError::EmptyImage`] or [`PipelineError::TooLarge`].
+pub fn check_input(
+    input: &FrameInput,
+    cfg: &PipelineConfig,
+) -> Result<(usize, usize), PipelineError> {
+    let (mode, needs_rgb, needs_depth) = match (cfg.method, cfg.mode) {
+        (Method::EndToEnd, _) => ("the end-to-end method", true, false),
+        (Method::Pipeline, Mode::Rgb) => ("rgb mode", true, false),
+        (Method::Pipeline, Mode::Rgbd) => ("rgbd mode", true, true),
+        (Method::Pipeline, Mode::Geometric) => ("geometric mode", false, true),
+    };
+    if needs_rgb && input.rgb.is_none() {
+        return Err(PipelineError::MissingInput { mode, input: "rgb" });
+    }
+    let depth = input.depth_m.as_ref().filter(|_| needs_depth);
+    if needs_depth && depth.is_none() {
+        return Err(PipelineError::MissingInput {
+            mode,
+            input: "depth",
+        });
+    }
+    let rgb_size = input
+        .rgb
+        .as_ref()
+        .map(|i| (i.width() as usize, i.height() as usize));
+    let depth_size = depth.map(Grid::size);
+    if let (Some(rgb), Some(depth)) = (rgb_size, depth_size) {
+        if rgb != depth {
+            return Err(PipelineError::DepthSizeMismatch { rgb, depth });
+        }
+    }
+    let what = if rgb_size.is_some() { "rgb" } else { "depth" };
+    let size = rgb_size.or(depth_size).ok_or(PipelineError::MissingInput {
+        mode,
+        input: "rgb or depth",
+    })?;
+    if size.0 == 0 || size.1 == 0 {
+        return Err(PipelineError::EmptyImage { what, size });
+    }
+    if size.0.saturating_mul(size.1) > cfg.max_input_pixels {
+        return Err(PipelineError::TooLarge {
+            size,
+            max_pixels: cfg.max_input_pixels,
+        });
+    }
+    Ok(size)
+}

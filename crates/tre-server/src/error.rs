@@ -1,0 +1,256 @@
+//! The one mapping from every error the service can meet to an HTTP status, a stable code and a
+//! message: JSON `{"error": {"code", "message"}}` over HTTP, `Error` messages on the stream.
+
+use axum::http::{header, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+use serde::Serialize;
+
+use tre_core::geometry::GeometryError;
+use tre_pipeline::PipelineError;
+
+/// Stable error codes, shared by HTTP bodies and stream `Error` messages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ErrorCode {
+    /// Malformed request: query, multipart, missing part, not a WebSocket upgrade (400).
+    BadRequest,
+    /// No such route (404).
+    NotFound,
+    /// A route that exists, with another method (405).
+    MethodNotAllowed,
+    /// No API key, or not the server's (401): `--api-key`.
+    Unauthorized,
+    /// A browser origin not on `--allow-origin` (403).
+    Forbidden,
+    /// The request's headers or body did not arrive in time (408): `--header-timeout-ms`,
+    /// `--body-timeout-ms`, `--min-body-rate`.
+    RequestTimeout,
+    /// Body or WebSocket message larger than the limit, or an image with too many pixels (413).
+    TooLarge,
+    /// Not a PNG or JPEG (415).
+    UnsupportedMedia,
+    /// A PNG or JPEG that cannot be decoded: truncated, corrupt, zero-size (422).
+    BadImage,
+    /// Depth of another size than the RGB frame, or not 16-bit grey / float .npy (422).
+    BadDepth,
+    /// Camera JSON that does not parse or whose values are nonsense (422).
+    BadCamera,
+    /// Inputs that do not fit the chosen mode (422).
+    BadInput,
+    /// Too many concurrent requests (429).
+    TooManyRequests,
+    /// The work queue is full (503).
+    Overloaded,
+    /// Models still loading or warming up, or shutting down (503).
+    NotReady,
+    /// The request took longer than the timeout (503).
+    Timeout,
+    /// A failure inside the service (500).
+    Internal,
+}
+
+impl ErrorCode {
+    /// The HTTP status of this code.
+    pub fn status(self) -> StatusCode {
+        match self {
+            Self::BadRequest => StatusCode::BAD_REQUEST,
+            Self::NotFound => StatusCode::NOT_FOUND,
+            Self::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
+            Self::Unauthorized => StatusCode::UNAUTHORIZED,
+            Self::Forbidden => StatusCode::FORBIDDEN,
+            Self::RequestTimeout => StatusCode::REQUEST_TIMEOUT,
+            Self::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
+            Self::UnsupportedMedia => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            Self::BadImage | Self::BadDepth | Self::BadCamera | Self::BadInput => {
+                StatusCode::UNPROCESSABLE_ENTITY
+            }
+            Self::TooManyRequests => StatusCode::TOO_MANY_REQUESTS,
+            Self::Overloaded | Self::NotReady | Self::Timeout => StatusCode::SERVICE_UNAVAILABLE,
+            Self::Internal => StatusCode::INTERNAL_SERVER_ERROR,
+        }
+    }
+
+    /// The code as it appears on the wire (`bad_image`, ...).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::BadRequest => "bad_request",
+            Self::NotFound => "not_found",
+            Self::MethodNotAllowed => "method_not_allowed",
+            Self::Unauthorized => "unauthorized",
+            Self::Forbidden => "forbidden",
+            Self::RequestTimeout => "request_timeout",
+            Self::TooLarge => "too_large",
+            Self::UnsupportedMedia => "unsupported_media",
+            Self::BadImage => "bad_image",
+            Self::BadDepth => "bad_depth",
+            Self::BadCamera => "bad_camera",
+            Self::BadInput => "bad_input",
+            Self::TooManyRequests => "too_many_requests",
+            Self::Overloaded => "overloaded",
+            Self::NotReady => "not_ready",
+            Self::Timeout => "timeout",
+            Self::Internal => "internal",
+        }
+    }
+
+    /// Whether the client may retry later (answered with `Retry-After`).
+    pub fn retryable(self) -> bool {
+        matches!(
+            self,
+            Self::TooManyRequests | Self::Overloaded | Self::NotReady | Self::Timeout
+        )
+    }
+
+    /// Every code, for metrics and documentation.
+    pub const ALL: [ErrorCode; 17] = [
+        Self::BadRequest,
+        Self::NotFound,
+        Self::MethodNotAllowed,
+        Self::Unauthorized,
+        Self::Forbidden,
+        Self::RequestTimeout,
+        Self::TooLarge,
+        Self::UnsupportedMedia,
+        Self::BadImage,
+        Self::BadDepth,
+        Self::BadCamera,
+        Self::BadInput,
+        Self::TooManyRequests,
+        Self::Overloaded,
+        Self::NotReady,
+        Self::Timeout,
+        Self::Internal,
+    ];
+}
+
+/// An error answered to a client.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{}: {message}", code.as_str())]
+pub struct ApiError {
+    /// What kind of error.
+    pub code: ErrorCode,
+    /// What went wrong, for a person.
+    pub message: String,
+}
+
+/// Longest message an error carries, characters: messages quote what the client sent (a
+/// query, a field name), and a client must not be able to make the server echo megabytes.
+pub const MAX_MESSAGE_CHARS: usize = 400;
+
+impl ApiError {
+    /// An error with `code` and `message`, cut to [`MAX_MESSAGE_CHARS`].
+    pub fn new(code: ErrorCode, message: impl Into<String>) -> Self {
+        let message = message.into();
+        let message = match super::refusals::cap(&message, MAX_MESSAGE_CHARS) {
+            std::borrow::Cow::Borrowed(_) => message,
+            std::borrow::Cow::Owned(cut) => cut,
+        };
+        Self { code, message }
+    }
+}
+
+/// What a refused request was refused for, left in its response's extensions so that the
+/// request-id layer logs it ([`super::access`]).
+#[derive(Debug, Clone)]
+pub struct Refused(pub ApiError);
+
+impl From<PipelineError> for ApiError {
+    fn from(e: PipelineError) -> Self {
+        let code = match &e {
+            PipelineError::EmptyImage { .. } => ErrorCode::BadImage,
+            PipelineError::TooLarge { .. } => ErrorCode::TooLarge,
+            PipelineError::DepthSizeMismatch { .. } => ErrorCode::BadDepth,
+            PipelineError::MissingInput { .. }
+            | PipelineError::ModelsRequired { .. }
+            | PipelineError::BadWorkingSize { .. }
+            | PipelineError::BadHypotheses { .. }
+            | PipelineError::NoSensorDepth { .. } => ErrorCode::BadInput,
+            PipelineError::NoSensorModel { .. } => ErrorCode::BadCamera,
+            // Intrinsics that pass the camera's own checks but not once scaled to the working
+            // size (a focal length of 1e308 overflows): still the camera's fault.
+            PipelineError::Geometry(GeometryError::ImplausibleIntrinsics { .. }) => {
+                return Self::new(ErrorCode::BadCamera, format!("camera: {e}"))
+            }
+            PipelineError::Geometry(
+                GeometryError::BadFocalLength { .. } | GeometryError::BadPrincipalPoint { .. },
+            ) => {
+                return Self::new(
+                    ErrorCode::BadCamera,
+                    format!("camera, once scaled to the working size: {e}"),
+                )
+            }
+            _ => ErrorCode::Internal,
+        };
+        Self::new(code, e.to_string())
+    }
+}
+
+/// Seconds a refused client should wait before retrying.
+pub const RETRY_AFTER_S: u32 = 1;
+
+#[derive(Serialize)]
+struct Body<'a> {
+    error: Inner<'a>,
+}
+
+#[derive(Serialize)]
+struct Inner<'a> {
+    code: &'static str,
+    message: &'a str,
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let body = Body {
+            error: Inner {
+                code: self.code.as_str(),
+                message: &self.message,
+            },
+        };
+        let json = serde_json::to_vec(&body).unwrap_or_else(|_| b"{}".to_vec());
+        let mut resp = (
+            self.code.status(),
+            [(header::CONTENT_TYPE, "application/json")],
+            json,
+        )
+            .into_response();
+        if self.code.retryable() {
+            resp.headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_S));
+        }
+        if self.code == ErrorCode::Unauthorized {
+            resp.headers_mut().insert(
+                header::WWW_AUTHENTICATE,
+                HeaderValue::from_static("Bearer realm=\"tre\""),
+            );
+        }
+        resp.extensions_mut().insert(Refused(self));
+        resp
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_code_has_a_distinct_name_and_an_error_status() {
+        let mut names: Vec<_> = ErrorCode::ALL.iter().map(|c| c.as_str()).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), ErrorCode::ALL.len());
+        for code in ErrorCode::ALL {
+            let status = code.status().as_u16();
+            assert!((400..600).contains(&status), "{code:?} → {status}");
+            assert_eq!(code.retryable(), status == 429 || status == 503);
+        }
+    }
+
+    #[test]
+    fn messages_are_capped() {
+        let e = ApiError::new(ErrorCode::BadRequest, "x".repeat(100_000));
+        assert_eq!(e.message.chars().count(), MAX_MESSAGE_CHARS + 1);
+        let short = ApiError::new(ErrorCode::BadRequest, "short");
+        assert_eq!(short.message, "short");
+    }
+}

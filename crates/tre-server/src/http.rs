@@ -1,0 +1,646 @@
+//! HTTP handlers: `POST /v1/roughness` and the operational endpoints (`/healthz`, `/readyz`,
+//! `/metrics`, `/v1/models`, `/openapi.json`, the demo page at `/`).
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use axum::body::{Body, Bytes, HttpBody};
+use axum::extract::{FromRequest, Multipart, Query, Request, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+use http_body_util::BodyExt;
+use serde::Deserialize;
+
+use super::error::{ApiError, ErrorCode};
+use super::metrics::Gauges;
+use super::request::{
+    check_camera_ranges, image_header, strict_camera, DecodeLimits, Extras, Format, FrameOptions,
+    FrameReply, FrameRequest, SCALE_M,
+};
+use super::{AppState, OVERSIZE_READ_FACTOR};
+use tre_io::CameraFile;
+use tre_pipeline::{check_dsac_hypotheses, Mode, NormalsMethod, Traversability};
+
+/// Query of `POST /v1/roughness`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RoughnessQuery {
+    /// `png16` (default), `color` or `npy`.
+    format: Option<String>,
+    /// `rgb`, `rgbd` or `geometric`; default from the inputs.
+    mode: Option<String>,
+    /// DSAC seed.
+    seed: Option<u64>,
+    /// Initial normals, `dsac` or `ls`.
+    normals: Option<String>,
+    /// DSAC hypotheses per pixel, 1 to 64.
+    dsac_hypotheses: Option<u32>,
+    /// Top of the colour scale, centimetres.
+    preview_max_cm: Option<f64>,
+    /// Extra maps, comma-separated: `depth,normals,slope,traversable,boundary`.
+    outputs: Option<String>,
+    /// Traversability: the largest roughness, centimetres (default 5).
+    max_roughness_cm: Option<f64>,
+    /// Traversability: the steepest slope, degrees (default 20).
+    max_slope_deg: Option<f64>,
+    fx: Option<f64>,
+    fy: Option<f64>,
+    cx: Option<f64>,
+    cy: Option<f64>,
+    pitch_deg: Option<f64>,
+    height_m: Option<f64>,
+    depth_scale: Option<f64>,
+    /// Depth sensor noise model (a preset or `a,b,c` mm), overriding the camera's `sensor`.
+    sensor: Option<String>,
+}
+
+fn bad(msg: impl Into<String>) -> ApiError {
+    ApiError::new(ErrorCode::BadRequest, msg)
+}
+
+impl RoughnessQuery {
+    /// The options, checked.
+    fn options(&self) -> Result<FrameOptions, ApiError> {
+        let format = match self.format.as_deref() {
+            None | Some("png16") => Format::Png16,
+            Some("color" | "colour") => Format::Color,
+            Some("npy") => Format::Npy,
+            Some(f) => {
+                return Err(bad(format!(
+                    "format: expected png16, color or npy, got {f:?}"
+                )))
+            }
+        };
+        let mode = match self.mode.as_deref() {
+            None => None,
+            Some("rgb") => Some(Mode::Rgb),
+            Some("rgbd") => Some(Mode::Rgbd),
+            Some("geometric") => Some(Mode::Geometric),
+            Some(m) => {
+                return Err(bad(format!(
+                    "mode: expected rgb, rgbd or geometric, got {m:?}"
+                )))
+            }
+        };
+        let normals = match self.normals.as_deref() {
+            None => None,
+            Some("dsac") => Some(NormalsMethod::Dsac),
+            Some("ls") => Some(NormalsMethod::Ls),
+            Some(n) => return Err(bad(format!("normals: expected dsac or ls, got {n:?}"))),
+        };
+        let dsac_hypotheses = self
+            .dsac_hypotheses
+            .map(check_dsac_hypotheses)
+            .transpose()
+            .map_err(|e| bad(format!("dsac_hypotheses: {e}")))?;
+        let mut extras = Extras::default();
+        for name in self
+            .outputs
+            .iter()
+            .flat_map(|o| o.split(','))
+            .filter(|s| !s.is_empty())
+        {
+            match name {
+                "depth" => extras.depth = true,
+                "normals" => extras.normals = true,
+                "slope" => extras.slope = true,
+                "traversable" => extras.traversable = true,
+                "boundary" => extras.boundary = true,
+                "uncertainty" => extras.uncertainty = true,
+                "traversal" => extras.traversal = true,
+                other => {
+                    let known =
+                        "depth, normals, slope, traversable, boundary, uncertainty, traversal";
+                    return Err(bad(format!("outputs: unknown map {other:?} ({known})")));
+                }
+            }
+        }
+        if let Some(cm) = self.preview_max_cm.filter(|c| !(c.is_finite() && *c > 0.0)) {
+            return Err(bad(format!("preview_max_cm: must be positive, got {cm}")));
+        }
+        Ok(FrameOptions {
+            mode,
+            format,
+            seed: self.seed.unwrap_or(0),
+            normals,
+            dsac_hypotheses,
+            preview_max_m: self.preview_max_cm.map(|c| c / 100.0),
+            extras,
+            traversable_bytes: false,
+            traversability: Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
+                .map_err(bad)?,
+            sensor: self
+                .sensor
+                .as_deref()
+                .map(str::parse)
+                .transpose()
+                .map_err(|e: String| bad(format!("sensor: {e}")))?,
+            traversal_bytes: false,
+            uncertainty_f32: false,
+        })
+    }
+
+    /// Camera from the query (all four intrinsics, or none of them).
+    fn camera(&self, limits: DecodeLimits) -> Result<Option<CameraFile>, ApiError> {
+        let k = [self.fx, self.fy, self.cx, self.cy];
+        let any = k.iter().any(Option::is_some)
+            || self.pitch_deg.is_some()
+            || self.height_m.is_some()
+            || self.depth_scale.is_some();
+        if !any {
+            return Ok(None);
+        }
+        let [Some(fx), Some(fy), Some(cx), Some(cy)] = k else {
+            return Err(ApiError::new(
+                ErrorCode::BadCamera,
+                "camera: give all of fx, fy, cx, cy",
+            ));
+        };
+        let cam = CameraFile {
+            fx,
+            fy,
+            cx,
+            cy,
+            width: None,
+            height: None,
+            depth_scale: self.depth_scale,
+            pitch_deg: self.pitch_deg,
+            height_m: self.height_m,
+            sensor: None,
+        };
+        check_camera_ranges(&cam, limits)?;
+        Ok(Some(cam))
+    }
+}
+
+/// `POST /v1/roughness`.
+pub async fn roughness(State(app): State<Arc<AppState>>, req: Request) -> Response {
+    let start = Instant::now();
+    match roughness_inner(&app, req).await {
+        Ok(reply) => {
+            app.metrics
+                .request("roughness", "ok", Some(start.elapsed()));
+            reply_response(reply)
+        }
+        Err(e) => {
+            app.metrics.request("roughness", e.code.as_str(), None);
+            // Refusals are logged, rate-limited, by the access layer.
+            if e.code == ErrorCode::Internal {
+                tracing::error!(error = %e.message, "request failed");
+            }
+            e.into_response()
+        }
+    }
+}
+
+async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, ApiError> {
+    // The body has its own deadline (408), and a request takes a `--max-concurrent` place only
+    // once its body is in: clients still uploading, however slowly, hold none of the places
+    // that ready requests need (they are bounded by `--max-connections` and this deadline).
+    let body_timeout = app.cfg.body_timeout;
+    let query = match req.uri().query() {
+        None => Ok(RoughnessQuery::default()),
+        Some(q) => Query::<RoughnessQuery>::try_from_uri(req.uri())
+            .map(|Query(q)| q)
+            .map_err(|e| bad(format!("query {q:?}: {}", e.body_text()))),
+    };
+    // The body is read before a bad query is answered: a client still sending it would
+    // otherwise meet a closed connection instead of the error.
+    let mut frame = tokio::time::timeout(body_timeout, read_body(app, req))
+        .await
+        .map_err(|_| {
+            ApiError::new(
+                ErrorCode::RequestTimeout,
+                format!(
+                    "the body did not arrive within {} ms (--body-timeout-ms)",
+                    body_timeout.as_millis()
+                ),
+            )
+        })??;
+    let timeout = app.cfg.request_timeout;
+    let deadline = tokio::time::Instant::now() + timeout;
+    let _permit = app.concurrency.clone().try_acquire_owned().map_err(|_| {
+        ApiError::new(
+            ErrorCode::TooManyRequests,
+            format!(
+                "more than {} requests at once (--max-concurrent); retry later",
+                app.cfg.max_concurrent
+            ),
+        )
+    })?;
+    let query = query?;
+    frame.options = query.options()?;
+    match (&frame.camera, query.camera(app.cfg.decode_limits())?) {
+        (Some(_), Some(_)) => {
+            return Err(bad(
+                "the camera is given both in the query and as a multipart part; give it once",
+            ))
+        }
+        (None, from_query) => frame.camera = from_query,
+        (Some(_), None) => {}
+    }
+    check_shapes(&frame, app.cfg.decode_limits())?;
+    let rx = app.workers.submit(frame)?;
+    match tokio::time::timeout_at(deadline, rx).await {
+        Ok(Ok((result, _queued))) => result,
+        Ok(Err(_)) => Err(ApiError::new(
+            ErrorCode::Internal,
+            "the worker stopped before answering",
+        )),
+        Err(_) => Err(ApiError::new(
+            ErrorCode::Timeout,
+            format!(
+                "no answer within {} ms of the body's arrival (--request-timeout-ms)",
+                timeout.as_millis()
+            ),
+        )),
+    }
+}
+
+/// The images' shapes from their headers, before the frame takes a place in the queue: a
+/// frame beyond the limits is refused at once rather than when a worker reaches it. (The
+/// worker checks again, and checks `.npy` depth, whose shape comes with its parsing.)
+pub(crate) fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result<(), ApiError> {
+    if let Some(rgb) = &frame.rgb {
+        image_header("rgb", rgb, limits)?;
+    }
+    if let Some(depth) = frame
+        .depth
+        .as_ref()
+        .filter(|d| !d.starts_with(b"\x93NUMPY"))
+    {
+        match image_header("depth", depth, limits) {
+            Err(e) if e.code == ErrorCode::TooLarge || e.message.contains("(--max-") => {
+                return Err(e)
+            }
+            // Other depth errors are answered by the worker, saying what depth may be.
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Reads the body within the byte limit: a bare image, or multipart with `rgb`, `depth`,
+/// `camera`.
+async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiError> {
+    let content_type = req
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("")
+        .to_owned();
+    let pace = BodyPace::new(app.cfg.min_body_rate);
+    let bytes = read_within(req.into_body(), app.cfg.max_body_bytes, pace).await?;
+    parse_body(&content_type, bytes, app.cfg.decode_limits()).await
+}
+
+/// The frame a body of `content_type` carries: a bare image, or multipart with `rgb`, `depth`,
+/// `camera` (the camera checked with [`strict_camera`]). The images are not decoded here.
+pub async fn parse_body(
+    content_type: &str,
+    bytes: Bytes,
+    limits: DecodeLimits,
+) -> Result<FrameRequest, ApiError> {
+    // The boundary keeps its case (browsers' mix both); only the type is compared lowercase.
+    let lower = content_type.to_ascii_lowercase();
+    if lower.starts_with("multipart/form-data") {
+        let req = Request::builder()
+            .header(header::CONTENT_TYPE, content_type)
+            .body(Body::from(bytes))
+            .map_err(|e| bad(format!("multipart: {e}")))?;
+        let multipart = Multipart::from_request(req, &())
+            .await
+            .map_err(|e| bad(format!("multipart: {}", e.body_text())))?;
+        return read_multipart(multipart, limits).await;
+    }
+    let image_type = [
+        "",
+        "image/png",
+        "image/jpeg",
+        "image/jpg",
+        "application/octet-stream",
+    ];
+    let essence = lower.split(';').next().unwrap_or("").trim();
+    if !image_type.contains(&essence) {
+        return Err(ApiError::new(
+            ErrorCode::UnsupportedMedia,
+            format!("Content-Type {essence:?}: send image/png, image/jpeg or multipart/form-data"),
+        ));
+    }
+    Ok(FrameRequest {
+        rgb: Some(bytes.to_vec()),
+        ..FrameRequest::default()
+    })
+}
+
+/// The body, if it has at most `limit` bytes and arrives at `pace`; a 413 otherwise, once the
+/// rest has been read (up to [`OVERSIZE_READ_FACTOR`] × `limit`) and discarded, or at once when
+/// the declared length is beyond that; a 408 when it falls below the pace.
+async fn read_within(mut body: Body, limit: usize, mut pace: BodyPace) -> Result<Bytes, ApiError> {
+    let most = limit.saturating_mul(OVERSIZE_READ_FACTOR);
+    let too_large = || {
+        ApiError::new(
+            ErrorCode::TooLarge,
+            format!("the body is larger than the limit of {limit} bytes"),
+        )
+    };
+    // The declared length, if any, sizes the buffer once (never beyond the limit).
+    let declared = usize::try_from(body.size_hint().lower()).unwrap_or(usize::MAX);
+    if declared > most {
+        return Err(too_large());
+    }
+    let mut kept = Vec::with_capacity(declared.min(limit));
+    let mut seen = 0usize;
+    while seen <= most {
+        let next = match pace.deadline() {
+            None => body.frame().await,
+            Some(at) => match tokio::time::timeout_at(at, body.frame()).await {
+                Ok(next) => next,
+                Err(_) => {
+                    pace.check(0, tokio::time::Instant::now())?;
+                    continue;
+                }
+            },
+        };
+        let Some(frame) = next else {
+            break;
+        };
+        let frame = frame.map_err(|e| bad(format!("reading the body: {e}")))?;
+        let Ok(data) = frame.into_data() else {
+            continue;
+        };
+        pace.check(data.len(), tokio::time::Instant::now())?;
+        seen = seen.saturating_add(data.len());
+        if seen <= limit {
+            kept.extend_from_slice(&data);
+        }
+    }
+    if seen > limit {
+        return Err(too_large());
+    }
+    Ok(Bytes::from(kept))
+}
+
+/// Window over which a body's rate is averaged (`--min-body-rate`); the first one is the grace
+/// a client has before its rate counts.
+pub const BODY_RATE_WINDOW: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// The pace a body must keep: on average at least `--min-body-rate` bytes a second over each
+/// [`BODY_RATE_WINDOW`] from the headers on (a tumbling window: a body sent quickly and then
+/// stopped is caught one window later, not after its earlier bytes have been used up).
+#[derive(Debug, Clone, Copy)]
+struct BodyPace {
+    /// Bytes a second; 0: no pace.
+    min_bytes_per_s: u64,
+    /// Start of the current window.
+    since: tokio::time::Instant,
+    /// Bytes in it.
+    bytes: usize,
+}
+
+impl BodyPace {
+    fn new(min_bytes_per_s: u64) -> Self {
+        Self {
+            min_bytes_per_s,
+            since: tokio::time::Instant::now(),
+            bytes: 0,
+        }
+    }
+
+    /// When the current window ends; `None` without a pace.
+    fn deadline(&self) -> Option<tokio::time::Instant> {
+        (self.min_bytes_per_s > 0).then(|| self.since + BODY_RATE_WINDOW)
+    }
+
+    /// Counts `n` bytes arrived at `now`; at the end of a window, a 408 if it held too few,
+    /// else the next window starts.
+    fn check(&mut self, n: usize, now: tokio::time::Instant) -> Result<(), ApiError> {
+        self.bytes = self.bytes.saturating_add(n);
+        if self.deadline().is_none_or(|end| now < end) {
+            return Ok(());
+        }
+        let secs = (now - self.since).as_secs_f64();
+        let rate = self.bytes as f64 / secs;
+        if rate < self.min_bytes_per_s as f64 {
+            return Err(ApiError::new(
+                ErrorCode::RequestTimeout,
+                format!(
+                    "the body arrived at {rate:.0} bytes/s over {secs:.1} s, below the minimum of {} bytes/s (--min-body-rate)",
+                    self.min_bytes_per_s
+                ),
+            ));
+        }
+        self.since = now;
+        self.bytes = 0;
+        Ok(())
+    }
+}
+
+async fn read_multipart(mut m: Multipart, limits: DecodeLimits) -> Result<FrameRequest, ApiError> {
+    let mut frame = FrameRequest::default();
+    while let Some(field) = m
+        .next_field()
+        .await
+        .map_err(|e| bad(format!("multipart: {}", e.body_text())))?
+    {
+        let name = field.name().unwrap_or("").to_owned();
+        let data = field
+            .bytes()
+            .await
+            .map_err(|e| bad(format!("multipart field {name:?}: {}", e.body_text())))?;
+        match name.as_str() {
+            "rgb" => set_once(&mut frame.rgb, &name, || Ok(data.to_vec()))?,
+            "depth" => set_once(&mut frame.depth, &name, || Ok(data.to_vec()))?,
+            "camera" => set_once(&mut frame.camera, &name, || strict_camera(&data, limits))?,
+            other => {
+                return Err(bad(format!(
+                    "multipart: unknown field {other:?} (rgb, depth, camera)"
+                )))
+            }
+        }
+    }
+    if frame.rgb.is_none() && frame.depth.is_none() {
+        return Err(bad("multipart: give an `rgb` part, a `depth` part or both"));
+    }
+    Ok(frame)
+}
+
+/// Fills the slot of multipart part `name` with `value()`, unless the part came before.
+fn set_once<T>(
+    slot: &mut Option<T>,
+    name: &str,
+    value: impl FnOnce() -> Result<T, ApiError>,
+) -> Result<(), ApiError> {
+    if slot.is_some() {
+        return Err(bad(format!(
+            "multipart: the {name:?} part is given twice; send each part once"
+        )));
+    }
+    *slot = Some(value()?);
+    Ok(())
+}
+
+/// `Server-Timing` value: one entry per stage, milliseconds.
+pub fn server_timing(reply: &FrameReply) -> String {
+    reply
+        .timings
+        .iter()
+        .map(|(stage, d)| format!("{stage};dur={:.2}", d.as_secs_f64() * 1e3))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn reply_response(reply: FrameReply) -> Response {
+    let mut headers = HeaderMap::new();
+    let mut set = |name: &'static str, value: String| {
+        if let Ok(v) = HeaderValue::from_str(&value) {
+            headers.insert(name, v);
+        }
+    };
+    set("x-roughness-scale-m", SCALE_M.to_string());
+    set("x-image-width", reply.size.0.to_string());
+    set("x-image-height", reply.size.1.to_string());
+    set(
+        "x-working-size",
+        format!("{}x{}", reply.working_size.0, reply.working_size.1),
+    );
+    set("server-timing", server_timing(&reply));
+    if reply.extras.is_empty() {
+        set("content-type", reply.format.content_type().into());
+        return (StatusCode::OK, headers, reply.roughness).into_response();
+    }
+    let boundary = format!(
+        "tre-{:016x}",
+        tre_core::geometry::hash::splitmix64(reply.roughness.len() as u64 ^ 0x5eed)
+    );
+    set(
+        "content-type",
+        format!("multipart/mixed; boundary={boundary}"),
+    );
+    let name = match reply.format {
+        Format::Png16 | Format::Color => "roughness.png",
+        Format::Npy | Format::F32 => "roughness.npy",
+    };
+    let mut body = Vec::new();
+    let mut part = |field: &str, file: &str, ct: &str, bytes: &[u8]| {
+        body.extend_from_slice(format!("--{boundary}\r\nContent-Disposition: attachment; name=\"{field}\"; filename=\"{file}\"\r\nContent-Type: {ct}\r\n\r\n").as_bytes());
+        body.extend_from_slice(bytes);
+        body.extend_from_slice(b"\r\n");
+    };
+    part(
+        "roughness",
+        name,
+        reply.format.content_type(),
+        &reply.roughness,
+    );
+    for p in &reply.extras {
+        part(p.name, p.filename, p.content_type, &p.bytes);
+    }
+    body.extend_from_slice(format!("--{boundary}--\r\n").as_bytes());
+    (StatusCode::OK, headers, body).into_response()
+}
+
+/// Any other path: a JSON 404.
+pub async fn not_found(uri: axum::http::Uri) -> Response {
+    let why = format!("no route {}; see /openapi.json", uri.path());
+    ApiError::new(ErrorCode::NotFound, why).into_response()
+}
+
+/// A known path with another method: a JSON 405.
+pub async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) -> Response {
+    let why = format!(
+        "{method} is not allowed on {}; see /openapi.json",
+        uri.path()
+    );
+    ApiError::new(ErrorCode::MethodNotAllowed, why).into_response()
+}
+
+/// `GET /healthz`: the process is up.
+pub async fn healthz() -> impl IntoResponse {
+    (
+        StatusCode::OK,
+        [(header::CONTENT_TYPE, "application/json")],
+        r#"{"status":"ok"}"#,
+    )
+}
+
+/// `GET /readyz`: 200 once every worker has loaded and warmed up its models.
+pub async fn readyz(State(app): State<Arc<AppState>>) -> Response {
+    if app.workers.ready() {
+        (
+            StatusCode::OK,
+            [(header::CONTENT_TYPE, "application/json")],
+            r#"{"status":"ready"}"#,
+        )
+            .into_response()
+    } else {
+        ApiError::new(
+            ErrorCode::NotReady,
+            "models loading or warming up, or shutting down",
+        )
+        .into_response()
+    }
+}
+
+/// `GET /metrics`: Prometheus text.
+pub async fn metrics(State(app): State<Arc<AppState>>) -> impl IntoResponse {
+    let text = app.metrics.render(Gauges {
+        queue_depth: app.workers.queue_depth(),
+        queue_capacity: app.workers.capacity(),
+        workers: app.workers.count(),
+        ready: app.workers.ready(),
+    });
+    ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], text)
+}
+
+/// `GET /v1/models`: the manifest the workers loaded.
+pub async fn models(State(app): State<Arc<AppState>>) -> impl IntoResponse {
+    (
+        [(header::CONTENT_TYPE, "application/json")],
+        app.manifest_json.clone(),
+    )
+}
+
+/// The OpenAPI document of the service.
+pub const OPENAPI: &str = include_str!("openapi.json");
+
+/// `GET /openapi.json`.
+pub async fn openapi() -> impl IntoResponse {
+    ([(header::CONTENT_TYPE, "application/json")], OPENAPI)
+}
+
+/// The demo page.
+pub const DEMO_PAGE: &str = include_str!("demo/index.html");
+
+/// `GET /`: the demo page.
+pub async fn demo() -> impl IntoResponse {
+    (
+        [(header::CONTENT_TYPE, "text/html; charset=utf-8")],
+        DEMO_PAGE,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    /// Within a window nothing is judged; at its end, too few bytes is a 408 naming the option,
+    /// enough starts the next window afresh (earlier bytes do not carry over).
+    #[test]
+    fn body_pace_judges_each_window() {
+        let mut pace = BodyPace::new(1024);
+        let t0 = pace.since;
+        assert_eq!(pace.deadline(), Some(t0 + BODY_RATE_WINDOW));
+        pace.check(10, t0 + Duration::from_secs(1)).unwrap();
+        pace.check(6000, t0 + BODY_RATE_WINDOW).unwrap();
+        assert_eq!((pace.since, pace.bytes), (t0 + BODY_RATE_WINDOW, 0));
+        let e = pace.check(100, t0 + 2 * BODY_RATE_WINDOW).unwrap_err();
+        assert_eq!(e.code, ErrorCode::RequestTimeout);
+        assert!(e.message.contains("--min-body-rate"), "{e}");
+        assert!(e.message.contains("20 bytes/s"), "{e}");
+        let mut off = BodyPace::new(0);
+        assert_eq!(off.deadline(), None);
+        off.check(0, t0 + Duration::from_secs(3600)).unwrap();
+    }
+}

@@ -1,0 +1,393 @@
+//! The edge between the stream's protobuf messages and the service's domain types: `TryFrom`
+//! conversions whose errors name the bad field, and the builders of server messages.
+
+use prost::Message;
+
+use super::error::{ApiError, ErrorCode};
+use super::request::{Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
+use tre_core::roughness::noise::SensorNoise;
+use tre_io::{CameraFile, SensorSpec};
+use tre_pipeline::{check_dsac_hypotheses, Mode, NormalsMethod, Traversability};
+use tre_proto::v1 as pb;
+
+/// A stream's settings from its Hello.
+#[derive(Debug, Clone, Default)]
+pub struct StreamSettings {
+    /// Camera of every frame that does not bring its own.
+    pub camera: Option<CameraFile>,
+    /// Options of every frame.
+    pub options: FrameOptions,
+}
+
+/// A frame from the stream, with the fields echoed in its answer.
+#[derive(Debug, Clone)]
+pub struct StreamFrame {
+    /// The client's sequence number.
+    pub sequence: u64,
+    /// The client's timestamp, echoed.
+    pub timestamp_us: i64,
+    /// The frame's own camera, overriding the Hello's.
+    pub camera: Option<CameraFile>,
+    /// Encoded image (empty: none).
+    pub image: Vec<u8>,
+    /// Encoded depth (empty: none).
+    pub depth: Vec<u8>,
+}
+
+impl StreamFrame {
+    /// The request to run, given the stream's settings.
+    pub fn into_request(self, settings: &StreamSettings) -> FrameRequest {
+        FrameRequest {
+            rgb: (!self.image.is_empty()).then_some(self.image),
+            depth: (!self.depth.is_empty()).then_some(self.depth),
+            camera: self.camera.or_else(|| settings.camera.clone()),
+            options: settings.options,
+        }
+    }
+}
+
+/// What a client message turns into.
+#[derive(Debug)]
+pub enum Incoming {
+    /// New settings.
+    Hello(StreamSettings),
+    /// A frame.
+    Frame(StreamFrame),
+}
+
+fn bad(field: &str, why: impl std::fmt::Display) -> ApiError {
+    ApiError::new(ErrorCode::BadRequest, format!("{field}: {why}"))
+}
+
+/// The camera message's sensor: coefficients when given, else the name (a preset, or a
+/// description).
+fn sensor_from_pb(name: Option<String>, sigma_mm: &[f64]) -> Result<Option<SensorSpec>, ApiError> {
+    let bad_camera = |why: String| ApiError::new(ErrorCode::BadCamera, why);
+    match (sigma_mm, name) {
+        ([], None) => Ok(None),
+        ([], Some(n)) => SensorSpec::from_json(n.into())
+            .map(Some)
+            .map_err(bad_camera),
+        (&[a, b, c], _) => SensorNoise::coefficients([a, b, c])
+            .map(|m| Some(SensorSpec::Model(m)))
+            .map_err(|e| bad_camera(format!("camera.{e}"))),
+        (other, _) => Err(bad_camera(format!(
+            "camera.sensor_sigma_mm: give exactly three coefficients [a, b, c], got {}",
+            other.len()
+        ))),
+    }
+}
+
+/// A stream message's camera as the camera file it stands for (the same checks as a file).
+fn camera_from_pb(c: pb::Camera) -> Result<CameraFile, ApiError> {
+    let cam = CameraFile {
+        fx: c.fx,
+        fy: c.fy,
+        cx: c.cx,
+        cy: c.cy,
+        width: c.width.map(|w| w as usize),
+        height: c.height.map(|h| h as usize),
+        depth_scale: c.depth_scale,
+        pitch_deg: c.pitch_deg,
+        height_m: c.height_m,
+        sensor: sensor_from_pb(c.sensor, &c.sensor_sigma_mm)?,
+    };
+    let camera = |e| ApiError::new(ErrorCode::BadCamera, format!("camera: {e}"));
+    cam.intrinsics().map_err(camera)?;
+    cam.mounting().map_err(camera)?;
+    // The stated size is checked against each frame's; the side limit is the frame's.
+    let ranges = super::request::DecodeLimits {
+        max_side: usize::MAX,
+        ..super::request::DecodeLimits::default()
+    };
+    super::request::check_camera_ranges(&cam, ranges)?;
+    if let Some(s) = cam.depth_scale.filter(|s| !(s.is_finite() && *s > 0.0)) {
+        return Err(ApiError::new(
+            ErrorCode::BadCamera,
+            format!("camera.depth_scale: must be positive, got {s}"),
+        ));
+    }
+    Ok(cam)
+}
+
+impl TryFrom<pb::Hello> for StreamSettings {
+    type Error = ApiError;
+
+    fn try_from(h: pb::Hello) -> Result<Self, ApiError> {
+        let mode = match pb::Mode::try_from(h.mode)
+            .map_err(|_| bad("hello.mode", format!("unknown value {}", h.mode)))?
+        {
+            pb::Mode::Unspecified => None,
+            pb::Mode::Rgb => Some(Mode::Rgb),
+            pb::Mode::Rgbd => Some(Mode::Rgbd),
+            pb::Mode::Geometric => Some(Mode::Geometric),
+        };
+        let format = match pb::Format::try_from(h.format)
+            .map_err(|_| bad("hello.format", format!("unknown value {}", h.format)))?
+        {
+            pb::Format::Unspecified | pb::Format::Png16 => Format::Png16,
+            pb::Format::Color => Format::Color,
+            pb::Format::F32 => Format::F32,
+        };
+        let normals = match pb::Normals::try_from(h.normals)
+            .map_err(|_| bad("hello.normals", format!("unknown value {}", h.normals)))?
+        {
+            pb::Normals::Unspecified => None,
+            pb::Normals::Dsac => Some(NormalsMethod::Dsac),
+            pb::Normals::Ls => Some(NormalsMethod::Ls),
+        };
+        let dsac_hypotheses = match h.dsac_hypotheses {
+            0 => None,
+            k => Some(
+                check_dsac_hypotheses(k)
+                    .map_err(|e| bad("hello.dsac_hypotheses", e.to_string()))?,
+            ),
+        };
+        if let Some(m) = h.preview_max_m.filter(|m| !(m.is_finite() && *m > 0.0)) {
+            return Err(bad(
+                "hello.preview_max_m",
+                format!("must be positive, got {m}"),
+            ));
+        }
+        Ok(Self {
+            camera: h.camera.map(camera_from_pb).transpose()?,
+            options: FrameOptions {
+                mode,
+                format,
+                seed: h.seed,
+                normals,
+                dsac_hypotheses,
+                preview_max_m: h.preview_max_m,
+                traversable_bytes: h.want_traversable,
+                traversal_bytes: h.want_traversal,
+                uncertainty_f32: h.want_uncertainty,
+                traversability: Traversability::from_cm_deg(h.max_roughness_cm, h.max_slope_deg)
+                    .map_err(|e| ApiError::new(ErrorCode::BadRequest, format!("hello.{e}")))?,
+                ..FrameOptions::default()
+            },
+        })
+    }
+}
+
+impl TryFrom<pb::Frame> for StreamFrame {
+    type Error = ApiError;
+
+    fn try_from(f: pb::Frame) -> Result<Self, ApiError> {
+        if f.image.is_empty() && f.depth.is_empty() {
+            return Err(ApiError::new(
+                ErrorCode::BadRequest,
+                "frame: neither image nor depth is set",
+            ));
+        }
+        Ok(Self {
+            sequence: f.sequence,
+            timestamp_us: f.timestamp_us,
+            camera: f.camera.map(camera_from_pb).transpose()?,
+            image: f.image,
+            depth: f.depth,
+        })
+    }
+}
+
+/// Decodes one binary WebSocket message from a client. The error carries the frame's sequence
+/// number when the message was a frame.
+pub fn decode_client(bytes: &[u8]) -> Result<Incoming, (Option<u64>, ApiError)> {
+    let msg = pb::ClientMessage::decode(bytes).map_err(|e| {
+        (
+            None,
+            bad("message", format!("not a roughness.v1.ClientMessage: {e}")),
+        )
+    })?;
+    match msg.msg {
+        Some(pb::client_message::Msg::Hello(h)) => StreamSettings::try_from(h)
+            .map(Incoming::Hello)
+            .map_err(|e| (None, e)),
+        Some(pb::client_message::Msg::Frame(f)) => {
+            let seq = f.sequence;
+            StreamFrame::try_from(f)
+                .map(Incoming::Frame)
+                .map_err(|e| (Some(seq), e))
+        }
+        None => Err((
+            None,
+            bad("message", "empty ClientMessage (neither hello nor frame)"),
+        )),
+    }
+}
+
+/// The sequence number of a frame message, read without decoding the rest (for a message too
+/// large to decode, so that its error can still name the frame); `None` when `bytes` does not
+/// hold a frame. Decoding stays with [`decode_client`].
+pub fn peek_frame_sequence(mut bytes: &[u8]) -> Option<u64> {
+    use prost::encoding::{decode_key, decode_varint, WireType};
+    /// Skips one field's value of `wire` type.
+    fn skip(buf: &mut &[u8], wire: WireType) -> Option<()> {
+        let n = match wire {
+            WireType::Varint => return decode_varint(buf).ok().map(drop),
+            WireType::SixtyFourBit => 8,
+            WireType::ThirtyTwoBit => 4,
+            WireType::LengthDelimited => usize::try_from(decode_varint(buf).ok()?).ok()?,
+            WireType::StartGroup | WireType::EndGroup => return None,
+        };
+        *buf = buf.get(n..)?;
+        Some(())
+    }
+    while !bytes.is_empty() {
+        let (tag, wire) = decode_key(&mut bytes).ok()?;
+        if tag == 2 && wire == WireType::LengthDelimited {
+            // ClientMessage.frame: its sequence is field 1 (0 when absent, as proto3 decodes).
+            let len = usize::try_from(decode_varint(&mut bytes).ok()?).ok()?;
+            let mut frame = bytes.get(..len)?;
+            while !frame.is_empty() {
+                let (tag, wire) = decode_key(&mut frame).ok()?;
+                if tag == 1 && wire == WireType::Varint {
+                    return decode_varint(&mut frame).ok();
+                }
+                skip(&mut frame, wire)?;
+            }
+            return Some(0);
+        }
+        skip(&mut bytes, wire)?;
+    }
+    None
+}
+
+fn encode(msg: pb::server_message::Msg) -> Vec<u8> {
+    pb::ServerMessage { msg: Some(msg) }.encode_to_vec()
+}
+
+/// The Ready message.
+pub fn ready(max_message_bytes: usize, models: Vec<String>) -> Vec<u8> {
+    encode(pb::server_message::Msg::Ready(pb::Ready {
+        max_message_bytes: max_message_bytes as u64,
+        models,
+    }))
+}
+
+/// An Error message.
+pub fn error(sequence: Option<u64>, e: &ApiError) -> Vec<u8> {
+    encode(pb::server_message::Msg::Error(pb::Error {
+        sequence,
+        code: e.code.as_str().to_owned(),
+        message: e.message.clone(),
+    }))
+}
+
+/// A Dropped message.
+pub fn dropped(sequence: u64, dropped_total: u64) -> Vec<u8> {
+    encode(pb::server_message::Msg::Dropped(pb::Dropped {
+        sequence,
+        dropped_total,
+    }))
+}
+
+/// A Result message for `frame`'s answer.
+pub fn result(
+    sequence: u64,
+    timestamp_us: i64,
+    reply: FrameReply,
+    latency_ms: f64,
+    dropped_total: u64,
+) -> Vec<u8> {
+    let format = match reply.format {
+        Format::Png16 => pb::Format::Png16,
+        Format::Color => pb::Format::Color,
+        Format::Npy | Format::F32 => pb::Format::F32,
+    };
+    encode(pb::server_message::Msg::Result(pb::Result {
+        sequence,
+        timestamp_us,
+        width: reply.size.0 as u32,
+        height: reply.size.1 as u32,
+        format: format as i32,
+        scale_m: SCALE_M,
+        roughness: reply.roughness,
+        traversable: reply.traversable,
+        traversal: reply.traversal,
+        uncertainty: reply.uncertainty,
+        timings: reply
+            .timings
+            .iter()
+            .map(|(stage, d)| pb::StageTiming {
+                stage: stage.to_owned(),
+                ms: d.as_secs_f64() * 1e3,
+            })
+            .collect(),
+        latency_ms,
+        dropped_total,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_sequence_of_a_frame_is_read_without_decoding_it() {
+        let frame = |sequence| {
+            pb::ClientMessage {
+                msg: Some(pb::client_message::Msg::Frame(pb::Frame {
+                    sequence,
+                    timestamp_us: -5,
+                    image: vec![7; 300],
+                    depth: vec![1; 20],
+                    ..Default::default()
+                })),
+            }
+            .encode_to_vec()
+        };
+        for seq in [0, 1, 300, u64::MAX] {
+            assert_eq!(peek_frame_sequence(&frame(seq)), Some(seq));
+        }
+        // Fields in another order still work.
+        let mut reordered = Vec::new();
+        prost::encoding::bytes::encode(3, &vec![9u8; 40], &mut reordered);
+        prost::encoding::uint64::encode(1, &42, &mut reordered);
+        let mut outer = Vec::new();
+        prost::encoding::bytes::encode(2, &reordered, &mut outer);
+        assert_eq!(peek_frame_sequence(&outer), Some(42));
+        let hello = pb::ClientMessage {
+            msg: Some(pb::client_message::Msg::Hello(pb::Hello::default())),
+        };
+        assert_eq!(peek_frame_sequence(&hello.encode_to_vec()), None);
+        assert_eq!(peek_frame_sequence(&[0xFF, 0xFF, 0xFF]), None);
+        assert_eq!(peek_frame_sequence(&frame(5)[..10]), None);
+    }
+
+    #[test]
+    fn garbage_is_a_bad_request() {
+        let (seq, e) = decode_client(&[0xFF, 0xFF, 0xFF, 0x01, 0x02]).unwrap_err();
+        assert_eq!((seq, e.code), (None, ErrorCode::BadRequest));
+    }
+
+    #[test]
+    fn nonsense_camera_names_the_field() {
+        let hello = pb::ClientMessage {
+            msg: Some(pb::client_message::Msg::Hello(pb::Hello {
+                camera: Some(pb::Camera {
+                    fx: -1.0,
+                    fy: 500.0,
+                    cx: 1.0,
+                    cy: 1.0,
+                    ..Default::default()
+                }),
+                ..Default::default()
+            })),
+        };
+        let (_, e) = decode_client(&hello.encode_to_vec()).unwrap_err();
+        assert_eq!(e.code, ErrorCode::BadCamera);
+        assert!(e.message.starts_with("camera"), "{}", e.message);
+    }
+
+    #[test]
+    fn an_empty_frame_is_refused_with_its_sequence() {
+        let frame = pb::ClientMessage {
+            msg: Some(pb::client_message::Msg::Frame(pb::Frame {
+                sequence: 9,
+                ..Default::default()
+            })),
+        };
+        let (seq, e) = decode_client(&frame.encode_to_vec()).unwrap_err();
+        assert_eq!((seq, e.code), (Some(9), ErrorCode::BadRequest));
+    }
+}

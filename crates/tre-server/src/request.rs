@@ -1,0 +1,819 @@
+//! What a client asks for, in domain types (HTTP and stream requests both become a
+//! [`FrameRequest`]), and the worker-side steps around the pipeline: decoding the bytes under
+//! the limits, choosing the configuration, and encoding the maps for the answer.
+
+use std::io::Cursor;
+
+use image::{DynamicImage, ImageFormat, ImageReader};
+
+use super::error::{ApiError, ErrorCode};
+use tre_core::geometry::{Grid, Mounting};
+use tre_core::roughness::noise::SensorNoise;
+use tre_io::{self as io, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
+use tre_pipeline::{
+    FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, PipelineError, Traversability,
+    DEFAULT_DSAC_HYPOTHESES,
+};
+
+/// Encodings of the roughness map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Format {
+    /// 16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data (as `tre infer`).
+    #[default]
+    Png16,
+    /// 8-bit colour map PNG the frame's size (turbo, 0 to `preview_max_m`; dark grey: no data).
+    Color,
+    /// `(H, W)` float32 `.npy`, metres, NaN where there is no data.
+    Npy,
+    /// Raw little-endian float32, metres, row-major (the stream's `FORMAT_F32`).
+    F32,
+}
+
+impl Format {
+    /// MIME type of the encoded map.
+    pub fn content_type(self) -> &'static str {
+        match self {
+            Self::Png16 | Self::Color => "image/png",
+            Self::Npy | Self::F32 => "application/octet-stream",
+        }
+    }
+}
+
+/// Extra maps a client may ask for beside roughness.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Extras {
+    /// Depth used, 16-bit grey PNG in millimetres.
+    pub depth: bool,
+    /// Unit normals (camera frame), `(H, W, 3)` float32 `.npy`.
+    pub normals: bool,
+    /// Slope in the gravity frame, `(H, W)` float32 `.npy`, radians.
+    pub slope: bool,
+    /// Traversability mask, 8-bit grey PNG (255 = traversable).
+    pub traversable: bool,
+    /// Boundary mask (depth steps and creases), 8-bit grey PNG (255 = boundary).
+    pub boundary: bool,
+    /// Uncertainty (p95 of the roughness noise alone gives), 16-bit grey + alpha PNG at 0.1 mm
+    /// per unit, as roughness (modes with sensor depth and a noise model only).
+    pub uncertainty: bool,
+    /// Three-state traversability, 8-bit grey PNG: 0 unknown, 1 traversable, 2 hazard (as
+    /// `uncertainty`).
+    pub traversal: bool,
+}
+
+impl Extras {
+    /// Whether any extra map is asked for.
+    pub fn any(self) -> bool {
+        self.depth
+            || self.normals
+            || self.slope
+            || self.traversable
+            || self.boundary
+            || self.uncertainty
+            || self.traversal
+    }
+}
+
+/// How to run and answer one frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FrameOptions {
+    /// Input mode; `None`: rgbd with RGB and depth, geometric with depth alone, else rgb.
+    pub mode: Option<Mode>,
+    /// Encoding of the roughness map.
+    pub format: Format,
+    /// Seed of the DSAC sampler.
+    pub seed: u64,
+    /// Initial normals; `None`: the server's default (`tre serve --normals`).
+    pub normals: Option<NormalsMethod>,
+    /// DSAC hypotheses per pixel (checked: 1 to 64); `None`: the server's default
+    /// (`tre serve --dsac-hypotheses`).
+    pub dsac_hypotheses: Option<u32>,
+    /// Top of the colour preview's scale, metres (default 0.05).
+    pub preview_max_m: Option<f64>,
+    /// Extra maps.
+    pub extras: Extras,
+    /// The traversability mask as raw bytes (1 per pixel), for the stream.
+    pub traversable_bytes: bool,
+    /// Thresholds of the traversability mask.
+    pub traversability: Traversability,
+    /// The depth sensor's noise model, overriding the camera's `sensor`.
+    pub sensor: Option<SensorNoise>,
+    /// The three-state map as raw bytes (0 unknown, 1 traversable, 2 hazard), for the stream.
+    pub traversal_bytes: bool,
+    /// The uncertainty map as raw little-endian float32 metres, for the stream.
+    pub uncertainty_f32: bool,
+}
+
+impl FrameOptions {
+    /// Whether any sensor-noise map is asked for.
+    pub fn wants_sensor_maps(&self) -> bool {
+        self.extras.uncertainty
+            || self.extras.traversal
+            || self.traversal_bytes
+            || self.uncertainty_f32
+    }
+}
+
+/// A frame as received: encoded images and an unchecked camera.
+#[derive(Debug, Clone, Default)]
+pub struct FrameRequest {
+    /// PNG or JPEG bytes.
+    pub rgb: Option<Vec<u8>>,
+    /// 16-bit grey PNG or float `.npy` bytes.
+    pub depth: Option<Vec<u8>>,
+    /// Intrinsics, mounting and depth scale.
+    pub camera: Option<CameraFile>,
+    /// What to run and return.
+    pub options: FrameOptions,
+}
+
+/// Decoding limits, all checked from the header before any pixel is decoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DecodeLimits {
+    /// Largest image, pixels.
+    pub max_pixels: usize,
+    /// Longest side, pixels.
+    pub max_side: usize,
+    /// Largest ratio of the longer side to the shorter one.
+    pub max_aspect: usize,
+}
+
+impl Default for DecodeLimits {
+    fn default() -> Self {
+        Self {
+            max_pixels: 4 << 20,
+            max_side: 8192,
+            max_aspect: 8,
+        }
+    }
+}
+
+impl DecodeLimits {
+    /// Checks a `w`×`h` image (`what`: `rgb` or `depth`) against the limits: 422 `bad_image`
+    /// without pixels or beyond the aspect ratio, 413 `too_large` beyond the side or the
+    /// pixel count; each message names the limit and its option.
+    pub fn check_shape(&self, what: &str, w: usize, h: usize) -> Result<(), ApiError> {
+        let (long, short) = (w.max(h), w.min(h));
+        // A depth part's shape is a depth error, as the rest of what is wrong with depth.
+        let bad_shape = if what == "depth" {
+            ErrorCode::BadDepth
+        } else {
+            ErrorCode::BadImage
+        };
+        let pixels = (w as u64).saturating_mul(h as u64);
+        if short == 0 {
+            return Err(ApiError::new(
+                bad_shape,
+                format!("{what}: the image is {w}×{h}, it has no pixels"),
+            ));
+        }
+        if long > self.max_side {
+            return Err(ApiError::new(
+                ErrorCode::TooLarge,
+                format!(
+                    "{what}: the image is {w}×{h}, a side longer than the limit of {} pixels (--max-side)",
+                    self.max_side
+                ),
+            ));
+        }
+        if pixels > self.max_pixels as u64 {
+            return Err(ApiError::new(
+                ErrorCode::TooLarge,
+                format!(
+                    "{what}: the image is {w}×{h} = {pixels} pixels, more than the limit of {} (--max-pixels)",
+                    self.max_pixels
+                ),
+            ));
+        }
+        if long > short.saturating_mul(self.max_aspect) {
+            return Err(ApiError::new(
+                bad_shape,
+                format!(
+                    "{what}: the image is {w}×{h}, its longer side more than {} times the shorter (--max-aspect)",
+                    self.max_aspect
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One extra output map, encoded.
+#[derive(Debug, Clone)]
+pub struct Part {
+    /// `depth`, `normals`, `slope`, `traversable` or `boundary`.
+    pub name: &'static str,
+    /// Its MIME type.
+    pub content_type: &'static str,
+    /// Its file name (for multipart answers).
+    pub filename: &'static str,
+    /// The bytes.
+    pub bytes: Vec<u8>,
+}
+
+/// The answer to one frame.
+#[derive(Debug, Clone)]
+pub struct FrameReply {
+    /// `(width, height)` of the frame and the maps.
+    pub size: (usize, usize),
+    /// Size the stages ran at.
+    pub working_size: (usize, usize),
+    /// The roughness map, encoded.
+    pub roughness: Vec<u8>,
+    /// How it is encoded.
+    pub format: Format,
+    /// Extra maps, encoded.
+    pub extras: Vec<Part>,
+    /// Traversability, one byte per pixel (1 = traversable), if asked for as bytes.
+    pub traversable: Vec<u8>,
+    /// Three-state traversability, one byte per pixel, if asked for as bytes.
+    pub traversal: Vec<u8>,
+    /// Uncertainty, little-endian float32 metres, if asked for as bytes.
+    pub uncertainty: Vec<u8>,
+    /// Wall time of each stage.
+    pub timings: tre_pipeline::StageTimings,
+}
+
+/// PNG and JPEG magic numbers.
+fn sniff(bytes: &[u8]) -> Option<ImageFormat> {
+    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        Some(ImageFormat::Png)
+    } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        Some(ImageFormat::Jpeg)
+    } else {
+        None
+    }
+}
+
+/// Decodes `what` (`rgb` or `depth`) after checking its header against the pixel limit, so a
+/// small file that declares a huge image is refused before any allocation.
+pub fn decode_image(
+    what: &str,
+    bytes: &[u8],
+    limits: DecodeLimits,
+) -> Result<DynamicImage, ApiError> {
+    let (format, (w, h)) = image_header(what, bytes, limits)?;
+    let pixels = u64::from(w) * u64::from(h);
+    if format == ImageFormat::Jpeg {
+        return io::decode_jpeg(bytes)
+            .map_err(|e| ApiError::new(ErrorCode::BadImage, format!("{what}: {e}")));
+    }
+    let bad = |e: image::ImageError| ApiError::new(ErrorCode::BadImage, format!("{what}: {e}"));
+    let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
+    let mut l = image::Limits::default();
+    l.max_image_width = Some(w);
+    l.max_image_height = Some(h);
+    l.max_alloc = Some(pixels * 16 + (1 << 20));
+    reader.limits(l);
+    reader.decode().map_err(bad)
+}
+
+/// The format and size of an image from its header, checked against the limits, without
+/// decoding its pixels.
+pub fn image_header(
+    what: &str,
+    bytes: &[u8],
+    limits: DecodeLimits,
+) -> Result<(ImageFormat, (u32, u32)), ApiError> {
+    if bytes.is_empty() {
+        return Err(ApiError::new(ErrorCode::BadImage, format!("{what}: empty")));
+    }
+    let Some(format) = sniff(bytes) else {
+        return Err(ApiError::new(
+            ErrorCode::UnsupportedMedia,
+            format!("{what}: not a PNG or JPEG image"),
+        ));
+    };
+    let bad = |e: image::ImageError| ApiError::new(ErrorCode::BadImage, format!("{what}: {e}"));
+    let (w, h) = ImageReader::with_format(Cursor::new(bytes), format)
+        .into_dimensions()
+        .map_err(bad)?;
+    limits.check_shape(what, w as usize, h as usize)?;
+    Ok((format, (w, h)))
+}
+
+/// Keys a camera JSON sent over HTTP or the stream may carry, those a camera file is read for;
+/// any other is refused there (files read by the CLI keep their notes, such as `source` or
+/// `licence`).
+pub use tre_io::CAMERA_KEYS;
+
+/// Physical ranges of a camera sent by a client: focal lengths 1 px to 10⁶ px, pitch −90° to
+/// 90°, height above the ground 1 cm to 100 m, depth scale above 0 and at most 10⁶ units per
+/// metre, a stated size within the side limit. Anything else is 422 `bad_camera`.
+pub fn check_camera_ranges(cam: &CameraFile, limits: DecodeLimits) -> Result<(), ApiError> {
+    let within = |name: &str, v: Option<f64>, lo: f64, hi: f64, unit: &str| match v {
+        Some(x) if !(x.is_finite() && (lo..=hi).contains(&x)) => Err(ApiError::new(
+            ErrorCode::BadCamera,
+            format!("camera: {name} = {x} is outside {lo}–{hi} {unit}"),
+        )),
+        _ => Ok(()),
+    };
+    within("fx", Some(cam.fx), 1.0, 1e6, "px")?;
+    within("fy", Some(cam.fy), 1.0, 1e6, "px")?;
+    within("cx", Some(cam.cx), -1e6, 1e6, "px")?;
+    within("cy", Some(cam.cy), -1e6, 1e6, "px")?;
+    within("pitch_deg", cam.pitch_deg, -90.0, 90.0, "degrees")?;
+    within("height_m", cam.height_m, 0.01, 100.0, "m")?;
+    within("depth_scale", cam.depth_scale, 1e-3, 1e6, "units per metre")?;
+    for (name, side) in [("width", cam.width), ("height", cam.height)] {
+        if side.is_some_and(|s| s == 0 || s > limits.max_side) {
+            return Err(ApiError::new(
+                ErrorCode::BadCamera,
+                format!(
+                    "camera: {name} = {} is outside 1–{} px (--max-side)",
+                    side.unwrap_or(0),
+                    limits.max_side
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// A camera JSON from a client: only [`CAMERA_KEYS`], within [`check_camera_ranges`].
+pub fn strict_camera(json: &[u8], limits: DecodeLimits) -> Result<CameraFile, ApiError> {
+    let bad = |why: String| ApiError::new(ErrorCode::BadCamera, format!("camera: {why}"));
+    let value: serde_json::Value =
+        serde_json::from_slice(json).map_err(|e| bad(format!("not valid JSON ({e})")))?;
+    let Some(object) = value.as_object() else {
+        return Err(bad("expected a JSON object {fx, fy, cx, cy, ...}".into()));
+    };
+    if let Some(k) = object.keys().find(|k| !CAMERA_KEYS.contains(&k.as_str())) {
+        return Err(bad(format!(
+            "unknown key {k:?}; known: {}",
+            CAMERA_KEYS.join(", ")
+        )));
+    }
+    let cam: CameraFile = serde_json::from_value(value).map_err(|e| {
+        bad(format!(
+            "not valid camera JSON ({{fx, fy, cx, cy, pitch_deg?, height_m?, depth_scale?}}): {e}"
+        ))
+    })?;
+    check_camera_ranges(&cam, limits)?;
+    Ok(cam)
+}
+
+/// Decodes depth in metres: a 16-bit grey PNG at `units_per_m`, or a float `.npy`; depth that
+/// cannot be one ([`io::check_depth`]: no valid pixel, or a median in millimetres) is refused.
+pub fn decode_depth(
+    bytes: &[u8],
+    units_per_m: f64,
+    limits: DecodeLimits,
+) -> Result<Grid<f64>, ApiError> {
+    let depth = depth_of(bytes, units_per_m, limits)?;
+    io::check_depth(&depth)
+        .map_err(|why| ApiError::new(ErrorCode::BadDepth, format!("depth: {why}")))?;
+    Ok(depth)
+}
+
+/// [`decode_depth`] without the check of its values.
+fn depth_of(bytes: &[u8], units_per_m: f64, limits: DecodeLimits) -> Result<Grid<f64>, ApiError> {
+    let bad = |m: String| ApiError::new(ErrorCode::BadDepth, format!("depth: {m}"));
+    if bytes.starts_with(b"\x93NUMPY") {
+        // The shape is bounded from the header, before any value is converted; the pixel limit
+        // is then checked with the side and aspect limits, naming each.
+        let array = io::npy::read_npy_within(Cursor::new(bytes), limits.max_pixels).map_err(
+            |e| match e {
+                io::IoError::NpyTooLarge { .. } => {
+                    ApiError::new(ErrorCode::TooLarge, format!("depth: {e} (--max-pixels)"))
+                }
+                e => bad(e.to_string()),
+            },
+        )?;
+        let grid = io::npy_depth(array).map_err(bad)?;
+        let (w, h) = grid.size();
+        limits.check_shape("depth", w, h)?;
+        return Ok(grid);
+    }
+    // Not an image, or a broken one: a depth error, saying what depth may be.
+    let image = decode_image("depth", bytes, limits).map_err(|e| match e.code {
+        ErrorCode::BadImage | ErrorCode::UnsupportedMedia => ApiError::new(
+            ErrorCode::BadDepth,
+            format!(
+                "{}; depth must be a 16-bit grey PNG or a float .npy",
+                e.message
+            ),
+        ),
+        _ => e,
+    })?;
+    match image {
+        DynamicImage::ImageLuma16(img) => Ok(io::depth_from_luma16(img, units_per_m)),
+        other => Err(bad(format!(
+            "must be a 16-bit grey PNG or a float .npy, got {:?}",
+            other.color()
+        ))),
+    }
+}
+
+/// The pipeline input for `req`: decoded images, checked camera.
+pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInput, ApiError> {
+    let camera = |e: tre_core::geometry::GeometryError| {
+        ApiError::new(ErrorCode::BadCamera, format!("camera: {e}"))
+    };
+    let (intrinsics, mounting, scale) = match &req.camera {
+        Some(c) => (
+            Some(c.intrinsics().map_err(camera)?),
+            c.mounting().map_err(camera)?,
+            c.depth_scale.unwrap_or(1000.0),
+        ),
+        None => (None, Mounting::default(), 1000.0),
+    };
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(ApiError::new(
+            ErrorCode::BadCamera,
+            format!("camera: depth_scale must be positive, got {scale}"),
+        ));
+    }
+    // The geometric mode uses no RGB: an image sent along is checked from its header (format,
+    // limits, the depth's size) but not decoded.
+    let geometric = req.options.mode == Some(Mode::Geometric) && req.depth.is_some();
+    let (rgb, unused_rgb) = match &req.rgb {
+        Some(b) if geometric => (None, Some(image_header("rgb", b, limits)?.1)),
+        Some(b) => (Some(decode_image("rgb", b, limits)?.to_rgb8()), None),
+        None => (None, None),
+    };
+    let depth_m = match &req.depth {
+        Some(b) => Some(decode_depth(b, scale, limits)?),
+        None => None,
+    };
+    if let (Some((w, h)), Some(d)) = (unused_rgb, &depth_m) {
+        let rgb = (w as usize, h as usize);
+        if rgb != d.size() {
+            return Err(PipelineError::DepthSizeMismatch {
+                rgb,
+                depth: d.size(),
+            }
+            .into());
+        }
+    }
+    let frame = FrameInput {
+        rgb,
+        depth_m,
+        intrinsics,
+        mounting,
+    };
+    let Some(size) = frame.size() else {
+        return Err(ApiError::new(
+            ErrorCode::BadRequest,
+            "the frame has neither an image nor depth",
+        ));
+    };
+    if let Some(c) = &req.camera {
+        c.check_size(size)
+            .map_err(|why| ApiError::new(ErrorCode::BadCamera, format!("camera: {why}")))?;
+    }
+    Ok(frame)
+}
+
+/// What a frame gets for the settings it does not choose itself (`tre serve --normals`,
+/// `--dsac-hypotheses`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameDefaults {
+    /// Initial normals.
+    pub normals: NormalsMethod,
+    /// DSAC hypotheses per pixel (1 to [`MAX_DSAC_HYPOTHESES`](tre_pipeline::MAX_DSAC_HYPOTHESES)).
+    pub dsac_hypotheses: u32,
+}
+
+impl Default for FrameDefaults {
+    /// The paper's method as trained: DSAC with [`DEFAULT_DSAC_HYPOTHESES`] hypotheses.
+    fn default() -> Self {
+        Self {
+            normals: NormalsMethod::Dsac,
+            dsac_hypotheses: DEFAULT_DSAC_HYPOTHESES,
+        }
+    }
+}
+
+/// The pipeline configuration for a frame with these inputs (`defaults`: the server's settings
+/// for what the frame does not choose).
+pub fn config_for(
+    frame: &FrameInput,
+    opts: &FrameOptions,
+    max_pixels: usize,
+    defaults: FrameDefaults,
+) -> PipelineConfig {
+    let mode = opts.mode.unwrap_or(match (&frame.rgb, &frame.depth_m) {
+        (Some(_), Some(_)) => Mode::Rgbd,
+        (None, Some(_)) => Mode::Geometric,
+        _ => Mode::Rgb,
+    });
+    PipelineConfig {
+        seed: opts.seed,
+        normals: opts.normals.unwrap_or(defaults.normals),
+        dsac_hypotheses: opts.dsac_hypotheses.unwrap_or(defaults.dsac_hypotheses),
+        max_input_pixels: max_pixels,
+        traversability: opts.traversability,
+        ..PipelineConfig::for_mode(mode)
+    }
+}
+
+/// Encodes a PNG with the settings `tre infer` uses (fast compression, adaptive filter).
+fn png(img: &DynamicImage) -> Result<Vec<u8>, ApiError> {
+    let mut out = Vec::new();
+    io::encode_png(img, &mut out)
+        .map_err(|e| ApiError::new(ErrorCode::Internal, format!("encoding PNG: {e}")))?;
+    Ok(out)
+}
+
+/// Writes an `.npy` into memory.
+fn npy<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Result<Vec<u8>, ApiError> {
+    let mut out = Vec::new();
+    io::npy::write_npy(&mut out, shape, data)
+        .map_err(|e| ApiError::new(ErrorCode::Internal, format!("encoding .npy: {e}")))?;
+    Ok(out)
+}
+
+/// A mask as PNG part `name` (file `filename`): 8-bit grey, 255 where set.
+fn mask_part(
+    name: &'static str,
+    filename: &'static str,
+    mask: &Grid<bool>,
+) -> Result<Part, ApiError> {
+    let grey = mask.map(|&m| if m { 255u8 } else { 0 });
+    Ok(Part {
+        name,
+        content_type: "image/png",
+        filename,
+        bytes: png(&DynamicImage::ImageLuma8(io::gray8(&grey)))?,
+    })
+}
+
+/// Encodes the pipeline's output as the options ask (the output stays the caller's, to hand
+/// back to [`Pipeline::recycle`](tre_pipeline::Pipeline::recycle)).
+pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply, ApiError> {
+    let r = &out.roughness_m;
+    let (w, h) = r.size();
+    let roughness = match opts.format {
+        Format::Png16 => png(&DynamicImage::ImageLumaA16(io::roughness_png16(r)))?,
+        Format::Color => png(&DynamicImage::ImageRgb8(colormap::colourise(
+            r,
+            0.0,
+            opts.preview_max_m.unwrap_or(0.05),
+        )))?,
+        Format::Npy => npy(
+            &[h, w],
+            &r.as_slice().iter().map(|&v| v as f32).collect::<Vec<_>>(),
+        )?,
+        Format::F32 => r
+            .as_slice()
+            .iter()
+            .flat_map(|&v| (v as f32).to_le_bytes())
+            .collect(),
+    };
+    let mut extras = Vec::new();
+    let e = opts.extras;
+    if let Some(d) = e.depth.then(|| out.depth_m()).flatten() {
+        extras.push(Part {
+            name: "depth",
+            content_type: "image/png",
+            filename: "depth.png",
+            bytes: png(&DynamicImage::ImageLuma16(io::depth_png16(&d)))?,
+        });
+    }
+    if let Some(n) = e.normals.then(|| out.normals()).flatten() {
+        let data: Vec<f32> = n
+            .as_slice()
+            .iter()
+            .flat_map(|v| [v.x as f32, v.y as f32, v.z as f32])
+            .collect();
+        extras.push(Part {
+            name: "normals",
+            content_type: "application/octet-stream",
+            filename: "normals.npy",
+            bytes: npy(&[h, w, 3], &data)?,
+        });
+    }
+    if let Some(s) = e.slope.then(|| out.slope_rad()).flatten() {
+        let data: Vec<f32> = s.as_slice().iter().map(|&v| v as f32).collect();
+        extras.push(Part {
+            name: "slope",
+            content_type: "application/octet-stream",
+            filename: "slope.npy",
+            bytes: npy(&[h, w], &data)?,
+        });
+    }
+    let ok = (e.traversable || opts.traversable_bytes).then(|| out.traversable());
+    if let (true, Some(ok)) = (e.traversable, &ok) {
+        extras.push(mask_part("traversable", "traversable.png", ok)?);
+    }
+    if let Some(b) = e.boundary.then(|| out.boundary()).flatten() {
+        extras.push(mask_part("boundary", "boundary.png", &b)?);
+    }
+    let traversable = match (opts.traversable_bytes, &ok) {
+        (true, Some(ok)) => ok.as_slice().iter().map(|&t| u8::from(t)).collect(),
+        _ => Vec::new(),
+    };
+    Ok(FrameReply {
+        size: (w, h),
+        working_size: out.working_size,
+        roughness,
+        format: opts.format,
+        extras,
+        traversable,
+        traversal: Vec::new(),
+        uncertainty: Vec::new(),
+        timings: out.timings.clone(),
+    })
+}
+
+/// Adds the sensor-noise maps the options ask for to `reply`: parts `uncertainty` and
+/// `traversal` and the stream's bytes. The noise model is the options' `sensor`, else the
+/// camera's; an error names what is missing (a noise model, or sensor depth in this mode).
+pub fn encode_sensor_maps(
+    out: &FrameOutput,
+    frame: &FrameInput,
+    mode: Mode,
+    req: &FrameRequest,
+    reply: &mut FrameReply,
+) -> Result<(), ApiError> {
+    let opts = &req.options;
+    if !opts.wants_sensor_maps() {
+        return Ok(());
+    }
+    let spec = req.camera.as_ref().and_then(|c| c.sensor.as_ref());
+    let model = opts.sensor.or_else(|| spec.and_then(io::SensorSpec::noise));
+    let described = match spec {
+        Some(io::SensorSpec::Description(d)) => Some(d.as_str()),
+        _ => None,
+    };
+    let maps = out.sensor_maps(frame, mode, model.as_ref(), described)?;
+    if opts.extras.uncertainty {
+        reply.extras.push(Part {
+            name: "uncertainty",
+            content_type: "image/png",
+            filename: "uncertainty.png",
+            bytes: png(&DynamicImage::ImageLumaA16(io::roughness_png16(
+                &maps.uncertainty_m,
+            )))?,
+        });
+    }
+    if opts.extras.traversal {
+        reply.extras.push(Part {
+            name: "traversal",
+            content_type: "image/png",
+            filename: "traversal.png",
+            bytes: png(&DynamicImage::ImageLuma8(io::traversal_gray8(
+                &maps.traversal,
+            )))?,
+        });
+    }
+    if opts.traversal_bytes {
+        reply.traversal = maps.traversal.as_slice().iter().map(|&t| t as u8).collect();
+    }
+    if opts.uncertainty_f32 {
+        let u = maps.uncertainty_m.as_slice().iter();
+        reply.uncertainty = u.flat_map(|&v| (v as f32).to_le_bytes()).collect();
+    }
+    Ok(())
+}
+
+/// Metres per unit of the 16-bit roughness PNG.
+pub const SCALE_M: f64 = ROUGHNESS_PNG_SCALE_M;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIMITS: DecodeLimits = DecodeLimits {
+        max_pixels: 1_000_000,
+        max_side: 4096,
+        max_aspect: 8,
+    };
+
+    fn png_bytes(w: u32, h: u32) -> Vec<u8> {
+        let mut out = Vec::new();
+        io::encode_png(&DynamicImage::new_rgb8(w, h), &mut out).expect("encodes");
+        out
+    }
+
+    #[test]
+    fn refuses_what_is_not_an_image() {
+        let e = decode_image("rgb", b"hello world", LIMITS).unwrap_err();
+        assert_eq!(e.code, ErrorCode::UnsupportedMedia);
+        assert_eq!(
+            decode_image("rgb", b"", LIMITS).unwrap_err().code,
+            ErrorCode::BadImage
+        );
+    }
+
+    #[test]
+    fn refuses_truncated_and_oversized_images() {
+        let good = png_bytes(64, 48);
+        assert_eq!(
+            decode_image("rgb", &good, LIMITS).expect("decodes").width(),
+            64
+        );
+        let e = decode_image("rgb", &good[..good.len() / 2], LIMITS).unwrap_err();
+        assert_eq!(e.code, ErrorCode::BadImage, "{e}");
+        let small = DecodeLimits {
+            max_pixels: 1000,
+            ..LIMITS
+        };
+        assert_eq!(
+            decode_image("rgb", &good, small).unwrap_err().code,
+            ErrorCode::TooLarge
+        );
+    }
+
+    #[test]
+    fn depth_must_be_16_bit() {
+        let e = decode_depth(&png_bytes(4, 4), 1000.0, LIMITS).unwrap_err();
+        assert_eq!(e.code, ErrorCode::BadDepth);
+    }
+
+    fn npy_bytes<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Vec<u8> {
+        let mut out = Vec::new();
+        io::npy::write_npy(&mut out, shape, data).expect("writes");
+        out
+    }
+
+    /// Every way depth can be wrong is a `bad_depth` error that says what depth may be, except
+    /// a size over the limit (`too_large`); float `.npy` depth is read as metres.
+    #[test]
+    fn depth_errors_are_depth_errors() {
+        let grid = decode_depth(&npy_bytes(&[2, 3], &[1.5f32; 6]), 1000.0, LIMITS).unwrap();
+        assert_eq!((grid.size(), grid[(2, 1)]), ((3, 2), 1.5));
+        for (bytes, says) in [
+            (Vec::new(), "16-bit grey PNG or a float .npy"),
+            (b"hello world".to_vec(), "16-bit grey PNG or a float .npy"),
+            (
+                png_bytes(64, 48)[..100].to_vec(),
+                "16-bit grey PNG or a float .npy",
+            ),
+            (
+                npy_bytes(&[2, 3], &[1500u16; 6]),
+                "for integer depth send a 16-bit PNG",
+            ),
+            (npy_bytes(&[0, 3], &[0.0f32; 0]), "it has no pixels"),
+            (npy_bytes(&[2, 3, 1], &[1.0f32; 6]), "expected a 2-D array"),
+            (npy_bytes(&[2, 3], &[0.0f32; 6]), "no valid pixel"),
+            (npy_bytes(&[2, 3], &[1500.0f32; 6]), "in millimetres"),
+        ] {
+            let e = decode_depth(&bytes, 1000.0, LIMITS).unwrap_err();
+            assert_eq!(e.code, ErrorCode::BadDepth, "{e}");
+            assert!(
+                e.message.starts_with("depth: ") && e.message.contains(says),
+                "{e}"
+            );
+        }
+        let big = npy_bytes(&[1001, 1000], &vec![1.0f32; 1_001_000]);
+        let e = decode_depth(&big, 1000.0, LIMITS).unwrap_err();
+        assert_eq!(e.code, ErrorCode::TooLarge, "{e}");
+    }
+
+    /// In the geometric mode an RGB part is not decoded (nothing uses it), but its header is
+    /// still checked: not an image, over the limit, or another size than the depth is an error.
+    #[test]
+    fn the_geometric_mode_checks_an_rgb_part_without_decoding_it() {
+        let depth = npy_bytes(&[48, 64], &vec![1.5f32; 64 * 48]);
+        let request = |rgb: Vec<u8>, mode| FrameRequest {
+            rgb: Some(rgb),
+            depth: Some(depth.clone()),
+            camera: None,
+            options: FrameOptions {
+                mode,
+                ..FrameOptions::default()
+            },
+        };
+        let geometric = Some(Mode::Geometric);
+        let frame = decode_frame(&request(png_bytes(64, 48), geometric), LIMITS).unwrap();
+        assert!(frame.rgb.is_none() && frame.depth_m.is_some());
+        // rgbd (the default with both parts) decodes it.
+        let frame = decode_frame(&request(png_bytes(64, 48), None), LIMITS).unwrap();
+        assert_eq!(frame.rgb.map(|i| i.dimensions()), Some((64, 48)));
+        for (rgb, code) in [
+            (png_bytes(32, 48), ErrorCode::BadDepth),
+            (b"hello world".to_vec(), ErrorCode::UnsupportedMedia),
+            (png_bytes(2000, 1000), ErrorCode::TooLarge),
+        ] {
+            let e = decode_frame(&request(rgb, geometric), LIMITS).unwrap_err();
+            assert_eq!(e.code, code, "{e}");
+        }
+    }
+
+    /// A file that declares a long thin image is refused from its header, naming the limit:
+    /// the side first (413), then the pixels (413), then the aspect ratio (422); depth alike.
+    #[test]
+    fn shapes_beyond_the_side_or_aspect_limits_are_refused_from_the_header() {
+        let limits = DecodeLimits {
+            max_pixels: 1 << 20,
+            max_side: 2048,
+            max_aspect: 8,
+        };
+        for (w, h, code, says) in [
+            (4096, 1, ErrorCode::TooLarge, "--max-side"),
+            (1, 4096, ErrorCode::TooLarge, "--max-side"),
+            (2048, 1024, ErrorCode::TooLarge, "--max-pixels"),
+            (2048, 255, ErrorCode::BadImage, "--max-aspect"),
+            (2048, 1, ErrorCode::BadImage, "--max-aspect"),
+        ] {
+            let e = decode_image("rgb", &png_bytes(w, h), limits).unwrap_err();
+            assert_eq!(e.code, code, "{w}×{h}: {e}");
+            assert!(e.message.contains(says), "{w}×{h}: {e}");
+        }
+        assert!(decode_image("rgb", &png_bytes(2048, 256), limits).is_ok());
+        let e = decode_depth(&npy_bytes(&[1, 100], &[1.0f32; 100]), 1000.0, limits).unwrap_err();
+        assert_eq!(e.code, ErrorCode::BadDepth, "{e}");
+        assert!(e.message.contains("--max-aspect"), "{e}");
+    }
+}

@@ -1,0 +1,376 @@
+//! The inference workers: named threads, each with its own [`Pipeline`] (ONNX Runtime sessions
+//! need `&mut`), fed by one bounded queue. Async handlers only enqueue and await a oneshot
+//! reply; decoding, the pipeline and encoding all run here, never on the async runtime.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
+use tokio::sync::oneshot;
+
+use super::error::{ApiError, ErrorCode};
+use super::metrics::Metrics;
+use super::request::{
+    config_for, decode_frame, encode_reply, encode_sensor_maps, DecodeLimits, FrameDefaults,
+    FrameReply, FrameRequest,
+};
+use tre_core::geometry::Grid;
+use tre_model::{Models, SessionConfig};
+use tre_pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
+
+/// How the pool is built.
+#[derive(Debug, Clone)]
+pub struct PoolConfig {
+    /// Worker threads.
+    pub workers: usize,
+    /// Jobs that may wait for a worker; more are refused at once.
+    pub queue: usize,
+    /// Folder with `manifest.json` and the models.
+    pub models: PathBuf,
+    /// ONNX Runtime settings of every worker's sessions.
+    pub session: SessionConfig,
+    /// Decoding limits.
+    pub limits: DecodeLimits,
+    /// What frames get for the settings they do not choose.
+    pub defaults: FrameDefaults,
+}
+
+/// A frame's answer, or why there is none.
+pub type JobResult = Result<FrameReply, ApiError>;
+
+/// One frame to run, with where to send the answer.
+struct Job {
+    request: FrameRequest,
+    reply: oneshot::Sender<(JobResult, Duration)>,
+    enqueued: Instant,
+}
+
+impl Job {
+    /// Whether its client has left (timed out or disconnected): nobody waits for the answer.
+    fn abandoned(&self) -> bool {
+        self.reply.is_closed()
+    }
+}
+
+/// Start-up state of the workers.
+#[derive(Debug, Default)]
+struct Startup {
+    warm: AtomicUsize,
+    failed: Mutex<Option<String>>,
+    stopped: AtomicBool,
+}
+
+/// The worker pool.
+#[derive(Debug)]
+pub struct Workers {
+    tx: Mutex<Option<Sender<Job>>>,
+    rx_probe: Receiver<Job>,
+    capacity: usize,
+    count: usize,
+    startup: Arc<Startup>,
+    handles: Mutex<Vec<JoinHandle<()>>>,
+}
+
+impl Workers {
+    /// Starts `cfg.workers` named threads; each loads the models and warms them up, then
+    /// serves jobs. Use [`Workers::ready`] and [`Workers::failure`] to follow the start.
+    pub fn start(cfg: &PoolConfig, metrics: Arc<Metrics>) -> std::io::Result<Self> {
+        let (tx, rx) = bounded::<Job>(cfg.queue);
+        let startup = Arc::new(Startup::default());
+        let mut handles = Vec::with_capacity(cfg.workers);
+        for i in 0..cfg.workers.max(1) {
+            let (rx, startup, metrics, cfg) =
+                (rx.clone(), startup.clone(), metrics.clone(), cfg.clone());
+            let handle = std::thread::Builder::new()
+                .name(format!("tre-worker-{i}"))
+                .spawn(move || worker(i, &cfg, &rx, &startup, &metrics))?;
+            handles.push(handle);
+        }
+        Ok(Self {
+            tx: Mutex::new(Some(tx)),
+            rx_probe: rx,
+            capacity: cfg.queue,
+            count: cfg.workers.max(1),
+            startup,
+            handles: Mutex::new(handles),
+        })
+    }
+
+    /// Whether every worker has loaded and warmed up its models.
+    pub fn ready(&self) -> bool {
+        self.startup.warm.load(Ordering::Acquire) == self.count
+            && !self.startup.stopped.load(Ordering::Acquire)
+    }
+
+    /// Why a worker could not start, if one could not.
+    pub fn failure(&self) -> Option<String> {
+        self.startup
+            .failed
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// Jobs waiting for a worker.
+    pub fn queue_depth(&self) -> usize {
+        self.rx_probe.len()
+    }
+
+    /// Capacity of the queue.
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+
+    /// Worker threads.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// Enqueues a frame. Refused at once when the queue is full (`overloaded`), before the
+    /// workers are warm or after shutdown began (`not_ready`). The receiver yields the answer
+    /// and the time the job waited in the queue; dropping it cancels a job not yet started.
+    pub fn submit(
+        &self,
+        request: FrameRequest,
+    ) -> Result<oneshot::Receiver<(JobResult, Duration)>, ApiError> {
+        if !self.ready() {
+            return Err(ApiError::new(
+                ErrorCode::NotReady,
+                "the models are still loading",
+            ));
+        }
+        let guard = self.tx.lock().unwrap_or_else(PoisonError::into_inner);
+        let Some(tx) = guard.as_ref() else {
+            return Err(ApiError::new(
+                ErrorCode::NotReady,
+                "the server is shutting down",
+            ));
+        };
+        let (reply, rx) = oneshot::channel();
+        let job = Job {
+            request,
+            reply,
+            enqueued: Instant::now(),
+        };
+        let sent = match tx.try_send(job) {
+            Err(TrySendError::Full(job)) => {
+                self.drop_abandoned(tx);
+                tx.try_send(job)
+            }
+            sent => sent,
+        };
+        match sent {
+            Ok(()) => Ok(rx),
+            Err(TrySendError::Full(_)) => Err(ApiError::new(
+                ErrorCode::Overloaded,
+                format!(
+                    "all {} workers are busy and {} frames are queued; retry later",
+                    self.count, self.capacity
+                ),
+            )),
+            Err(TrySendError::Disconnected(_)) => Err(ApiError::new(
+                ErrorCode::NotReady,
+                "the workers have stopped",
+            )),
+        }
+    }
+
+    /// Takes the jobs whose clients have left (timed out or disconnected) out of a full queue,
+    /// so that their slots go to new frames instead of waiting for a worker to skip them. The
+    /// others go back in their order; `tx` is the sender under the lock [`Workers::submit`]
+    /// holds, so no new job can come between them.
+    fn drop_abandoned(&self, tx: &Sender<Job>) {
+        let mut kept = Vec::with_capacity(self.capacity);
+        let mut abandoned = 0usize;
+        for _ in 0..self.capacity {
+            let Ok(job) = self.rx_probe.try_recv() else {
+                break;
+            };
+            if job.abandoned() {
+                abandoned += 1;
+            } else {
+                kept.push(job);
+            }
+        }
+        for job in kept {
+            // Fewer jobs go back than came out, and nothing else can send meanwhile, so this
+            // cannot fail; if it did, the client hears why instead of waiting.
+            if let Err(e) = tx.try_send(job) {
+                let job = e.into_inner();
+                let error =
+                    ApiError::new(ErrorCode::Overloaded, "the queue could not keep the frame");
+                let _ = job.reply.send((Err(error), job.enqueued.elapsed()));
+            }
+        }
+        if abandoned > 0 {
+            tracing::debug!(abandoned, "freed the queue slots of clients that left");
+        }
+    }
+
+    /// Stops taking jobs, lets the workers finish the queued ones, and joins them.
+    pub fn shutdown(&self) {
+        self.startup.stopped.store(true, Ordering::Release);
+        drop(
+            self.tx
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .take(),
+        );
+        let handles =
+            std::mem::take(&mut *self.handles.lock().unwrap_or_else(PoisonError::into_inner));
+        for h in handles {
+            if h.join().is_err() {
+                tracing::error!("a worker thread panicked");
+            }
+        }
+    }
+}
+
+/// One worker: load, warm up, then serve until the queue closes.
+fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, metrics: &Metrics) {
+    let started = Instant::now();
+    let mut pipeline = match Models::load(&cfg.models, &cfg.session) {
+        Ok(models) => Pipeline::new(Some(models)),
+        Err(e) => {
+            let why = format!("loading models from {}: {e}", cfg.models.display());
+            *startup
+                .failed
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner) = Some(why);
+            return;
+        }
+    };
+    if let Err(e) = warm_up(&mut pipeline) {
+        let why = format!("warming up the models: {e}");
+        *startup
+            .failed
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = Some(why);
+        return;
+    }
+    startup.warm.fetch_add(1, Ordering::AcqRel);
+    tracing::info!(
+        worker = i,
+        took_ms = started.elapsed().as_millis() as u64,
+        "worker ready"
+    );
+    while let Ok(job) = rx.recv() {
+        let queued = job.enqueued.elapsed();
+        if job.abandoned() {
+            tracing::debug!(worker = i, "client gone before its frame started; skipped");
+            continue;
+        }
+        metrics.batch(1);
+        let result = guarded(i, || run_job(&mut pipeline, &job.request, cfg));
+        if let Ok(reply) = &result {
+            metrics.frame(&reply.timings, queued);
+        }
+        // A closed receiver means the client left; nothing to do with the answer.
+        let _ = job.reply.send((result, queued));
+    }
+}
+
+/// Runs one job on worker `i`, turning a panic (a bug) into an `internal` error for that frame
+/// alone: the worker lives on for the next frames instead of leaving the queue unserved while
+/// the server still reports ready. Every buffer the pipeline reuses is sized afresh per frame.
+fn guarded(i: usize, job: impl FnOnce() -> JobResult) -> JobResult {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(job)).unwrap_or_else(|panic| {
+        let what = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "no message".to_string());
+        tracing::error!(worker = i, panic = %what, "a frame hit a bug; the worker goes on");
+        Err(ApiError::new(
+            ErrorCode::Internal,
+            format!("the frame hit a bug in the server ({what}); the server goes on"),
+        ))
+    })
+}
+
+/// Decodes, runs and encodes one frame. Its timings are the pipeline's stages between
+/// `decode` and `encode` (the answer's map and the extra maps, which are computed on request
+/// while they are encoded).
+fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> JobResult {
+    let started = Instant::now();
+    let frame = decode_frame(req, pool.limits)?;
+    let decoded = started.elapsed();
+    let cfg = config_for(&frame, &req.options, pool.limits.max_pixels, pool.defaults);
+    let out = pipeline.run(&frame, &cfg)?;
+    let started = Instant::now();
+    let reply = encode_reply(&out, &req.options).and_then(|mut reply| {
+        encode_sensor_maps(&out, &frame, cfg.mode, req, &mut reply)?;
+        Ok(reply)
+    });
+    let encoded = started.elapsed();
+    pipeline.recycle(out);
+    let large = frame
+        .size()
+        .is_some_and(|(w, h)| w.saturating_mul(h) > LARGE_FRAME_PIXELS);
+    drop(frame);
+    if large {
+        pipeline.release_buffers();
+        give_back_freed_memory();
+    }
+    let mut reply = reply?;
+    reply.timings.add_first("decode", decoded);
+    reply.timings.add("encode", encoded);
+    Ok(reply)
+}
+
+/// Frames of more pixels than this (1280×1024) give their memory back once answered: the
+/// pipeline drops the buffers it keeps from frame to frame, and the allocator returns what is
+/// free to the system. Smaller frames, the usual sensor sizes, keep them warm.
+const LARGE_FRAME_PIXELS: usize = 1280 * 1024;
+
+/// Returns the heap's free pages to the system (glibc's `malloc_trim(0)`, which releases free
+/// memory inside every arena, not only at its top; a few milliseconds after a large frame).
+/// Elsewhere a no-op.
+#[allow(unsafe_code)] // One FFI call with no pointer arguments; glibc's malloc_trim is thread-safe.
+fn give_back_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim takes a size and touches only the allocator's own state, under its
+    // locks.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
+/// Runs every mode once on a synthetic 256×192 frame, so that ONNX Runtime has allocated and
+/// tuned everything before the first request.
+fn warm_up(pipeline: &mut Pipeline) -> Result<(), tre_pipeline::PipelineError> {
+    let (w, h) = (256u32, 192u32);
+    let rgb = image::RgbImage::from_fn(w, h, |x, y| {
+        image::Rgb([(x % 256) as u8, (y % 256) as u8, 128])
+    });
+    let depth = Grid::from_fn(w as usize, h as usize, |_, y| 1.0 + y as f64 / 100.0);
+    let frame = FrameInput {
+        rgb: Some(rgb),
+        depth_m: Some(depth),
+        ..FrameInput::default()
+    };
+    for mode in [Mode::Rgb, Mode::Rgbd, Mode::Geometric] {
+        let out = pipeline.run(&frame, &PipelineConfig::for_mode(mode))?;
+        pipeline.recycle(out);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panicking_job_is_an_internal_error_and_the_next_one_runs() {
+        let e = guarded(0, || panic!("index 7 out of range")).unwrap_err();
+        assert_eq!(e.code, ErrorCode::Internal);
+        assert!(e.message.contains("index 7 out of range"), "{e}");
+        let e = guarded(0, || panic!("{}", String::from("formatted"))).unwrap_err();
+        assert!(e.message.contains("formatted"), "{e}");
+        let ok = guarded(0, || Err(ApiError::new(ErrorCode::BadImage, "fine")));
+        assert_eq!(ok.unwrap_err().code, ErrorCode::BadImage);
+    }
+}
