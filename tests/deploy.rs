@@ -2,7 +2,7 @@
 //! ONNX Runtime version, and every option and `TRE_*` variable the files use is one `tre serve`
 //! has.
 //!
-//! Tests whose name ends in `_serve` run `tre serve --help` or read `src/server/openapi.json`;
+//! Tests whose name ends in `_serve` run `tre serve --help` or read `crates/tre-server/src/openapi.json`;
 //! the others read only the files under `deploy/`.
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -1011,12 +1011,12 @@ fn container_port_is_the_serve_default_port_serve() {
 
 #[test]
 fn probe_paths_are_in_the_openapi_document_serve() {
-    let doc: serde_json::Value = serde_json::from_str(&read("src/server/openapi.json"))
-        .expect("src/server/openapi.json is JSON");
+    let doc: serde_json::Value = serde_json::from_str(&read("crates/tre-server/src/openapi.json"))
+        .expect("crates/tre-server/src/openapi.json is JSON");
     let paths = doc
         .get("paths")
         .and_then(serde_json::Value::as_object)
-        .expect("src/server/openapi.json has no `paths` object");
+        .expect("crates/tre-server/src/openapi.json has no `paths` object");
     let deploy = deployment();
     let c = container(&deploy);
     for probe in ["livenessProbe", "readinessProbe", "startupProbe"] {
