@@ -1,6 +1,6 @@
 """The DSAC sampler of DESIGN.md in PyTorch, batched over pixels, for training.
 
-Same definition as serving (`src/geometry/dsac.rs`) and its numpy mirror (`dsac.py`): candidates
+Same definition as serving (`crates/tre-core/src/geometry/dsac.rs`) and its numpy mirror (`dsac.py`): candidates
 are the 7×7 window, ρ the softmax of the logits over valid candidates, each of K hypotheses draws
 3 distinct candidates by inverting the CDF of ρ renormalised without those already drawn, with
 uniforms from SplitMix64 of (seed, pixel, hypothesis, draw); planes through the triples are scored

@@ -1,4 +1,4 @@
-"""Camera geometry in PyTorch, as serving does it in `src/geometry` (batched, NCHW).
+"""Camera geometry in PyTorch, as serving does it in `crates/tre-core/src/geometry` (batched, NCHW).
 
 Points are camera-frame metres (OpenCV: x right, y down, z forward); invalid points are 0 with
 `valid = 0` beside them, since NaN cannot flow through a network.
