@@ -10,6 +10,7 @@ pub mod hash;
 pub mod normals;
 pub mod plane;
 pub mod raycast;
+pub mod simd;
 
 pub use camera::{is_valid_point, Intrinsics, PointMap, INVALID_POINT};
 pub use dsac::{dsac_normals, DsacConfig};

@@ -1,6 +1,7 @@
 //! Least-squares local planes over pixel windows limited by a metric radius: the LS normals of
 //! the geometric baseline and the window centroids of the roughness formula.
 
+use multiversion::multiversion;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -60,6 +61,7 @@ impl Neighbourhood {
     /// Moments of the neighbourhoods of the pixels `(x0 + l, y)`, `l < GROUP`, from packed
     /// points (empty for invalid pixels and past the row's end; windows wider than 7 px take
     /// the f64 path).
+    #[inline(always)]
     fn group_moments(
         &self,
         packed: &PackedPoints,
@@ -167,6 +169,7 @@ impl PackedPoints {
     ///
     /// Each lane is one pixel, so a window offset `(dx, dy)` is one 8-lane step for the whole
     /// group, and the lanes come out as the group's moments with no reduction across lanes.
+    #[inline(always)]
     pub fn group_moments(
         &self,
         x0: usize,
@@ -248,18 +251,15 @@ fn accumulate(
     }
 }
 
-/// `a·b + c`: one fused multiply-add where the build targets FMA (x86-64-v3, the default here),
-/// else a multiply and an add (a software `fma` call would be far slower).
+/// `a·b + c` as a multiply and an add, never fused: the same bits on every CPU, whichever
+/// version of the kernel runs (a software `fma` on a CPU without it would be far slower).
 #[inline(always)]
 fn mul_add(a: f32, b: f32, c: f32) -> f32 {
-    if cfg!(target_feature = "fma") {
-        a.mul_add(b, c)
-    } else {
-        a * b + c
-    }
+    a * b + c
 }
 
 /// Lane `l` of a group's moments, in f64.
+#[inline(always)]
 fn lane_moments(acc: &GroupMoments, l: usize) -> Moments {
     let v = |i: usize| f64::from(acc[i][l]);
     Moments {
@@ -318,22 +318,54 @@ pub fn local_planes_into(
         .par_rows_mut()
         .zip(out.normal.par_rows_mut())
         .for_each(|((y, c_row), (_, n_row))| {
-            for x0 in (0..w).step_by(GROUP) {
-                let group = hood.group_moments(packed, points, fx_px, x0, y);
-                let fits = fit_normals(&group);
-                for (l, (m, fit)) in group.iter().zip(fits).enumerate() {
-                    let x = x0 + l;
-                    let Some(p) = points.row(y).get(x) else { break };
-                    let Some(c) = m.mean(p) else { continue };
-                    c_row[x] = c;
-                    let n = match fit {
-                        Some(n) => Some(orient_towards_camera(&n, p)),
-                        None => normal_from_moments(points, m, x, y),
-                    };
-                    n_row[x] = n.unwrap_or(INVALID_POINT);
-                }
-            }
+            let rows = RowOut { y, c_row, n_row };
+            local_planes_row(packed, points, fx_px, hood, rows);
         });
+}
+
+/// One output row of [`local_planes_into`]: the centroids and, where `n_row` is not empty, the
+/// normals of row `y`.
+struct RowOut<'a> {
+    y: usize,
+    c_row: &'a mut [Vec3],
+    n_row: &'a mut [Vec3],
+}
+
+/// Row `out.y` of [`local_planes_into`] (and of [`window_centroids_into`], which passes an
+/// empty `n_row` and gets the centroids only), eight pixels at a time. Compiled twice, for
+/// baseline x86-64 and for AVX2 + FMA, and the CPU's version is chosen at run time
+/// ([`super::simd`]); both give the same bits.
+#[multiversion(targets("x86_64+avx2+fma"))]
+fn local_planes_row<'a>(
+    packed: &PackedPoints,
+    points: &PointMap,
+    fx_px: f64,
+    hood: &Neighbourhood,
+    out: RowOut<'a>,
+) {
+    let RowOut { y, c_row, n_row } = out;
+    let with_normals = !n_row.is_empty();
+    for x0 in (0..c_row.len()).step_by(GROUP) {
+        let group = hood.group_moments(packed, points, fx_px, x0, y);
+        let fits = if with_normals {
+            fit_normals(&group)
+        } else {
+            [None; GROUP]
+        };
+        for (l, (m, fit)) in group.iter().zip(fits).enumerate() {
+            let x = x0 + l;
+            let Some(p) = points.row(y).get(x) else { break };
+            let Some(c) = m.mean(p) else { continue };
+            c_row[x] = c;
+            if with_normals {
+                let n = match fit {
+                    Some(n) => Some(orient_towards_camera(&n, p)),
+                    None => normal_from_moments(points, m, x, y),
+                };
+                n_row[x] = n.unwrap_or(INVALID_POINT);
+            }
+        }
+    }
 }
 
 /// LS normals oriented towards the camera (NaN where none can be fitted).
@@ -371,15 +403,13 @@ pub fn window_centroids_into(
     packed.pack(points);
     let packed = &*packed;
     out.reset(w, h, INVALID_POINT);
-    out.par_rows_mut().for_each(|(y, row)| {
-        for (x0, cells) in (0..w).step_by(GROUP).zip(row.chunks_mut(GROUP)) {
-            let group = hood.group_moments(packed, points, fx_px, x0, y);
-            for ((c, m), p) in cells.iter_mut().zip(&group).zip(&points.row(y)[x0..]) {
-                if let Some(mean) = m.mean(p) {
-                    *c = mean;
-                }
-            }
-        }
+    out.par_rows_mut().for_each(|(y, c_row)| {
+        let rows = RowOut {
+            y,
+            c_row,
+            n_row: &mut [],
+        };
+        local_planes_row(packed, points, fx_px, hood, rows);
     });
 }
 

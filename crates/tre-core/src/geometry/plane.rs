@@ -165,6 +165,7 @@ fn sym_matrix<const N: usize>(a: &SymLanes<N>, l: usize) -> Matrix3<f64> {
 }
 
 /// The covariance matrices of `m` in lanes ([`Moments::covariance`] is one lane of it).
+#[inline(always)]
 pub fn covariance_lanes<const N: usize>(m: &[Moments; N]) -> SymLanes<N> {
     let inv_n: [f64; N] = std::array::from_fn(|l| 1.0 / f64::from(m[l].count.max(1)));
     let mean: [[f64; N]; 3] =
@@ -178,6 +179,7 @@ pub fn covariance_lanes<const N: usize>(m: &[Moments; N]) -> SymLanes<N> {
 /// The normals of [`Moments::fit`] for `N` sets of moments at once, solved over lanes
 /// ([`covariance_lanes`], [`smallest_eigenvectors`]): `None` with fewer than 3 points or no
 /// unique plane. Same normals as [`Moments::fit`] up to rounding.
+#[inline(always)]
 pub fn fit_normals<const N: usize>(m: &[Moments; N]) -> [Option<Vec3>; N] {
     let fits = smallest_eigenvectors(&covariance_lanes(m));
     std::array::from_fn(|l| fits[l].filter(|_| m[l].count >= 3))
@@ -188,6 +190,7 @@ pub fn fit_normals<const N: usize>(m: &[Moments; N]) -> [Option<Vec3>; N] {
 /// converged, at most six times; a lane that has not converged by then is finished by the
 /// scalar solver. Same results as the scalar solver up to rounding, and each lane's result
 /// depends on its own matrix only, bit for bit, whatever the other lanes hold.
+#[inline(always)]
 pub fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3>; N] {
     let mut scale = [0.0f64; N];
     for e in covs {
@@ -228,6 +231,7 @@ pub fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3
 /// The lanes' unit eigenvectors of eigenvalues `l_min` of the normalised matrices `a`, given
 /// their next eigenvalues `l_mid`: the largest cross product of two rows of `A − λI`; `None`
 /// unless `l_min` and `l_mid` are separated by 1e-6.
+#[inline(always)]
 fn eigenvectors_for<const N: usize>(
     a: &SymLanes<N>,
     l_min: &[f64; N],

@@ -14,6 +14,7 @@ pub(super) struct Frame<'a> {
 impl Frame<'_> {
     /// The best hypothesis plane of pixel `(x, y)` and the pixel's point, or `None` (invalid
     /// pixel, or no usable hypothesis).
+    #[inline(always)]
     pub(super) fn pixel_best(&self, x: usize, y: usize) -> Option<(Plane, Vec3)> {
         if !self.points.is_valid(x, y) {
             return None;
@@ -34,6 +35,7 @@ impl Frame<'_> {
     /// The DSAC normals of the pixels `(x0 + l, y)`, `l < REFIT_LANES` (`None` past the row's
     /// end, for invalid pixels and where no hypothesis is usable): best hypotheses pixel by
     /// pixel, then the refits' inlier moments and eigen-solves over the lanes.
+    #[inline(always)]
     pub(super) fn group_normals(&self, x0: usize, y: usize) -> [Option<Vec3>; REFIT_LANES] {
         let best: [Option<(Plane, Vec3)>; REFIT_LANES] =
             std::array::from_fn(|l| (x0 + l < self.width).then(|| self.pixel_best(x0 + l, y))?);

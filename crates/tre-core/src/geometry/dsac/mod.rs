@@ -343,16 +343,23 @@ pub fn dsac_normals_into(
         cfg,
     };
     out.reset(w, h, INVALID_POINT);
-    out.par_rows_mut().for_each(|(y, row)| {
-        for (x0, cells) in (0..w).step_by(REFIT_LANES).zip(row.chunks_mut(REFIT_LANES)) {
-            for (n, normal) in cells.iter_mut().zip(frame.group_normals(x0, y)) {
-                if let Some(normal) = normal {
-                    *n = normal;
-                }
+    out.par_rows_mut()
+        .for_each(|(y, row)| dsac_row(&frame, y, row));
+    Ok(())
+}
+
+/// Row `y` of [`dsac_normals_into`], [`REFIT_LANES`] pixels at a time. Compiled twice, for
+/// baseline x86-64 and for AVX2 + FMA, and the CPU's version is chosen at run time
+/// ([`super::simd`]); both give the same bits.
+#[multiversion(targets("x86_64+avx2+fma"))]
+fn dsac_row<'a>(frame: &Frame<'a>, y: usize, row: &mut [Vec3]) {
+    for (x0, cells) in (0..row.len()).step_by(REFIT_LANES).zip(row.chunks_mut(REFIT_LANES)) {
+        for (n, normal) in cells.iter_mut().zip(frame.group_normals(x0, y)) {
+            if let Some(normal) = normal {
+                *n = normal;
             }
         }
-    });
-    Ok(())
+    }
 }
 
 mod frame;
@@ -364,6 +371,7 @@ mod tests;
 mod window;
 
 use frame::Frame;
+use multiversion::multiversion;
 use refit::{finish_refits, inlier_moments, Refit, MOMENT_LANES, REFIT_LANES};
 use sampler::Cdf;
 use score::{best_hypothesis, softmax, Hyp32, Scorer, LEAD_BLOCKS};

@@ -8,6 +8,7 @@ use super::*;
 /// order, with the operations of [`Plane::distance`] and [`Moments::add`]; outliers add zeros
 /// instead of branching, which leaves every sum unchanged bit for bit (`x + 0.0 = x`, and no
 /// sum is −0). So a lane's moments do not depend on `N` or on the other lanes.
+#[inline(always)]
 pub(super) fn inlier_moments<const N: usize>(
     points: &PaddedPoints,
     base: usize,
@@ -87,6 +88,7 @@ pub(super) const MOMENT_LANES: usize = 4;
 /// eigenvector of their covariance, solved over lanes), or the hypothesis' normal when there
 /// are fewer than 3 inliers or no unique plane; oriented towards the camera. Each lane's
 /// result depends only on its own refit.
+#[inline(always)]
 pub(super) fn finish_refits<const N: usize>(refits: &[Option<Refit>; N]) -> [Option<Vec3>; N] {
     let fits = fit_normals(&refits.map(|r| r.map_or(Moments::default(), |r| r.moments)));
     std::array::from_fn(|l| {

@@ -71,6 +71,7 @@ impl Cdf {
     }
 
     /// The sampler's view of ρ as [`softmax`] returns it: finite and non-negative.
+    #[inline(always)]
     pub(super) fn from_softmax(rho32: &[f32; LANES]) -> Self {
         let mut rho = [0.0; TABLE];
         for (r, &r32) in rho.iter_mut().zip(rho32) {

@@ -10,6 +10,7 @@ pub(super) type Record<'r> = &'r mut dyn FnMut(Option<[usize; 3]>, f32);
 /// to it; without, each batch scores first the hypothesis that leads after
 /// [`LEAD_BLOCKS`] blocks, then the others only as long as they might still beat the best
 /// ([`Window::finish_above`]), which leaves the answer unchanged.
+#[inline(always)]
 pub(super) fn best_hypothesis(
     window: &Window<'_>,
     cdf: &Cdf,
@@ -48,6 +49,7 @@ pub(super) fn best_hypothesis(
 
 /// Offers the hypotheses of a batch (indices from `base`) to `best`, the one leading after
 /// [`LEAD_BLOCKS`] blocks first, the others with pruning (`most`: [`Scorer::most`]).
+#[inline(always)]
 pub(super) fn best_of_batch(
     window: &Window<'_>,
     hyps: &[Option<(Plane, Hyp32)>],
@@ -138,6 +140,7 @@ impl Scorer {
 }
 
 /// ρ (f32 lanes) from the logits and the validity mask: module docs, step 2.
+#[inline(always)]
 pub(super) fn softmax(logits: &[f32; LANES], valid: &[u32; LANES]) -> [f32; LANES] {
     let mut usable = [0; LANES];
     for ((u, &v), &l) in usable.iter_mut().zip(valid).zip(logits) {

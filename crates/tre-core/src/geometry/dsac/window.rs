@@ -68,6 +68,7 @@ pub(super) struct Window<'a> {
 
 impl<'a> Window<'a> {
     /// The window centred on pixel `(x, y)`.
+    #[inline(always)]
     pub(super) fn new(points: &'a PaddedPoints, x: usize, y: usize) -> Self {
         let base = y * points.stride + x;
         let centre = base + RADIUS * points.stride + RADIUS;
