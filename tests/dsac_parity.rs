@@ -26,7 +26,7 @@ fn vectors() -> &'static Value {
     VECTORS.get_or_init(|| {
         let path = concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/tests/fixtures/dsac_vectors.json"
+            "/crates/tre-core/src/geometry/dsac/vectors.json"
         );
         serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
     })

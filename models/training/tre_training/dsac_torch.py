@@ -1,7 +1,7 @@
 """The DSAC sampler of DESIGN.md in PyTorch, batched over pixels, for training.
 
-Same definition as serving (`crates/tre-core/src/geometry/dsac.rs`) and its numpy mirror (`dsac.py`): candidates
-are the 7×7 window, ρ the softmax of the logits over valid candidates, each of K hypotheses draws
+Same definition as serving (`crates/tre-core/src/geometry/dsac/SAMPLER.md`) and its numpy
+mirror (`dsac.py`): candidates are the 7×7 window, ρ the softmax of the logits over valid candidates, each of K hypotheses draws
 3 distinct candidates by inverting the CDF of ρ renormalised without those already drawn, with
 uniforms from SplitMix64 of (seed, pixel, hypothesis, draw); planes through the triples are scored
 by the soft inlier count Σ sigmoid(β(τ − dist)). Given the same ρ, this module draws the same

@@ -23,7 +23,7 @@ from . import dsac
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 """The repository root (models/training/tre_training/ is three levels down)."""
-DEFAULT_OUT = REPO_ROOT / "tests" / "fixtures" / "dsac_vectors.json"
+DEFAULT_OUT = REPO_ROOT / "crates" / "tre-core" / "src" / "geometry" / "dsac" / "vectors.json"
 """Where the Rust parity test reads the vectors."""
 
 U64_MAX = dsac.MASK64

@@ -2,56 +2,9 @@
 //! 7×7 neighbours drawn from the neighbour net's probabilities ρ, scored by soft inlier counts;
 //! serving keeps the best hypothesis and refits it by least squares on its inliers.
 //!
-//! # Exact definition
-//!
-//! The training code mirrors the steps below. Every floating-point operation is one correctly
-//! rounded IEEE-754 operation in the type and order written (no FMA; `f32(x)` rounds a float64 to
-//! float32), so numpy elementwise float32/float64 arithmetic reproduces each step bit for bit.
-//! For pixel `(x, y)` of a `W × H` point map, `i = y·W + x`, whose point `p` is valid
-//! ([`is_valid_point`]; other pixels get no normal):
-//!
-//! 1. **Candidates.** `k = (dy + 3)·7 + (dx + 3)` for `dx, dy ∈ −3..=3`; candidate `k` is valid
-//!    when `(x + dx, y + dy)` lies inside the image and its point `q_k` is valid.
-//! 2. **ρ** ([`candidate_probabilities`], float32). Candidate `k` is *usable* when it is valid and
-//!    its logit `l_k` is finite. `m` = the largest usable logit; `e_k = fastmath::exp(l_k − m)`
-//!    for usable `k`, else 0; `S` = the lane sum of `e`; `ρ_k = e_k / S`, then widened exactly
-//!    to float64. With no usable candidate, ρ = 0 and the pixel gets no normal.
-//!    [`fastmath::exp`] has a relative error below 2e-7, so ρ is within 4e-7 (relative) of the
-//!    float64 softmax.
-//! 3. **Sampler** ([`sample_triple`], float64), hypothesis `j`, draws `d = 0, 1, 2`.
-//!    `P_k` = sequential float64 prefix sums of ρ (`P_k = P_{k−1} + ρ_k`, `P_{−1} = 0`). With
-//!    the candidates already drawn `e1` (, `e2`) in draw order: `T_0 = P_48`;
-//!    `T_1 = T_0 − ρ_{e1}`; `T_2 = T_1 − ρ_{e2}`; if `!(T_d > 0)` there is no triple.
-//!    `t = uniform(seed, i, j, d) · T_d` ([`super::hash::uniform`]). `F_d(k) = P_k`, then minus
-//!    `ρ_{e1}` if `k ≥ e1`, then minus `ρ_{e2}` if `k ≥ e2` (the subtractions done in that
-//!    order, each rounded in float64; subtracting 0.0 when the condition is false). The draw is
-//!    the smallest `k` not already drawn with `ρ_k > 0` and `t < F_d(k)`; if no `k` qualifies,
-//!    the largest `k` not already drawn with `ρ_k > 0` (no triple if none).
-//! 4. **Scores** (float32). The hypothesis plane is [`Plane::through`]`(q_a, q_b, q_c)` for the
-//!    triple `[a, b, c]` in draw order (float64: point `q_a`, unit normal `n`); a missing triple
-//!    or a degenerate plane scores −∞. Otherwise, with `τ` = `inlier_threshold_m` and
-//!    `g = softness / τ · log₂e` (float64, `log₂e` rounded to float64): `m = g·n` and
-//!    `u = q_a − p` per coordinate (float64); `n″ = f32(m)` per coordinate;
-//!    `o″ = f32((m_x·u_x + m_y·u_y) + m_z·u_z)`; `τ″ = f32(min(g·τ, 120))`;
-//!    `r_k = f32(q_k − p)` per coordinate (float64 difference, then rounded; 0 for invalid `k`);
-//!    `s_k = ((n″_x·r_kx + n″_y·r_ky) + n″_z·r_kz) − o″`; `y_k = |s_k| − τ″`;
-//!    `v_k = fastmath::recip_one_plus_exp2(y_k)`, which is `sigmoid(β(τ − dist_k))` with
-//!    `β = softness / τ`; the score is the lane sum of `v_k`, invalid candidates contributing
-//!    exactly 0. Against the same sum in float64, the float32 score differs by about 1e-5 for
-//!    windows spanning a few centimetres (relative coordinates rounded to float32, the
-//!    sigmoid's relative error below 7e-7), growing with the window's extent; hypotheses whose
-//!    scores differ by less than that may rank differently in a float64 reference.
-//! 5. **Best and refit** (float64). The best hypothesis is the first one with the largest score
-//!    (−∞ never wins). The inliers of its plane are the valid `k` with
-//!    `plane.distance(q_k) < τ` ([`Plane::distance`], Eq. 1); their [`Moments`] of `q_k − p`,
-//!    added in `k` order, give the LS normal: the smallest eigenvector of their covariance
-//!    ([`Moments::covariance`], [`fit_normals`]), or, with fewer than 3 inliers or
-//!    no unique plane, the hypothesis' normal. It is flipped if `n · p > 0` (towards the
-//!    camera).
-//!
-//! *Lane sums* (float32) add 56 lanes, the candidates `0..49` then seven zeros, as seven blocks of
-//! eight: accumulator `a_l = ((0 + v_l) + v_{8+l}) + … + v_{48+l}` for `l = 0..8`, then
-//! [`fastmath::sum_block`]`(a) = ((a₀ + a₄) + (a₂ + a₆)) + ((a₁ + a₅) + (a₃ + a₇))`.
+//! The exact definition, the contract that the training code follows too, is `SAMPLER.md` in
+//! this folder (included below, "The DSAC sampler contract"), with the parity vectors that both
+//! sides are tested against beside it in `vectors.json`.
 //!
 //! # Implementation
 //!
@@ -79,6 +32,7 @@
 //! The refits run eight pixels of a row at a time once their best hypotheses are known: the
 //! inlier moments over four f64 lanes (one pixel each, outliers adding zeros, so every sum is
 //! the one-pixel sum bit for bit) and the eigen-solves over eight.
+#![doc = include_str!("SAMPLER.md")]
 
 use std::hint::select_unpredictable;
 
