@@ -3,7 +3,7 @@
 //! server still serves, and overload is refused at once while accepted work finishes.
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
-mod common;
+use crate::common;
 
 use std::io::Write;
 use std::net::TcpStream;

@@ -3,7 +3,7 @@
 //! `tre infer`, HTTP and the stream.
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -6,7 +6,7 @@
 //! carries on.
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
-mod common;
+use crate::common;
 
 use std::io::{BufRead, BufReader};
 use std::net::{SocketAddr, TcpListener};
