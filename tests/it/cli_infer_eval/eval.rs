@@ -2,8 +2,8 @@
 
 use super::*;
 
-#[test]
-fn eval_tables_print_every_table_and_write_json() {
+/// A tiny synthetic dataset: one 64×64 frame, all of it the test split.
+fn tiny_dataset() -> tempfile::TempDir {
     let data = tempfile::tempdir().unwrap();
     let cfg = tre::synth::SynthConfig {
         out: data.path().to_owned(),
@@ -16,15 +16,13 @@ fn eval_tables_print_every_table_and_write_json() {
         ..tre::synth::SynthConfig::default()
     };
     tre::synth::generate(&cfg).unwrap();
-    let json = data.path().join("tables.json");
-    let out = tre(&[
-        "eval",
-        "--data",
-        s(data.path()),
-        "--tables",
-        "--json",
-        s(&json),
-    ]);
+    data
+}
+
+/// `tre eval --tables --json` prints every table and writes every row.
+fn assert_tables_and_json(data: &Path) {
+    let json = data.join("tables.json");
+    let out = tre(&["eval", "--data", s(data), "--tables", "--json", s(&json)]);
     assert!(out.status.success(), "{}", stderr(&out));
     let text = String::from_utf8_lossy(&out.stdout);
     for needle in [
@@ -45,12 +43,15 @@ fn eval_tables_print_every_table_and_write_json() {
     assert!(rows
         .iter()
         .all(|r| r["roughness"]["rmse_cm"].as_f64().is_some()));
+}
 
-    // Fewer hypotheses: every row that runs DSAC says so, and every table still finds it.
+/// Fewer hypotheses: every row that runs DSAC says so, and every table still finds it; 0 is
+/// refused naming the option.
+fn assert_fewer_hypotheses_are_named(data: &Path) {
     let four = tre(&[
         "eval",
         "--data",
-        s(data.path()),
+        s(data),
         "--tables",
         "--dsac-hypotheses",
         "4",
@@ -67,14 +68,20 @@ fn eval_tables_print_every_table_and_write_json() {
         assert!(text.contains(needle), "{needle:?} missing from {text}");
     }
     assert!(!text.contains("DSAC+"), "a row without K in {text}");
-    let bad = tre(&["eval", "--data", s(data.path()), "--dsac-hypotheses", "0"]);
+    let bad = tre(&["eval", "--data", s(data), "--dsac-hypotheses", "0"]);
     assert!(!bad.status.success());
     assert!(
         stderr(&bad).contains("--dsac-hypotheses"),
         "{}",
         stderr(&bad)
     );
+}
 
+#[test]
+fn eval_tables_print_every_table_and_write_json() {
+    let data = tiny_dataset();
+    assert_tables_and_json(data.path());
+    assert_fewer_hypotheses_are_named(data.path());
     let one = tre(&[
         "eval",
         "--data",
@@ -132,31 +139,46 @@ fn eval_real_scores_every_mode_on_one_frame_and_writes_json_and_a_sheet() {
             "geometric:LS+window"
         ]
     );
-    let unit = |v: &serde_json::Value| v.as_f64().filter(|x| (0.0..=1.0).contains(x));
     for r in rows {
-        let key = r["key"].as_str().unwrap();
-        assert!(unit(&r["all"]["edge_recall"]).is_some(), "{key}");
-        assert!(unit(&r["all"]["false_hazards"]).is_some(), "{key}");
-        assert!(r["all"]["edges"].as_u64().unwrap() > 1000, "{key}");
-        assert!(r["all"]["roughness"]["rmse_cm"].as_f64().unwrap() >= 0.0);
-        assert!(
-            r["floor"]["p90_cm"].as_f64().unwrap() >= r["floor"]["median_cm"].as_f64().unwrap()
-        );
-        assert!(r["ms"]["total"].as_f64().unwrap() > 0.0, "{key}");
-        let ranges: Vec<&String> = r["by_range"].as_object().unwrap().keys().collect();
-        assert_eq!(ranges, ["0_2m", "2_4m", "4m_up"], "{key}");
-        let pixels: u64 = r["by_range"]
-            .as_object()
-            .unwrap()
-            .values()
-            .map(|b| b["roughness"]["pixels"].as_u64().unwrap())
-            .sum();
-        assert_eq!(
-            pixels,
-            r["all"]["roughness"]["pixels"].as_u64().unwrap(),
-            "{key}"
-        );
+        assert_pooled_row(r);
     }
+    assert_modes_compare(rows);
+    let sheet = image::open(sheets.join("slambook2_ch7_1_depth.png")).unwrap();
+    assert!(sheet.width() >= 3 * 320 && sheet.height() >= 2 * 240);
+}
+
+/// A number within 0..=1.
+fn unit(v: &serde_json::Value) -> Option<f64> {
+    v.as_f64().filter(|x| (0.0..=1.0).contains(x))
+}
+
+/// One pooled row of `eval --real`: its scores in range, its range bins adding up to the whole.
+fn assert_pooled_row(r: &serde_json::Value) {
+    let key = r["key"].as_str().unwrap();
+    assert!(unit(&r["all"]["edge_recall"]).is_some(), "{key}");
+    assert!(unit(&r["all"]["false_hazards"]).is_some(), "{key}");
+    assert!(r["all"]["edges"].as_u64().unwrap() > 1000, "{key}");
+    assert!(r["all"]["roughness"]["rmse_cm"].as_f64().unwrap() >= 0.0);
+    assert!(r["floor"]["p90_cm"].as_f64().unwrap() >= r["floor"]["median_cm"].as_f64().unwrap());
+    assert!(r["ms"]["total"].as_f64().unwrap() > 0.0, "{key}");
+    let ranges: Vec<&String> = r["by_range"].as_object().unwrap().keys().collect();
+    assert_eq!(ranges, ["0_2m", "2_4m", "4m_up"], "{key}");
+    let pixels: u64 = r["by_range"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|b| b["roughness"]["pixels"].as_u64().unwrap())
+        .sum();
+    assert_eq!(
+        pixels,
+        r["all"]["roughness"]["pixels"].as_u64().unwrap(),
+        "{key}"
+    );
+}
+
+/// The pooled rows against each other: the geometric mode is the spec, the surface-only
+/// baseline misses the drops, the three-state map and the depth errors where they apply.
+fn assert_modes_compare(rows: &[serde_json::Value]) {
     // The geometric mode is the spec: nothing missed, nothing invented.
     assert_eq!(rows[2]["all"]["edge_recall"], 1.0);
     assert_eq!(rows[2]["all"]["false_hazards"], 0.0);
@@ -185,6 +207,4 @@ fn eval_real_scores_every_mode_on_one_frame_and_writes_json_and_a_sheet() {
     assert!(depth["abs_rel"].as_f64().unwrap() > 0.0);
     assert!(unit(&depth["delta_1_25"]).is_some());
     assert!(rows[1]["depth"].is_null());
-    let sheet = image::open(sheets.join("slambook2_ch7_1_depth.png")).unwrap();
-    assert!(sheet.width() >= 3 * 320 && sheet.height() >= 2 * 240);
 }

@@ -147,127 +147,174 @@ fn infer_refuses_bad_input_clearly() {
     );
 }
 
+/// The files that the refusals below are tried on, in a temporary folder.
+struct Inputs {
+    dir: tempfile::TempDir,
+    frame: PathBuf,
+    zero: PathBuf,
+    millimetres: PathBuf,
+    depth: PathBuf,
+    mm_focal: PathBuf,
+    flat_fy: PathBuf,
+    elsewhere: PathBuf,
+    jpg: PathBuf,
+    annotated: PathBuf,
+    manifest: PathBuf,
+}
+
+impl Inputs {
+    fn new() -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let p = |name: &str| dir.path().join(name);
+        let frame = p("frame.png");
+        std::fs::copy(real("slambook2_ch5/color/1.png"), &frame).unwrap();
+        let npy = |name: &str, value: f32| {
+            let path = p(name);
+            let f = std::fs::File::create(&path).unwrap();
+            tre::io::npy::write_npy(f, &[48, 64], &vec![value; 48 * 64]).unwrap();
+            path
+        };
+        let zero = npy("zero.npy", 0.0);
+        let millimetres = npy("mm.npy", 1500.0);
+        let depth = p("depth.png");
+        std::fs::copy(real("slambook2_ch5/depth/1.png"), &depth).unwrap();
+        let mm_focal = p("mm_focal.json");
+        std::fs::write(
+            &mm_focal,
+            r#"{"fx": 3.6, "fy": 3.6, "cx": 319.5, "cy": 239.5}"#,
+        )
+        .unwrap();
+        let flat_fy = p("flat_fy.json");
+        std::fs::write(
+            &flat_fy,
+            r#"{"fx": 518, "fy": 0.001, "cx": 325.5, "cy": 253.5}"#,
+        )
+        .unwrap();
+        let elsewhere = p("out/r.png");
+        let (jpg, annotated, manifest) = (p("r.jpg"), p("a"), p("dataset.json"));
+        std::fs::write(&manifest, b"{}").unwrap();
+        Self {
+            dir,
+            frame,
+            zero,
+            millimetres,
+            depth,
+            mm_focal,
+            flat_fy,
+            elsewhere,
+            jpg,
+            annotated,
+            manifest,
+        }
+    }
+
+    /// `tre infer` runs that must fail, each with what its message names.
+    fn infer_cases(&self) -> Vec<(Vec<&str>, &str)> {
+        let (frame, elsewhere) = (&self.frame, &self.elsewhere);
+        vec![
+            (vec!["infer", s(frame), "-o", s(frame)], "input"),
+            (vec!["infer", s(frame), "-o", s(&self.jpg)], ".png"),
+            (
+                vec![
+                    "infer",
+                    s(frame),
+                    "-o",
+                    s(elsewhere),
+                    "--preview-max-cm",
+                    "0",
+                ],
+                "--preview-max-cm",
+            ),
+            (
+                vec!["infer", "--depth", s(&self.zero), "-o", s(elsewhere)],
+                "no valid pixel",
+            ),
+            (
+                vec!["infer", "--depth", s(&self.millimetres), "-o", s(elsewhere)],
+                "millimetres",
+            ),
+            (
+                vec![
+                    "infer",
+                    "--depth",
+                    s(&self.depth),
+                    "--camera",
+                    s(&self.mm_focal),
+                    "-o",
+                    s(elsewhere),
+                ],
+                "focal length in pixels",
+            ),
+        ]
+    }
+
+    /// `tre annotate`, `tre eval` and `tre loadtest` runs that must fail, each with what its
+    /// message names.
+    fn other_cases(&self) -> Vec<(Vec<&str>, &str)> {
+        let dir = self.dir.path();
+        vec![
+            (
+                vec![
+                    "annotate",
+                    "--depth",
+                    s(&self.depth),
+                    "--camera",
+                    s(&self.flat_fy),
+                    "--out",
+                    s(&self.annotated),
+                ],
+                "field of view",
+            ),
+            (
+                vec![
+                    "annotate",
+                    "--depth",
+                    s(&self.depth),
+                    "--camera",
+                    s(&self.mm_focal),
+                    "--out",
+                    s(dir),
+                ],
+                "holds the input",
+            ),
+            (
+                vec!["eval", "--data", s(dir), "--json", s(&self.manifest)],
+                "over or inside the input",
+            ),
+            (
+                vec![
+                    "loadtest",
+                    "--frame",
+                    s(&self.frame),
+                    "--json",
+                    s(&self.frame),
+                    "--requests",
+                    "1",
+                ],
+                "input",
+            ),
+        ]
+    }
+}
+
 /// No command writes over its inputs, and inputs that cannot be right (depth with no valid
 /// pixel or in millimetres, a focal length in millimetres, a map in a format that cannot hold
 /// it) are refused before any work, each with a message that names the problem.
 #[test]
 fn outputs_never_replace_inputs_and_implausible_inputs_are_refused() {
-    let dir = tempfile::tempdir().unwrap();
-    let p = |name: &str| dir.path().join(name);
-    let frame = p("frame.png");
-    std::fs::copy(real("slambook2_ch5/color/1.png"), &frame).unwrap();
-    let original = std::fs::read(&frame).unwrap();
-    let npy = |name: &str, value: f32| {
-        let path = p(name);
-        let f = std::fs::File::create(&path).unwrap();
-        tre::io::npy::write_npy(f, &[48, 64], &vec![value; 48 * 64]).unwrap();
-        path
-    };
-    let zero = npy("zero.npy", 0.0);
-    let millimetres = npy("mm.npy", 1500.0);
-    let depth = p("depth.png");
-    std::fs::copy(real("slambook2_ch5/depth/1.png"), &depth).unwrap();
-    let mm_focal = p("mm_focal.json");
-    std::fs::write(
-        &mm_focal,
-        r#"{"fx": 3.6, "fy": 3.6, "cx": 319.5, "cy": 239.5}"#,
-    )
-    .unwrap();
-    let flat_fy = p("flat_fy.json");
-    std::fs::write(
-        &flat_fy,
-        r#"{"fx": 518, "fy": 0.001, "cx": 325.5, "cy": 253.5}"#,
-    )
-    .unwrap();
-    let elsewhere = p("out/r.png");
-    let (jpg, annotated, manifest) = (p("r.jpg"), p("a"), p("dataset.json"));
-    std::fs::write(&manifest, b"{}").unwrap();
-    let cases: Vec<(Vec<&str>, &str)> = vec![
-        (vec!["infer", s(&frame), "-o", s(&frame)], "input"),
-        (vec!["infer", s(&frame), "-o", s(&jpg)], ".png"),
-        (
-            vec![
-                "infer",
-                s(&frame),
-                "-o",
-                s(&elsewhere),
-                "--preview-max-cm",
-                "0",
-            ],
-            "--preview-max-cm",
-        ),
-        (
-            vec!["infer", "--depth", s(&zero), "-o", s(&elsewhere)],
-            "no valid pixel",
-        ),
-        (
-            vec!["infer", "--depth", s(&millimetres), "-o", s(&elsewhere)],
-            "millimetres",
-        ),
-        (
-            vec![
-                "infer",
-                "--depth",
-                s(&depth),
-                "--camera",
-                s(&mm_focal),
-                "-o",
-                s(&elsewhere),
-            ],
-            "focal length in pixels",
-        ),
-        (
-            vec![
-                "annotate",
-                "--depth",
-                s(&depth),
-                "--camera",
-                s(&flat_fy),
-                "--out",
-                s(&annotated),
-            ],
-            "field of view",
-        ),
-        (
-            vec![
-                "annotate",
-                "--depth",
-                s(&depth),
-                "--camera",
-                s(&mm_focal),
-                "--out",
-                s(dir.path()),
-            ],
-            "holds the input",
-        ),
-        (
-            vec!["eval", "--data", s(dir.path()), "--json", s(&manifest)],
-            "over or inside the input",
-        ),
-        (
-            vec![
-                "loadtest",
-                "--frame",
-                s(&frame),
-                "--json",
-                s(&frame),
-                "--requests",
-                "1",
-            ],
-            "input",
-        ),
-    ];
-    for (args, needle) in cases {
+    let inputs = Inputs::new();
+    let original = std::fs::read(&inputs.frame).unwrap();
+    for (args, needle) in inputs.infer_cases().into_iter().chain(inputs.other_cases()) {
         fails_saying(&args, needle);
     }
     assert_eq!(
-        std::fs::read(&frame).unwrap(),
+        std::fs::read(&inputs.frame).unwrap(),
         original,
         "the frame was written over"
     );
-    assert!(!elsewhere.exists() && !jpg.exists());
+    assert!(!inputs.elsewhere.exists() && !inputs.jpg.exists());
     assert_eq!(
-        std::fs::read(&manifest).unwrap(),
+        std::fs::read(&inputs.manifest).unwrap(),
         b"{}",
         "the manifest was written over"
     );

@@ -81,13 +81,7 @@ fn the_client_and_the_load_tester_speak_tls_to_a_proxy_with_a_private_ca() {
     let (proxy, ca_pem) = tls_proxy(&rt, server.addr);
     let ca = dir.path().join("ca.pem");
     std::fs::write(&ca, ca_pem).unwrap();
-    let tre = |args: &[&str]| {
-        Command::new(env!("CARGO_BIN_EXE_tre"))
-            .args(args)
-            .env("TRE_API_KEY", key)
-            .output()
-            .unwrap()
-    };
+    let tre = |args: &[&str]| tre_with_key(key, args);
     let wss = format!("wss://localhost:{}/v1/stream", proxy.port());
     let out = dir.path().join("out");
     let frames_dir = dir.path().join("frames");
@@ -122,10 +116,26 @@ fn the_client_and_the_load_tester_speak_tls_to_a_proxy_with_a_private_ca() {
     );
 
     // The load tester, over https:// and over the stream (wss://).
+    loadtest_over_tls(dir.path(), proxy, &ca, &frames[0].1, key);
+}
+
+/// `tre ARGS` with `TRE_API_KEY` set to `key`.
+fn tre_with_key(key: &str, args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_tre"))
+        .args(args)
+        .env("TRE_API_KEY", key)
+        .output()
+        .unwrap()
+}
+
+/// `tre loadtest` through the proxy with its CA, over https:// and over the stream (wss://):
+/// every request of each is answered.
+fn loadtest_over_tls(dir: &Path, proxy: SocketAddr, ca: &Path, frame: &Path, key: &str) {
+    let tre = |args: &[&str]| tre_with_key(key, args);
     let https = format!("https://localhost:{}", proxy.port());
-    let frame = frames[0].1.to_str().unwrap();
+    let frame = frame.to_str().unwrap();
     for protocol in ["http", "ws"] {
-        let json = dir.path().join(format!("load-{protocol}.json"));
+        let json = dir.join(format!("load-{protocol}.json"));
         let run = tre(&[
             "loadtest",
             "--url",

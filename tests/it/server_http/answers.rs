@@ -16,30 +16,7 @@ fn answers_equal_tre_infer_in_rgb_and_rgbd() {
         )
         .await;
         assert_eq!(resp.status().as_u16(), 200);
-        let h = resp.headers().clone();
-        assert_eq!(h["x-roughness-scale-m"], "0.0001");
-        assert_eq!(
-            (
-                h["x-image-width"].to_str().unwrap(),
-                h["x-image-height"].to_str().unwrap()
-            ),
-            ("640", "480")
-        );
-        assert_eq!(h["x-working-size"], "256x192");
-        let timing = h["server-timing"].to_str().unwrap().to_owned();
-        for stage in ["depth;dur=", "normals;dur=", "refine;dur=", "centroid;dur="] {
-            assert!(timing.contains(stage), "{timing}");
-        }
-        // The worker's whole job: decoding first, encoding (and any extra maps) last.
-        let stages: Vec<&str> = timing
-            .split(", ")
-            .map(|s| s.split(';').next().unwrap())
-            .collect();
-        assert_eq!(
-            (stages.first(), stages.last()),
-            (Some(&"decode"), Some(&"encode")),
-            "{timing}"
-        );
+        assert_map_headers(resp.headers());
         let served = png16_values(&resp.bytes().await.unwrap());
         let reference = infer_png16(&[rgb_path.to_str().unwrap(), "--mode", "rgb"]);
         assert_eq!(served, reference, "HTTP rgb answer differs from tre infer");
@@ -88,6 +65,34 @@ fn answers_equal_tre_infer_in_rgb_and_rgbd() {
         ]);
         assert_eq!(served, reference, "HTTP rgbd answer differs from tre infer");
     });
+}
+
+/// The headers of a 640×480 frame's map: scale, image and working size, and the worker's stages
+/// in `Server-Timing`, decoding first and encoding last.
+fn assert_map_headers(h: &reqwest::header::HeaderMap) {
+    assert_eq!(h["x-roughness-scale-m"], "0.0001");
+    assert_eq!(
+        (
+            h["x-image-width"].to_str().unwrap(),
+            h["x-image-height"].to_str().unwrap()
+        ),
+        ("640", "480")
+    );
+    assert_eq!(h["x-working-size"], "256x192");
+    let timing = h["server-timing"].to_str().unwrap().to_owned();
+    for stage in ["depth;dur=", "normals;dur=", "refine;dur=", "centroid;dur="] {
+        assert!(timing.contains(stage), "{timing}");
+    }
+    // The worker's whole job: decoding first, encoding (and any extra maps) last.
+    let stages: Vec<&str> = timing
+        .split(", ")
+        .map(|s| s.split(';').next().unwrap())
+        .collect();
+    assert_eq!(
+        (stages.first(), stages.last()),
+        (Some(&"decode"), Some(&"encode")),
+        "{timing}"
+    );
 }
 
 #[test]
@@ -259,99 +264,109 @@ fn the_openapi_document_matches_what_the_server_takes() {
     assert_eq!(s, 200);
     let doc: serde_json::Value = serde_json::from_slice(&body).unwrap();
     assert!(doc["openapi"].as_str().unwrap().starts_with("3.0."));
-    fn walk(v: &serde_json::Value, bad: &mut Vec<String>) {
-        match v {
-            serde_json::Value::Object(m) => {
-                for (k, v) in m {
-                    if k.starts_with("exclusiveM") && !v.is_boolean() {
-                        bad.push(format!("{k}: {v}"));
-                    }
-                    walk(v, bad);
-                }
-            }
-            serde_json::Value::Array(a) => a.iter().for_each(|v| walk(v, bad)),
-            _ => {}
-        }
-    }
     let mut not_3_0 = Vec::new();
     walk(&doc, &mut not_3_0);
     assert!(not_3_0.is_empty(), "not OpenAPI 3.0: {not_3_0:?}");
 
     let op = &doc["paths"]["/v1/roughness"]["post"];
-    let examples = [
-        ("format", "png16"),
-        ("mode", "rgb"),
-        ("seed", "7"),
-        ("normals", "ls"),
-        ("dsac_hypotheses", "4"),
-        ("preview_max_cm", "4"),
-        ("max_roughness_cm", "3"),
-        ("max_slope_deg", "25"),
-        ("outputs", "slope"),
-        ("fx", "525"),
-        ("fy", "525"),
-        ("cx", "319.5"),
-        ("cy", "239.5"),
-        ("pitch_deg", "50"),
-        ("height_m", "0.8"),
-        ("depth_scale", "1000"),
-        ("sensor", "kinect_v1"),
-    ];
     let listed: Vec<&str> = op["parameters"]
         .as_array()
         .unwrap()
         .iter()
         .map(|p| p["name"].as_str().unwrap())
         .collect();
-    let mut named: Vec<&str> = examples.iter().map(|(n, _)| *n).collect();
+    let mut named: Vec<&str> = EXAMPLES.iter().map(|(n, _)| *n).collect();
     let mut sorted = listed.clone();
     sorted.sort_unstable();
     named.sort_unstable();
     assert_eq!(sorted, named, "the document's query parameters");
     let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    rt().block_on(documented_requests_are_served(&server, op, &frame));
+}
+
+/// Every `exclusiveMinimum` or `exclusiveMaximum` under `v` that is not a flag (OpenAPI 3.1's
+/// form), added to `bad`.
+fn walk(v: &serde_json::Value, bad: &mut Vec<String>) {
+    match v {
+        serde_json::Value::Object(m) => {
+            for (k, v) in m {
+                if k.starts_with("exclusiveM") && !v.is_boolean() {
+                    bad.push(format!("{k}: {v}"));
+                }
+                walk(v, bad);
+            }
+        }
+        serde_json::Value::Array(a) => a.iter().for_each(|v| walk(v, bad)),
+        _ => {}
+    }
+}
+
+/// A value its schema allows for every query parameter of `POST /v1/roughness`.
+const EXAMPLES: [(&str, &str); 17] = [
+    ("format", "png16"),
+    ("mode", "rgb"),
+    ("seed", "7"),
+    ("normals", "ls"),
+    ("dsac_hypotheses", "4"),
+    ("preview_max_cm", "4"),
+    ("max_roughness_cm", "3"),
+    ("max_slope_deg", "25"),
+    ("outputs", "slope"),
+    ("fx", "525"),
+    ("fy", "525"),
+    ("cx", "319.5"),
+    ("cy", "239.5"),
+    ("pitch_deg", "50"),
+    ("height_m", "0.8"),
+    ("depth_scale", "1000"),
+    ("sensor", "kinect_v1"),
+];
+
+/// Every parameter of the document `op` at once is taken, one it does not list is refused, and
+/// every `format` it enumerates and every body type it lists gives a map.
+async fn documented_requests_are_served(server: &Server, op: &serde_json::Value, frame: &[u8]) {
+    let frame = frame.to_vec();
     let url = |query: &str| format!("{}/v1/roughness?{query}", server.url());
-    let all: Vec<String> = examples.iter().map(|(n, v)| format!("{n}={v}")).collect();
-    rt().block_on(async {
-        let resp = post(&url(&all.join("&")), "image/png", frame.clone()).await;
-        assert_eq!(
-            resp.status().as_u16(),
-            200,
-            "every documented parameter at once"
-        );
+    let all: Vec<String> = EXAMPLES.iter().map(|(n, v)| format!("{n}={v}")).collect();
+    let resp = post(&url(&all.join("&")), "image/png", frame.clone()).await;
+    assert_eq!(
+        resp.status().as_u16(),
+        200,
+        "every documented parameter at once"
+    );
+    let resp = post(
+        &url("normals=ls&colour_map=turbo"),
+        "image/png",
+        frame.clone(),
+    )
+    .await;
+    let (status, code, message) = error_of(resp).await;
+    assert_eq!((status, code.as_str()), (400, "bad_request"), "{message}");
+
+    let formats = op["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "format")
+        .unwrap()["schema"]["enum"]
+        .as_array()
+        .unwrap()
+        .clone();
+    assert!(formats.len() >= 3);
+    for f in formats {
+        let f = f.as_str().unwrap();
         let resp = post(
-            &url("normals=ls&colour_map=turbo"),
+            &url(&format!("normals=ls&format={f}")),
             "image/png",
             frame.clone(),
         )
         .await;
-        let (status, code, message) = error_of(resp).await;
-        assert_eq!((status, code.as_str()), (400, "bad_request"), "{message}");
-
-        let formats = op["parameters"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["name"] == "format")
-            .unwrap()["schema"]["enum"]
-            .as_array()
-            .unwrap()
-            .clone();
-        assert!(formats.len() >= 3);
-        for f in formats {
-            let f = f.as_str().unwrap();
-            let resp = post(
-                &url(&format!("normals=ls&format={f}")),
-                "image/png",
-                frame.clone(),
-            )
-            .await;
-            assert_eq!(resp.status().as_u16(), 200, "format={f}");
-        }
-        let types = op["requestBody"]["content"].as_object().unwrap();
-        assert!(types.contains_key("image/png") && types.contains_key("image/jpeg"));
-        for t in types.keys().filter(|t| !t.starts_with("multipart/")) {
-            let resp = post(&url("normals=ls"), t, frame.clone()).await;
-            assert_eq!(resp.status().as_u16(), 200, "Content-Type {t}");
-        }
-    });
+        assert_eq!(resp.status().as_u16(), 200, "format={f}");
+    }
+    let types = op["requestBody"]["content"].as_object().unwrap();
+    assert!(types.contains_key("image/png") && types.contains_key("image/jpeg"));
+    for t in types.keys().filter(|t| !t.starts_with("multipart/")) {
+        let resp = post(&url("normals=ls"), t, frame.clone()).await;
+        assert_eq!(resp.status().as_u16(), 200, "Content-Type {t}");
+    }
 }

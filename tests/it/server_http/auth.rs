@@ -57,54 +57,69 @@ fn the_api_key_and_the_origin_allow_list_guard_every_route() {
             .to_str()
             .unwrap()
             .contains("server-timing"));
-        let preflight = |origin: &'static str| {
-            client
-                .request(reqwest::Method::OPTIONS, &url)
-                .header("origin", origin)
-                .header("access-control-request-method", "POST")
-                .header(
-                    "access-control-request-headers",
-                    "authorization, content-type",
-                )
-                .send()
-        };
-        let resp = preflight("https://ops.example").await.unwrap();
-        assert_eq!(resp.status().as_u16(), 204);
-        assert_eq!(resp.headers()["access-control-allow-origin"], ops);
-        assert!(resp.headers()["access-control-allow-headers"]
-            .to_str()
-            .unwrap()
-            .contains("authorization"));
-        assert_eq!(
-            preflight("http://evil.example")
-                .await
-                .unwrap()
-                .status()
-                .as_u16(),
-            403
-        );
+        preflights_are_answered_for_allowed_origins(&client, &url, ops).await;
         // The stream upgrade: no key 401, a foreign origin 403, the key 101.
-        use tokio_tungstenite::tungstenite::client::IntoClientRequest;
-        let ws_url = format!("ws://{}/v1/stream", server.addr);
-        for (auth, origin, status) in [
-            (None, None, 401),
-            (Some(bearer.as_str()), Some("http://evil.example"), 403),
-            (Some(bearer.as_str()), None, 101),
-        ] {
-            let mut req = ws_url.as_str().into_client_request().unwrap();
-            if let Some(a) = auth {
-                req.headers_mut()
-                    .insert("authorization", a.parse().unwrap());
-            }
-            if let Some(o) = origin {
-                req.headers_mut().insert("origin", o.parse().unwrap());
-            }
-            let got = match tokio_tungstenite::connect_async(req).await {
-                Ok((_, resp)) => resp.status().as_u16(),
-                Err(tokio_tungstenite::tungstenite::Error::Http(resp)) => resp.status().as_u16(),
-                Err(e) => panic!("{e}"),
-            };
-            assert_eq!(got, status, "{auth:?} {origin:?}");
-        }
+        stream_upgrade_is_guarded(server.addr, &bearer).await;
     });
+}
+
+/// Preflights from `ops` (on `--allow-origin`) are answered with its allow-origin and the
+/// authorization header allowed; one from another origin is refused.
+async fn preflights_are_answered_for_allowed_origins(
+    client: &reqwest::Client,
+    url: &str,
+    ops: &str,
+) {
+    let preflight = |origin: &'static str| {
+        client
+            .request(reqwest::Method::OPTIONS, url)
+            .header("origin", origin)
+            .header("access-control-request-method", "POST")
+            .header(
+                "access-control-request-headers",
+                "authorization, content-type",
+            )
+            .send()
+    };
+    let resp = preflight("https://ops.example").await.unwrap();
+    assert_eq!(resp.status().as_u16(), 204);
+    assert_eq!(resp.headers()["access-control-allow-origin"], ops);
+    assert!(resp.headers()["access-control-allow-headers"]
+        .to_str()
+        .unwrap()
+        .contains("authorization"));
+    assert_eq!(
+        preflight("http://evil.example")
+            .await
+            .unwrap()
+            .status()
+            .as_u16(),
+        403
+    );
+}
+
+/// The stream upgrade with `--api-key`: no key 401, a foreign origin 403, the key 101.
+async fn stream_upgrade_is_guarded(addr: std::net::SocketAddr, bearer: &str) {
+    use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+    let ws_url = format!("ws://{addr}/v1/stream");
+    for (auth, origin, status) in [
+        (None, None, 401),
+        (Some(bearer), Some("http://evil.example"), 403),
+        (Some(bearer), None, 101),
+    ] {
+        let mut req = ws_url.as_str().into_client_request().unwrap();
+        if let Some(a) = auth {
+            req.headers_mut()
+                .insert("authorization", a.parse().unwrap());
+        }
+        if let Some(o) = origin {
+            req.headers_mut().insert("origin", o.parse().unwrap());
+        }
+        let got = match tokio_tungstenite::connect_async(req).await {
+            Ok((_, resp)) => resp.status().as_u16(),
+            Err(tokio_tungstenite::tungstenite::Error::Http(resp)) => resp.status().as_u16(),
+            Err(e) => panic!("{e}"),
+        };
+        assert_eq!(got, status, "{auth:?} {origin:?}");
+    }
 }

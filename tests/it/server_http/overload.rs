@@ -56,6 +56,15 @@ fn overload_is_refused_at_once_and_accepted_work_finishes() {
         }
         out
     });
+    assert_refused_at_once(&server, &outcomes);
+}
+
+/// A request's status, `Retry-After`, body, and its place in the order the answers came.
+type Outcome = (u16, Option<String>, axum::body::Bytes, usize);
+
+/// Only 200 and 503 `overloaded` with `Retry-After`; the maps are maps; every refusal came back
+/// before the last accepted frame; the metrics count the refusals.
+fn assert_refused_at_once(server: &Server, outcomes: &[Outcome]) {
     let ok: Vec<_> = outcomes.iter().filter(|o| o.0 == 200).collect();
     let refused: Vec<_> = outcomes.iter().filter(|o| o.0 == 503).collect();
     assert_eq!(
@@ -185,36 +194,7 @@ fn connections_over_the_limit_are_answered_503_at_once() {
     // server is still closing, such as the start-up probe's, may hold one for a moment: a
     // holder refused then is opened again.)
     let mut early = 0;
-    let holders: Vec<TcpStream> = (0..2)
-        .map(|_| loop {
-            use std::io::Read;
-            let mut tcp = TcpStream::connect(server.addr).unwrap();
-            tcp.set_read_timeout(Some(std::time::Duration::from_secs(5)))
-                .unwrap();
-            tcp.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n")
-                .unwrap();
-            let mut raw = Vec::new();
-            let mut buf = [0u8; 512];
-            while !raw.ends_with(b"}") {
-                let n = tcp.read(&mut buf).unwrap();
-                assert!(n > 0, "closed: {}", String::from_utf8_lossy(&raw));
-                raw.extend_from_slice(&buf[..n]);
-            }
-            if raw.starts_with(b"HTTP/1.1 200") {
-                break tcp;
-            }
-            early += 1;
-            std::thread::sleep(std::time::Duration::from_millis(50));
-        })
-        .collect();
-    fn refused_reply(tcp: &mut TcpStream) -> Vec<u8> {
-        use std::io::Read;
-        tcp.set_read_timeout(Some(std::time::Duration::from_secs(5)))
-            .unwrap();
-        let mut raw = Vec::new();
-        let _ = tcp.read_to_end(&mut raw);
-        raw
-    }
+    let holders = served_holders(server.addr, &mut early);
     let refused = |tcp: &mut TcpStream| -> Option<Vec<u8>> {
         let req = b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n";
         tcp.write_all(req).ok()?;
@@ -270,4 +250,41 @@ fn connections_over_the_limit_are_answered_503_at_once() {
     assert!(metrics.contains(&refused_total), "{metrics}");
     assert!(metrics.contains("tre_connections_open 1\n"), "{metrics}");
     rt().block_on(still_serves(&server));
+}
+
+/// Two kept-alive connections to `addr` that have been served; each refused first (a place
+/// still held by a connection the server is closing) adds one to `early`.
+fn served_holders(addr: std::net::SocketAddr, early: &mut usize) -> Vec<TcpStream> {
+    (0..2)
+        .map(|_| loop {
+            use std::io::Read;
+            let mut tcp = TcpStream::connect(addr).unwrap();
+            tcp.set_read_timeout(Some(std::time::Duration::from_secs(5)))
+                .unwrap();
+            tcp.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n")
+                .unwrap();
+            let mut raw = Vec::new();
+            let mut buf = [0u8; 512];
+            while !raw.ends_with(b"}") {
+                let n = tcp.read(&mut buf).unwrap();
+                assert!(n > 0, "closed: {}", String::from_utf8_lossy(&raw));
+                raw.extend_from_slice(&buf[..n]);
+            }
+            if raw.starts_with(b"HTTP/1.1 200") {
+                break tcp;
+            }
+            *early += 1;
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        })
+        .collect()
+}
+
+/// What a refused connection is told before it is closed (5 s at most).
+fn refused_reply(tcp: &mut TcpStream) -> Vec<u8> {
+    use std::io::Read;
+    tcp.set_read_timeout(Some(std::time::Duration::from_secs(5)))
+        .unwrap();
+    let mut raw = Vec::new();
+    let _ = tcp.read_to_end(&mut raw);
+    raw
 }

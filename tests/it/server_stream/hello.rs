@@ -7,19 +7,6 @@ use super::*;
 fn the_hello_sets_the_traversability_thresholds() {
     let server = Server::start(&["--workers", "1"]);
     let image = std::fs::read(real("slambook2_ch7/2.png")).unwrap();
-    let hello_with = |max_roughness_cm, max_slope_deg| {
-        pb::ClientMessage {
-            msg: Some(pb::client_message::Msg::Hello(pb::Hello {
-                mode: pb::Mode::Rgb as i32,
-                format: pb::Format::F32 as i32,
-                want_traversable: true,
-                max_roughness_cm,
-                max_slope_deg,
-                ..Default::default()
-            })),
-        }
-        .encode_to_vec()
-    };
     rt().block_on(async {
         // (traversable pixels, pixels with roughness) under each pair of thresholds.
         let mut counts = Vec::new();
@@ -31,24 +18,8 @@ fn the_hello_sets_the_traversability_thresholds() {
         .into_iter()
         .enumerate()
         {
-            let mut ws = connect(&server).await;
-            send(&mut ws, hello_with(cm, deg)).await;
-            assert!(matches!(
-                next(&mut ws).await,
-                pb::server_message::Msg::Ready(_)
-            ));
-            send(&mut ws, frame(sequence as u64 + 1, image.clone())).await;
-            let pb::server_message::Msg::Result(r) = next(&mut ws).await else {
-                panic!("expected a Result");
-            };
-            let valid = r
-                .roughness
-                .chunks_exact(4)
-                .filter(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]).is_finite())
-                .count();
-            let traversable = r.traversable.iter().filter(|&&t| t == 1).count();
-            counts.push((traversable, valid));
-            ws.close(None).await.unwrap();
+            let hello = hello_with(cm, deg);
+            counts.push(traversable_and_valid(&server, hello, sequence as u64 + 1, &image).await);
         }
         let (default, loose, strict) = (counts[0], counts[1], counts[2]);
         assert!(
@@ -72,6 +43,49 @@ fn the_hello_sets_the_traversability_thresholds() {
             other => panic!("expected an Error, got {other:?}"),
         }
     });
+}
+
+/// An RGB-mode Hello for float maps with the traversable map, under these thresholds.
+fn hello_with(max_roughness_cm: Option<f64>, max_slope_deg: Option<f64>) -> Vec<u8> {
+    pb::ClientMessage {
+        msg: Some(pb::client_message::Msg::Hello(pb::Hello {
+            mode: pb::Mode::Rgb as i32,
+            format: pb::Format::F32 as i32,
+            want_traversable: true,
+            max_roughness_cm,
+            max_slope_deg,
+            ..Default::default()
+        })),
+    }
+    .encode_to_vec()
+}
+
+/// On a new stream opened with `hello`, frame `sequence` of `image`: its traversable pixels and
+/// its pixels with roughness.
+async fn traversable_and_valid(
+    server: &Server,
+    hello: Vec<u8>,
+    sequence: u64,
+    image: &[u8],
+) -> (usize, usize) {
+    let mut ws = connect(server).await;
+    send(&mut ws, hello).await;
+    assert!(matches!(
+        next(&mut ws).await,
+        pb::server_message::Msg::Ready(_)
+    ));
+    send(&mut ws, frame(sequence, image.to_vec())).await;
+    let pb::server_message::Msg::Result(r) = next(&mut ws).await else {
+        panic!("expected a Result");
+    };
+    let valid = r
+        .roughness
+        .chunks_exact(4)
+        .filter(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]).is_finite())
+        .count();
+    let traversable = r.traversable.iter().filter(|&&t| t == 1).count();
+    ws.close(None).await.unwrap();
+    (traversable, valid)
 }
 
 #[test]
