@@ -1,6 +1,11 @@
 //! `ORT_DYLIB_PATH` naming a missing file or a file that is no library: the errors name the
 //! path. Environment variables are process-wide, so these checks run in one test, in a test
 //! binary of their own.
+//!
+//! Separate from `tests/it` because it changes process-wide state: it sets `ORT_DYLIB_PATH` to
+//! bad paths (another test's model load would read them), and it needs a process whose ONNX
+//! Runtime environment was never created (`runtime::environment()` keeps the first one made, so
+//! after any other test that loads a model it could no longer fail).
 
 use tre::model::runtime::{self, RuntimeError};
 

@@ -515,7 +515,12 @@ fn bad_inputs_are_clear_errors() -> TestResult {
         .run(&empty, &e2e)
         .expect_err("empty");
     assert!(matches!(err, PipelineError::EmptyImage { .. }), "{err}");
+    Ok(())
+}
 
+#[test]
+fn bad_settings_are_clear_errors() -> TestResult {
+    let mut pipeline = Pipeline::new(None);
     let depth_only = FrameInput {
         depth_m: Some(Grid::new(100, 100, 1.0)),
         ..FrameInput::default()

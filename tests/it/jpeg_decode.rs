@@ -4,7 +4,7 @@
 //! grey.
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 

@@ -7,7 +7,7 @@
 //! `tests/browser/node_modules/playwright-core` (`tests/browser/setup.sh` installs them). Without
 //! them the test prints `skipped: ...` and passes, unless `TRE_REQUIRE_BROWSER=1` (as in CI).
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};

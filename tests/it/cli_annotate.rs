@@ -38,6 +38,22 @@ fn expect_error(args: &[&str], needle: &str) {
     );
 }
 
+/// `tre annotate --depth DEPTH --camera CAMERA -o OUT` fails with `needle` and no panic.
+fn expect_annotate_error(depth: &Path, camera: &Path, out: &Path, needle: &str) {
+    expect_error(
+        &[
+            "annotate",
+            "--depth",
+            s(depth),
+            "--camera",
+            s(camera),
+            "-o",
+            s(out),
+        ],
+        needle,
+    );
+}
+
 #[test]
 fn annotates_a_real_frame_with_every_output() {
     let dir = tempfile::tempdir().unwrap();
@@ -87,46 +103,18 @@ fn bad_inputs_give_clear_errors() {
 
     // Not an image at all.
     std::fs::write(d.join("junk.png"), b"this is not a png").unwrap();
-    expect_error(
-        &[
-            "annotate",
-            "--depth",
-            s(&d.join("junk.png")),
-            "--camera",
-            s(&cam),
-            "-o",
-            s(&out),
-        ],
-        "not a readable image",
-    );
+    expect_annotate_error(&d.join("junk.png"), &cam, &out, "not a readable image");
 
     // A truncated PNG.
     let bytes = std::fs::read(&depth).unwrap();
     std::fs::write(d.join("cut.png"), &bytes[..bytes.len() / 3]).unwrap();
-    expect_error(
-        &[
-            "annotate",
-            "--depth",
-            s(&d.join("cut.png")),
-            "--camera",
-            s(&cam),
-            "-o",
-            s(&out),
-        ],
-        "cut.png",
-    );
+    expect_annotate_error(&d.join("cut.png"), &cam, &out, "cut.png");
 
     // A colour image given as depth.
-    expect_error(
-        &[
-            "annotate",
-            "--depth",
-            s(&real("slambook2_ch7/1.png")),
-            "--camera",
-            s(&cam),
-            "-o",
-            s(&out),
-        ],
+    expect_annotate_error(
+        &real("slambook2_ch7/1.png"),
+        &cam,
+        &out,
         "depth must be a 16-bit grey PNG",
     );
 
@@ -135,16 +123,10 @@ fn bad_inputs_give_clear_errors() {
         serde_json::from_str(&std::fs::read_to_string(&cam).unwrap()).unwrap();
     json["width"] = 320.into();
     std::fs::write(d.join("small.json"), json.to_string()).unwrap();
-    expect_error(
-        &[
-            "annotate",
-            "--depth",
-            s(&depth),
-            "--camera",
-            s(&d.join("small.json")),
-            "-o",
-            s(&out),
-        ],
+    expect_annotate_error(
+        &depth,
+        &d.join("small.json"),
+        &out,
         "describes a 320×480 image",
     );
 
@@ -152,61 +134,22 @@ fn bad_inputs_give_clear_errors() {
     json["width"] = 640.into();
     json["fx"] = (-5.0).into();
     std::fs::write(d.join("neg.json"), json.to_string()).unwrap();
-    expect_error(
-        &[
-            "annotate",
-            "--depth",
-            s(&depth),
-            "--camera",
-            s(&d.join("neg.json")),
-            "-o",
-            s(&out),
-        ],
+    expect_annotate_error(
+        &depth,
+        &d.join("neg.json"),
+        &out,
         "focal length fx must be positive",
     );
 
     // Camera JSON that is not JSON.
     std::fs::write(d.join("bad.json"), "{fx: ").unwrap();
-    expect_error(
-        &[
-            "annotate",
-            "--depth",
-            s(&depth),
-            "--camera",
-            s(&d.join("bad.json")),
-            "-o",
-            s(&out),
-        ],
-        "bad camera JSON",
-    );
+    expect_annotate_error(&depth, &d.join("bad.json"), &out, "bad camera JSON");
 
     // All-invalid depth.
     let zeros = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(640, 480);
     zeros.save(d.join("zeros.png")).unwrap();
-    expect_error(
-        &[
-            "annotate",
-            "--depth",
-            s(&d.join("zeros.png")),
-            "--camera",
-            s(&cam),
-            "-o",
-            s(&out),
-        ],
-        "has no valid pixel",
-    );
+    expect_annotate_error(&d.join("zeros.png"), &cam, &out, "has no valid pixel");
 
     // A missing file.
-    expect_error(
-        &[
-            "annotate",
-            "--depth",
-            s(&d.join("nope.png")),
-            "--camera",
-            s(&cam),
-            "-o",
-            s(&out),
-        ],
-        "nope.png: No such file",
-    );
+    expect_annotate_error(&d.join("nope.png"), &cam, &out, "nope.png: No such file");
 }

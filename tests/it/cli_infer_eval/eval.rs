@@ -1,0 +1,210 @@
+//! `tre eval`: the tables and their JSON, and every mode on a real frame.
+
+use super::*;
+
+/// A tiny synthetic dataset: one 64×64 frame, all of it the test split.
+fn tiny_dataset() -> tempfile::TempDir {
+    let data = tempfile::tempdir().unwrap();
+    let cfg = tre::synth::SynthConfig {
+        out: data.path().to_owned(),
+        scenes: 1,
+        seed: 7,
+        size: (64, 64),
+        views: 1,
+        test_fraction: 1.0,
+        ply: false,
+        ..tre::synth::SynthConfig::default()
+    };
+    tre::synth::generate(&cfg).unwrap();
+    data
+}
+
+/// `tre eval --tables --json` prints every table and writes every row.
+fn assert_tables_and_json(data: &Path) {
+    let json = data.join("tables.json");
+    let out = tre(&["eval", "--data", s(data), "--tables", "--json", s(&json)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout);
+    for needle in [
+        "Table II",
+        "Table IV",
+        "Table V",
+        "end-to-end baseline",
+        "| rgbd | DSAC+NR+ESR |",
+        "AbsRel",
+    ] {
+        assert!(text.contains(needle), "{needle:?} missing from {text}");
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    assert_eq!(report["frames"], 1);
+    let rows = report["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 13);
+    assert!(rows
+        .iter()
+        .all(|r| r["roughness"]["rmse_cm"].as_f64().is_some()));
+}
+
+/// Fewer hypotheses: every row that runs DSAC says so, and every table still finds it; 0 is
+/// refused naming the option.
+fn assert_fewer_hypotheses_are_named(data: &Path) {
+    let four = tre(&[
+        "eval",
+        "--data",
+        s(data),
+        "--tables",
+        "--dsac-hypotheses",
+        "4",
+    ]);
+    assert!(four.status.success(), "{}", stderr(&four));
+    let text = String::from_utf8_lossy(&four.stdout);
+    for needle in [
+        "| TRENet, RGB (DE+DSAC(K=4)+NR+ESR) |",
+        "| rgbd | DSAC(K=4)+NR+ESR |",
+        "| rgb | DSAC(K=4)+NR |",
+        "| rgbd | DSAC(K=4) |",
+        "Depth (rgb mode, rgb:DE+DSAC(K=4)+NR+ESR)",
+    ] {
+        assert!(text.contains(needle), "{needle:?} missing from {text}");
+    }
+    assert!(!text.contains("DSAC+"), "a row without K in {text}");
+    let bad = tre(&["eval", "--data", s(data), "--dsac-hypotheses", "0"]);
+    assert!(!bad.status.success());
+    assert!(
+        stderr(&bad).contains("--dsac-hypotheses"),
+        "{}",
+        stderr(&bad)
+    );
+}
+
+#[test]
+fn eval_tables_print_every_table_and_write_json() {
+    let data = tiny_dataset();
+    assert_tables_and_json(data.path());
+    assert_fewer_hypotheses_are_named(data.path());
+    let one = tre(&[
+        "eval",
+        "--data",
+        s(data.path()),
+        "--mode",
+        "rgbd",
+        "--normals",
+        "ls",
+        "--refine",
+        "off",
+        "--centroid",
+        "window",
+    ]);
+    assert!(one.status.success(), "{}", stderr(&one));
+    assert!(String::from_utf8_lossy(&one.stdout).contains("rgbd:LS+window"));
+}
+
+#[test]
+fn eval_real_scores_every_mode_on_one_frame_and_writes_json_and_a_sheet() {
+    let dir = tempfile::tempdir().unwrap();
+    let (json, sheets) = (dir.path().join("real.json"), dir.path().join("sheets"));
+    let o = tre(&[
+        "eval",
+        "--real",
+        real("slambook2_ch7").to_str().unwrap(),
+        "--limit",
+        "1",
+        "--floors",
+        "tests/fixtures/real_floor.json",
+        "--json",
+        json.to_str().unwrap(),
+        "--sheets",
+        sheets.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("| geometric:LS+window+edge |"), "{stdout}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["frames"], 1);
+    let frame = &report["per_frame"][0];
+    assert_eq!(frame["name"], "slambook2_ch7/1_depth.png");
+    assert_eq!(frame["size"], serde_json::json!([640, 480]));
+    assert_eq!(frame["floor_box"], serde_json::json!([240, 455, 500, 478]));
+    let spec_floor = frame["spec"]["floor"]["median_cm"].as_f64().unwrap();
+    assert!((0.05..1.0).contains(&spec_floor), "spec floor {spec_floor}");
+    let rows = report["pooled"].as_array().unwrap();
+    let keys: Vec<&str> = rows.iter().map(|r| r["key"].as_str().unwrap()).collect();
+    assert_eq!(
+        keys,
+        [
+            "rgb:DE+DSAC+NR+ESR",
+            "rgbd:DSAC+NR+ESR",
+            "geometric:LS+window+edge",
+            "geometric:LS+window"
+        ]
+    );
+    for r in rows {
+        assert_pooled_row(r);
+    }
+    assert_modes_compare(rows);
+    let sheet = image::open(sheets.join("slambook2_ch7_1_depth.png")).unwrap();
+    assert!(sheet.width() >= 3 * 320 && sheet.height() >= 2 * 240);
+}
+
+/// A number within 0..=1.
+fn unit(v: &serde_json::Value) -> Option<f64> {
+    v.as_f64().filter(|x| (0.0..=1.0).contains(x))
+}
+
+/// One pooled row of `eval --real`: its scores in range, its range bins adding up to the whole.
+fn assert_pooled_row(r: &serde_json::Value) {
+    let key = r["key"].as_str().unwrap();
+    assert!(unit(&r["all"]["edge_recall"]).is_some(), "{key}");
+    assert!(unit(&r["all"]["false_hazards"]).is_some(), "{key}");
+    assert!(r["all"]["edges"].as_u64().unwrap() > 1000, "{key}");
+    assert!(r["all"]["roughness"]["rmse_cm"].as_f64().unwrap() >= 0.0);
+    assert!(r["floor"]["p90_cm"].as_f64().unwrap() >= r["floor"]["median_cm"].as_f64().unwrap());
+    assert!(r["ms"]["total"].as_f64().unwrap() > 0.0, "{key}");
+    let ranges: Vec<&String> = r["by_range"].as_object().unwrap().keys().collect();
+    assert_eq!(ranges, ["0_2m", "2_4m", "4m_up"], "{key}");
+    let pixels: u64 = r["by_range"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|b| b["roughness"]["pixels"].as_u64().unwrap())
+        .sum();
+    assert_eq!(
+        pixels,
+        r["all"]["roughness"]["pixels"].as_u64().unwrap(),
+        "{key}"
+    );
+}
+
+/// The pooled rows against each other: the geometric mode is the spec, the surface-only
+/// baseline misses the drops, the three-state map and the depth errors where they apply.
+fn assert_modes_compare(rows: &[serde_json::Value]) {
+    // The geometric mode is the spec: nothing missed, nothing invented.
+    assert_eq!(rows[2]["all"]["edge_recall"], 1.0);
+    assert_eq!(rows[2]["all"]["false_hazards"], 0.0);
+    assert_eq!(rows[2]["all"]["roughness"]["rmse_cm"], 0.0);
+    // The surface-only baseline misses the drops.
+    assert!(rows[3]["all"]["edge_recall"].as_f64().unwrap() < 0.2);
+    // The three-state map under the Kinect model: for the modes that read sensor depth only;
+    // the spec's near floor traversable, its drops hazards.
+    assert!(rows[0]["traversal"].is_null());
+    let states = &rows[2]["traversal"];
+    assert!(
+        states["near_floor"]["traversable"].as_f64().unwrap() > 0.9,
+        "{states}"
+    );
+    assert!(
+        states["near_drops"]["hazard"].as_f64().unwrap() > 0.9,
+        "{states}"
+    );
+    let shares = ["traversable", "hazard", "unknown"]
+        .map(|k| states["all"][k].as_f64().unwrap())
+        .iter()
+        .sum::<f64>();
+    assert!((shares - 1.0).abs() < 1e-9, "{states}");
+    // Depth errors only for rgb, against the sensor.
+    let depth = &rows[0]["depth"];
+    assert!(depth["abs_rel"].as_f64().unwrap() > 0.0);
+    assert!(unit(&depth["delta_1_25"]).is_some());
+    assert!(rows[1]["depth"].is_null());
+}

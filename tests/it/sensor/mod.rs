@@ -1,0 +1,22 @@
+//! Sensor noise: the uncertainty map's prediction against annotation spec v1 run on simulated
+//! noisy planes, three-state traversability on the shared real RGB-D frames, and the maps through
+//! `tre infer`, HTTP and the stream.
+#![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
+
+use crate::common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use tre::geometry::{Grid, Intrinsics, Vec3};
+use tre::roughness::noise::{pixel_noise_map, SensorNoise, SensorPreset};
+use tre::roughness::traversal::{shares, ThreeStateRule, Traversal};
+use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
+
+mod maps;
+mod noise_floor;
+mod real_frames;
+
+fn real_data() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd")
+}
