@@ -436,12 +436,10 @@ fn mask_part(name: OutputMap, filename: &'static str, mask: &Grid<bool>) -> Resu
     })
 }
 
-/// Encodes the pipeline's output as the options ask (the output stays the caller's, to hand
-/// back to [`Pipeline::recycle`](tre_pipeline::Pipeline::recycle)).
-pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply, ApiError> {
-    let r = &out.roughness_m;
+/// The roughness map in the options' format.
+fn encode_roughness(r: &Grid<f64>, opts: &FrameOptions) -> Result<Vec<u8>, ApiError> {
     let (w, h) = r.size();
-    let roughness = match opts.format {
+    Ok(match opts.format {
         Format::Png16 => png(&DynamicImage::ImageLumaA16(io::roughness_png16(r)))?,
         Format::Color => png(&DynamicImage::ImageRgb8(colormap::colourise(
             r,
@@ -457,7 +455,14 @@ pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply
             .iter()
             .flat_map(|&v| (v as f32).to_le_bytes())
             .collect(),
-    };
+    })
+}
+
+/// Encodes the pipeline's output as the options ask (the output stays the caller's, to hand
+/// back to [`Pipeline::recycle`](tre_pipeline::Pipeline::recycle)).
+pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply, ApiError> {
+    let (w, h) = out.roughness_m.size();
+    let roughness = encode_roughness(&out.roughness_m, opts)?;
     let mut extras = Vec::new();
     let e = opts.extras;
     if let Some(d) = e.depth.then(|| out.depth_m()).flatten() {
