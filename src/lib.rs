@@ -2,17 +2,18 @@
 //!
 //! This crate is the `tre` command line ([`cli`]) and a facade over the workspace's layers, each
 //! a crate of its own so that the compiler enforces the dependency rule. Layers depend downward
-//! only: [`geometry`] and [`roughness`] (`tre-core`) are pure and synchronous; [`io`] (`tre-io`)
-//! reads and writes the on-disk formats; [`synth`] (`tre-synth`) makes synthetic scenes;
-//! [`model`] (`tre-model`) owns ONNX Runtime and the manifest; [`pipeline`] (`tre-pipeline`)
-//! runs one frame through every stage; [`server`] (`tre-server`) serves it over HTTP and a
-//! WebSocket stream whose messages are [`proto`] (`tre-proto`); [`client`] is the robot's end of
-//! that stream and [`loadtest`] measures a running service (both `tre-client`).
+//! only: [`geometry`], [`roughness`] and [`kinds`] (the domain choices; `tre-core`) are pure and
+//! synchronous; [`io`] (`tre-io`) reads and writes the on-disk formats; [`synth`] (`tre-synth`)
+//! makes synthetic scenes; [`model`] (`tre-model`) owns ONNX Runtime and the manifest;
+//! [`pipeline`] (`tre-pipeline`) runs one frame through every stage; [`server`] (`tre-server`)
+//! serves it over HTTP and a WebSocket stream whose messages are [`proto`] (`tre-proto`);
+//! [`client`] is the robot's end of that stream and [`loadtest`] measures a running service
+//! (both `tre-client`).
 pub mod cli;
 
 pub use tre_client as client;
 pub use tre_client::loadtest;
-pub use tre_core::{geometry, roughness};
+pub use tre_core::{geometry, kinds, roughness};
 pub use tre_io as io;
 pub use tre_model as model;
 pub use tre_pipeline as pipeline;

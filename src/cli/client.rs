@@ -10,29 +10,19 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant, SystemTime};
 
 use anyhow::{bail, Context};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use hdrhistogram::Histogram;
 use image::DynamicImage;
 use tokio::sync::mpsc;
 
-use super::options::{dsac_hypotheses_arg, ModeArg, NormalsArg};
+use super::options::dsac_hypotheses_arg;
 use crate::client::source::{FrameSource, SourceFrame, SourceSpec};
 use crate::client::{
     unix_us, Backoff, ClientConfig, ClientError, Event, Events, Format, Frame, FrameResult,
     FrameSender, Rate, Session,
 };
 use crate::io;
-
-/// Encoding of the maps asked of the server.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum FormatArg {
-    /// 16-bit grey + alpha PNG, 0.1 mm per unit (written as received, as `tre infer` writes).
-    Png16,
-    /// 8-bit turbo colour map of the frame's size (written as received).
-    Color,
-    /// Float32 metres (written as the same 16-bit PNG as png16).
-    F32,
-}
+use crate::pipeline::{Mode, NormalsMethod};
 
 /// Stream frames to `tre serve` and write the roughness maps it sends back.
 #[derive(Debug, Args)]
@@ -75,16 +65,16 @@ pub struct Client {
     pub as_fast_as_results: bool,
     /// Input mode; default: rgbd for frames with depth, else rgb.
     #[arg(long, env = "TRE_MODE", value_enum)]
-    pub mode: Option<ModeArg>,
+    pub mode: Option<Mode>,
     /// Encoding of the maps asked of the server.
     #[arg(long, env = "TRE_CLIENT_FORMAT", value_enum, default_value = "png16")]
-    pub format: FormatArg,
+    pub format: Format,
     /// Seed of the DSAC sampler: the same seed gives the same output.
     #[arg(long, env = "TRE_SEED", default_value_t = 0)]
     pub seed: u64,
     /// Initial normals: dsac (the paper's method) or ls (faster); default: the server's.
     #[arg(long, env = "TRE_CLIENT_NORMALS", value_enum)]
-    pub normals: Option<NormalsArg>,
+    pub normals: Option<NormalsMethod>,
     /// DSAC hypotheses per pixel, 1 to 64 (fewer are faster); default: the server's.
     #[arg(long, env = "TRE_CLIENT_DSAC_HYPOTHESES",
           value_parser = dsac_hypotheses_arg())]
@@ -180,14 +170,10 @@ impl Client {
             api_key: self.api_key.clone(),
             ca_cert: self.ca_cert.clone(),
             camera: camera.map(|(c, _)| c),
-            mode: self.mode.map(Into::into),
-            format: match self.format {
-                FormatArg::Png16 => Format::Png16,
-                FormatArg::Color => Format::Color,
-                FormatArg::F32 => Format::F32,
-            },
+            mode: self.mode,
+            format: self.format,
             seed: self.seed,
-            normals: self.normals.map(Into::into),
+            normals: self.normals,
             dsac_hypotheses: self.dsac_hypotheses,
             want_traversable: self.traversable,
             want_traversal: self.traversal,

@@ -10,7 +10,7 @@ use anyhow::{bail, Context};
 use clap::Args;
 use serde::Serialize;
 
-use super::options::{ModeArg, StageArgs};
+use super::options::StageArgs;
 use super::{real, tables};
 use crate::geometry::{Grid, Vec3};
 use crate::io;
@@ -43,7 +43,7 @@ pub struct Eval {
         value_delimiter = ',',
         default_value = "rgb,rgbd,geometric"
     )]
-    pub modes: Vec<ModeArg>,
+    pub modes: Vec<Mode>,
     /// Real-frame benchmark: write a contact sheet PNG per frame into this folder (RGB | spec
     /// | each mode, one colour scale, and the three-state map).
     #[arg(long, requires = "real")]
@@ -55,7 +55,7 @@ pub struct Eval {
     pub sensor: SensorNoise,
     /// Input mode.
     #[arg(long, value_enum, default_value = "geometric")]
-    pub mode: ModeArg,
+    pub mode: Mode,
     /// Pipeline switches and models.
     #[command(flatten)]
     pub stages: StageArgs,
@@ -231,8 +231,7 @@ impl Eval {
             Some(path) => real::read_floors(path)?,
             None => real::Floors::new(),
         };
-        let modes: Vec<Mode> = self.modes.iter().map(|&m| m.into()).collect();
-        let rows = real::real_rows(&modes, &self.stages.config(ModeArg::Rgb));
+        let rows = real::real_rows(&self.modes, &self.stages.config(Mode::Rgb));
         let configs: Vec<PipelineConfig> = rows.iter().map(|(_, c)| *c).collect();
         let mut pipeline = self.stages.pipeline(&configs)?;
         if let Some(sheets) = &self.sheets {
@@ -294,11 +293,9 @@ impl Eval {
 
 /// `mode:label`, e.g. `rgbd:DSAC+NR+ESR`; `e2e:E2E` for the baseline.
 pub fn row_key(cfg: &PipelineConfig) -> String {
-    let mode = match (cfg.method, cfg.mode) {
-        (Method::EndToEnd, _) => "e2e",
-        (Method::Pipeline, crate::pipeline::Mode::Rgb) => "rgb",
-        (Method::Pipeline, crate::pipeline::Mode::Rgbd) => "rgbd",
-        (Method::Pipeline, crate::pipeline::Mode::Geometric) => "geometric",
+    let mode = match cfg.method {
+        Method::EndToEnd => "e2e",
+        Method::Pipeline => cfg.mode.into(),
     };
     format!("{mode}:{}", cfg.label())
 }

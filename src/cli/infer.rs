@@ -7,10 +7,12 @@ use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use image::DynamicImage;
 
-use super::options::{MethodArg, ModeArg, StageArgs};
+use super::options::StageArgs;
 use crate::geometry::Mounting;
 use crate::io;
-use crate::pipeline::{FrameInput, FrameOutput, PipelineConfig, SensorMaps, Traversability};
+use crate::pipeline::{
+    FrameInput, FrameOutput, Method, Mode, PipelineConfig, SensorMaps, Traversability,
+};
 use crate::roughness::noise::{SensorNoise, SensorPreset};
 use crate::roughness::traversal::shares;
 
@@ -44,7 +46,7 @@ pub struct Infer {
     /// Input mode; default: rgbd with a frame and --depth, geometric with --depth alone, else
     /// rgb.
     #[arg(long, value_enum)]
-    pub mode: Option<ModeArg>,
+    pub mode: Option<Mode>,
     /// Pipeline switches and models.
     #[command(flatten)]
     pub stages: StageArgs,
@@ -80,7 +82,7 @@ impl Infer {
     /// Reads the frame, runs the pipeline and writes the roughness map and its preview.
     pub fn run(self) -> anyhow::Result<()> {
         self.check_outputs()?;
-        if self.stages.method == MethodArg::EndToEnd && self.depth.is_some() {
+        if self.stages.method == Method::EndToEnd && self.depth.is_some() {
             bail!(
                 "the end-to-end baseline runs from RGB alone, so --depth would be ignored: drop \
                  it, or use --method pipeline"
@@ -221,12 +223,12 @@ impl Infer {
     }
 
     /// The mode asked for, or the one the inputs imply.
-    fn mode(&self) -> anyhow::Result<ModeArg> {
+    fn mode(&self) -> anyhow::Result<Mode> {
         Ok(match (self.mode, &self.frame, &self.depth) {
             (Some(mode), _, _) => mode,
-            (None, Some(_), Some(_)) => ModeArg::Rgbd,
-            (None, None, Some(_)) => ModeArg::Geometric,
-            (None, Some(_), None) => ModeArg::Rgb,
+            (None, Some(_), Some(_)) => Mode::Rgbd,
+            (None, None, Some(_)) => Mode::Geometric,
+            (None, Some(_), None) => Mode::Rgb,
             (None, None, None) => bail!("give an RGB frame, --depth, or both"),
         })
     }

@@ -1,5 +1,7 @@
 //! Options shared by `tre infer` and `tre eval`: input mode, method, the pipeline's ablation
-//! switches and the models, turned into a [`PipelineConfig`] and a [`Pipeline`].
+//! switches and the models, turned into a [`PipelineConfig`] and a [`Pipeline`]. The choices
+//! are the pipeline's own enums (`tre_core::kinds`, with clap's `ValueEnum`): their values and
+//! help are written once, there.
 
 use std::path::{Path, PathBuf};
 
@@ -12,63 +14,6 @@ use crate::pipeline::{
     DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES,
 };
 
-/// Input mode (the paper's Table IV rows).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ModeArg {
-    /// One RGB frame: the depth net predicts depth.
-    Rgb,
-    /// RGB plus a registered depth frame: the depth net is skipped.
-    Rgbd,
-    /// Depth only, no networks: annotation spec v1 (surface and edge terms), as `tre annotate`.
-    Geometric,
-}
-
-/// What the geometric mode computes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum GeometricArg {
-    /// The whole annotation spec v1: surface term and edge term (drops and steps are hazards).
-    Spec,
-    /// The paper's surface-only baseline: Eq. 1 with LS normals and window centroids, no edge
-    /// term.
-    SurfaceOnly,
-}
-
-impl From<GeometricArg> for GeometricMethod {
-    fn from(g: GeometricArg) -> Self {
-        match g {
-            GeometricArg::Spec => GeometricMethod::Spec,
-            GeometricArg::SurfaceOnly => GeometricMethod::SurfaceOnly,
-        }
-    }
-}
-
-/// The staged pipeline or the end-to-end baseline.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum MethodArg {
-    /// The staged pipeline of the paper's Fig. 5.
-    Pipeline,
-    /// The end-to-end baseline (end_to_end.onnx; RGB only).
-    EndToEnd,
-}
-
-/// Initial normals.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum NormalsArg {
-    /// Least-squares planes.
-    Ls,
-    /// Neighbour net and DSAC hypotheses.
-    Dsac,
-}
-
-/// Centroids of Eq. 1.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum CentroidArg {
-    /// The centroid net.
-    Net,
-    /// The mean of the metric neighbourhood.
-    Window,
-}
-
 /// On or off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Switch {
@@ -76,25 +21,6 @@ pub enum Switch {
     On,
     /// Disabled.
     Off,
-}
-
-impl From<ModeArg> for Mode {
-    fn from(m: ModeArg) -> Self {
-        match m {
-            ModeArg::Rgb => Mode::Rgb,
-            ModeArg::Rgbd => Mode::Rgbd,
-            ModeArg::Geometric => Mode::Geometric,
-        }
-    }
-}
-
-impl From<NormalsArg> for NormalsMethod {
-    fn from(n: NormalsArg) -> Self {
-        match n {
-            NormalsArg::Ls => NormalsMethod::Ls,
-            NormalsArg::Dsac => NormalsMethod::Dsac,
-        }
-    }
 }
 
 /// Parser of `--dsac-hypotheses` (`infer`, `eval`, `serve`, `client`): 1 to
@@ -116,19 +42,19 @@ pub fn find_models(flag: Option<&Path>) -> anyhow::Result<PathBuf> {
 pub struct StageArgs {
     /// Staged pipeline or end-to-end baseline.
     #[arg(long, value_enum, default_value = "pipeline")]
-    pub method: MethodArg,
+    pub method: Method,
     /// Initial normals (ignored in geometric mode).
     #[arg(long, value_enum, default_value = "dsac")]
-    pub normals: NormalsArg,
+    pub normals: NormalsMethod,
     /// Normal refiner (ignored in geometric mode).
     #[arg(long, value_enum, default_value = "on")]
     pub refine: Switch,
     /// Centroids (ignored in geometric mode).
     #[arg(long, value_enum, default_value = "net")]
-    pub centroid: CentroidArg,
+    pub centroid: CentroidMethod,
     /// What the geometric mode computes (ignored in the other modes).
     #[arg(long, value_enum, default_value = "spec")]
-    pub geometric: GeometricArg,
+    pub geometric: GeometricMethod,
     /// Seed of the DSAC sampler: the same seed gives the same output.
     #[arg(long, env = "TRE_SEED", default_value_t = 0)]
     pub seed: u64,
@@ -148,20 +74,14 @@ pub struct StageArgs {
 
 impl StageArgs {
     /// The pipeline configuration for `mode`.
-    pub fn config(&self, mode: ModeArg) -> PipelineConfig {
+    pub fn config(&self, mode: Mode) -> PipelineConfig {
         PipelineConfig {
-            mode: mode.into(),
-            method: match self.method {
-                MethodArg::Pipeline => Method::Pipeline,
-                MethodArg::EndToEnd => Method::EndToEnd,
-            },
-            normals: self.normals.into(),
+            mode,
+            method: self.method,
+            normals: self.normals,
             refine: self.refine == Switch::On,
-            centroid: match self.centroid {
-                CentroidArg::Net => CentroidMethod::Net,
-                CentroidArg::Window => CentroidMethod::Window,
-            },
-            geometric: self.geometric.into(),
+            centroid: self.centroid,
+            geometric: self.geometric,
             seed: self.seed,
             dsac_hypotheses: self.dsac_hypotheses,
             ..PipelineConfig::default()

@@ -7,9 +7,9 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 
-use super::options::{dsac_hypotheses_arg, find_models, NormalsArg};
+use super::options::{dsac_hypotheses_arg, find_models};
 use crate::model::{ExecutionProvider, SessionConfig};
-use crate::pipeline::DEFAULT_DSAC_HYPOTHESES;
+use crate::pipeline::{NormalsMethod, DEFAULT_DSAC_HYPOTHESES};
 use crate::server::request::FrameDefaults;
 use crate::server::{serve, ServeConfig};
 
@@ -103,7 +103,7 @@ pub struct Serve {
     /// Initial normals of frames that do not choose: dsac (the paper's method) or ls (faster;
     /// see docs/evaluation.md and docs/benchmarks.md). Requests override it with `normals=`.
     #[arg(long, env = "TRE_NORMALS", value_enum, default_value = "dsac")]
-    pub normals: NormalsArg,
+    pub normals: NormalsMethod,
     /// DSAC hypotheses per pixel, 1 to 64: 12 as the neighbour net was trained; fewer are
     /// faster at some cost in accuracy (see docs/evaluation.md).
     #[arg(long, env = "TRE_DSAC_HYPOTHESES", default_value_t = DEFAULT_DSAC_HYPOTHESES,
@@ -199,7 +199,7 @@ impl Serve {
             max_connections: self.max_connections,
             shutdown_grace: Duration::from_secs(self.shutdown_grace_s),
             defaults: FrameDefaults {
-                normals: self.normals.into(),
+                normals: self.normals,
                 dsac_hypotheses: self.dsac_hypotheses,
             },
         })

@@ -4,8 +4,8 @@
 use std::time::Duration;
 
 use super::ClientError;
+use tre_core::kinds::{Mode, NormalsMethod, Traversability};
 use tre_io::CameraFile;
-use tre_pipeline::{Mode, NormalsMethod};
 
 /// How fast frames go out.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -70,17 +70,9 @@ impl Backoff {
     }
 }
 
-/// Encoding of the roughness maps the server sends back.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Format {
-    /// 16-bit grey + alpha PNG at 0.1 mm per unit (as `tre infer` writes), decoded to metres.
-    #[default]
-    Png16,
-    /// 8-bit turbo colour map PNG of the frame's size (for display; not decoded to metres).
-    Color,
-    /// Raw little-endian float32 metres (NaN: no data), decoded to metres.
-    F32,
-}
+/// Encoding of the roughness maps the server sends back: the stream's format, defined once
+/// with the other domain choices.
+pub use tre_core::kinds::StreamFormat as Format;
 
 /// Settings of a stream session.
 #[derive(Debug, Clone, PartialEq)]
@@ -193,8 +185,7 @@ impl ClientConfig {
                 );
             }
         }
-        if let Err(reason) =
-            tre_pipeline::Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
+        if let Err(reason) = Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
         {
             return bad("traversability", reason);
         }

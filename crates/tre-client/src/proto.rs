@@ -15,7 +15,6 @@ use tre_core::geometry::Grid;
 use tre_core::roughness::noise::SensorNoise;
 use tre_core::roughness::traversal::Traversal;
 use tre_io::{self as io, CameraFile, ROUGHNESS_PNG_SCALE_M};
-use tre_pipeline::{Mode, NormalsMethod};
 use tre_proto::v1 as pb;
 
 /// A camera file as the stream message that carries it.
@@ -44,47 +43,18 @@ fn pb_camera(c: &CameraFile) -> pb::Camera {
     }
 }
 
-/// The mode asked for (none: the server's default) as the protocol's enum.
-fn pb_mode(m: Option<Mode>) -> pb::Mode {
-    match m {
-        None => pb::Mode::Unspecified,
-        Some(Mode::Rgb) => pb::Mode::Rgb,
-        Some(Mode::Rgbd) => pb::Mode::Rgbd,
-        Some(Mode::Geometric) => pb::Mode::Geometric,
-    }
-}
-
-impl From<Format> for pb::Format {
-    fn from(f: Format) -> Self {
-        match f {
-            Format::Png16 => Self::Png16,
-            Format::Color => Self::Color,
-            Format::F32 => Self::F32,
-        }
-    }
-}
-
-/// The normals method asked for (none: the server's default) as the protocol's enum.
-fn pb_normals(n: Option<NormalsMethod>) -> pb::Normals {
-    match n {
-        None => pb::Normals::Unspecified,
-        Some(NormalsMethod::Dsac) => pb::Normals::Dsac,
-        Some(NormalsMethod::Ls) => pb::Normals::Ls,
-    }
-}
-
 impl From<&ClientConfig> for pb::Hello {
     fn from(cfg: &ClientConfig) -> Self {
         Self {
             camera: cfg.camera.as_ref().map(pb_camera),
-            mode: pb_mode(cfg.mode) as i32,
+            mode: pb::Mode::from(cfg.mode) as i32,
             format: pb::Format::from(cfg.format) as i32,
             seed: cfg.seed,
             preview_max_m: cfg.preview_max_m,
             want_traversable: cfg.want_traversable,
             want_traversal: cfg.want_traversal,
             want_uncertainty: cfg.want_traversal,
-            normals: pb_normals(cfg.normals) as i32,
+            normals: pb::Normals::from(cfg.normals) as i32,
             dsac_hypotheses: cfg.dsac_hypotheses.unwrap_or(0),
             max_roughness_cm: cfg.max_roughness_cm,
             max_slope_deg: cfg.max_slope_deg,
@@ -209,12 +179,9 @@ impl TryFrom<(WireResult, Stamp)> for FrameResult {
         if w == 0 || h == 0 {
             return Err(bad(format!("width × height is {w}×{h}")));
         }
-        let format = match pb::Format::try_from(r.format) {
-            Ok(pb::Format::Unspecified | pb::Format::Png16) => Format::Png16,
-            Ok(pb::Format::Color) => Format::Color,
-            Ok(pb::Format::F32) => Format::F32,
-            Err(_) => return Err(bad(format!("format: unknown value {}", r.format))),
-        };
+        let format = pb::Format::try_from(r.format)
+            .map(Format::from)
+            .map_err(|_| bad(format!("format: unknown value {}", r.format)))?;
         let roughness = decode_map(&r.roughness, format, r.scale_m, (w, h)).map_err(bad)?;
         let traversable = match r.traversable.len() {
             0 => None,
@@ -431,6 +398,7 @@ mod tests {
 
     #[test]
     fn hello_carries_the_settings() {
+        use tre_core::kinds::{Mode, NormalsMethod};
         let cfg = ClientConfig {
             mode: Some(Mode::Rgbd),
             format: Format::F32,

@@ -6,113 +6,11 @@ use serde::{Deserialize, Serialize};
 use super::PipelineError;
 use tre_core::geometry::Neighbourhood;
 
-/// Where depth comes from (the paper's Table IV rows).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Mode {
-    /// One RGB frame; the depth net predicts depth.
-    Rgb,
-    /// RGB plus a depth-sensor frame; the depth net is skipped.
-    Rgbd,
-    /// Depth only, no networks: annotation spec v1 as `tre annotate` computes it without
-    /// labels (LS normals, window centroids, surface and edge terms), or the paper's
-    /// surface-only baseline ([`GeometricMethod`]); the switches are ignored.
-    Geometric,
-}
-
-/// What the `geometric` mode computes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum GeometricMethod {
-    /// The whole of annotation spec v1: surface term and edge term with its transient, so
-    /// drops and steps read as hazards. Equal to `tre annotate` on the same depth.
-    #[default]
-    Spec,
-    /// The paper's classical baseline: Eq. 1 with LS normals and window centroids, no edge
-    /// term (every drop is missed). What the paper's tables use.
-    SurfaceOnly,
-}
-
-/// The full pipeline or the end-to-end baseline of the paper's Table II.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Method {
-    /// The staged pipeline of Fig. 5 (the switches choose its stages).
-    #[default]
-    Pipeline,
-    /// `end_to_end.onnx`: RGB and the flat-ground prior straight to roughness (needs RGB; the
-    /// mode and switches are ignored; no depth, normals or slope come out).
-    EndToEnd,
-}
-
-/// How initial normals are estimated.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum NormalsMethod {
-    /// Least-squares planes over the metric neighbourhood (no network).
-    Ls,
-    /// Neighbour net probabilities and DSAC plane hypotheses.
-    Dsac,
-}
-
-/// How the local-plane centroid of Eq. 1 is found.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum CentroidMethod {
-    /// The centroid net (edge- and semantics-aware).
-    Net,
-    /// The mean of the neighbourhood's points (no network).
-    Window,
-}
-
-/// Thresholds of the traversability map: a pixel is traversable when its roughness and its
-/// slope are both at most these (pixels without data are not traversable).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Traversability {
-    /// Largest roughness a robot drives over, metres (default 0.05).
-    pub max_roughness_m: f64,
-    /// Steepest slope a robot drives on, radians from horizontal (default 20°).
-    pub max_slope_rad: f64,
-}
-
-impl Default for Traversability {
-    fn default() -> Self {
-        Self {
-            max_roughness_m: 0.05,
-            max_slope_rad: 20f64.to_radians(),
-        }
-    }
-}
-
-impl Traversability {
-    /// The thresholds as a robot states them: roughness in centimetres (above 0) and slope in
-    /// degrees (0 to 90), each defaulting to [`Traversability::default`]'s (5 cm, 20°); for
-    /// values that cannot be thresholds, why not.
-    ///
-    /// ```
-    /// use tre_pipeline::Traversability;
-    /// let t = Traversability::from_cm_deg(Some(2.0), None).unwrap();
-    /// assert_eq!((t.max_roughness_m, t.max_slope_rad), (0.02, 20f64.to_radians()));
-    /// assert!(Traversability::from_cm_deg(Some(0.0), None).is_err());
-    /// assert!(Traversability::from_cm_deg(None, Some(95.0)).is_err());
-    /// ```
-    pub fn from_cm_deg(
-        max_roughness_cm: Option<f64>,
-        max_slope_deg: Option<f64>,
-    ) -> Result<Self, String> {
-        let default = Self::default();
-        if let Some(cm) = max_roughness_cm.filter(|cm| !(cm.is_finite() && *cm > 0.0)) {
-            return Err(format!("max_roughness_cm: must be positive, got {cm}"));
-        }
-        if let Some(deg) = max_slope_deg.filter(|d| !(0.0..=90.0).contains(d)) {
-            return Err(format!("max_slope_deg: must be 0 to 90, got {deg}"));
-        }
-        Ok(Self {
-            max_roughness_m: max_roughness_cm.map_or(default.max_roughness_m, |cm| cm / 100.0),
-            max_slope_rad: max_slope_deg.map_or(default.max_slope_rad, f64::to_radians),
-        })
-    }
-}
+// The choices are defined once, with their string forms, beside the geometry: the client and
+// the CLI share them without depending on this crate.
+pub use tre_core::kinds::{
+    CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod, Traversability,
+};
 
 /// Largest input frame accepted by default, pixels (about 40 MP).
 pub const DEFAULT_MAX_INPUT_PIXELS: usize = 40_000_000;

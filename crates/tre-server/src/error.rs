@@ -4,13 +4,17 @@
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
+use utoipa::ToSchema;
 
 use tre_core::geometry::GeometryError;
 use tre_pipeline::PipelineError;
 
 /// Stable error codes, shared by HTTP bodies and stream `Error` messages.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, ToSchema, strum::IntoStaticStr, strum::EnumIter,
+)]
 #[serde(rename_all = "snake_case")]
+#[strum(serialize_all = "snake_case")]
 pub enum ErrorCode {
     /// Malformed request: query, multipart, missing part, not a WebSocket upgrade (400).
     BadRequest,
@@ -72,25 +76,7 @@ impl ErrorCode {
 
     /// The code as it appears on the wire (`bad_image`, ...).
     pub fn as_str(self) -> &'static str {
-        match self {
-            Self::BadRequest => "bad_request",
-            Self::NotFound => "not_found",
-            Self::MethodNotAllowed => "method_not_allowed",
-            Self::Unauthorized => "unauthorized",
-            Self::Forbidden => "forbidden",
-            Self::RequestTimeout => "request_timeout",
-            Self::TooLarge => "too_large",
-            Self::UnsupportedMedia => "unsupported_media",
-            Self::BadImage => "bad_image",
-            Self::BadDepth => "bad_depth",
-            Self::BadCamera => "bad_camera",
-            Self::BadInput => "bad_input",
-            Self::TooManyRequests => "too_many_requests",
-            Self::Overloaded => "overloaded",
-            Self::NotReady => "not_ready",
-            Self::Timeout => "timeout",
-            Self::Internal => "internal",
-        }
+        self.into()
     }
 
     /// Whether the client may retry later (answered with `Retry-After`).
@@ -100,27 +86,6 @@ impl ErrorCode {
             Self::TooManyRequests | Self::Overloaded | Self::NotReady | Self::Timeout
         )
     }
-
-    /// Every code, for metrics and documentation.
-    pub const ALL: [ErrorCode; 17] = [
-        Self::BadRequest,
-        Self::NotFound,
-        Self::MethodNotAllowed,
-        Self::Unauthorized,
-        Self::Forbidden,
-        Self::RequestTimeout,
-        Self::TooLarge,
-        Self::UnsupportedMedia,
-        Self::BadImage,
-        Self::BadDepth,
-        Self::BadCamera,
-        Self::BadInput,
-        Self::TooManyRequests,
-        Self::Overloaded,
-        Self::NotReady,
-        Self::Timeout,
-        Self::Internal,
-    ];
 }
 
 /// An error answered to a client.
@@ -188,14 +153,19 @@ impl From<PipelineError> for ApiError {
 /// Seconds a refused client should wait before retrying.
 pub const RETRY_AFTER_S: u32 = 1;
 
-#[derive(Serialize)]
-struct Body<'a> {
+/// An error answer over HTTP: `{"error": {"code", "message"}}`.
+#[derive(Serialize, ToSchema)]
+#[schema(as = Error)]
+pub(crate) struct Body<'a> {
+    #[schema(inline)]
     error: Inner<'a>,
 }
 
-#[derive(Serialize)]
+/// What went wrong: a stable code and a message for a person.
+#[derive(Serialize, ToSchema)]
 struct Inner<'a> {
-    code: &'static str,
+    #[schema(inline)]
+    code: ErrorCode,
     message: &'a str,
 }
 
@@ -203,7 +173,7 @@ impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let body = Body {
             error: Inner {
-                code: self.code.as_str(),
+                code: self.code,
                 message: &self.message,
             },
         };
@@ -232,14 +202,21 @@ impl IntoResponse for ApiError {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use strum::IntoEnumIterator;
 
     #[test]
     fn every_code_has_a_distinct_name_and_an_error_status() {
-        let mut names: Vec<_> = ErrorCode::ALL.iter().map(|c| c.as_str()).collect();
+        let mut names: Vec<_> = ErrorCode::iter().map(ErrorCode::as_str).collect();
         names.sort_unstable();
         names.dedup();
-        assert_eq!(names.len(), ErrorCode::ALL.len());
-        for code in ErrorCode::ALL {
+        assert_eq!(names.len(), ErrorCode::iter().count());
+        for code in ErrorCode::iter() {
+            let json = serde_json::to_value(code).expect("serialises");
+            assert_eq!(
+                json,
+                serde_json::json!(code.as_str()),
+                "JSON body and wire name"
+            );
             let status = code.status().as_u16();
             assert!((400..600).contains(&status), "{code:?} → {status}");
             assert_eq!(code.retryable(), status == 429 || status == 503);

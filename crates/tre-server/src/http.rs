@@ -9,171 +9,66 @@ use axum::extract::{FromRequest, Multipart, Query, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use http_body_util::BodyExt;
-use serde::Deserialize;
 
 use super::error::{ApiError, ErrorCode};
 use super::metrics::Gauges;
+use super::openapi::{Binary, ErrorResponse, JsonObject, RoughnessForm};
+use super::query::RoughnessQuery;
 use super::request::{
-    check_camera_ranges, image_header, strict_camera, DecodeLimits, Extras, Format, FrameOptions,
-    FrameReply, FrameRequest, SCALE_M,
+    image_header, strict_camera, DecodeLimits, Format, FrameReply, FrameRequest, SCALE_M,
 };
 use super::{AppState, OVERSIZE_READ_FACTOR};
-use tre_io::CameraFile;
-use tre_pipeline::{check_dsac_hypotheses, Mode, NormalsMethod, Traversability};
-
-/// Query of `POST /v1/roughness`.
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RoughnessQuery {
-    /// `png16` (default), `color` or `npy`.
-    format: Option<String>,
-    /// `rgb`, `rgbd` or `geometric`; default from the inputs.
-    mode: Option<String>,
-    /// DSAC seed.
-    seed: Option<u64>,
-    /// Initial normals, `dsac` or `ls`.
-    normals: Option<String>,
-    /// DSAC hypotheses per pixel, 1 to 64.
-    dsac_hypotheses: Option<u32>,
-    /// Top of the colour scale, centimetres.
-    preview_max_cm: Option<f64>,
-    /// Extra maps, comma-separated: `depth,normals,slope,traversable,boundary`.
-    outputs: Option<String>,
-    /// Traversability: the largest roughness, centimetres (default 5).
-    max_roughness_cm: Option<f64>,
-    /// Traversability: the steepest slope, degrees (default 20).
-    max_slope_deg: Option<f64>,
-    fx: Option<f64>,
-    fy: Option<f64>,
-    cx: Option<f64>,
-    cy: Option<f64>,
-    pitch_deg: Option<f64>,
-    height_m: Option<f64>,
-    depth_scale: Option<f64>,
-    /// Depth sensor noise model (a preset or `a,b,c` mm), overriding the camera's `sensor`.
-    sensor: Option<String>,
-}
 
 fn bad(msg: impl Into<String>) -> ApiError {
     ApiError::new(ErrorCode::BadRequest, msg)
 }
 
-impl RoughnessQuery {
-    /// The options, checked.
-    fn options(&self) -> Result<FrameOptions, ApiError> {
-        let format = match self.format.as_deref() {
-            None | Some("png16") => Format::Png16,
-            Some("color" | "colour") => Format::Color,
-            Some("npy") => Format::Npy,
-            Some(f) => {
-                return Err(bad(format!(
-                    "format: expected png16, color or npy, got {f:?}"
-                )))
-            }
-        };
-        let mode = match self.mode.as_deref() {
-            None => None,
-            Some("rgb") => Some(Mode::Rgb),
-            Some("rgbd") => Some(Mode::Rgbd),
-            Some("geometric") => Some(Mode::Geometric),
-            Some(m) => {
-                return Err(bad(format!(
-                    "mode: expected rgb, rgbd or geometric, got {m:?}"
-                )))
-            }
-        };
-        let normals = match self.normals.as_deref() {
-            None => None,
-            Some("dsac") => Some(NormalsMethod::Dsac),
-            Some("ls") => Some(NormalsMethod::Ls),
-            Some(n) => return Err(bad(format!("normals: expected dsac or ls, got {n:?}"))),
-        };
-        let dsac_hypotheses = self
-            .dsac_hypotheses
-            .map(check_dsac_hypotheses)
-            .transpose()
-            .map_err(|e| bad(format!("dsac_hypotheses: {e}")))?;
-        let mut extras = Extras::default();
-        for name in self
-            .outputs
-            .iter()
-            .flat_map(|o| o.split(','))
-            .filter(|s| !s.is_empty())
-        {
-            match name {
-                "depth" => extras.depth = true,
-                "normals" => extras.normals = true,
-                "slope" => extras.slope = true,
-                "traversable" => extras.traversable = true,
-                "boundary" => extras.boundary = true,
-                "uncertainty" => extras.uncertainty = true,
-                "traversal" => extras.traversal = true,
-                other => {
-                    let known =
-                        "depth, normals, slope, traversable, boundary, uncertainty, traversal";
-                    return Err(bad(format!("outputs: unknown map {other:?} ({known})")));
-                }
-            }
-        }
-        if let Some(cm) = self.preview_max_cm.filter(|c| !(c.is_finite() && *c > 0.0)) {
-            return Err(bad(format!("preview_max_cm: must be positive, got {cm}")));
-        }
-        Ok(FrameOptions {
-            mode,
-            format,
-            seed: self.seed.unwrap_or(0),
-            normals,
-            dsac_hypotheses,
-            preview_max_m: self.preview_max_cm.map(|c| c / 100.0),
-            extras,
-            traversable_bytes: false,
-            traversability: Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
-                .map_err(bad)?,
-            sensor: self
-                .sensor
-                .as_deref()
-                .map(str::parse)
-                .transpose()
-                .map_err(|e: String| bad(format!("sensor: {e}")))?,
-            traversal_bytes: false,
-            uncertainty_f32: false,
-        })
-    }
-
-    /// Camera from the query (all four intrinsics, or none of them).
-    fn camera(&self, limits: DecodeLimits) -> Result<Option<CameraFile>, ApiError> {
-        let k = [self.fx, self.fy, self.cx, self.cy];
-        let any = k.iter().any(Option::is_some)
-            || self.pitch_deg.is_some()
-            || self.height_m.is_some()
-            || self.depth_scale.is_some();
-        if !any {
-            return Ok(None);
-        }
-        let [Some(fx), Some(fy), Some(cx), Some(cy)] = k else {
-            return Err(ApiError::new(
-                ErrorCode::BadCamera,
-                "camera: give all of fx, fy, cx, cy",
-            ));
-        };
-        let cam = CameraFile {
-            fx,
-            fy,
-            cx,
-            cy,
-            width: None,
-            height: None,
-            depth_scale: self.depth_scale,
-            pitch_deg: self.pitch_deg,
-            height_m: self.height_m,
-            sensor: None,
-        };
-        check_camera_ranges(&cam, limits)?;
-        Ok(Some(cam))
-    }
-}
-
 /// `POST /v1/roughness`.
+#[utoipa::path(
+    post,
+    path = "/v1/roughness",
+    summary = "Roughness of one frame",
+    description = "A query parameter not listed here is refused with 400 bad_request.",
+    params(RoughnessQuery),
+    request_body(
+        description = "The frame: a bare PNG or JPEG image, or multipart/form-data with its parts. \
+            As application/octet-stream, a PNG or JPEG, told apart by its first bytes; so is a \
+            body with no Content-Type.",
+        content(
+            (inline(Binary) = "image/png"),
+            (inline(Binary) = "image/jpeg"),
+            (inline(Binary) = "image/jpg"),
+            (inline(Binary) = "application/octet-stream"),
+            (inline(RoughnessForm) = "multipart/form-data"),
+        ),
+    ),
+    responses(
+        (status = 200, description = "The roughness map, the size of the input frame.",
+            headers(
+                ("X-Roughness-Scale-M" = f64, description = "Metres per unit of png16."),
+                ("X-Image-Width" = u32),
+                ("X-Image-Height" = u32),
+                ("X-Working-Size" = String, description = "WxH the stages ran at."),
+                ("Server-Timing" = String, description = "Wall time per stage, ms."),
+            ),
+            content(
+                (inline(Binary) = "image/png"),
+                (inline(Binary) = "application/octet-stream"),
+                (inline(Binary) = "multipart/mixed"),
+            ),
+        ),
+        (status = 400, response = ErrorResponse),
+        (status = 401, response = ErrorResponse),
+        (status = 403, response = ErrorResponse),
+        (status = 408, response = ErrorResponse),
+        (status = 413, response = ErrorResponse),
+        (status = 415, response = ErrorResponse),
+        (status = 422, response = ErrorResponse),
+        (status = 429, response = ErrorResponse),
+        (status = 500, response = ErrorResponse),
+        (status = 503, response = ErrorResponse),
+    ),
+)]
 pub async fn roughness(State(app): State<Arc<AppState>>, req: Request) -> Response {
     let start = Instant::now();
     match roughness_inner(&app, req).await {
@@ -556,6 +451,15 @@ pub async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri
 }
 
 /// `GET /healthz`: the process is up.
+#[utoipa::path(
+    get,
+    path = "/healthz",
+    summary = "Liveness: the process is up",
+    responses(
+        (status = 200, description = "Up", body = inline(JsonObject)),
+        (status = 503, response = ErrorResponse),
+    ),
+)]
 pub async fn healthz() -> impl IntoResponse {
     (
         StatusCode::OK,
@@ -565,6 +469,15 @@ pub async fn healthz() -> impl IntoResponse {
 }
 
 /// `GET /readyz`: 200 once every worker has loaded and warmed up its models.
+#[utoipa::path(
+    get,
+    path = "/readyz",
+    summary = "Readiness: every worker has loaded and warmed up the models",
+    responses(
+        (status = 200, description = "Ready", body = inline(JsonObject)),
+        (status = 503, response = ErrorResponse),
+    ),
+)]
 pub async fn readyz(State(app): State<Arc<AppState>>) -> Response {
     if app.workers.ready() {
         (
@@ -583,6 +496,17 @@ pub async fn readyz(State(app): State<Arc<AppState>>) -> Response {
 }
 
 /// `GET /metrics`: Prometheus text.
+#[utoipa::path(
+    get,
+    path = "/metrics",
+    summary = "Prometheus metrics",
+    responses(
+        (status = 200, description = "Text exposition format", body = String, content_type = "text/plain"),
+        (status = 401, response = ErrorResponse),
+        (status = 403, response = ErrorResponse),
+        (status = 503, response = ErrorResponse),
+    ),
+)]
 pub async fn metrics(State(app): State<Arc<AppState>>) -> impl IntoResponse {
     let text = app.metrics.render(Gauges {
         queue_depth: app.workers.queue_depth(),
@@ -594,6 +518,17 @@ pub async fn metrics(State(app): State<Arc<AppState>>) -> impl IntoResponse {
 }
 
 /// `GET /v1/models`: the manifest the workers loaded.
+#[utoipa::path(
+    get,
+    path = "/v1/models",
+    summary = "The model manifest the service runs",
+    responses(
+        (status = 200, description = "models/manifest.json", body = inline(JsonObject)),
+        (status = 401, response = ErrorResponse),
+        (status = 403, response = ErrorResponse),
+        (status = 503, response = ErrorResponse),
+    ),
+)]
 pub async fn models(State(app): State<Arc<AppState>>) -> impl IntoResponse {
     (
         [(header::CONTENT_TYPE, "application/json")],
@@ -601,18 +536,40 @@ pub async fn models(State(app): State<Arc<AppState>>) -> impl IntoResponse {
     )
 }
 
-/// The OpenAPI document of the service.
-pub const OPENAPI: &str = include_str!("openapi.json");
-
-/// `GET /openapi.json`.
+/// `GET /openapi.json`: the document generated from these handlers ([`super::openapi`]).
+#[utoipa::path(
+    get,
+    path = "/openapi.json",
+    summary = "This document",
+    responses(
+        (status = 200, description = "OpenAPI 3.0", body = inline(JsonObject)),
+        (status = 401, response = ErrorResponse),
+        (status = 403, response = ErrorResponse),
+        (status = 503, response = ErrorResponse),
+    ),
+)]
 pub async fn openapi() -> impl IntoResponse {
-    ([(header::CONTENT_TYPE, "application/json")], OPENAPI)
+    (
+        [(header::CONTENT_TYPE, "application/json")],
+        super::openapi::document_json(),
+    )
 }
 
 /// The demo page.
 pub const DEMO_PAGE: &str = include_str!("demo/index.html");
 
 /// `GET /`: the demo page.
+#[utoipa::path(
+    get,
+    path = "/",
+    summary = "Demo page",
+    responses(
+        (status = 200, description = "HTML", body = String, content_type = "text/html"),
+        (status = 401, response = ErrorResponse),
+        (status = 403, response = ErrorResponse),
+        (status = 503, response = ErrorResponse),
+    ),
+)]
 pub async fn demo() -> impl IntoResponse {
     (
         [(header::CONTENT_TYPE, "text/html; charset=utf-8")],
@@ -621,26 +578,4 @@ pub async fn demo() -> impl IntoResponse {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use std::time::Duration;
-
-    /// Within a window nothing is judged; at its end, too few bytes is a 408 naming the option,
-    /// enough starts the next window afresh (earlier bytes do not carry over).
-    #[test]
-    fn body_pace_judges_each_window() {
-        let mut pace = BodyPace::new(1024);
-        let t0 = pace.since;
-        assert_eq!(pace.deadline(), Some(t0 + BODY_RATE_WINDOW));
-        pace.check(10, t0 + Duration::from_secs(1)).unwrap();
-        pace.check(6000, t0 + BODY_RATE_WINDOW).unwrap();
-        assert_eq!((pace.since, pace.bytes), (t0 + BODY_RATE_WINDOW, 0));
-        let e = pace.check(100, t0 + 2 * BODY_RATE_WINDOW).unwrap_err();
-        assert_eq!(e.code, ErrorCode::RequestTimeout);
-        assert!(e.message.contains("--min-body-rate"), "{e}");
-        assert!(e.message.contains("20 bytes/s"), "{e}");
-        let mut off = BodyPace::new(0);
-        assert_eq!(off.deadline(), None);
-        off.check(0, t0 + Duration::from_secs(3600)).unwrap();
-    }
-}
+mod tests;

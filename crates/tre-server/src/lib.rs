@@ -18,8 +18,11 @@ pub mod error;
 pub mod fuzzing;
 pub mod http;
 pub mod metrics;
+pub mod openapi;
+pub mod options;
 pub mod pace;
 pub mod proto;
+pub mod query;
 pub mod refusals;
 pub mod request;
 pub mod stall;
@@ -33,9 +36,11 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use axum::extract::DefaultBodyLimit;
-use axum::routing::{get, post};
 use axum::Router;
 use tokio::sync::{watch, Semaphore};
+use utoipa::OpenApi;
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes;
 
 use metrics::Metrics;
 use refusals::RefusalLog;
@@ -194,17 +199,24 @@ pub enum ServeError {
     Io(#[from] std::io::Error),
 }
 
+/// Every route: each handler with the method and path of its `#[utoipa::path]`. The router
+/// ([`router`]) and the OpenAPI document ([`openapi::document`]) are both made from this list.
+pub fn routes() -> OpenApiRouter<Arc<AppState>> {
+    OpenApiRouter::with_openapi(openapi::ApiDoc::openapi())
+        .routes(routes!(http::demo))
+        .routes(routes!(http::healthz))
+        .routes(routes!(http::readyz))
+        .routes(routes!(http::metrics))
+        .routes(routes!(http::openapi))
+        .routes(routes!(http::models))
+        .routes(routes!(http::roughness))
+        .routes(routes!(stream::stream))
+}
+
 /// The routes over `state`.
 pub fn router(state: Arc<AppState>) -> Router {
-    Router::new()
-        .route("/", get(http::demo))
-        .route("/healthz", get(http::healthz))
-        .route("/readyz", get(http::readyz))
-        .route("/metrics", get(http::metrics))
-        .route("/openapi.json", get(http::openapi))
-        .route("/v1/models", get(http::models))
-        .route("/v1/roughness", post(http::roughness))
-        .route("/v1/stream", get(stream::stream))
+    let (routes, _) = routes().split_for_parts();
+    routes
         .fallback(http::not_found)
         .method_not_allowed_fallback(http::method_not_allowed)
         .layer(DefaultBodyLimit::disable())

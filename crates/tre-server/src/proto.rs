@@ -4,10 +4,11 @@
 use prost::Message;
 
 use super::error::{ApiError, ErrorCode};
-use super::request::{Format, FrameOptions, FrameReply, FrameRequest, SCALE_M};
+use super::request::{FrameOptions, FrameReply, FrameRequest, SCALE_M};
+use tre_core::kinds::StreamFormat;
 use tre_core::roughness::noise::SensorNoise;
 use tre_io::{CameraFile, SensorSpec};
-use tre_pipeline::{check_dsac_hypotheses, Mode, NormalsMethod, Traversability};
+use tre_pipeline::{check_dsac_hypotheses, Traversability};
 use tre_proto::v1 as pb;
 
 /// A stream's settings from its Hello.
@@ -114,28 +115,12 @@ impl TryFrom<pb::Hello> for StreamSettings {
     type Error = ApiError;
 
     fn try_from(h: pb::Hello) -> Result<Self, ApiError> {
-        let mode = match pb::Mode::try_from(h.mode)
-            .map_err(|_| bad("hello.mode", format!("unknown value {}", h.mode)))?
-        {
-            pb::Mode::Unspecified => None,
-            pb::Mode::Rgb => Some(Mode::Rgb),
-            pb::Mode::Rgbd => Some(Mode::Rgbd),
-            pb::Mode::Geometric => Some(Mode::Geometric),
-        };
-        let format = match pb::Format::try_from(h.format)
-            .map_err(|_| bad("hello.format", format!("unknown value {}", h.format)))?
-        {
-            pb::Format::Unspecified | pb::Format::Png16 => Format::Png16,
-            pb::Format::Color => Format::Color,
-            pb::Format::F32 => Format::F32,
-        };
-        let normals = match pb::Normals::try_from(h.normals)
-            .map_err(|_| bad("hello.normals", format!("unknown value {}", h.normals)))?
-        {
-            pb::Normals::Unspecified => None,
-            pb::Normals::Dsac => Some(NormalsMethod::Dsac),
-            pb::Normals::Ls => Some(NormalsMethod::Ls),
-        };
+        let unknown = |field: &str, v: i32| bad(field, format!("unknown value {v}"));
+        let mode = pb::Mode::try_from(h.mode).map_err(|_| unknown("hello.mode", h.mode))?;
+        let format =
+            pb::Format::try_from(h.format).map_err(|_| unknown("hello.format", h.format))?;
+        let normals =
+            pb::Normals::try_from(h.normals).map_err(|_| unknown("hello.normals", h.normals))?;
         let dsac_hypotheses = match h.dsac_hypotheses {
             0 => None,
             k => Some(
@@ -152,10 +137,10 @@ impl TryFrom<pb::Hello> for StreamSettings {
         Ok(Self {
             camera: h.camera.map(camera_from_pb).transpose()?,
             options: FrameOptions {
-                mode,
-                format,
+                mode: mode.into(),
+                format: StreamFormat::from(format).into(),
                 seed: h.seed,
-                normals,
+                normals: normals.into(),
                 dsac_hypotheses,
                 preview_max_m: h.preview_max_m,
                 traversable_bytes: h.want_traversable,
@@ -289,11 +274,7 @@ pub fn result(
     latency_ms: f64,
     dropped_total: u64,
 ) -> Vec<u8> {
-    let format = match reply.format {
-        Format::Png16 => pb::Format::Png16,
-        Format::Color => pb::Format::Color,
-        Format::Npy | Format::F32 => pb::Format::F32,
-    };
+    let format = pb::Format::from(reply.format.on_stream());
     encode(pb::server_message::Msg::Result(pb::Result {
         sequence,
         timestamp_us,

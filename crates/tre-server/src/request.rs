@@ -7,111 +7,13 @@ use std::io::Cursor;
 use image::{DynamicImage, ImageFormat, ImageReader};
 
 use super::error::{ApiError, ErrorCode};
+pub use super::options::{Extras, Format, FrameOptions, OutputMap};
 use tre_core::geometry::{Grid, Mounting};
-use tre_core::roughness::noise::SensorNoise;
 use tre_io::{self as io, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
 use tre_pipeline::{
-    FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, PipelineError, Traversability,
+    FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, PipelineError,
     DEFAULT_DSAC_HYPOTHESES,
 };
-
-/// Encodings of the roughness map.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Format {
-    /// 16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data (as `tre infer`).
-    #[default]
-    Png16,
-    /// 8-bit colour map PNG the frame's size (turbo, 0 to `preview_max_m`; dark grey: no data).
-    Color,
-    /// `(H, W)` float32 `.npy`, metres, NaN where there is no data.
-    Npy,
-    /// Raw little-endian float32, metres, row-major (the stream's `FORMAT_F32`).
-    F32,
-}
-
-impl Format {
-    /// MIME type of the encoded map.
-    pub fn content_type(self) -> &'static str {
-        match self {
-            Self::Png16 | Self::Color => "image/png",
-            Self::Npy | Self::F32 => "application/octet-stream",
-        }
-    }
-}
-
-/// Extra maps a client may ask for beside roughness.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Extras {
-    /// Depth used, 16-bit grey PNG in millimetres.
-    pub depth: bool,
-    /// Unit normals (camera frame), `(H, W, 3)` float32 `.npy`.
-    pub normals: bool,
-    /// Slope in the gravity frame, `(H, W)` float32 `.npy`, radians.
-    pub slope: bool,
-    /// Traversability mask, 8-bit grey PNG (255 = traversable).
-    pub traversable: bool,
-    /// Boundary mask (depth steps and creases), 8-bit grey PNG (255 = boundary).
-    pub boundary: bool,
-    /// Uncertainty (p95 of the roughness noise alone gives), 16-bit grey + alpha PNG at 0.1 mm
-    /// per unit, as roughness (modes with sensor depth and a noise model only).
-    pub uncertainty: bool,
-    /// Three-state traversability, 8-bit grey PNG: 0 unknown, 1 traversable, 2 hazard (as
-    /// `uncertainty`).
-    pub traversal: bool,
-}
-
-impl Extras {
-    /// Whether any extra map is asked for.
-    pub fn any(self) -> bool {
-        self.depth
-            || self.normals
-            || self.slope
-            || self.traversable
-            || self.boundary
-            || self.uncertainty
-            || self.traversal
-    }
-}
-
-/// How to run and answer one frame.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct FrameOptions {
-    /// Input mode; `None`: rgbd with RGB and depth, geometric with depth alone, else rgb.
-    pub mode: Option<Mode>,
-    /// Encoding of the roughness map.
-    pub format: Format,
-    /// Seed of the DSAC sampler.
-    pub seed: u64,
-    /// Initial normals; `None`: the server's default (`tre serve --normals`).
-    pub normals: Option<NormalsMethod>,
-    /// DSAC hypotheses per pixel (checked: 1 to 64); `None`: the server's default
-    /// (`tre serve --dsac-hypotheses`).
-    pub dsac_hypotheses: Option<u32>,
-    /// Top of the colour preview's scale, metres (default 0.05).
-    pub preview_max_m: Option<f64>,
-    /// Extra maps.
-    pub extras: Extras,
-    /// The traversability mask as raw bytes (1 per pixel), for the stream.
-    pub traversable_bytes: bool,
-    /// Thresholds of the traversability mask.
-    pub traversability: Traversability,
-    /// The depth sensor's noise model, overriding the camera's `sensor`.
-    pub sensor: Option<SensorNoise>,
-    /// The three-state map as raw bytes (0 unknown, 1 traversable, 2 hazard), for the stream.
-    pub traversal_bytes: bool,
-    /// The uncertainty map as raw little-endian float32 metres, for the stream.
-    pub uncertainty_f32: bool,
-}
-
-impl FrameOptions {
-    /// Whether any sensor-noise map is asked for.
-    pub fn wants_sensor_maps(&self) -> bool {
-        self.extras.uncertainty
-            || self.extras.traversal
-            || self.traversal_bytes
-            || self.uncertainty_f32
-    }
-}
 
 /// A frame as received: encoded images and an unchecked camera.
 #[derive(Debug, Clone, Default)]
@@ -524,26 +426,20 @@ fn npy<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Result<Vec<u8>, A
 }
 
 /// A mask as PNG part `name` (file `filename`): 8-bit grey, 255 where set.
-fn mask_part(
-    name: &'static str,
-    filename: &'static str,
-    mask: &Grid<bool>,
-) -> Result<Part, ApiError> {
+fn mask_part(name: OutputMap, filename: &'static str, mask: &Grid<bool>) -> Result<Part, ApiError> {
     let grey = mask.map(|&m| if m { 255u8 } else { 0 });
     Ok(Part {
-        name,
+        name: name.into(),
         content_type: "image/png",
         filename,
         bytes: png(&DynamicImage::ImageLuma8(io::gray8(&grey)))?,
     })
 }
 
-/// Encodes the pipeline's output as the options ask (the output stays the caller's, to hand
-/// back to [`Pipeline::recycle`](tre_pipeline::Pipeline::recycle)).
-pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply, ApiError> {
-    let r = &out.roughness_m;
+/// The roughness map in the options' format.
+fn encode_roughness(r: &Grid<f64>, opts: &FrameOptions) -> Result<Vec<u8>, ApiError> {
     let (w, h) = r.size();
-    let roughness = match opts.format {
+    Ok(match opts.format {
         Format::Png16 => png(&DynamicImage::ImageLumaA16(io::roughness_png16(r)))?,
         Format::Color => png(&DynamicImage::ImageRgb8(colormap::colourise(
             r,
@@ -559,12 +455,19 @@ pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply
             .iter()
             .flat_map(|&v| (v as f32).to_le_bytes())
             .collect(),
-    };
+    })
+}
+
+/// Encodes the pipeline's output as the options ask (the output stays the caller's, to hand
+/// back to [`Pipeline::recycle`](tre_pipeline::Pipeline::recycle)).
+pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply, ApiError> {
+    let (w, h) = out.roughness_m.size();
+    let roughness = encode_roughness(&out.roughness_m, opts)?;
     let mut extras = Vec::new();
     let e = opts.extras;
     if let Some(d) = e.depth.then(|| out.depth_m()).flatten() {
         extras.push(Part {
-            name: "depth",
+            name: OutputMap::Depth.into(),
             content_type: "image/png",
             filename: "depth.png",
             bytes: png(&DynamicImage::ImageLuma16(io::depth_png16(&d)))?,
@@ -577,7 +480,7 @@ pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply
             .flat_map(|v| [v.x as f32, v.y as f32, v.z as f32])
             .collect();
         extras.push(Part {
-            name: "normals",
+            name: OutputMap::Normals.into(),
             content_type: "application/octet-stream",
             filename: "normals.npy",
             bytes: npy(&[h, w, 3], &data)?,
@@ -586,7 +489,7 @@ pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply
     if let Some(s) = e.slope.then(|| out.slope_rad()).flatten() {
         let data: Vec<f32> = s.as_slice().iter().map(|&v| v as f32).collect();
         extras.push(Part {
-            name: "slope",
+            name: OutputMap::Slope.into(),
             content_type: "application/octet-stream",
             filename: "slope.npy",
             bytes: npy(&[h, w], &data)?,
@@ -594,10 +497,10 @@ pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply
     }
     let ok = (e.traversable || opts.traversable_bytes).then(|| out.traversable());
     if let (true, Some(ok)) = (e.traversable, &ok) {
-        extras.push(mask_part("traversable", "traversable.png", ok)?);
+        extras.push(mask_part(OutputMap::Traversable, "traversable.png", ok)?);
     }
     if let Some(b) = e.boundary.then(|| out.boundary()).flatten() {
-        extras.push(mask_part("boundary", "boundary.png", &b)?);
+        extras.push(mask_part(OutputMap::Boundary, "boundary.png", &b)?);
     }
     let traversable = match (opts.traversable_bytes, &ok) {
         (true, Some(ok)) => ok.as_slice().iter().map(|&t| u8::from(t)).collect(),
@@ -639,7 +542,7 @@ pub fn encode_sensor_maps(
     let maps = out.sensor_maps(frame, mode, model.as_ref(), described)?;
     if opts.extras.uncertainty {
         reply.extras.push(Part {
-            name: "uncertainty",
+            name: OutputMap::Uncertainty.into(),
             content_type: "image/png",
             filename: "uncertainty.png",
             bytes: png(&DynamicImage::ImageLumaA16(io::roughness_png16(
@@ -649,7 +552,7 @@ pub fn encode_sensor_maps(
     }
     if opts.extras.traversal {
         reply.extras.push(Part {
-            name: "traversal",
+            name: OutputMap::Traversal.into(),
             content_type: "image/png",
             filename: "traversal.png",
             bytes: png(&DynamicImage::ImageLuma8(io::traversal_gray8(
@@ -671,149 +574,4 @@ pub fn encode_sensor_maps(
 pub const SCALE_M: f64 = ROUGHNESS_PNG_SCALE_M;
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const LIMITS: DecodeLimits = DecodeLimits {
-        max_pixels: 1_000_000,
-        max_side: 4096,
-        max_aspect: 8,
-    };
-
-    fn png_bytes(w: u32, h: u32) -> Vec<u8> {
-        let mut out = Vec::new();
-        io::encode_png(&DynamicImage::new_rgb8(w, h), &mut out).expect("encodes");
-        out
-    }
-
-    #[test]
-    fn refuses_what_is_not_an_image() {
-        let e = decode_image("rgb", b"hello world", LIMITS).unwrap_err();
-        assert_eq!(e.code, ErrorCode::UnsupportedMedia);
-        assert_eq!(
-            decode_image("rgb", b"", LIMITS).unwrap_err().code,
-            ErrorCode::BadImage
-        );
-    }
-
-    #[test]
-    fn refuses_truncated_and_oversized_images() {
-        let good = png_bytes(64, 48);
-        assert_eq!(
-            decode_image("rgb", &good, LIMITS).expect("decodes").width(),
-            64
-        );
-        let e = decode_image("rgb", &good[..good.len() / 2], LIMITS).unwrap_err();
-        assert_eq!(e.code, ErrorCode::BadImage, "{e}");
-        let small = DecodeLimits {
-            max_pixels: 1000,
-            ..LIMITS
-        };
-        assert_eq!(
-            decode_image("rgb", &good, small).unwrap_err().code,
-            ErrorCode::TooLarge
-        );
-    }
-
-    #[test]
-    fn depth_must_be_16_bit() {
-        let e = decode_depth(&png_bytes(4, 4), 1000.0, LIMITS).unwrap_err();
-        assert_eq!(e.code, ErrorCode::BadDepth);
-    }
-
-    fn npy_bytes<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Vec<u8> {
-        let mut out = Vec::new();
-        io::npy::write_npy(&mut out, shape, data).expect("writes");
-        out
-    }
-
-    /// Every way depth can be wrong is a `bad_depth` error that says what depth may be, except
-    /// a size over the limit (`too_large`); float `.npy` depth is read as metres.
-    #[test]
-    fn depth_errors_are_depth_errors() {
-        let grid = decode_depth(&npy_bytes(&[2, 3], &[1.5f32; 6]), 1000.0, LIMITS).unwrap();
-        assert_eq!((grid.size(), grid[(2, 1)]), ((3, 2), 1.5));
-        for (bytes, says) in [
-            (Vec::new(), "16-bit grey PNG or a float .npy"),
-            (b"hello world".to_vec(), "16-bit grey PNG or a float .npy"),
-            (
-                png_bytes(64, 48)[..100].to_vec(),
-                "16-bit grey PNG or a float .npy",
-            ),
-            (
-                npy_bytes(&[2, 3], &[1500u16; 6]),
-                "for integer depth send a 16-bit PNG",
-            ),
-            (npy_bytes(&[0, 3], &[0.0f32; 0]), "it has no pixels"),
-            (npy_bytes(&[2, 3, 1], &[1.0f32; 6]), "expected a 2-D array"),
-            (npy_bytes(&[2, 3], &[0.0f32; 6]), "no valid pixel"),
-            (npy_bytes(&[2, 3], &[1500.0f32; 6]), "in millimetres"),
-        ] {
-            let e = decode_depth(&bytes, 1000.0, LIMITS).unwrap_err();
-            assert_eq!(e.code, ErrorCode::BadDepth, "{e}");
-            assert!(
-                e.message.starts_with("depth: ") && e.message.contains(says),
-                "{e}"
-            );
-        }
-        let big = npy_bytes(&[1001, 1000], &vec![1.0f32; 1_001_000]);
-        let e = decode_depth(&big, 1000.0, LIMITS).unwrap_err();
-        assert_eq!(e.code, ErrorCode::TooLarge, "{e}");
-    }
-
-    /// In the geometric mode an RGB part is not decoded (nothing uses it), but its header is
-    /// still checked: not an image, over the limit, or another size than the depth is an error.
-    #[test]
-    fn the_geometric_mode_checks_an_rgb_part_without_decoding_it() {
-        let depth = npy_bytes(&[48, 64], &vec![1.5f32; 64 * 48]);
-        let request = |rgb: Vec<u8>, mode| FrameRequest {
-            rgb: Some(rgb),
-            depth: Some(depth.clone()),
-            camera: None,
-            options: FrameOptions {
-                mode,
-                ..FrameOptions::default()
-            },
-        };
-        let geometric = Some(Mode::Geometric);
-        let frame = decode_frame(&request(png_bytes(64, 48), geometric), LIMITS).unwrap();
-        assert!(frame.rgb.is_none() && frame.depth_m.is_some());
-        // rgbd (the default with both parts) decodes it.
-        let frame = decode_frame(&request(png_bytes(64, 48), None), LIMITS).unwrap();
-        assert_eq!(frame.rgb.map(|i| i.dimensions()), Some((64, 48)));
-        for (rgb, code) in [
-            (png_bytes(32, 48), ErrorCode::BadDepth),
-            (b"hello world".to_vec(), ErrorCode::UnsupportedMedia),
-            (png_bytes(2000, 1000), ErrorCode::TooLarge),
-        ] {
-            let e = decode_frame(&request(rgb, geometric), LIMITS).unwrap_err();
-            assert_eq!(e.code, code, "{e}");
-        }
-    }
-
-    /// A file that declares a long thin image is refused from its header, naming the limit:
-    /// the side first (413), then the pixels (413), then the aspect ratio (422); depth alike.
-    #[test]
-    fn shapes_beyond_the_side_or_aspect_limits_are_refused_from_the_header() {
-        let limits = DecodeLimits {
-            max_pixels: 1 << 20,
-            max_side: 2048,
-            max_aspect: 8,
-        };
-        for (w, h, code, says) in [
-            (4096, 1, ErrorCode::TooLarge, "--max-side"),
-            (1, 4096, ErrorCode::TooLarge, "--max-side"),
-            (2048, 1024, ErrorCode::TooLarge, "--max-pixels"),
-            (2048, 255, ErrorCode::BadImage, "--max-aspect"),
-            (2048, 1, ErrorCode::BadImage, "--max-aspect"),
-        ] {
-            let e = decode_image("rgb", &png_bytes(w, h), limits).unwrap_err();
-            assert_eq!(e.code, code, "{w}×{h}: {e}");
-            assert!(e.message.contains(says), "{w}×{h}: {e}");
-        }
-        assert!(decode_image("rgb", &png_bytes(2048, 256), limits).is_ok());
-        let e = decode_depth(&npy_bytes(&[1, 100], &[1.0f32; 100]), 1000.0, limits).unwrap_err();
-        assert_eq!(e.code, ErrorCode::BadDepth, "{e}");
-        assert!(e.message.contains("--max-aspect"), "{e}");
-    }
-}
+mod tests;

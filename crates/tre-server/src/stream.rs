@@ -36,6 +36,20 @@ const CLOSE_WAIT: Duration = Duration::from_secs(2);
 
 /// Upgrades the connection, unless `--max-streams` are open already or `--max-connections`
 /// streams wait for their first message (429 at once).
+#[utoipa::path(
+    get,
+    path = "/v1/stream",
+    summary = "WebSocket stream of frames and results (protobuf roughness.v1.ClientMessage / \
+        ServerMessage, binary messages; latest frame wins)",
+    responses(
+        (status = 101, description = "Switching protocols"),
+        (status = 400, response = super::openapi::ErrorResponse),
+        (status = 401, response = super::openapi::ErrorResponse),
+        (status = 403, response = super::openapi::ErrorResponse),
+        (status = 429, response = super::openapi::ErrorResponse),
+        (status = 503, response = super::openapi::ErrorResponse),
+    ),
+)]
 pub async fn stream(
     State(app): State<Arc<AppState>>,
     id: Option<Extension<RequestId>>,

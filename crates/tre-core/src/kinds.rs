@@ -1,0 +1,419 @@
+//! The domain choices a client, the CLI and the pipeline share (input mode, method, normals,
+//! centroids, the stream's map encoding) and the traversability thresholds: each choice is one
+//! enum whose string forms (`rgbd`, `surface-only`, `png16`) are derived once, by strum for
+//! parsing and printing, by serde for JSON, and by clap for the CLI.
+//!
+//! clap's `ValueEnum` is derived behind the `clap` feature (the root package `tre` enables it):
+//! the CLI then takes these very enums, instead of copies converted by hand, while the crates
+//! that never parse a command line (pipeline, server, client) build this one without clap. A
+//! newtype in the CLI could not derive `ValueEnum` and would list the values a second time.
+//! The `value(help)` texts are the CLI's one-line help of each value.
+
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+use strum::{EnumMessage, IntoEnumIterator};
+
+/// Where depth comes from (the paper's Table IV rows).
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Hash,
+    Serialize,
+    Deserialize,
+    strum::EnumString,
+    strum::AsRefStr,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::EnumIter,
+    strum::VariantNames,
+    strum::EnumMessage,
+)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
+pub enum Mode {
+    /// One RGB frame; the depth net predicts depth.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "One RGB frame: the depth net predicts depth")
+    )]
+    Rgb,
+    /// RGB plus a depth-sensor frame; the depth net is skipped.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "RGB plus a registered depth frame: the depth net is skipped")
+    )]
+    Rgbd,
+    /// Depth only, no networks: annotation spec v1 as `tre annotate` computes it without
+    /// labels (LS normals, window centroids, surface and edge terms), or the paper's
+    /// surface-only baseline ([`GeometricMethod`]); the switches are ignored.
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            help = "Depth only, no networks: annotation spec v1 (surface and edge terms), as `tre annotate`"
+        )
+    )]
+    Geometric,
+}
+
+/// What the `geometric` mode computes.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Hash,
+    Default,
+    Serialize,
+    Deserialize,
+    strum::EnumString,
+    strum::AsRefStr,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::EnumIter,
+    strum::VariantNames,
+    strum::EnumMessage,
+)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+#[strum(serialize_all = "kebab-case")]
+pub enum GeometricMethod {
+    /// The whole of annotation spec v1: surface term and edge term with its transient, so
+    /// drops and steps read as hazards. Equal to `tre annotate` on the same depth.
+    #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            help = "The whole annotation spec v1: surface term and edge term (drops and steps are hazards)"
+        )
+    )]
+    Spec,
+    /// The paper's classical baseline: Eq. 1 with LS normals and window centroids, no edge
+    /// term (every drop is missed). What the paper's tables use.
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            help = "The paper's surface-only baseline: Eq. 1 with LS normals and window centroids, no edge term"
+        )
+    )]
+    SurfaceOnly,
+}
+
+/// The full pipeline or the end-to-end baseline of the paper's Table II.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Hash,
+    Default,
+    Serialize,
+    Deserialize,
+    strum::EnumString,
+    strum::AsRefStr,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::EnumIter,
+    strum::VariantNames,
+    strum::EnumMessage,
+)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+#[strum(serialize_all = "kebab-case")]
+pub enum Method {
+    /// The staged pipeline of Fig. 5 (the switches choose its stages).
+    #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "The staged pipeline of the paper's Fig. 5")
+    )]
+    Pipeline,
+    /// `end_to_end.onnx`: RGB and the flat-ground prior straight to roughness (needs RGB; the
+    /// mode and switches are ignored; no depth, normals or slope come out).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "The end-to-end baseline (end_to_end.onnx; RGB only)")
+    )]
+    EndToEnd,
+}
+
+/// How initial normals are estimated.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Hash,
+    Serialize,
+    Deserialize,
+    strum::EnumString,
+    strum::AsRefStr,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::EnumIter,
+    strum::VariantNames,
+    strum::EnumMessage,
+)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
+pub enum NormalsMethod {
+    /// Least-squares planes over the metric neighbourhood (no network).
+    #[cfg_attr(feature = "clap", value(help = "Least-squares planes"))]
+    Ls,
+    /// Neighbour net probabilities and DSAC plane hypotheses.
+    #[cfg_attr(feature = "clap", value(help = "Neighbour net and DSAC hypotheses"))]
+    Dsac,
+}
+
+/// How the local-plane centroid of Eq. 1 is found.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Hash,
+    Serialize,
+    Deserialize,
+    strum::EnumString,
+    strum::AsRefStr,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::EnumIter,
+    strum::VariantNames,
+    strum::EnumMessage,
+)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
+pub enum CentroidMethod {
+    /// The centroid net (edge- and semantics-aware).
+    #[cfg_attr(feature = "clap", value(help = "The centroid net"))]
+    Net,
+    /// The mean of the neighbourhood's points (no network).
+    #[cfg_attr(feature = "clap", value(help = "The mean of the metric neighbourhood"))]
+    Window,
+}
+
+/// Encoding of the roughness maps a stream sends back (the protocol's `Format`).
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Hash,
+    Default,
+    Serialize,
+    Deserialize,
+    strum::EnumString,
+    strum::AsRefStr,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::EnumIter,
+    strum::VariantNames,
+    strum::EnumMessage,
+)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
+pub enum StreamFormat {
+    /// 16-bit grey + alpha PNG at 0.1 mm per unit (as `tre infer` writes), decoded to metres.
+    #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            help = "16-bit grey + alpha PNG, 0.1 mm per unit (written as received, as `tre infer` writes)"
+        )
+    )]
+    Png16,
+    /// 8-bit turbo colour map PNG of the frame's size (for display; not decoded to metres).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "8-bit turbo colour map of the frame's size (written as received)")
+    )]
+    Color,
+    /// Raw little-endian float32 metres (NaN: no data), decoded to metres.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Float32 metres (written as the same 16-bit PNG as png16)")
+    )]
+    F32,
+}
+
+/// The names a choice of `E` parses from, in declaration order, as a message lists them:
+/// `rgb, rgbd or geometric`. Each variant gives its first name (strum's first `serialize`, or
+/// the name from `serialize_all`); aliases and variants that do not parse (strum's `disabled`)
+/// are left out.
+///
+/// ```
+/// use tre_core::kinds::{one_of, Mode};
+/// assert_eq!(one_of::<Mode>(), "rgb, rgbd or geometric");
+/// ```
+pub fn one_of<E: IntoEnumIterator + EnumMessage>() -> String {
+    let names: Vec<&str> = E::iter()
+        .filter_map(|v| v.get_serializations().first().copied())
+        .collect();
+    match names.split_last() {
+        None => String::new(),
+        Some((last, [])) => (*last).to_owned(),
+        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+    }
+}
+
+/// Every name a choice of `E` parses from, aliases after their variant's first name: the
+/// allowed values of a document (`png16, color, colour, npy`).
+pub fn names<E: IntoEnumIterator + EnumMessage>() -> Vec<&'static str> {
+    E::iter()
+        .flat_map(|v| v.get_serializations().iter().copied())
+        .collect()
+}
+
+/// `value` as a choice of `E`, or an error naming `field`, the choices and what was given:
+/// `mode: expected rgb, rgbd or geometric, got "depth"`.
+///
+/// ```
+/// use tre_core::kinds::{parse_choice, NormalsMethod};
+/// assert_eq!(parse_choice::<NormalsMethod>("normals", "ls"), Ok(NormalsMethod::Ls));
+/// assert_eq!(
+///     parse_choice::<NormalsMethod>("normals", "LS").unwrap_err(),
+///     r#"normals: expected ls or dsac, got "LS""#
+/// );
+/// ```
+pub fn parse_choice<E: IntoEnumIterator + EnumMessage + FromStr>(
+    field: &str,
+    value: &str,
+) -> Result<E, String> {
+    value
+        .parse()
+        .map_err(|_| format!("{field}: expected {}, got {value:?}", one_of::<E>()))
+}
+
+/// Thresholds of the traversability map: a pixel is traversable when its roughness and its
+/// slope are both at most these (pixels without data are not traversable).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Traversability {
+    /// Largest roughness a robot drives over, metres (default 0.05).
+    pub max_roughness_m: f64,
+    /// Steepest slope a robot drives on, radians from horizontal (default 20°).
+    pub max_slope_rad: f64,
+}
+
+impl Default for Traversability {
+    fn default() -> Self {
+        Self {
+            max_roughness_m: 0.05,
+            max_slope_rad: 20f64.to_radians(),
+        }
+    }
+}
+
+impl Traversability {
+    /// The thresholds as a robot states them: roughness in centimetres (above 0) and slope in
+    /// degrees (0 to 90), each defaulting to [`Traversability::default`]'s (5 cm, 20°); for
+    /// values that cannot be thresholds, why not.
+    ///
+    /// ```
+    /// use tre_core::kinds::Traversability;
+    /// let t = Traversability::from_cm_deg(Some(2.0), None).unwrap();
+    /// assert_eq!((t.max_roughness_m, t.max_slope_rad), (0.02, 20f64.to_radians()));
+    /// assert!(Traversability::from_cm_deg(Some(0.0), None).is_err());
+    /// assert!(Traversability::from_cm_deg(None, Some(95.0)).is_err());
+    /// ```
+    pub fn from_cm_deg(
+        max_roughness_cm: Option<f64>,
+        max_slope_deg: Option<f64>,
+    ) -> Result<Self, String> {
+        let default = Self::default();
+        if let Some(cm) = max_roughness_cm.filter(|cm| !(cm.is_finite() && *cm > 0.0)) {
+            return Err(format!("max_roughness_cm: must be positive, got {cm}"));
+        }
+        if let Some(deg) = max_slope_deg.filter(|d| !(0.0..=90.0).contains(d)) {
+            return Err(format!("max_slope_deg: must be 0 to 90, got {deg}"));
+        }
+        Ok(Self {
+            max_roughness_m: max_roughness_cm.map_or(default.max_roughness_m, |cm| cm / 100.0),
+            max_slope_rad: max_slope_deg.map_or(default.max_slope_rad, f64::to_radians),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use strum::VariantNames;
+
+    /// strum's names (parsing, printing) and serde's (JSON) of every variant of `E` are the
+    /// same, and `expected` in order.
+    fn one_spelling<E>(expected: &[&str])
+    where
+        E: IntoEnumIterator + EnumMessage + AsRef<str> + FromStr + VariantNames + Serialize,
+        E: PartialEq,
+        E: std::fmt::Debug + std::fmt::Display + for<'de> Deserialize<'de>,
+    {
+        assert_eq!(E::VARIANTS, expected);
+        assert_eq!(names::<E>(), expected);
+        for (v, name) in E::iter().zip(expected) {
+            assert_eq!((v.as_ref(), v.to_string().as_str()), (*name, *name));
+            assert_eq!(name.parse::<E>().ok().as_ref(), Some(&v));
+            let json = serde_json::to_value(&v).expect("serialises");
+            assert_eq!(json, serde_json::json!(name), "{v:?}");
+            let back: E = serde_json::from_value(json).expect("deserialises");
+            assert_eq!(back, v);
+        }
+    }
+
+    #[test]
+    fn each_choice_has_one_spelling_everywhere() {
+        one_spelling::<Mode>(&["rgb", "rgbd", "geometric"]);
+        one_spelling::<GeometricMethod>(&["spec", "surface-only"]);
+        one_spelling::<Method>(&["pipeline", "end-to-end"]);
+        one_spelling::<NormalsMethod>(&["ls", "dsac"]);
+        one_spelling::<CentroidMethod>(&["net", "window"]);
+        one_spelling::<StreamFormat>(&["png16", "color", "f32"]);
+    }
+
+    #[test]
+    fn bad_choices_name_the_field_and_the_choices() {
+        assert_eq!(
+            parse_choice::<Mode>("mode", "depth").unwrap_err(),
+            r#"mode: expected rgb, rgbd or geometric, got "depth""#
+        );
+        assert_eq!(
+            parse_choice::<Mode>("mode", "RGB").unwrap_err(),
+            r#"mode: expected rgb, rgbd or geometric, got "RGB""#
+        );
+        assert_eq!(
+            parse_choice::<Method>("method", "end-to-end"),
+            Ok(Method::EndToEnd)
+        );
+        assert_eq!(one_of::<StreamFormat>(), "png16, color or f32");
+    }
+
+    /// The CLI's values are the same names (clap derives its own from the variants).
+    #[cfg(feature = "clap")]
+    #[test]
+    fn the_cli_values_are_the_same_names() {
+        fn same<E: clap::ValueEnum + AsRef<str>>() {
+            for v in E::value_variants() {
+                let pv = v.to_possible_value().expect("no variant is skipped");
+                assert_eq!(pv.get_name(), v.as_ref());
+                assert!(pv.get_help().is_some(), "{} has no help", v.as_ref());
+            }
+        }
+        same::<Mode>();
+        same::<GeometricMethod>();
+        same::<Method>();
+        same::<NormalsMethod>();
+        same::<CentroidMethod>();
+        same::<StreamFormat>();
+    }
+}
