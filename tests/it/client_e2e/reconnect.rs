@@ -212,7 +212,7 @@ fn a_server_at_its_connection_limit_is_named_and_the_client_connects_once_a_plac
     server.wait_ready();
     // A kept-alive connection, seen served, holds the only place for 3 s.
     let holder = served_connection(server.addr);
-    let release = std::thread::spawn(move || {
+    let release = crate::common::spawn_named("release-holder", move || {
         std::thread::sleep(Duration::from_secs(3));
         drop(holder);
     });
@@ -220,7 +220,7 @@ fn a_server_at_its_connection_limit_is_named_and_the_client_connects_once_a_plac
     let start = Instant::now();
     let mut child = two_frame_client(server.addr, &dir.path().join("frames"), &out);
     let mut stderr = child.stderr.take().unwrap();
-    let reader = std::thread::spawn(move || {
+    let reader = crate::common::spawn_named("client-stderr", move || {
         let mut text = String::new();
         let _ = stderr.read_to_string(&mut text);
         text

@@ -215,3 +215,16 @@ pub fn pattern_png(w: u32, h: u32) -> Vec<u8> {
         .unwrap();
     out
 }
+
+/// `std::thread::spawn` with a name, so that a panic or a hang says which helper thread it was
+/// (unnamed threads are disallowed by the workspace's lints).
+pub fn spawn_named<T, F>(name: &str, f: F) -> std::thread::JoinHandle<T>
+where
+    F: FnOnce() -> T + Send + 'static,
+    T: Send + 'static,
+{
+    std::thread::Builder::new()
+        .name(name.to_string())
+        .spawn(f)
+        .expect("the test thread starts")
+}

@@ -80,7 +80,7 @@ fn eighty_trickling_uploads_do_not_starve_a_ready_request() {
     let feeder = {
         let mut writers: Vec<TcpStream> = trickles.iter().map(|t| t.try_clone().unwrap()).collect();
         let stop = stop.clone();
-        std::thread::spawn(move || {
+        crate::common::spawn_named("trickle-feeder", move || {
             while !stop.load(std::sync::atomic::Ordering::Relaxed) {
                 for w in &mut writers {
                     let _ = w.write_all(b"x");
@@ -137,7 +137,7 @@ fn paced_upload(server: &Server, body: &[u8], chunk: usize, every: std::time::Du
     use std::io::Read;
     let mut tcp = TcpStream::connect(server.addr).unwrap();
     let mut reader = tcp.try_clone().unwrap();
-    let reading = std::thread::spawn(move || {
+    let reading = crate::common::spawn_named("answer-reader", move || {
         let mut answer = Vec::new();
         let _ = reader.read_to_end(&mut answer);
         String::from_utf8_lossy(&answer).into_owned()

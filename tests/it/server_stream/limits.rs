@@ -137,7 +137,7 @@ fn eighty_trickling_streams_do_not_starve_a_ready_stream() {
         let mut writers: Vec<std::net::TcpStream> =
             trickles.iter().map(|t| t.try_clone().unwrap()).collect();
         let stop = stop.clone();
-        std::thread::spawn(move || {
+        crate::common::spawn_named("trickle-feeder", move || {
             while !stop.load(Ordering::Relaxed) {
                 for w in &mut writers {
                     let _ = w.write_all(b"x");
