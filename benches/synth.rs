@@ -4,11 +4,12 @@
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use tre::geometry::Intrinsics;
 use tre::roughness::noise::SensorPreset;
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 use tre::synth::dataset::{build_scene, scene_views, view_conditions};
 use tre::synth::sensor::{simulate, SensorInput, SensorModel};
-use tre::synth::{render, Content, SynthConfig};
+use tre::synth::{render, Conditions, Content, RenderedFrame, SynthConfig, View};
 
 fn synth(c: &mut Criterion) {
     let cfg = SynthConfig::default();
@@ -33,14 +34,31 @@ fn synth(c: &mut Criterion) {
             annotate(&input, &AnnotateConfig::default()).expect("ground in view")
         })
     });
-    let k640 = tre::geometry::Intrinsics::from_hfov(640, 480, 60.0).expect("valid hfov");
-    let view640 = tre::synth::View {
+    let k640 = Intrinsics::from_hfov(640, 480, 60.0).expect("valid hfov");
+    let view640 = View {
         intrinsics: k640,
         width: 640,
         height: 480,
         ..views[4]
     };
-    let f640 = render(&scene, &view640, &cond);
+    sensors_640(c, &render(&scene, &view640, &cond), &k640);
+    c.bench_function("synth/render_640x480", |b| {
+        b.iter(|| render(&scene, &view640, &cond))
+    });
+    contents_640(c, &views, &view640, &cond);
+    let dir = tempfile::tempdir().expect("temp dir");
+    let one = SynthConfig {
+        out: dir.path().to_owned(),
+        scenes: 1,
+        ..SynthConfig::default()
+    };
+    c.bench_function("synth/scene_9_frames_on_disk", |b| {
+        b.iter(|| tre::synth::generate(&one).expect("writes"))
+    });
+}
+
+/// Each depth-sensor model on a 640×480 frame.
+fn sensors_640(c: &mut Criterion, f640: &RenderedFrame, k640: &Intrinsics) {
     for sensor in [
         SensorPreset::KinectV1,
         SensorPreset::RealsenseD435,
@@ -52,34 +70,26 @@ fn synth(c: &mut Criterion) {
             depth_m: &f640.depth_m,
             normals_cam: &f640.normals_cam,
             rgb: &f640.rgb,
-            intrinsics: &k640,
+            intrinsics: k640,
         };
         c.bench_function(&format!("synth/sensor_{sensor}_640x480"), |b| {
             b.iter(|| simulate(&model, &input, 1))
         });
     }
-    c.bench_function("synth/render_640x480", |b| {
-        b.iter(|| render(&scene, &view640, &cond))
-    });
+}
+
+/// Rendering the indoor and urban scenes at 640×480.
+fn contents_640(c: &mut Criterion, views: &[View], view640: &View, cond: &Conditions) {
     for content in [Content::Indoor, Content::Urban] {
         let cfg = SynthConfig {
             content,
             ..SynthConfig::default()
         };
-        let scene = build_scene(&cfg, 0, &views);
+        let scene = build_scene(&cfg, 0, views);
         c.bench_function(&format!("synth/render_640x480_{content}"), |b| {
-            b.iter(|| render(&scene, &view640, &cond))
+            b.iter(|| render(&scene, view640, cond))
         });
     }
-    let dir = tempfile::tempdir().expect("temp dir");
-    let one = SynthConfig {
-        out: dir.path().to_owned(),
-        scenes: 1,
-        ..SynthConfig::default()
-    };
-    c.bench_function("synth/scene_9_frames_on_disk", |b| {
-        b.iter(|| tre::synth::generate(&one).expect("writes"))
-    });
 }
 
 criterion_group! {

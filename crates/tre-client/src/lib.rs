@@ -3,7 +3,8 @@
 //! the session paces frames ([`Rate`]), matches answers to frames by sequence number, times
 //! frames out, and reconnects with exponential back-off ([`Backoff`]) when the connection
 //! drops, reporting the frames that were in flight as lost. [`source`] reads frames from a
-//! folder, or from a video file or camera through `ffmpeg`.
+//! folder, or from a video file or camera through `ffmpeg`; [`recorder`] streams a source and
+//! writes every answer to disk (`tre client`).
 //!
 //! ```no_run
 //! # async fn demo() -> Result<(), tre_client::ClientError> {
@@ -39,6 +40,7 @@ mod error;
 mod event;
 pub mod loadtest;
 mod proto;
+pub mod recorder;
 mod session;
 pub mod source;
 pub mod tls;

@@ -179,22 +179,12 @@ impl Pipeline {
         let (normals, centroids) = self.normals_and_centroids(cfg, &work, &points, &mut timings)?;
         let mut roughness_m = self.scratch.spares.take();
         timings.time("roughness", || {
-            roughness_m.reset(work.size.0, work.size.1, f64::NAN);
-            if cfg.mode == Mode::Geometric && cfg.geometric == GeometricMethod::Spec {
-                let planes = SpecPlanes {
-                    points: &points,
-                    normals: &normals,
-                    centroids: &centroids,
-                };
-                let spec = AnnotateConfig {
-                    hood: cfg.neighbourhood,
-                    ..AnnotateConfig::default()
-                };
-                let maps = &mut self.scratch.spec;
-                spec_roughness_into(&planes, None, &spec, maps, &mut roughness_m);
-            } else {
-                surface_term_into(&points, &normals, &centroids, &mut roughness_m);
-            }
+            let planes = SpecPlanes {
+                points: &points,
+                normals: &normals,
+                centroids: &centroids,
+            };
+            self.roughness_into(cfg, work.size, &planes, &mut roughness_m);
         });
         self.scratch.spares.keep(centroids);
         let maps = StageMaps {
@@ -213,6 +203,29 @@ impl Pipeline {
         });
         out.timings = timings;
         Ok(out)
+    }
+
+    /// The roughness stage at the working `size`, into `roughness_m`: spec v1's plane fit for
+    /// the geometric mode with the spec method, else the surface term of the normals and
+    /// centroids.
+    fn roughness_into(
+        &mut self,
+        cfg: &PipelineConfig,
+        (w, h): (usize, usize),
+        planes: &SpecPlanes<'_>,
+        roughness_m: &mut Grid<f64>,
+    ) {
+        roughness_m.reset(w, h, f64::NAN);
+        if cfg.mode == Mode::Geometric && cfg.geometric == GeometricMethod::Spec {
+            let spec = AnnotateConfig {
+                hood: cfg.neighbourhood,
+                ..AnnotateConfig::default()
+            };
+            let maps = &mut self.scratch.spec;
+            spec_roughness_into(planes, None, &spec, maps, roughness_m);
+        } else {
+            surface_term_into(planes.points, planes.normals, planes.centroids, roughness_m);
+        }
     }
 
     /// Normals (initial, refined) and centroids, each timed as its stage.

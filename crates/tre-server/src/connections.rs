@@ -25,6 +25,7 @@
 
 use std::future::Future;
 use std::io;
+use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -127,40 +128,87 @@ pub async fn serve_connections(
         let (place, builder, app) = match served.clone().try_acquire_owned() {
             Ok(place) => (Place::served(place, &metrics), &builder, app.clone()),
             Err(_) => {
-                metrics.connection_refused();
-                let Ok(place) = refused.clone().try_acquire_owned() else {
-                    let why = "closed unanswered: --max-connections open and as many being refused";
-                    refusals.refused("connection", &peer.to_string(), "overloaded", why);
+                let Some(place) = refusal_place(&refused, &metrics, &refusals, peer) else {
                     continue;
                 };
-                let why = "answered 503: --max-connections open";
-                refusals.refused("connection", &peer.to_string(), "overloaded", why);
                 (Place::refused(place), &refusing, refuse.clone())
             }
         };
+        let conn = Connection {
+            _place: place,
+            peer,
+            limits,
+            refusals: refusals.clone(),
+            _open: open_rx.clone(),
+        };
+        conn.spawn(io, (builder, app), stop_rx.clone());
+    }
+    drop(listener);
+    drop(open_rx);
+    let _ = stop_tx.send(());
+    open_tx.closed().await;
+}
+
+/// A place among the connections being refused for a connection over `--max-connections`,
+/// with the refusal counted and logged; `None` (the connection is closed unanswered) when as
+/// many are being refused already.
+fn refusal_place(
+    refused: &Arc<Semaphore>,
+    metrics: &Metrics,
+    refusals: &RefusalLog,
+    peer: SocketAddr,
+) -> Option<OwnedSemaphorePermit> {
+    metrics.connection_refused();
+    let Ok(place) = refused.clone().try_acquire_owned() else {
+        let why = "closed unanswered: --max-connections open and as many being refused";
+        refusals.refused("connection", &peer.to_string(), "overloaded", why);
+        return None;
+    };
+    let why = "answered 503: --max-connections open";
+    refusals.refused("connection", &peer.to_string(), "overloaded", why);
+    Some(place)
+}
+
+/// An accepted connection and what its task holds until it closes: its place, and a receiver
+/// of the count of open connections.
+struct Connection {
+    /// Held until the connection closes: its place within its limit.
+    _place: Place,
+    peer: SocketAddr,
+    limits: ConnectionLimits,
+    refusals: Arc<RefusalLog>,
+    /// Held until the connection closes: counts it open.
+    _open: watch::Receiver<()>,
+}
+
+impl Connection {
+    /// Serves the connection on its own task with `builder` and `app` until it closes, or once
+    /// `stop` has changed and the request in flight is answered.
+    fn spawn(
+        self,
+        io: TcpStream,
+        (builder, app): (&http1::Builder, Router),
+        mut stop: watch::Receiver<()>,
+    ) {
+        let peer = self.peer;
         let (io, spare) = match spare_handle(io) {
             Ok(both) => both,
             Err(e) => {
                 tracing::warn!(%peer, error = %e, "connection dropped: its socket could not be set up");
-                continue;
+                return;
             }
         };
         let head = Arc::new(AtomicBool::new(false));
         let read = ReadBytes::default();
         let io = HeadWatch {
-            io: StallGuard::new(io, limits.write_stall),
+            io: StallGuard::new(io, self.limits.write_stall),
             head_started: head.clone(),
             read: read.clone(),
         };
-        let io = TokioIo::new(io);
-        let refusals = refusals.clone();
-        let header_read = limits.header_read;
         let app = WithReadBytes { app, read };
         let conn = builder
-            .serve_connection(io, TowerToHyperService::new(app))
+            .serve_connection(TokioIo::new(io), TowerToHyperService::new(app))
             .with_upgrades();
-        let mut stop = stop_rx.clone();
-        let open = open_rx.clone();
         tokio::spawn(async move {
             let mut conn = std::pin::pin!(conn);
             let mut stopping = false;
@@ -168,16 +216,7 @@ pub async fn serve_connections(
                 tokio::select! {
                     served = conn.as_mut() => {
                         if let Err(e) = served {
-                            if e.is_timeout() && head.load(Ordering::Relaxed) {
-                                let why = format!(
-                                    "the request headers did not arrive within {} ms (--header-timeout-ms)",
-                                    header_read.as_millis()
-                                );
-                                refusals.refused("connection", &peer.to_string(), "request_timeout", &why);
-                                answer_408(spare.as_ref(), &why);
-                            } else {
-                                tracing::debug!(error = %e, "connection ended with an error");
-                            }
+                            self.ended_with(&e, head.load(Ordering::Relaxed), spare.as_ref());
                         }
                         break;
                     }
@@ -187,14 +226,33 @@ pub async fn serve_connections(
                     }
                 }
             }
-            drop(place);
-            drop(open);
+            // Frees the connection's place and counts it closed.
+            drop(self);
         });
     }
-    drop(listener);
-    drop(open_rx);
-    let _ = stop_tx.send(());
-    open_tx.closed().await;
+
+    /// A connection that ended with `e`: a header timeout once a request head had started
+    /// (`head_started`) is answered 408 `request_timeout` and logged as a refusal; anything
+    /// else is logged at debug level.
+    fn ended_with(
+        &self,
+        e: &hyper::Error,
+        head_started: bool,
+        spare: Option<&std::net::TcpStream>,
+    ) {
+        if e.is_timeout() && head_started {
+            let why = format!(
+                "the request headers did not arrive within {} ms (--header-timeout-ms)",
+                self.limits.header_read.as_millis()
+            );
+            let peer = self.peer.to_string();
+            self.refusals
+                .refused("connection", &peer, "request_timeout", &why);
+            answer_408(spare, &why);
+        } else {
+            tracing::debug!(error = %e, "connection ended with an error");
+        }
+    }
 }
 
 /// A second handle on the connection's socket, through which a 408 can still be written

@@ -152,7 +152,7 @@ pub fn albedo(region: &Region, p: &Vec3, n: &Vec3, weather: Weather) -> [f64; 3]
 
 fn material(region: &Region, p: &Vec3) -> [f64; 3] {
     let s = region.seed;
-    let grain = |scale: f64, amp: f64| 1.0 + amp * noise::fbm(s ^ 0x51, p.x, p.y, scale, 3);
+    let grain = |scale: f64, amp: f64| grain_at(s, p, scale, amp);
     match region.category {
         Category::Pavement => {
             let (u, v) = ((p.x / 0.5).fract().abs(), (p.y / 0.5).fract().abs());
@@ -195,9 +195,28 @@ fn pick(seed: u64, colours: &[[f64; 3]]) -> [f64; 3] {
     colours[k.min(colours.len() - 1)]
 }
 
+/// `1 + amp·fbm`: the material's grain at `p`, of feature size `scale` metres (seed `s`).
+fn grain_at(s: u64, p: &Vec3, scale: f64, amp: f64) -> f64 {
+    1.0 + amp * noise::fbm(s ^ 0x51, p.x, p.y, scale, 3)
+}
+
 /// Materials of the indoor and urban categories, at `p` in the material's own frame.
 fn built_material(category: Category, s: u64, p: &Vec3) -> [f64; 3] {
-    let grain = |scale: f64, amp: f64| 1.0 + amp * noise::fbm(s ^ 0x51, p.x, p.y, scale, 3);
+    match category {
+        Category::Tile | Category::Wood | Category::Carpet => floor_material(category, s, p),
+        Category::Asphalt
+        | Category::Paving
+        | Category::Curb
+        | Category::KerbRamp
+        | Category::Drain
+        | Category::Post => street_material(category, s, p),
+        _ => indoor_object_material(category, s, p),
+    }
+}
+
+/// Indoor floors: tiles with joints, wooden planks, carpet.
+fn floor_material(category: Category, s: u64, p: &Vec3) -> [f64; 3] {
+    let grain = |scale: f64, amp: f64| grain_at(s, p, scale, amp);
     match category {
         Category::Tile => {
             let size = tile_size_m(s);
@@ -237,6 +256,14 @@ fn built_material(category: Category, s: u64, p: &Vec3) -> [f64; 3] {
                 0.9 + 0.2 * noise::value(s ^ 0xCB, p.x * 300.0, p.y * 300.0),
             )
         }
+        _ => [0.5, 0.5, 0.5],
+    }
+}
+
+/// Walls, sills, cables, boxes and furniture.
+fn indoor_object_material(category: Category, s: u64, p: &Vec3) -> [f64; 3] {
+    let grain = |scale: f64, amp: f64| grain_at(s, p, scale, amp);
+    match category {
         Category::Wall => scale([0.80, 0.78, 0.74], grain(0.3, 0.04)),
         Category::Sill => pick(
             s,
@@ -262,6 +289,14 @@ fn built_material(category: Category, s: u64, p: &Vec3) -> [f64; 3] {
             ),
             grain(0.05, 0.08),
         ),
+        _ => [0.5, 0.5, 0.5],
+    }
+}
+
+/// Road, sidewalk paving, curb, kerb ramp, drain and posts.
+fn street_material(category: Category, s: u64, p: &Vec3) -> [f64; 3] {
+    let grain = |scale: f64, amp: f64| grain_at(s, p, scale, amp);
+    match category {
         Category::Asphalt => {
             let speck = noise::value(s ^ 0xA7, p.x * 250.0, p.y * 250.0);
             scale([0.11, 0.11, 0.12], (1.0 + 0.35 * speck) * grain(0.5, 0.15))

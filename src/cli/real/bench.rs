@@ -318,8 +318,7 @@ pub fn run_benchmark(
     mut on_frame: impl FnMut(&RealFrame, &LoadedFrame, &[RowMaps]) -> anyhow::Result<()>,
 ) -> anyhow::Result<RealReport> {
     let mut pooled: Vec<RowAcc> = rows.iter().map(|_| RowAcc::default()).collect();
-    let (mut spec_floor, mut spec_missing, mut spec_ms) = (Vec::new(), 0, 0.0);
-    let (mut valid_px, mut boundary_px, mut hazard_px) = (0, 0, 0);
+    let mut spec_acc = SpecAcc::default();
     let mut per_frame = Vec::new();
     let any_floor = frames
         .iter()
@@ -330,27 +329,14 @@ pub fn run_benchmark(
             .get(&(frame.sequence.clone(), frame.depth_rel.clone()))
             .copied();
         let spec = spec_summary(&loaded, floor_box);
-        if let Some(b) = floor_box {
-            let (v, m) = box_values(&loaded.spec.roughness_m, b);
-            spec_floor.extend(v);
-            spec_missing += m;
-        }
-        (valid_px, boundary_px, hazard_px, spec_ms) = (
-            valid_px + spec.valid_px,
-            boundary_px + spec.boundary_px,
-            hazard_px + spec.hazard_px,
-            spec_ms + spec.ms,
-        );
-        let mut maps = Vec::new();
-        let mut reports = Vec::new();
-        for ((key, cfg), acc) in rows.iter().zip(&mut pooled) {
-            let sensor = frame_sensor(frame, sensor);
-            let (one, map) = score_row(pipeline, &loaded, cfg, floor_box, &sensor)
-                .with_context(|| format!("{}: {key}", frame.name()))?;
-            reports.push(one.finish(key, 1, floor_box.is_some()));
-            acc.merge(&one);
-            maps.push(map);
-        }
+        spec_acc.add(&spec, &loaded, floor_box);
+        let scored = FrameScoring {
+            frame,
+            loaded: &loaded,
+            floor_box,
+            sensor: frame_sensor(frame, sensor),
+        };
+        let (reports, maps) = scored.score(pipeline, rows, &mut pooled)?;
         on_frame(frame, &loaded, &maps)?;
         per_frame.push(FrameReport {
             name: frame.name(),
@@ -373,13 +359,7 @@ pub fn run_benchmark(
             .iter()
             .map(|&(name, a, b)| (name.to_owned(), a, b))
             .collect(),
-        spec: SpecSummary {
-            floor: any_floor.then(|| floor_stats(spec_floor, spec_missing)),
-            valid_px,
-            boundary_px,
-            hazard_px,
-            ms: spec_ms / n.max(1) as f64,
-        },
+        spec: spec_acc.finish(any_floor, n),
         pooled: rows
             .iter()
             .zip(&pooled)
@@ -387,6 +367,73 @@ pub fn run_benchmark(
             .collect(),
         per_frame,
     })
+}
+
+/// The spec's own figures summed over the frames.
+#[derive(Default)]
+struct SpecAcc {
+    floor: Vec<f64>,
+    floor_missing: usize,
+    valid_px: usize,
+    boundary_px: usize,
+    hazard_px: usize,
+    ms: f64,
+}
+
+impl SpecAcc {
+    /// Adds a frame's figures, and the spec's values in its floor box if it has one.
+    fn add(&mut self, spec: &SpecSummary, loaded: &LoadedFrame, floor_box: Option<[usize; 4]>) {
+        if let Some(b) = floor_box {
+            let (v, m) = box_values(&loaded.spec.roughness_m, b);
+            self.floor.extend(v);
+            self.floor_missing += m;
+        }
+        self.valid_px += spec.valid_px;
+        self.boundary_px += spec.boundary_px;
+        self.hazard_px += spec.hazard_px;
+        self.ms += spec.ms;
+    }
+
+    /// The figures pooled over `frames` frames (with floor statistics when any had a box).
+    fn finish(self, any_floor: bool, frames: usize) -> SpecSummary {
+        SpecSummary {
+            floor: any_floor.then(|| floor_stats(self.floor, self.floor_missing)),
+            valid_px: self.valid_px,
+            boundary_px: self.boundary_px,
+            hazard_px: self.hazard_px,
+            ms: self.ms / frames.max(1) as f64,
+        }
+    }
+}
+
+/// One loaded frame to score, with its floor box and its sensor's noise model.
+struct FrameScoring<'a> {
+    frame: &'a RealFrame,
+    loaded: &'a LoadedFrame,
+    floor_box: Option<[usize; 4]>,
+    sensor: SensorNoise,
+}
+
+impl FrameScoring<'_> {
+    /// Scores every configuration of `rows` on the frame, adding each into its accumulator of
+    /// `pooled`; returns the frame's rows and maps.
+    fn score(
+        &self,
+        pipeline: &mut Pipeline,
+        rows: &[(String, PipelineConfig)],
+        pooled: &mut [RowAcc],
+    ) -> anyhow::Result<(Vec<RealRow>, Vec<RowMaps>)> {
+        let mut maps = Vec::new();
+        let mut reports = Vec::new();
+        for ((key, cfg), acc) in rows.iter().zip(pooled) {
+            let (one, map) = score_row(pipeline, self.loaded, cfg, self.floor_box, &self.sensor)
+                .with_context(|| format!("{}: {key}", self.frame.name()))?;
+            reports.push(one.finish(key, 1, self.floor_box.is_some()));
+            acc.merge(&one);
+            maps.push(map);
+        }
+        Ok((reports, maps))
+    }
 }
 
 /// The spec's own figures on a frame.

@@ -36,17 +36,31 @@ pub fn markdown(report: &RealReport) -> String {
         100.0 * report.flat_m,
         100.0 * report.hazard_m
     );
-    let floor =
-        |f: &Option<FloorStats>| (num(f.map(|f| f.median_cm), 2), num(f.map(|f| f.p90_cm), 2));
+    pooled_table(&mut out, report);
+    range_table(&mut out, report);
+    frame_table(&mut out, report);
+    traversal_table(&mut out, report);
+    depth_table(&mut out, report);
+    out
+}
+
+/// The floor box's median and p90 roughness, centimetres, as table cells.
+fn floor_cells(f: &Option<FloorStats>) -> (String, String) {
+    (num(f.map(|f| f.median_cm), 2), num(f.map(|f| f.p90_cm), 2))
+}
+
+/// The pooled figures: the spec's own row, then each configuration's.
+fn pooled_table(out: &mut String, report: &RealReport) {
+    use std::fmt::Write;
     out.push_str("| row | RMSE | B-RMSE | F-RMSE | edge recall | false hazards | floor median (cm) | floor p90 (cm) | ms/frame |\n|---|---|---|---|---|---|---|---|---|\n");
-    let (m, p) = floor(&report.spec.floor);
+    let (m, p) = floor_cells(&report.spec.floor);
     let _ = writeln!(
         out,
         "| spec (`tre annotate`) | 0 | 0 | 0 | – | – | {m} | {p} | {:.1} |",
         report.spec.ms
     );
     for r in &report.pooled {
-        let (m, p) = floor(&r.floor);
+        let (m, p) = floor_cells(&r.floor);
         let rough = &r.all.roughness;
         let _ = writeln!(
             out,
@@ -60,6 +74,11 @@ pub fn markdown(report: &RealReport) -> String {
             num(r.ms.get("total").copied(), 1),
         );
     }
+}
+
+/// Each configuration's figures by range of the sensor depth, pooled.
+fn range_table(out: &mut String, report: &RealReport) {
+    use std::fmt::Write;
     out.push_str("\nBy range (sensor depth), pooled:\n\n| row | range | px | RMSE (cm) | edge recall | false hazards |\n|---|---|---|---|---|---|\n");
     for r in &report.pooled {
         for (name, s) in &r.by_range {
@@ -74,12 +93,17 @@ pub fn markdown(report: &RealReport) -> String {
             );
         }
     }
+}
+
+/// Each frame: the spec's floor figures, then each configuration's.
+fn frame_table(out: &mut String, report: &RealReport) {
+    use std::fmt::Write;
     out.push_str("\nPer frame:\n\n| frame | row | floor median (cm) | floor p90 (cm) | edge recall | false hazards | RMSE (cm) |\n|---|---|---|---|---|---|---|\n");
     for f in &report.per_frame {
-        let (m, p) = floor(&f.spec.floor);
+        let (m, p) = floor_cells(&f.spec.floor);
         let _ = writeln!(out, "| {} | spec | {m} | {p} | – | – | 0 |", f.name);
         for r in &f.rows {
-            let (m, p) = floor(&r.floor);
+            let (m, p) = floor_cells(&r.floor);
             let _ = writeln!(
                 out,
                 "| {} | {} | {m} | {p} | {} | {} | {:.3} |",
@@ -91,9 +115,6 @@ pub fn markdown(report: &RealReport) -> String {
             );
         }
     }
-    traversal_table(&mut out, report);
-    depth_table(&mut out, report);
-    out
 }
 
 /// The three-state maps, pooled: shares over every pixel and the three checks.

@@ -126,13 +126,46 @@ fn y_max(series: &[Series], hline: Option<f64>, floor: f64) -> f64 {
         .fold(floor, f64::max)
 }
 
+/// A panel's plot area on the page, pixels: its top-left corner and size, and the panel's
+/// axes that map values into it.
+struct Area<'a> {
+    panel: &'a Panel,
+    x0: f64,
+    y0: f64,
+    w: f64,
+    h: f64,
+}
+
+impl<'a> Area<'a> {
+    /// The plot area of `panel` drawn with its top-left corner at `top` pixels.
+    fn of(panel: &'a Panel, top: f64) -> Self {
+        let (ml, mr, mt, mb) = MARGIN;
+        Self {
+            panel,
+            x0: ml,
+            y0: top + mt,
+            w: WIDTH - ml - mr,
+            h: PANEL_H - mt - mb,
+        }
+    }
+
+    /// The page x of value `x`.
+    fn px(&self, x: f64) -> f64 {
+        let a = &self.panel.x;
+        self.x0 + (x - a.min) / (a.max - a.min).max(1e-12) * self.w
+    }
+
+    /// The page y of value `y`.
+    fn py(&self, y: f64) -> f64 {
+        let a = &self.panel.y;
+        self.y0 + self.h - (y - a.min) / (a.max - a.min).max(1e-12) * self.h
+    }
+}
+
 /// Draws `panel` with its top-left corner at `top` pixels.
 fn draw(out: &mut String, panel: &Panel, top: f64) {
-    let (ml, mr, mt, mb) = MARGIN;
-    let (x0, y0) = (ml, top + mt);
-    let (w, h) = (WIDTH - ml - mr, PANEL_H - mt - mb);
-    let px = |x: f64| x0 + (x - panel.x.min) / (panel.x.max - panel.x.min).max(1e-12) * w;
-    let py = |y: f64| y0 + h - (y - panel.y.min) / (panel.y.max - panel.y.min).max(1e-12) * h;
+    let area = Area::of(panel, top);
+    let (x0, y0, w, h) = (area.x0, area.y0, area.w, area.h);
     let _ = writeln!(
         out,
         r#"<text x="{:.1}" y="{:.1}" font-size="15" font-weight="bold" text-anchor="middle">{}</text>"#,
@@ -144,8 +177,29 @@ fn draw(out: &mut String, panel: &Panel, top: f64) {
         out,
         r##"<rect x="{x0:.1}" y="{y0:.1}" width="{w:.1}" height="{h:.1}" fill="none" stroke="#444"/>"##
     );
-    for (v, t) in &panel.x.ticks {
-        let x = px(*v);
+    draw_axes(out, &area);
+    if let Some((v, label)) = &panel.hline {
+        let y = area.py(*v);
+        let _ = writeln!(
+            out,
+            r##"<line x1="{x0:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#d62728" stroke-dasharray="6 4"/><text x="{:.1}" y="{:.1}" fill="#d62728" text-anchor="end">{}</text>"##,
+            x0 + w,
+            x0 + w - 4.0,
+            y - 4.0,
+            esc(label)
+        );
+    }
+    for s in &panel.series {
+        draw_series(out, s, &|x| area.px(x), &|y| area.py(y));
+    }
+    legend(out, &panel.series, x0 + w + 14.0, y0 + 6.0);
+}
+
+/// The grid lines with their tick labels, and the axis labels.
+fn draw_axes(out: &mut String, area: &Area<'_>) {
+    let (x0, y0, w, h) = (area.x0, area.y0, area.w, area.h);
+    for (v, t) in &area.panel.x.ticks {
+        let x = area.px(*v);
         let _ = writeln!(
             out,
             r##"<line x1="{x:.1}" y1="{y0:.1}" x2="{x:.1}" y2="{:.1}" stroke="#ddd"/><text x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"##,
@@ -154,8 +208,8 @@ fn draw(out: &mut String, panel: &Panel, top: f64) {
             esc(t)
         );
     }
-    for (v, t) in &panel.y.ticks {
-        let y = py(*v);
+    for (v, t) in &area.panel.y.ticks {
+        let y = area.py(*v);
         let _ = writeln!(
             out,
             r##"<line x1="{x0:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#ddd"/><text x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"##,
@@ -170,30 +224,15 @@ fn draw(out: &mut String, panel: &Panel, top: f64) {
         r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
         x0 + w / 2.0,
         y0 + h + 38.0,
-        esc(&panel.x.label)
+        esc(&area.panel.x.label)
     );
     let _ = writeln!(
         out,
         r#"<text transform="translate({:.1},{:.1}) rotate(-90)" text-anchor="middle">{}</text>"#,
         x0 - 50.0,
         y0 + h / 2.0,
-        esc(&panel.y.label)
+        esc(&area.panel.y.label)
     );
-    if let Some((v, label)) = &panel.hline {
-        let y = py(*v);
-        let _ = writeln!(
-            out,
-            r##"<line x1="{x0:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#d62728" stroke-dasharray="6 4"/><text x="{:.1}" y="{:.1}" fill="#d62728" text-anchor="end">{}</text>"##,
-            x0 + w,
-            x0 + w - 4.0,
-            y - 4.0,
-            esc(label)
-        );
-    }
-    for s in &panel.series {
-        draw_series(out, s, &px, &py);
-    }
-    legend(out, &panel.series, x0 + w + 14.0, y0 + 6.0);
 }
 
 fn draw_series(out: &mut String, s: &Series, px: &dyn Fn(f64) -> f64, py: &dyn Fn(f64) -> f64) {
@@ -381,7 +420,7 @@ pub fn plot_sweep(sw: &SweepReport) -> String {
         .iter()
         .enumerate()
         .flat_map(|(i, r)| {
-            let name = format!("{}/s", fmt_rate(r.run.offered_rate_per_s.unwrap_or(0.0)));
+            let name = format!("{}/s", fmt_rate(offered_rate(r)));
             spectrum_series(r, &name, PALETTE[i % PALETTE.len()], false)
         })
         .collect();
@@ -390,7 +429,25 @@ pub fn plot_sweep(sw: &SweepReport) -> String {
         series,
         Some(sw.slo_ms),
     );
-    let rate = |r: &Report| r.run.offered_rate_per_s.unwrap_or(0.0);
+    let footer = sw.rows.first().map_or_else(String::new, |r| {
+        format!(
+            "tre loadtest sweep: {} {}; frames: {}",
+            r.run.protocol.as_str(),
+            r.run.url,
+            r.run.frames
+        )
+    });
+    svg(&[spectrum, by_rate_panel(sw)], &footer)
+}
+
+/// The offered rate of a sweep's row, requests per second (0 for an unpaced row).
+fn offered_rate(r: &Report) -> f64 {
+    r.run.offered_rate_per_s.unwrap_or(0.0)
+}
+
+/// p50, p90, p99 and the share refused against the offered rate, with the objective and the
+/// knee.
+fn by_rate_panel(sw: &SweepReport) -> Panel {
     let line = |name: &str, colour, f: fn(&Report) -> f64| Series {
         name: name.into(),
         colour,
@@ -399,7 +456,7 @@ pub fn plot_sweep(sw: &SweepReport) -> String {
             .rows
             .iter()
             .filter(|r| r.ok > 0)
-            .map(|r| (rate(r), f(r)))
+            .map(|r| (offered_rate(r), f(r)))
             .collect(),
     };
     let lines = vec![
@@ -413,13 +470,13 @@ pub fn plot_sweep(sw: &SweepReport) -> String {
     let (lo, hi) = sw
         .rows
         .iter()
-        .map(rate)
+        .map(offered_rate)
         .fold((f64::MAX, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
     let knee = sw.knee.as_ref().map_or_else(
         || "knee: not reached".into(),
         |k| format!("knee at {}/s", fmt_rate(k.rate_per_s)),
     );
-    let by_rate = Panel {
+    Panel {
         title: format!("Latency against offered rate ({knee})"),
         x: linear_axis("offered rate (requests/s)", lo.min(hi), hi),
         y: linear_axis(
@@ -429,16 +486,7 @@ pub fn plot_sweep(sw: &SweepReport) -> String {
         ),
         series: lines,
         hline: Some((sw.slo_ms, format!("SLO p99 {} ms", fmt_rate(sw.slo_ms)))),
-    };
-    let footer = sw.rows.first().map_or_else(String::new, |r| {
-        format!(
-            "tre loadtest sweep: {} {}; frames: {}",
-            r.run.protocol.as_str(),
-            r.run.url,
-            r.run.frames
-        )
-    });
-    svg(&[spectrum, by_rate], &footer)
+    }
 }
 
 #[cfg(test)]

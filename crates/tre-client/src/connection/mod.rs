@@ -1,12 +1,14 @@
 //! The connection task behind a session: it owns the WebSocket, sends the Hello and waits for
 //! Ready, writes frames, matches answers to frames by sequence number (send times kept in a
 //! bounded map), times frames out, and on a dropped connection reports the frames in flight as
-//! lost and reconnects with exponential back-off.
+//! lost and reconnects with exponential back-off. One connection attempt is `attempt`'s.
+
+mod attempt;
 
 use std::collections::BTreeMap;
 use std::future::Future;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use futures_util::stream::SplitSink;
 use futures_util::{SinkExt, StreamExt};
@@ -15,10 +17,12 @@ use tokio_tungstenite::tungstenite::{self, Message};
 
 use super::config::{ClientConfig, Endpoints};
 use super::event::{Event, FrameResult, LostReason, ServerInfo};
-use super::proto::{self, Incoming};
+use super::proto::{self, Incoming, WireResult};
 use super::session::Stamp;
 use super::ClientError;
+use attempt::{attempt, bearer};
 
+/// The WebSocket of one connection.
 type Ws =
     tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
@@ -261,15 +265,8 @@ impl Link {
             tokio::select! {
                 m = stream.next() => {
                     last_heard = Instant::now();
-                    match m {
-                        Some(Ok(Message::Binary(b))) => self.on_message(&b).await,
-                        Some(Ok(Message::Close(c))) => {
-                            let why = c.map_or_else(String::new, |c| format!(" ({} {})", u16::from(c.code), c.reason));
-                            return Ended::Dropped(format!("the server closed the stream{why}"));
-                        }
-                        Some(Ok(_)) => {}
-                        Some(Err(e)) => return Ended::Dropped(e.to_string()),
-                        None => return Ended::Dropped("the connection ended".into()),
+                    if let Some(ended) = self.on_read(m).await {
+                        return ended;
                     }
                 }
                 (idle, written) = async { writing.as_mut().expect("guarded by the branch condition; this is a bug").await }, if writing.is_some() => {
@@ -281,12 +278,8 @@ impl Link {
                 }
                 f = self.frames.recv(), if self.frames_open && writing.is_none() => match f {
                     Some(o) => {
-                        let msg = self.track(o).await;
-                        let mut idle = sink.take().expect("no write in progress; this is a bug");
-                        writing = Some(Box::pin(async move {
-                            let written = idle.send(msg).await;
-                            (idle, written)
-                        }));
+                        let idle = sink.take().expect("no write in progress; this is a bug");
+                        writing = Some(self.start_write(o, idle).await);
                     }
                     None => self.frames_open = false,
                 },
@@ -296,6 +289,33 @@ impl Link {
                 }
             }
         }
+    }
+
+    /// Handles what the connection read: a server message, or the connection's end (`Some`).
+    async fn on_read(&mut self, m: Option<Result<Message, tungstenite::Error>>) -> Option<Ended> {
+        match m {
+            Some(Ok(Message::Binary(b))) => self.on_message(&b).await,
+            Some(Ok(Message::Close(c))) => {
+                let why = c.map_or_else(String::new, |c| {
+                    format!(" ({} {})", u16::from(c.code), c.reason)
+                });
+                return Some(Ended::Dropped(format!("the server closed the stream{why}")));
+            }
+            Some(Ok(_)) => {}
+            Some(Err(e)) => return Some(Ended::Dropped(e.to_string())),
+            None => return Some(Ended::Dropped("the connection ended".into())),
+        }
+        None
+    }
+
+    /// Tracks frame `o` and starts writing it on the idle `sink`; the write hands the sink back
+    /// with its outcome.
+    async fn start_write(&mut self, o: Outgoing, mut sink: SplitSink<Ws, Message>) -> Write {
+        let msg = self.track(o).await;
+        Box::pin(async move {
+            let written = sink.send(msg).await;
+            (sink, written)
+        })
     }
 
     /// Remembers the frame's send time (forgetting the oldest beyond the bound); returns the
@@ -331,25 +351,7 @@ impl Link {
             }
         };
         match incoming {
-            Incoming::Result(wire) => {
-                let sequence = wire.sequence();
-                let Some(sent) = self.pending.remove(&sequence) else {
-                    tracing::debug!(
-                        sequence,
-                        "result for a frame no longer awaited (timed out or evicted)"
-                    );
-                    return;
-                };
-                let event = match FrameResult::try_from((wire, sent)) {
-                    Ok(r) => Event::Result(Box::new(r)),
-                    Err(e) => Event::Error {
-                        sequence: Some(sequence),
-                        code: "bad_result".into(),
-                        message: e.to_string(),
-                    },
-                };
-                self.settle(event).await;
-            }
+            Incoming::Result(wire) => self.on_result(wire).await,
             Incoming::Dropped {
                 sequence,
                 dropped_total,
@@ -379,6 +381,28 @@ impl Link {
             }
             Incoming::Ready(_) => tracing::debug!("unexpected Ready ignored"),
         }
+    }
+
+    /// Settles the frame of a Result with its decoded map (or a `bad_result` error); a Result
+    /// for a frame no longer awaited is ignored.
+    async fn on_result(&mut self, wire: WireResult) {
+        let sequence = wire.sequence();
+        let Some(sent) = self.pending.remove(&sequence) else {
+            tracing::debug!(
+                sequence,
+                "result for a frame no longer awaited (timed out or evicted)"
+            );
+            return;
+        };
+        let event = match FrameResult::try_from((wire, sent)) {
+            Ok(r) => Event::Result(Box::new(r)),
+            Err(e) => Event::Error {
+                sequence: Some(sequence),
+                code: "bad_result".into(),
+                message: e.to_string(),
+            },
+        };
+        self.settle(event).await;
     }
 
     /// When the oldest frame awaiting an answer times out.
@@ -445,178 +469,4 @@ async fn sleep_until(t: Option<Instant>) {
         Some(t) => tokio::time::sleep_until(tokio::time::Instant::from_std(t)).await,
         None => std::future::pending().await,
     }
-}
-
-/// One connection attempt: readiness (if asked), WebSocket handshake, Hello → Ready.
-async fn attempt(shared: Arc<Shared>) -> Result<(Ws, ServerInfo), ClientError> {
-    let limit = shared.cfg.connect_timeout;
-    if let Some(http) = &shared.http {
-        within(
-            limit,
-            "the readiness check",
-            check_ready(http, &shared.endpoints.readyz),
-        )
-        .await??;
-    }
-    let url = shared.endpoints.stream.as_str();
-    let mut request = tungstenite::client::IntoClientRequest::into_client_request(url)
-        .map_err(|e| handshake_error(url, e))?;
-    if let Some(key) = &shared.cfg.api_key {
-        request
-            .headers_mut()
-            .insert(tungstenite::http::header::AUTHORIZATION, bearer(key)?);
-    }
-    let connector = shared.tls.clone().map(tokio_tungstenite::Connector::Rustls);
-    let handshake =
-        tokio_tungstenite::connect_async_tls_with_config(request, None, true, connector);
-    let (mut ws, _) = within(limit, "the WebSocket handshake", handshake)
-        .await?
-        .map_err(|e| handshake_error(url, e))?;
-    let connect = |e: tungstenite::Error| ClientError::Connect {
-        url: url.to_owned(),
-        reason: e.to_string(),
-    };
-    ws.send(Message::Binary(shared.hello.clone().into()))
-        .await
-        .map_err(connect)?;
-    let info = within(limit, "Hello → Ready", await_ready(&mut ws, url)).await??;
-    Ok((ws, info))
-}
-
-/// `fut`, or [`ClientError::Timeout`] after `limit`.
-async fn within<T>(
-    limit: Duration,
-    what: &'static str,
-    fut: impl Future<Output = T>,
-) -> Result<T, ClientError> {
-    tokio::time::timeout(limit, fut)
-        .await
-        .map_err(|_| ClientError::Timeout {
-            what,
-            ms: limit.as_millis(),
-        })
-}
-
-/// `GET /readyz`: 200 (or 404: no such route behind a proxy) is ready.
-/// The `Authorization: Bearer KEY` value of `key`, marked sensitive.
-fn bearer(key: &str) -> Result<reqwest::header::HeaderValue, ClientError> {
-    let mut v = reqwest::header::HeaderValue::from_str(&format!("Bearer {key}")).map_err(|_| {
-        ClientError::BadConfig {
-            field: "api_key",
-            reason: "not a valid header value".into(),
-        }
-    })?;
-    v.set_sensitive(true);
-    Ok(v)
-}
-
-async fn check_ready(http: &reqwest::Client, url: &str) -> Result<(), ClientError> {
-    let resp = http
-        .get(url)
-        .send()
-        .await
-        .map_err(|e| ClientError::Connect {
-            url: url.to_owned(),
-            reason: error_chain(&e),
-        })?;
-    match resp.status().as_u16() {
-        200 | 404 => Ok(()),
-        status => {
-            let body = resp.bytes().await.unwrap_or_default();
-            Err(ClientError::NotReady {
-                url: url.to_owned(),
-                status: with_server_error(format!("HTTP {status}"), &body),
-            })
-        }
-    }
-}
-
-/// `what`, followed by the server's own `code: message` when `body` is its JSON error (why a
-/// 503 came: models loading, the queue full, `--max-connections` reached).
-fn with_server_error(what: String, body: &[u8]) -> String {
-    let error = serde_json::from_slice::<serde_json::Value>(body)
-        .ok()
-        .and_then(|v| {
-            let e = v.get("error")?;
-            Some(format!(
-                "{}: {}",
-                e.get("code")?.as_str()?,
-                e.get("message")?.as_str()?
-            ))
-        });
-    match error {
-        Some(e) => format!("{what}, {e}"),
-        None => what,
-    }
-}
-
-/// The first message after the Hello must be Ready; an Error means the Hello was refused.
-async fn await_ready(ws: &mut Ws, url: &str) -> Result<ServerInfo, ClientError> {
-    while let Some(msg) = ws.next().await {
-        let msg = msg.map_err(|e| ClientError::Connect {
-            url: url.to_owned(),
-            reason: e.to_string(),
-        })?;
-        match msg {
-            Message::Binary(b) => {
-                return match proto::decode_server(&b)? {
-                    Incoming::Ready(info) => Ok(info),
-                    Incoming::Error { code, message, .. } => {
-                        Err(ClientError::HelloRefused { code, message })
-                    }
-                    other => Err(ClientError::Protocol(format!(
-                        "expected Ready after the Hello, got {other:?}"
-                    ))),
-                };
-            }
-            Message::Close(_) => break,
-            _ => {}
-        }
-    }
-    Err(ClientError::Connect {
-        url: url.to_owned(),
-        reason: "the connection closed before Ready".into(),
-    })
-}
-
-/// Handshake failures: HTTP 4xx (but 408 and 429) and bad URLs will not fix themselves.
-fn handshake_error(url: &str, e: tungstenite::Error) -> ClientError {
-    let rejected = |reason: String| ClientError::Rejected {
-        url: url.to_owned(),
-        reason,
-    };
-    match &e {
-        tungstenite::Error::Http(resp) => {
-            let body = resp.body().as_deref().unwrap_or_default();
-            let reason = with_server_error(
-                format!("HTTP {} on the WebSocket upgrade", resp.status()),
-                body,
-            );
-            if resp.status().is_client_error() && ![408, 429].contains(&resp.status().as_u16()) {
-                rejected(reason)
-            } else {
-                ClientError::Connect {
-                    url: url.to_owned(),
-                    reason,
-                }
-            }
-        }
-        tungstenite::Error::Url(_) => rejected(e.to_string()),
-        _ => ClientError::Connect {
-            url: url.to_owned(),
-            reason: error_chain(&e),
-        },
-    }
-}
-
-/// An error and its sources on one line.
-fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut source = e.source();
-    while let Some(c) = source {
-        s.push_str(": ");
-        s.push_str(&c.to_string());
-        source = c.source();
-    }
-    s
 }

@@ -1,0 +1,236 @@
+//! `tre synth`: scenes → views → frames on disk, with a manifest split by scene and a contact
+//! sheet. Deterministic by seed: the same seed gives the same bytes.
+//!
+//! [`generate`] checks the settings and runs the scenes in parallel: `scene` draws each scene's
+//! views, terrain, lighting and sensors; `frame` renders and writes its frames (the files of
+//! one frame by `writer`, the contact-sheet rows by `sheet`); `manifest` holds what is written
+//! about the dataset (`dataset.json`, each frame's `camera.json`, the run file).
+
+mod frame;
+mod manifest;
+mod scene;
+mod sheet;
+mod writer;
+
+use std::path::PathBuf;
+
+use image::{DynamicImage, RgbImage};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::content::Content;
+use super::imaging::ImageEffect;
+use tre_core::roughness::noise::SensorPreset;
+use tre_core::roughness::RoughnessError;
+use tre_io::{self as io, IoError};
+
+use frame::generate_scene;
+use manifest::start_run;
+use sheet::contact_sheet;
+
+pub use manifest::{FrameCamera, FrameEntry, Manifest, SceneEntry, SensorMeta, RUN_FILE};
+pub use scene::{
+    build_scene, scene_mounting, scene_terrain, scene_views, view_conditions, view_sensor,
+    OpticsRanges, OPTICS,
+};
+
+/// Dataset settings, with the paper's camera by default.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SynthConfig {
+    /// Output folder (not written to the manifest, so that a dataset is the same wherever it
+    /// is written).
+    #[serde(skip)]
+    pub out: PathBuf,
+    /// Number of scenes.
+    pub scenes: u32,
+    /// Dataset seed.
+    pub seed: u64,
+    /// Image width and height, pixels.
+    pub size: (usize, usize),
+    /// Horizontal field of view, degrees.
+    pub hfov_deg: f64,
+    /// Views per scene, spread evenly over `[-yaw_span, +yaw_span]` (9 over ±60°: 15° steps).
+    pub views: u32,
+    /// Half the yaw span, degrees.
+    pub yaw_span_deg: f64,
+    /// Draw camera height (0.4–1.2 m) and pitch (40–75°) per scene instead of 1 m and 60°.
+    pub random_mounting: bool,
+    /// Share of scenes in the test split.
+    pub test_fraction: f64,
+    /// Grid spacing of the rendered surface, metres.
+    pub cell_m: f64,
+    /// Write a PLY point cloud per frame.
+    pub ply: bool,
+    /// Depth sensors: one is used for every frame; with several, each frame draws one
+    /// (uniformly, from the frame's seed). `exact` copies the exact depth.
+    #[serde(default = "default_sensors")]
+    pub sensors: Vec<SensorPreset>,
+    /// Image-formation effects applied to `rgb.png`, each drawn per frame (none by default:
+    /// the rendered image as it is).
+    #[serde(default)]
+    pub effects: Vec<ImageEffect>,
+    /// What the scenes show: natural terrain (the default, left out of `dataset.json` so that
+    /// natural datasets keep their bytes), indoor rooms, urban street edges, or a mix.
+    #[serde(default, skip_serializing_if = "Content::is_natural")]
+    pub content: Content,
+    /// Draw every frame's mounting and optics from [`OPTICS`]: pitch, height, roll, horizontal
+    /// field of view and frame shape (the width stays `size.0`). Overrides `random_mounting`,
+    /// `hfov_deg` and `size.1`. Left out of `dataset.json` when off.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub random_optics: bool,
+    /// Keep the complete frames of an interrupted run with the same settings and write only
+    /// the others (a run option, not written to the manifest).
+    #[serde(skip)]
+    pub resume: bool,
+}
+
+fn default_sensors() -> Vec<SensorPreset> {
+    vec![SensorPreset::Exact]
+}
+
+impl Default for SynthConfig {
+    fn default() -> Self {
+        Self {
+            out: PathBuf::from("data/synth"),
+            scenes: 4,
+            seed: 0,
+            size: (512, 512),
+            hfov_deg: 60.0,
+            views: 9,
+            yaw_span_deg: 60.0,
+            random_mounting: false,
+            test_fraction: 0.2,
+            cell_m: 0.004,
+            ply: true,
+            sensors: default_sensors(),
+            effects: Vec::new(),
+            content: Content::Natural,
+            random_optics: false,
+            resume: false,
+        }
+    }
+}
+
+/// Errors of dataset generation.
+#[derive(Debug, thiserror::Error)]
+pub enum SynthError {
+    /// Writing failed.
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// Annotation failed (a frame saw no ground).
+    #[error("scene {scene} view {view}: {source}")]
+    Annotate {
+        /// Scene index.
+        scene: u32,
+        /// View index.
+        view: u32,
+        /// Why.
+        source: RoughnessError,
+    },
+    /// A bad setting.
+    #[error("{0}")]
+    Config(String),
+}
+
+/// Generates the dataset described by `cfg`; returns its manifest (also written to disk).
+pub fn generate(cfg: &SynthConfig) -> Result<Manifest, SynthError> {
+    check(cfg)?;
+    start_run(cfg)?;
+    // Scenes in parallel, and the views of each (rayon's pool: every core).
+    let done: Vec<(SceneEntry, Vec<RgbImage>)> = (0..cfg.scenes)
+        .into_par_iter()
+        .map(|s| generate_scene(cfg, s))
+        .collect::<Result<_, _>>()?;
+    let mut scenes = Vec::new();
+    let mut sheet = Vec::new();
+    for (entry, preview) in done {
+        sheet.extend(preview);
+        scenes.push(entry);
+    }
+    let count = |split: &str| {
+        scenes
+            .iter()
+            .filter(|e| e.split == split)
+            .map(|e| e.frames.len())
+            .sum()
+    };
+    let labels = (cfg.content.labels().iter())
+        .map(|c| (c.label(), c.name().to_string()))
+        .collect();
+    let manifest = Manifest {
+        config: cfg.clone(),
+        labels,
+        counts: (count("train"), count("test")),
+        scenes,
+    };
+    let json =
+        serde_json::to_string_pretty(&manifest).map_err(|e| SynthError::Config(e.to_string()))?;
+    std::fs::write(cfg.out.join("dataset.json"), json).map_err(IoError::from)?;
+    io::save(
+        &cfg.out.join("contact_sheet.png"),
+        &DynamicImage::ImageRgb8(contact_sheet(&sheet)),
+    )?;
+    std::fs::remove_file(cfg.out.join(RUN_FILE)).map_err(IoError::from)?;
+    Ok(manifest)
+}
+
+/// Refuses settings that cannot make a dataset, saying which.
+fn check(cfg: &SynthConfig) -> Result<(), SynthError> {
+    let (w, h) = cfg.size;
+    if w == 0 || h == 0 || w.checked_mul(h).is_none_or(|n| n > 4096 * 4096) {
+        return Err(SynthError::Config(format!(
+            "image size {w}×{h} must be between 1×1 and 4096×4096"
+        )));
+    }
+    if !(cfg.hfov_deg > 1.0 && cfg.hfov_deg < 170.0) || cfg.views == 0 || !(cfg.cell_m > 0.0005) {
+        return Err(SynthError::Config(
+            "need 1° < hfov < 170°, at least one view, cell ≥ 0.5 mm".into(),
+        ));
+    }
+    if cfg.scenes == 0 {
+        return Err(SynthError::Config("need at least one scene".into()));
+    }
+    if cfg.sensors.is_empty() {
+        return Err(SynthError::Config(format!(
+            "need at least one depth sensor (one of {})",
+            SensorPreset::names()
+        )));
+    }
+    if !(0.0..=1.0).contains(&cfg.test_fraction) {
+        return Err(SynthError::Config(format!(
+            "the test fraction must be between 0 and 1, got {}",
+            cfg.test_fraction
+        )));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nonsense_settings_are_refused() {
+        assert!(check(&SynthConfig::default()).is_ok());
+        for cfg in [
+            SynthConfig {
+                size: (1 << 32, 1 << 32), // w·h wraps to 0
+                ..SynthConfig::default()
+            },
+            SynthConfig {
+                scenes: 0,
+                ..SynthConfig::default()
+            },
+            SynthConfig {
+                test_fraction: 2.0,
+                ..SynthConfig::default()
+            },
+            SynthConfig {
+                test_fraction: f64::NAN,
+                ..SynthConfig::default()
+            },
+        ] {
+            assert!(check(&cfg).is_err(), "{cfg:?}");
+        }
+    }
+}
