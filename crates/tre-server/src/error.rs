@@ -7,6 +7,7 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use tre_core::geometry::GeometryError;
+use tre_io::{CameraSizeMismatch, DepthError, NpyError, SensorSpecError};
 use tre_pipeline::PipelineError;
 
 /// Stable error codes, shared by HTTP bodies and stream `Error` messages.
@@ -150,6 +151,40 @@ impl From<PipelineError> for ApiError {
     }
 }
 
+/// A client's `.npy` is its depth part: `too_large` when its header declares more values than
+/// `--max-pixels`, else `bad_depth`.
+impl From<NpyError> for ApiError {
+    fn from(e: NpyError) -> Self {
+        match e {
+            NpyError::TooLarge { .. } => {
+                Self::new(ErrorCode::TooLarge, format!("depth: {e} (--max-pixels)"))
+            }
+            _ => Self::new(ErrorCode::BadDepth, format!("depth: {e}")),
+        }
+    }
+}
+
+/// Depth values that cannot be depth (none valid, millimetres, a wrong scale).
+impl From<DepthError> for ApiError {
+    fn from(e: DepthError) -> Self {
+        Self::new(ErrorCode::BadDepth, format!("depth: {e}"))
+    }
+}
+
+/// A camera stating another image size than the frame's.
+impl From<CameraSizeMismatch> for ApiError {
+    fn from(e: CameraSizeMismatch) -> Self {
+        Self::new(ErrorCode::BadCamera, format!("camera: {e}"))
+    }
+}
+
+/// A camera's `sensor` that names no sensor (its message names the field).
+impl From<SensorSpecError> for ApiError {
+    fn from(e: SensorSpecError) -> Self {
+        Self::new(ErrorCode::BadCamera, e.to_string())
+    }
+}
+
 /// Seconds a refused client should wait before retrying.
 pub const RETRY_AFTER_S: u32 = 1;
 
@@ -221,6 +256,37 @@ mod tests {
             assert!((400..600).contains(&status), "{code:?} → {status}");
             assert_eq!(code.retryable(), status == 429 || status == 503);
         }
+    }
+
+    #[test]
+    fn io_errors_map_to_the_part_they_come_from() {
+        let e = ApiError::from(NpyError::TooLarge {
+            shape: vec![3000, 3000],
+            limit: 100,
+        });
+        assert_eq!(e.code, ErrorCode::TooLarge);
+        assert!(e.message.starts_with("depth: ") && e.message.ends_with("(--max-pixels)"));
+        let e = ApiError::from(NpyError::FortranOrder);
+        assert_eq!(e.code, ErrorCode::BadDepth);
+        let e = ApiError::from(DepthError::TooFar { median_m: 1500.0 });
+        assert_eq!(
+            (e.code, e.message.contains("millimetres")),
+            (ErrorCode::BadDepth, true)
+        );
+        let e = ApiError::from(CameraSizeMismatch {
+            camera_width: Some(640),
+            camera_height: Some(480),
+            frame_width: 320,
+            frame_height: 240,
+        });
+        assert_eq!(e.code, ErrorCode::BadCamera);
+        assert!(
+            e.message.starts_with("camera: ") && e.message.contains("640×480"),
+            "{e}"
+        );
+        let e = ApiError::from(SensorSpecError::NotASensor { keys: None });
+        assert_eq!(e.code, ErrorCode::BadCamera);
+        assert!(e.message.starts_with("sensor: "), "{e}");
     }
 
     #[test]

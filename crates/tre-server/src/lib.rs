@@ -192,8 +192,8 @@ pub enum ServeError {
     #[error(transparent)]
     Manifest(#[from] tre_model::ModelError),
     /// A worker could not load or warm up the models.
-    #[error("{0}")]
-    Workers(String),
+    #[error(transparent)]
+    Workers(Arc<workers::WorkerError>),
     /// Socket or thread failure.
     #[error(transparent)]
     Io(#[from] std::io::Error),
@@ -237,6 +237,52 @@ pub async fn serve(
     listener: tokio::net::TcpListener,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> Result<(), ServeError> {
+    let (state, stop_tx) = start(&cfg)?;
+    let refusals = state.refusals.clone();
+    tokio::spawn(async move {
+        let mut every = tokio::time::interval(refusals::WINDOW);
+        loop {
+            every.tick().await;
+            refusals.flush();
+        }
+    });
+    let (failed_tx, failed_rx) = tokio::sync::oneshot::channel::<Arc<workers::WorkerError>>();
+    tokio::spawn(watch_startup(state.clone(), failed_tx));
+    let app = router(state.clone());
+    let signal = async move {
+        tokio::select! {
+            () = shutdown => tracing::info!("shutting down: finishing in-flight work"),
+            Ok(why) = failed_rx => tracing::error!("{why}"),
+        }
+        let _ = stop_tx.send(true);
+    };
+    let limits = connections::ConnectionLimits {
+        header_read: cfg.header_timeout,
+        write_stall: cfg.stall_timeout,
+        max_open: cfg.max_connections,
+        drain_bytes: cfg.max_body_bytes,
+    };
+    let server = connections::serve_connections(
+        listener,
+        app,
+        limits,
+        (state.metrics.clone(), state.refusals.clone()),
+        signal,
+    );
+    drain(&state, server).await;
+    let st = state.clone();
+    tokio::task::spawn_blocking(move || st.workers.shutdown())
+        .await
+        .map_err(std::io::Error::other)?;
+    match state.workers.failure() {
+        Some(why) => Err(ServeError::Workers(why)),
+        None => Ok(()),
+    }
+}
+
+/// Checks the settings, reads the manifest and starts the workers: the service's state, and
+/// the sender that starts its shutdown.
+fn start(cfg: &ServeConfig) -> Result<(Arc<AppState>, watch::Sender<bool>), ServeError> {
     check_dsac_hypotheses(cfg.defaults.dsac_hypotheses).map_err(ServeError::Config)?;
     let manifest = Manifest::read(&cfg.models)?;
     let manifest_json = serde_json::to_string_pretty(&manifest).map_err(std::io::Error::other)?;
@@ -264,50 +310,25 @@ pub async fn serve(
         shutdown: stop_rx,
         refusals: Arc::new(RefusalLog::default()),
     });
-    let refusals = state.refusals.clone();
-    tokio::spawn(async move {
-        let mut every = tokio::time::interval(refusals::WINDOW);
-        loop {
-            every.tick().await;
-            refusals.flush();
-        }
-    });
-    let (failed_tx, failed_rx) = tokio::sync::oneshot::channel::<String>();
-    tokio::spawn(watch_startup(state.clone(), failed_tx));
-    let app = router(state.clone());
-    let signal = async move {
-        tokio::select! {
-            () = shutdown => tracing::info!("shutting down: finishing in-flight work"),
-            Ok(why) = failed_rx => tracing::error!("{why}"),
-        }
-        let _ = stop_tx.send(true);
-    };
-    let limits = connections::ConnectionLimits {
-        header_read: cfg.header_timeout,
-        write_stall: cfg.stall_timeout,
-        max_open: cfg.max_connections,
-        drain_bytes: cfg.max_body_bytes,
-    };
-    let server = connections::serve_connections(
-        listener,
-        app,
-        limits,
-        (state.metrics.clone(), state.refusals.clone()),
-        signal,
-    );
+    Ok((state, stop_tx))
+}
+
+/// Waits for `server` to stop taking connections and for every stream to close, or for the
+/// grace time once shutdown has begun, whichever comes first.
+async fn drain(state: &AppState, server: impl Future<Output = ()>) {
     // Upgraded streams are no longer connections of the server: it does not wait for them.
     // Each holds a stream permit (or, before its first message, a waiting one) until it has
     // answered its frame in flight and closed, so holding every permit means they are all done.
     let streams = state.streams.clone();
-    let all_streams = u32::try_from(cfg.max_streams).unwrap_or(u32::MAX);
+    let all_streams = u32::try_from(state.cfg.max_streams).unwrap_or(u32::MAX);
     let waiting = state.waiting_streams.clone();
-    let all_waiting = u32::try_from(cfg.max_connections).unwrap_or(u32::MAX);
+    let all_waiting = u32::try_from(state.cfg.max_connections).unwrap_or(u32::MAX);
     let drained = async move {
         server.await;
         let _closed = streams.acquire_many(all_streams).await;
         let _none_waiting = waiting.acquire_many(all_waiting).await;
     };
-    let grace = cfg.shutdown_grace;
+    let grace = state.cfg.shutdown_grace;
     let mut stopping = state.shutdown.clone();
     tokio::select! {
         () = drained => {}
@@ -315,18 +336,13 @@ pub async fn serve(
             tracing::warn!("in-flight work did not finish within {} s; stopping anyway", grace.as_secs());
         }
     }
-    let st = state.clone();
-    tokio::task::spawn_blocking(move || st.workers.shutdown())
-        .await
-        .map_err(std::io::Error::other)?;
-    match state.workers.failure() {
-        Some(why) => Err(ServeError::Workers(why)),
-        None => Ok(()),
-    }
 }
 
 /// Logs readiness, or reports the first worker failure.
-async fn watch_startup(state: Arc<AppState>, failed: tokio::sync::oneshot::Sender<String>) {
+async fn watch_startup(
+    state: Arc<AppState>,
+    failed: tokio::sync::oneshot::Sender<Arc<workers::WorkerError>>,
+) {
     let start = std::time::Instant::now();
     loop {
         if let Some(why) = state.workers.failure() {

@@ -1,12 +1,19 @@
-//! Prometheus metrics of the service, kept in atomics and written in the text exposition format
-//! by `GET /metrics`: requests by outcome, queue depth, latency histograms per stage, frames
-//! dropped, batch sizes.
+//! Prometheus metrics of the service, kept in a `prometheus-client` registry and written in the
+//! Prometheus text exposition format (0.0.4) by `GET /metrics`: requests by outcome, queue
+//! depth, latency histograms per stage, frames dropped, batch sizes.
+//!
+//! A labelled family (`tre_requests_total`, `tre_request_seconds`, `tre_stage_seconds`) is
+//! written from its first series on: the encoder writes no `# HELP`/`# TYPE` lines for an
+//! empty one, which Prometheus reads the same as no samples.
 
-use std::collections::BTreeMap;
-use std::fmt::Write;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Mutex;
 use std::time::Duration;
+
+use prometheus_client::encoding::EncodeLabelSet;
+use prometheus_client::metrics::counter::Counter;
+use prometheus_client::metrics::family::Family;
+use prometheus_client::metrics::gauge::Gauge;
+use prometheus_client::metrics::histogram::Histogram;
+use prometheus_client::registry::Registry;
 
 use tre_pipeline::StageTimings;
 
@@ -17,84 +24,72 @@ const LATENCY_BUCKETS_S: [f64; 14] = [
 /// Upper bounds of the batch-size buckets.
 const BATCH_BUCKETS: [f64; 5] = [1.0, 2.0, 4.0, 8.0, 16.0];
 
-/// A cumulative histogram with fixed buckets.
-#[derive(Debug)]
-struct Histogram {
-    bounds: &'static [f64],
-    counts: Vec<AtomicU64>,
-    /// Sum of observations, in millionths of the unit.
-    sum_micro: AtomicU64,
-    count: AtomicU64,
+/// A histogram over [`LATENCY_BUCKETS_S`].
+fn latency_histogram() -> Histogram {
+    Histogram::new(LATENCY_BUCKETS_S)
 }
 
-impl Histogram {
-    fn new(bounds: &'static [f64]) -> Self {
-        Self {
-            bounds,
-            counts: bounds.iter().map(|_| AtomicU64::new(0)).collect(),
-            sum_micro: AtomicU64::new(0),
-            count: AtomicU64::new(0),
-        }
-    }
-
-    fn observe(&self, v: f64) {
-        if let Some(i) = self.bounds.iter().position(|&b| v <= b) {
-            self.counts[i].fetch_add(1, Ordering::Relaxed);
-        }
-        self.sum_micro
-            .fetch_add((v.max(0.0) * 1e6).round() as u64, Ordering::Relaxed);
-        self.count.fetch_add(1, Ordering::Relaxed);
-    }
-
-    fn write(&self, out: &mut String, name: &str, labels: &str) {
-        let sep = if labels.is_empty() { "" } else { "," };
-        let mut cumulative = 0;
-        for (b, c) in self.bounds.iter().zip(&self.counts) {
-            cumulative += c.load(Ordering::Relaxed);
-            let _ = writeln!(out, "{name}_bucket{{{labels}{sep}le=\"{b}\"}} {cumulative}");
-        }
-        let count = self.count.load(Ordering::Relaxed);
-        let _ = writeln!(out, "{name}_bucket{{{labels}{sep}le=\"+Inf\"}} {count}");
-        let sum = self.sum_micro.load(Ordering::Relaxed) as f64 / 1e6;
-        let braces = |s: &str| {
-            if s.is_empty() {
-                String::new()
-            } else {
-                format!("{{{s}}}")
-            }
-        };
-        let _ = writeln!(out, "{name}_sum{} {sum}", braces(labels));
-        let _ = writeln!(out, "{name}_count{} {count}", braces(labels));
-    }
+/// Labels of `tre_requests_total`.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, EncodeLabelSet)]
+struct RequestLabels {
+    endpoint: &'static str,
+    outcome: &'static str,
 }
 
-/// Every metric of the service.
+/// Labels of `tre_request_seconds`.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, EncodeLabelSet)]
+struct EndpointLabels {
+    endpoint: &'static str,
+}
+
+/// Labels of `tre_stage_seconds`.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, EncodeLabelSet)]
+struct StageLabels {
+    stage: &'static str,
+}
+
+/// Latency histograms by label set, each made with [`latency_histogram`].
+type Latencies<L> = Family<L, Histogram, fn() -> Histogram>;
+
+/// Every metric of the service, and the registry that writes them.
 #[derive(Debug)]
 pub struct Metrics {
-    requests: Mutex<BTreeMap<(&'static str, &'static str), u64>>,
-    request_seconds: Mutex<BTreeMap<&'static str, Histogram>>,
-    stage_seconds: Mutex<BTreeMap<&'static str, Histogram>>,
+    registry: Registry,
+    ready: Gauge,
+    workers: Gauge,
+    queue_depth: Gauge,
+    queue_capacity: Gauge,
+    streams_open: Gauge,
+    connections_open: Gauge,
+    connections_refused: Counter,
+    requests: Family<RequestLabels, Counter>,
+    frames_dropped: Counter,
+    request_seconds: Latencies<EndpointLabels>,
+    stage_seconds: Latencies<StageLabels>,
     queue_wait: Histogram,
     batch_size: Histogram,
-    frames_dropped: AtomicU64,
-    streams_open: AtomicU64,
-    connections_open: AtomicU64,
-    connections_refused: AtomicU64,
 }
 
 impl Default for Metrics {
     fn default() -> Self {
-        Self {
-            requests: Mutex::default(),
-            request_seconds: Mutex::default(),
-            stage_seconds: Mutex::default(),
-            queue_wait: Histogram::new(&LATENCY_BUCKETS_S),
-            batch_size: Histogram::new(&BATCH_BUCKETS),
-            frames_dropped: AtomicU64::new(0),
-            streams_open: AtomicU64::new(0),
-            connections_open: AtomicU64::new(0),
-            connections_refused: AtomicU64::new(0),
-        }
+        let mut m = Self {
+            registry: Registry::default(),
+            ready: Gauge::default(),
+            workers: Gauge::default(),
+            queue_depth: Gauge::default(),
+            queue_capacity: Gauge::default(),
+            streams_open: Gauge::default(),
+            connections_open: Gauge::default(),
+            connections_refused: Counter::default(),
+            requests: Family::default(),
+            frames_dropped: Counter::default(),
+            request_seconds: Family::new_with_constructor(latency_histogram),
+            stage_seconds: Family::new_with_constructor(latency_histogram),
+            queue_wait: latency_histogram(),
+            batch_size: Histogram::new(BATCH_BUCKETS),
+        };
+        m.register();
+        m
     }
 }
 
@@ -112,32 +107,104 @@ pub struct Gauges {
 }
 
 impl Metrics {
+    /// Registers every metric, in the order the exposition lists them. Help texts have no
+    /// final full stop: the registry adds one. Counters are registered without `_total`: the
+    /// encoder adds it.
+    fn register(&mut self) {
+        let r = &mut self.registry;
+        r.register(
+            "tre_ready",
+            "1 once every worker has warmed up",
+            self.ready.clone(),
+        );
+        r.register(
+            "tre_workers",
+            "Inference worker threads",
+            self.workers.clone(),
+        );
+        r.register(
+            "tre_queue_depth",
+            "Jobs waiting for a worker",
+            self.queue_depth.clone(),
+        );
+        r.register(
+            "tre_queue_capacity",
+            "Capacity of the job queue",
+            self.queue_capacity.clone(),
+        );
+        r.register(
+            "tre_streams_open",
+            "Open WebSocket streams",
+            self.streams_open.clone(),
+        );
+        r.register(
+            "tre_connections_open",
+            "Open HTTP connections (a stream counts until its upgrade)",
+            self.connections_open.clone(),
+        );
+        r.register(
+            "tre_connections_refused",
+            "Connections refused over --max-connections",
+            self.connections_refused.clone(),
+        );
+        self.register_families();
+    }
+
+    /// Registers the labelled families and the histograms.
+    fn register_families(&mut self) {
+        let r = &mut self.registry;
+        r.register(
+            "tre_requests",
+            "Requests and stream frames by endpoint and outcome",
+            self.requests.clone(),
+        );
+        r.register(
+            "tre_frames_dropped",
+            "Stream frames skipped for a newer one",
+            self.frames_dropped.clone(),
+        );
+        r.register(
+            "tre_request_seconds",
+            "Latency from arrival to answer, of requests answered with a map",
+            self.request_seconds.clone(),
+        );
+        r.register(
+            "tre_stage_seconds",
+            "Wall time of each pipeline stage",
+            self.stage_seconds.clone(),
+        );
+        r.register(
+            "tre_queue_wait_seconds",
+            "Time frames answered with a map waited for a worker",
+            self.queue_wait.clone(),
+        );
+        r.register(
+            "tre_batch_size",
+            "Frames per worker run (every run, failed frames included)",
+            self.batch_size.clone(),
+        );
+    }
+
     /// Counts one request to `endpoint` (`roughness`, `stream`) with `outcome` (`ok` or an
     /// error code) and, when it ran, its total latency.
     pub fn request(&self, endpoint: &'static str, outcome: &'static str, took: Option<Duration>) {
-        let mut map = self.requests.lock().unwrap_or_else(|p| p.into_inner());
-        *map.entry((endpoint, outcome)).or_default() += 1;
-        drop(map);
+        self.requests
+            .get_or_create(&RequestLabels { endpoint, outcome })
+            .inc();
         if let Some(took) = took {
-            let mut map = self
-                .request_seconds
-                .lock()
-                .unwrap_or_else(|p| p.into_inner());
-            map.entry(endpoint)
-                .or_insert_with(|| Histogram::new(&LATENCY_BUCKETS_S))
+            self.request_seconds
+                .get_or_create(&EndpointLabels { endpoint })
                 .observe(took.as_secs_f64());
         }
     }
 
     /// Records the stage timings of one frame, and its wait in the queue.
     pub fn frame(&self, timings: &StageTimings, queued: Duration) {
-        let mut map = self.stage_seconds.lock().unwrap_or_else(|p| p.into_inner());
         for (stage, took) in timings.iter() {
-            map.entry(stage)
-                .or_insert_with(|| Histogram::new(&LATENCY_BUCKETS_S))
+            self.stage_seconds
+                .get_or_create(&StageLabels { stage })
                 .observe(took.as_secs_f64());
         }
-        drop(map);
         self.queue_wait.observe(queued.as_secs_f64());
     }
 
@@ -148,146 +215,45 @@ impl Metrics {
 
     /// Counts a stream frame dropped because a newer one arrived.
     pub fn dropped(&self) {
-        self.frames_dropped.fetch_add(1, Ordering::Relaxed);
+        self.frames_dropped.inc();
     }
 
     /// A stream opened (`+1`) or closed (`-1`).
     pub fn stream_open(&self, open: bool) {
         if open {
-            self.streams_open.fetch_add(1, Ordering::Relaxed);
+            self.streams_open.inc();
         } else {
-            self.streams_open.fetch_sub(1, Ordering::Relaxed);
+            self.streams_open.dec();
         }
     }
 
     /// An HTTP connection taken (`+1`) or closed (`-1`) within `--max-connections`.
     pub fn connection_open(&self, open: bool) {
         if open {
-            self.connections_open.fetch_add(1, Ordering::Relaxed);
+            self.connections_open.inc();
         } else {
-            self.connections_open.fetch_sub(1, Ordering::Relaxed);
+            self.connections_open.dec();
         }
     }
 
     /// Counts a connection refused for `--max-connections`.
     pub fn connection_refused(&self) {
-        self.connections_refused.fetch_add(1, Ordering::Relaxed);
+        self.connections_refused.inc();
     }
 
-    /// The exposition text.
+    /// The exposition text, with the gauges read at scrape time set from `g`.
     pub fn render(&self, g: Gauges) -> String {
+        let count = |n: usize| i64::try_from(n).unwrap_or(i64::MAX);
+        self.ready.set(i64::from(g.ready));
+        self.workers.set(count(g.workers));
+        self.queue_depth.set(count(g.queue_depth));
+        self.queue_capacity.set(count(g.queue_capacity));
         let mut out = String::with_capacity(8192);
-        let gauge = |out: &mut String, name: &str, help: &str, v: f64| {
-            let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} gauge\n{name} {v}");
-        };
-        gauge(
-            &mut out,
-            "tre_ready",
-            "1 once every worker has warmed up.",
-            f64::from(u8::from(g.ready)),
-        );
-        gauge(
-            &mut out,
-            "tre_workers",
-            "Inference worker threads.",
-            g.workers as f64,
-        );
-        gauge(
-            &mut out,
-            "tre_queue_depth",
-            "Jobs waiting for a worker.",
-            g.queue_depth as f64,
-        );
-        gauge(
-            &mut out,
-            "tre_queue_capacity",
-            "Capacity of the job queue.",
-            g.queue_capacity as f64,
-        );
-        let open = self.streams_open.load(Ordering::Relaxed) as f64;
-        gauge(
-            &mut out,
-            "tre_streams_open",
-            "Open WebSocket streams.",
-            open,
-        );
-        let connections = self.connections_open.load(Ordering::Relaxed) as f64;
-        gauge(
-            &mut out,
-            "tre_connections_open",
-            "Open HTTP connections (a stream counts until its upgrade).",
-            connections,
-        );
-        let refused = self.connections_refused.load(Ordering::Relaxed);
-        let _ = writeln!(out, "# HELP tre_connections_refused_total Connections refused over --max-connections.\n# TYPE tre_connections_refused_total counter\ntre_connections_refused_total {refused}");
-        out.push_str("# HELP tre_requests_total Requests and stream frames by endpoint and outcome.\n# TYPE tre_requests_total counter\n");
-        for ((endpoint, outcome), n) in self
-            .requests
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .iter()
-        {
-            let _ = writeln!(
-                out,
-                "tre_requests_total{{endpoint=\"{endpoint}\",outcome=\"{outcome}\"}} {n}"
-            );
-        }
-        let dropped = self.frames_dropped.load(Ordering::Relaxed);
-        let _ = writeln!(out, "# HELP tre_frames_dropped_total Stream frames skipped for a newer one.\n# TYPE tre_frames_dropped_total counter\ntre_frames_dropped_total {dropped}");
-        out.push_str("# HELP tre_request_seconds Latency from arrival to answer, of requests answered with a map.\n# TYPE tre_request_seconds histogram\n");
-        for (endpoint, h) in self
-            .request_seconds
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .iter()
-        {
-            h.write(
-                &mut out,
-                "tre_request_seconds",
-                &format!("endpoint=\"{endpoint}\""),
-            );
-        }
-        out.push_str("# HELP tre_stage_seconds Wall time of each pipeline stage.\n# TYPE tre_stage_seconds histogram\n");
-        for (stage, h) in self
-            .stage_seconds
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .iter()
-        {
-            h.write(&mut out, "tre_stage_seconds", &format!("stage=\"{stage}\""));
-        }
-        out.push_str("# HELP tre_queue_wait_seconds Time frames answered with a map waited for a worker.\n# TYPE tre_queue_wait_seconds histogram\n");
-        self.queue_wait
-            .write(&mut out, "tre_queue_wait_seconds", "");
-        out.push_str(
-            "# HELP tre_batch_size Frames per worker run (every run, failed frames included).\n# TYPE tre_batch_size histogram\n",
-        );
-        self.batch_size.write(&mut out, "tre_batch_size", "");
+        prometheus_client::encoding::prometheus_text::encode(&mut out, &self.registry)
+            .expect("writing into a String does not fail; this is a bug");
         out
     }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn histograms_are_cumulative_and_counted() {
-        let m = Metrics::default();
-        m.request("roughness", "ok", Some(Duration::from_millis(30)));
-        m.request("roughness", "ok", Some(Duration::from_millis(300)));
-        m.request("roughness", "bad_image", None);
-        let text = m.render(Gauges {
-            queue_depth: 3,
-            queue_capacity: 8,
-            workers: 2,
-            ready: true,
-        });
-        assert!(text.contains("tre_requests_total{endpoint=\"roughness\",outcome=\"ok\"} 2"));
-        assert!(text.contains("tre_requests_total{endpoint=\"roughness\",outcome=\"bad_image\"} 1"));
-        assert!(text.contains("tre_request_seconds_bucket{endpoint=\"roughness\",le=\"0.05\"} 1"));
-        assert!(text.contains("tre_request_seconds_bucket{endpoint=\"roughness\",le=\"0.5\"} 2"));
-        assert!(text.contains("tre_request_seconds_count{endpoint=\"roughness\"} 2"));
-        assert!(text.contains("tre_queue_depth 3"));
-    }
-}
+mod tests;

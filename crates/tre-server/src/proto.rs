@@ -66,9 +66,7 @@ fn sensor_from_pb(name: Option<String>, sigma_mm: &[f64]) -> Result<Option<Senso
     let bad_camera = |why: String| ApiError::new(ErrorCode::BadCamera, why);
     match (sigma_mm, name) {
         ([], None) => Ok(None),
-        ([], Some(n)) => SensorSpec::from_json(n.into())
-            .map(Some)
-            .map_err(bad_camera),
+        ([], Some(n)) => Ok(Some(SensorSpec::from_json(n.into())?)),
         (&[a, b, c], _) => SensorNoise::coefficients([a, b, c])
             .map(|m| Some(SensorSpec::Model(m)))
             .map_err(|e| bad_camera(format!("camera.{e}"))),

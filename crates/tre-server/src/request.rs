@@ -262,8 +262,7 @@ pub fn decode_depth(
     limits: DecodeLimits,
 ) -> Result<Grid<f64>, ApiError> {
     let depth = depth_of(bytes, units_per_m, limits)?;
-    io::check_depth(&depth)
-        .map_err(|why| ApiError::new(ErrorCode::BadDepth, format!("depth: {why}")))?;
+    io::check_depth(&depth)?;
     Ok(depth)
 }
 
@@ -273,15 +272,8 @@ fn depth_of(bytes: &[u8], units_per_m: f64, limits: DecodeLimits) -> Result<Grid
     if bytes.starts_with(b"\x93NUMPY") {
         // The shape is bounded from the header, before any value is converted; the pixel limit
         // is then checked with the side and aspect limits, naming each.
-        let array = io::npy::read_npy_within(Cursor::new(bytes), limits.max_pixels).map_err(
-            |e| match e {
-                io::IoError::NpyTooLarge { .. } => {
-                    ApiError::new(ErrorCode::TooLarge, format!("depth: {e} (--max-pixels)"))
-                }
-                e => bad(e.to_string()),
-            },
-        )?;
-        let grid = io::npy_depth(array).map_err(bad)?;
+        let array = io::npy::read_npy_within(Cursor::new(bytes), limits.max_pixels)?;
+        let grid = io::npy_depth(array)?;
         let (w, h) = grid.size();
         limits.check_shape("depth", w, h)?;
         return Ok(grid);
@@ -360,8 +352,7 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
         ));
     };
     if let Some(c) = &req.camera {
-        c.check_size(size)
-            .map_err(|why| ApiError::new(ErrorCode::BadCamera, format!("camera: {why}")))?;
+        c.check_size(size)?;
     }
     Ok(frame)
 }

@@ -55,12 +55,43 @@ impl Job {
     }
 }
 
+/// Why a worker could not start serving.
+#[derive(Debug, thiserror::Error)]
+pub enum WorkerError {
+    /// The models could not be loaded.
+    #[error("worker {worker}: loading models from {}: {reason}", models.display())]
+    Load {
+        /// The worker's number.
+        worker: usize,
+        /// The models folder.
+        models: PathBuf,
+        /// What loading said.
+        reason: tre_model::ModelError,
+    },
+    /// The models failed their warm-up run.
+    #[error("worker {worker}: warming up the models: {reason}")]
+    WarmUp {
+        /// The worker's number.
+        worker: usize,
+        /// What the pipeline said.
+        reason: tre_pipeline::PipelineError,
+    },
+}
+
 /// Start-up state of the workers.
 #[derive(Debug, Default)]
 struct Startup {
     warm: AtomicUsize,
-    failed: Mutex<Option<String>>,
+    failed: Mutex<Option<Arc<WorkerError>>>,
     stopped: AtomicBool,
+}
+
+impl Startup {
+    /// Records why a worker could not start (the first reason stays).
+    fn fail(&self, why: WorkerError) {
+        let mut failed = self.failed.lock().unwrap_or_else(PoisonError::into_inner);
+        failed.get_or_insert_with(|| Arc::new(why));
+    }
 }
 
 /// The worker pool.
@@ -106,7 +137,7 @@ impl Workers {
     }
 
     /// Why a worker could not start, if one could not.
-    pub fn failure(&self) -> Option<String> {
+    pub fn failure(&self) -> Option<Arc<WorkerError>> {
         self.startup
             .failed
             .lock()
@@ -234,21 +265,17 @@ fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, met
     let started = Instant::now();
     let mut pipeline = match Models::load(&cfg.models, &cfg.session) {
         Ok(models) => Pipeline::new(Some(models)),
-        Err(e) => {
-            let why = format!("loading models from {}: {e}", cfg.models.display());
-            *startup
-                .failed
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner) = Some(why);
+        Err(reason) => {
+            startup.fail(WorkerError::Load {
+                worker: i,
+                models: cfg.models.clone(),
+                reason,
+            });
             return;
         }
     };
-    if let Err(e) = warm_up(&mut pipeline) {
-        let why = format!("warming up the models: {e}");
-        *startup
-            .failed
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner) = Some(why);
+    if let Err(reason) = warm_up(&mut pipeline) {
+        startup.fail(WorkerError::WarmUp { worker: i, reason });
         return;
     }
     startup.warm.fetch_add(1, Ordering::AcqRel);

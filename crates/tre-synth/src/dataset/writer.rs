@@ -84,7 +84,8 @@ pub(super) fn write_frame(out: &FrameOut<'_>, f: &RenderedFrame) -> Result<RgbIm
         },
         imaging: out.imaging.clone(),
     };
-    let json = serde_json::to_string_pretty(&cam).map_err(|e| IoError::Npy(e.to_string()))?;
+    let json =
+        serde_json::to_string_pretty(&cam).map_err(|e| IoError::from(std::io::Error::from(e)))?;
     std::fs::write(dir.join("camera.json"), json).map_err(IoError::from)?;
     let rgb = out.imaging.apply(&f.rgb);
     io::save(&dir.join("rgb.png"), &DynamicImage::ImageRgb8(rgb.clone()))?;
