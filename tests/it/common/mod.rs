@@ -79,6 +79,8 @@ impl Server {
             .status()
             .unwrap();
         let status = self.child.wait().unwrap();
+        // The child has exited: skip the Drop, which would kill and reap it a second time.
+        #[allow(clippy::mem_forget)]
         std::mem::forget(self);
         status
     }

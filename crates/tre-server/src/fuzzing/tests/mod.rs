@@ -17,8 +17,8 @@ use proptest::prelude::*;
 
 use mutate::inputs;
 use seeds::{
-    camera_json, cameras, jpegs, multipart_bodies, npys, real_frames, small_depth, small_pngs,
-    stream_messages,
+    camera_json, cameras, jpegs, multipart_bodies, npys, small_depth, small_pngs, stream_messages,
+    with_images,
 };
 use structured::{camera_objects, stream_structured};
 
@@ -107,17 +107,13 @@ fn fuzz(
 
 #[test]
 fn fuzz_images() {
-    let mut seeds = small_pngs();
-    seeds.extend(jpegs());
-    seeds.extend(real_frames());
+    let seeds = with_images(jpegs());
     fuzz("image", 3000, inputs(seeds), super::image);
 }
 
 #[test]
 fn fuzz_depth() {
-    let mut seeds = small_pngs();
-    seeds.extend(npys());
-    seeds.extend(real_frames());
+    let seeds = with_images(npys());
     fuzz("depth", 3000, inputs(seeds), super::depth);
 }
 

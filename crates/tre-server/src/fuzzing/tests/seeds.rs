@@ -89,7 +89,7 @@ pub(super) fn jpegs() -> Vec<Vec<u8>> {
 }
 
 /// The real frames: a Kinect colour PNG and depth PNG, an NYU JPEG and depth PNG.
-pub(super) fn real_frames() -> Vec<Vec<u8>> {
+fn real_frames() -> Vec<Vec<u8>> {
     [
         "slambook2_ch7/1.png",
         "slambook2_ch7/1_depth.png",
@@ -99,6 +99,15 @@ pub(super) fn real_frames() -> Vec<Vec<u8>> {
     .iter()
     .filter_map(|r| shared(r))
     .collect()
+}
+
+/// The small images, then `more`, then the real frames: the seeds of an entry point that takes
+/// images.
+pub(super) fn with_images(more: Vec<Vec<u8>>) -> Vec<Vec<u8>> {
+    let mut seeds = small_pngs();
+    seeds.extend(more);
+    seeds.extend(real_frames());
+    seeds
 }
 
 pub(super) fn npys() -> Vec<Vec<u8>> {
