@@ -1,6 +1,6 @@
-//! NumPy `.npy` files through the `npyz` crate: any numeric dtype (either byte order) read into
-//! f64, f16/f32/f64 and unsigned or signed integers written; enough for depth, normals,
-//! roughness and labels.
+//! NumPy `.npy` files: any numeric dtype (either byte order, header version 1, 2 or 3) read
+//! into f64 through the `npyz` crate, f16/f32/f64 and unsigned or signed integers written as
+//! numpy writes them; enough for depth, normals, roughness and labels.
 //!
 //! The server reads `.npy` depth that clients send, so reading is guarded: the bytes pass
 //! [`check_header`] before `npyz` sees them, and the shape is bounded before any value is
@@ -16,15 +16,17 @@
 //! (every `shape` entry, parsed with the same Python-literal parser `npyz` uses) must not
 //! overflow when multiplied out; only then does `npyz` parse it and read the values.
 //!
-//! Writing takes the header from `npyz` but writes the values as one block: npyz's
-//! per-value writer took 45–115 ms for 2048×2048 float32 values (release build, three runs
-//! on a busy 2-core machine) where the block takes 17–42 ms, and the server writes `.npy`
-//! answers of up to that size. Reading through npyz took 44–70 ms against 34–41 ms for a
-//! plain conversion loop: kept, for its handling of every dtype and byte order.
+//! Writing stays a block of bytes behind the header numpy writes, with the dtype named by npyz:
+//! npyz's per-value writer took 45–115 ms for 2048×2048 float32 values (release build, three
+//! runs on a busy 2-core machine) where one block takes 17–42 ms, and the server writes `.npy`
+//! answers of up to that size; and npyz's header differs from numpy's (`(12, 16, 3,)`, padding
+//! to 16 bytes), which would change the bytes of every file written (the generator's recorded
+//! output among them). Reading through npyz took 44–70 ms against 34–41 ms for a plain
+//! conversion loop: kept, for its handling of every dtype, byte order and header version.
 
 use std::io::{Read, Write};
 
-use npyz::{DType, TypeChar, WriterBuilder};
+use npyz::{DType, TypeChar};
 use py_literal::Value;
 
 use tre_core::geometry::GeometryError;
@@ -163,8 +165,8 @@ macro_rules! npy_element {
 }
 npy_element!(f32, f64, F16, u8, u16, u32, i32);
 
-/// Writes `data` with `shape` (C order) as a `.npy` file in the machine's byte order: the
-/// header by npyz, the values as one block.
+/// Writes `data` with `shape` (C order) as a `.npy` file in the machine's byte order, with the
+/// header numpy's `np.save` writes (the dtype named by npyz).
 pub fn write_npy<T: NpyElement>(
     mut w: impl Write,
     shape: &[usize],
@@ -176,17 +178,32 @@ pub fn write_npy<T: NpyElement>(
             format!("{} values do not fill shape {shape:?}", data.len()),
         ));
     }
-    let shape: Vec<u64> = shape.iter().map(|&d| d as u64).collect();
-    let mut out = Vec::with_capacity(256 + std::mem::size_of_val(data));
-    npyz::WriteOptions::<T>::new()
-        .default_dtype()
-        .shape(&shape)
-        .writer(&mut out)
-        .write_header_only()?;
+    let header = numpy_header(&dtype_name(&T::default_dtype()), shape);
+    let mut out = Vec::with_capacity(header.len() + std::mem::size_of_val(data));
+    out.extend_from_slice(&header);
     for &v in data {
         v.extend_ne(&mut out);
     }
     w.write_all(&out)
+}
+
+/// The magic string, version 1.0, header length and header of a C-order array, padded with
+/// spaces to a multiple of 64 bytes as numpy pads it.
+fn numpy_header(descr: &str, shape: &[usize]) -> Vec<u8> {
+    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+    let shape = match &dims[..] {
+        [one] => format!("({one},)"),
+        dims => format!("({})", dims.join(", ")),
+    };
+    let mut text = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    // Magic (6) + version (2) + length (2) + text + '\n' is a multiple of 64.
+    let padded = (10 + text.len() + 1).div_ceil(64) * 64 - 10;
+    text.extend(std::iter::repeat_n(' ', padded - 1 - text.len()));
+    text.push('\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend_from_slice(&(text.len() as u16).to_le_bytes());
+    out.extend_from_slice(text.as_bytes());
+    out
 }
 
 /// A `.npy` array read into f64, with its shape.

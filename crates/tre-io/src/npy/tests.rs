@@ -24,6 +24,22 @@ fn round_trip_f32() {
     assert!(a.data[4].is_nan());
 }
 
+/// The header is the one `np.save` writes, byte for byte: version 1.0, the dict in numpy's
+/// order and spelling, spaces to a multiple of 64 bytes, a newline.
+#[test]
+fn written_headers_are_numpys() {
+    let header = |buf: &[u8]| String::from_utf8(buf[10..128].to_vec()).unwrap();
+    let mut buf = Vec::new();
+    write_npy(&mut buf, &[120, 160, 3], &vec![0.0f32; 120 * 160 * 3]).unwrap();
+    assert_eq!(&buf[..10], b"\x93NUMPY\x01\x00\x76\x00");
+    let want = "{'descr': '<f4', 'fortran_order': False, 'shape': (120, 160, 3), }";
+    assert_eq!(header(&buf), format!("{want:<117}\n"));
+    let mut buf = Vec::new();
+    write_npy(&mut buf, &[2], &[1u8, 2]).unwrap();
+    let want = "{'descr': '|u1', 'fortran_order': False, 'shape': (2,), }";
+    assert_eq!(header(&buf), format!("{want:<117}\n"));
+}
+
 #[test]
 fn half_precision_round_trips() {
     for v in [0.0f32, 1.0, -0.5, 0.3333, 65504.0, 1e-5, -2.5e-7, 0.999_99] {
