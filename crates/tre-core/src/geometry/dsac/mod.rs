@@ -307,7 +307,10 @@ pub fn dsac_normals_into(
 /// ([`super::simd`]); both give the same bits.
 #[multiversion(targets("x86_64+avx2+fma"))]
 fn dsac_row<'a>(frame: &Frame<'a>, y: usize, row: &mut [Vec3]) {
-    for (x0, cells) in (0..row.len()).step_by(REFIT_LANES).zip(row.chunks_mut(REFIT_LANES)) {
+    for (x0, cells) in (0..row.len())
+        .step_by(REFIT_LANES)
+        .zip(row.chunks_mut(REFIT_LANES))
+    {
         for (n, normal) in cells.iter_mut().zip(frame.group_normals(x0, y)) {
             if let Some(normal) = normal {
                 *n = normal;
