@@ -14,25 +14,36 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 use strum::{EnumMessage, IntoEnumIterator};
 
+/// Declares a domain choice: an enum with the derives every choice has (strum's string forms,
+/// serde, and clap's `ValueEnum` behind the `clap` feature). Attributes given inside (docs,
+/// `serde`/`strum` casing, an extra `derive(Default)`) follow them.
+macro_rules! choice {
+    ($(#[$meta:meta])* pub enum $name:ident { $($body:tt)* }) => {
+        #[derive(
+            Debug,
+            Clone,
+            Copy,
+            PartialEq,
+            Eq,
+            Hash,
+            Serialize,
+            Deserialize,
+            strum::EnumString,
+            strum::AsRefStr,
+            strum::IntoStaticStr,
+            strum::Display,
+            strum::EnumIter,
+            strum::VariantNames,
+            strum::EnumMessage,
+        )]
+        #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+        $(#[$meta])*
+        pub enum $name { $($body)* }
+    };
+}
+
+choice! {
 /// Where depth comes from (the paper's Table IV rows).
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Hash,
-    Serialize,
-    Deserialize,
-    strum::EnumString,
-    strum::AsRefStr,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::EnumIter,
-    strum::VariantNames,
-    strum::EnumMessage,
-)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]
 pub enum Mode {
@@ -59,27 +70,11 @@ pub enum Mode {
     )]
     Geometric,
 }
+}
 
+choice! {
 /// What the `geometric` mode computes.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Hash,
-    Default,
-    Serialize,
-    Deserialize,
-    strum::EnumString,
-    strum::AsRefStr,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::EnumIter,
-    strum::VariantNames,
-    strum::EnumMessage,
-)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(Default)]
 #[serde(rename_all = "kebab-case")]
 #[strum(serialize_all = "kebab-case")]
 pub enum GeometricMethod {
@@ -103,27 +98,11 @@ pub enum GeometricMethod {
     )]
     SurfaceOnly,
 }
+}
 
+choice! {
 /// The full pipeline or the end-to-end baseline of the paper's Table II.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Hash,
-    Default,
-    Serialize,
-    Deserialize,
-    strum::EnumString,
-    strum::AsRefStr,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::EnumIter,
-    strum::VariantNames,
-    strum::EnumMessage,
-)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(Default)]
 #[serde(rename_all = "kebab-case")]
 #[strum(serialize_all = "kebab-case")]
 pub enum Method {
@@ -142,26 +121,10 @@ pub enum Method {
     )]
     EndToEnd,
 }
+}
 
+choice! {
 /// How initial normals are estimated.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Hash,
-    Serialize,
-    Deserialize,
-    strum::EnumString,
-    strum::AsRefStr,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::EnumIter,
-    strum::VariantNames,
-    strum::EnumMessage,
-)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]
 pub enum NormalsMethod {
@@ -172,26 +135,10 @@ pub enum NormalsMethod {
     #[cfg_attr(feature = "clap", value(help = "Neighbour net and DSAC hypotheses"))]
     Dsac,
 }
+}
 
+choice! {
 /// How the local-plane centroid of Eq. 1 is found.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Hash,
-    Serialize,
-    Deserialize,
-    strum::EnumString,
-    strum::AsRefStr,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::EnumIter,
-    strum::VariantNames,
-    strum::EnumMessage,
-)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]
 pub enum CentroidMethod {
@@ -202,27 +149,11 @@ pub enum CentroidMethod {
     #[cfg_attr(feature = "clap", value(help = "The mean of the metric neighbourhood"))]
     Window,
 }
+}
 
+choice! {
 /// Encoding of the roughness maps a stream sends back (the protocol's `Format`).
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Hash,
-    Default,
-    Serialize,
-    Deserialize,
-    strum::EnumString,
-    strum::AsRefStr,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::EnumIter,
-    strum::VariantNames,
-    strum::EnumMessage,
-)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(Default)]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]
 pub enum StreamFormat {
@@ -247,6 +178,7 @@ pub enum StreamFormat {
         value(help = "Float32 metres (written as the same 16-bit PNG as png16)")
     )]
     F32,
+}
 }
 
 /// The names a choice of `E` parses from, in declaration order, as a message lists them:
