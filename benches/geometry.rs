@@ -112,12 +112,7 @@ fn annotator(c: &mut Criterion) {
     let (depth, k) = kinect_frame();
     c.bench_function("annotate/640x480_kinect", |b| {
         b.iter(|| {
-            let input = AnnotateInput {
-                depth_m: &depth,
-                intrinsics: &k,
-                normals: None,
-                labels: None,
-            };
+            let input = AnnotateInput::depth(&depth, &k);
             annotate(&input, &AnnotateConfig::default()).expect("valid frame")
         })
     });

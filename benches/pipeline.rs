@@ -11,7 +11,8 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use criterion::{criterion_group, criterion_main, Criterion};
+use criterion::measurement::WallTime;
+use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion};
 use image::DynamicImage;
 use ndarray::Array4;
 use tre::geometry::normals::{local_planes_into, PackedPoints};
@@ -105,6 +106,32 @@ fn stage_split(
     split.report()
 }
 
+/// Benches one frame through the pipeline as `id` in `group` (named `group_name`), then prints its stage split.
+fn run_frame(
+    group: &mut BenchmarkGroup<'_, WallTime>,
+    pipeline: &mut Pipeline,
+    (group_name, id): (&str, &str),
+    input: &FrameInput,
+    cfg: &PipelineConfig,
+) {
+    // Criterion calls the closure only for benches the command line selects; the split follows
+    // only those.
+    let mut ran = false;
+    group.bench_function(id, |b| {
+        ran = true;
+        b.iter(|| {
+            let out = pipeline.run(input, cfg).expect("the frame runs");
+            pipeline.recycle(out);
+        })
+    });
+    if ran {
+        eprintln!(
+            "{group_name}/{id} by stage: {}",
+            stage_split(pipeline, input, cfg, 10)
+        );
+    }
+}
+
 fn pipeline(c: &mut Criterion) {
     let models_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
     let models = Models::load(&models_dir, &SessionConfig::default()).expect("models load");
@@ -114,22 +141,13 @@ fn pipeline(c: &mut Criterion) {
     for side in [256, 512] {
         let input = frame(side);
         for (name, cfg) in configs() {
-            // Criterion calls the closure only for benches the command line selects; the split
-            // follows only those.
-            let mut ran = false;
-            group.bench_function(format!("{name}_{side}"), |b| {
-                ran = true;
-                b.iter(|| {
-                    let out = pipeline.run(&input, &cfg).expect("the frame runs");
-                    pipeline.recycle(out);
-                })
-            });
-            if ran {
-                eprintln!(
-                    "pipeline/{name}_{side} by stage: {}",
-                    stage_split(&mut pipeline, &input, &cfg, 10)
-                );
-            }
+            run_frame(
+                &mut group,
+                &mut pipeline,
+                ("pipeline", &format!("{name}_{side}")),
+                &input,
+                &cfg,
+            );
         }
     }
     group.finish();
@@ -352,20 +370,13 @@ fn geometric_real(c: &mut Criterion) {
                 geometric,
                 ..PipelineConfig::for_mode(Mode::Geometric)
             };
-            let mut ran = false;
-            group.bench_function(format!("{name}_{w}x{h}"), |b| {
-                ran = true;
-                b.iter(|| {
-                    let out = pipeline.run(&input, &cfg).expect("the frame runs");
-                    pipeline.recycle(out);
-                })
-            });
-            if ran {
-                eprintln!(
-                    "geometric_real/{name}_{w}x{h} by stage: {}",
-                    stage_split(&mut pipeline, &input, &cfg, 10)
-                );
-            }
+            run_frame(
+                &mut group,
+                &mut pipeline,
+                ("geometric_real", &format!("{name}_{w}x{h}")),
+                &input,
+                &cfg,
+            );
         }
         // The uncertainty and three-state maps (Kinect v1), on top of the mode's output.
         let cfg = PipelineConfig::for_mode(Mode::Geometric);
@@ -379,12 +390,7 @@ fn geometric_real(c: &mut Criterion) {
         });
         let depth = input.depth_m.as_ref().expect("depth");
         let k = input.intrinsics.expect("intrinsics");
-        let ann = AnnotateInput {
-            depth_m: depth,
-            intrinsics: &k,
-            normals: None,
-            labels: None,
-        };
+        let ann = AnnotateInput::depth(depth, &k);
         group.bench_function(format!("annotate_{w}x{h}"), |b| {
             b.iter(|| annotate(&ann, &AnnotateConfig::default()).expect("annotates"))
         });

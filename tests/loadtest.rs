@@ -55,6 +55,16 @@ struct FakeState {
 }
 
 impl Fake {
+    /// A service that answers `answer(n)` to request `n` after `ms` milliseconds, never stalling.
+    fn steady(ms: u64, answer: fn(u64) -> (u16, &'static str)) -> SocketAddr {
+        Fake {
+            service: Duration::from_millis(ms),
+            stall: None,
+            answer,
+        }
+        .start()
+    }
+
     fn start(self) -> SocketAddr {
         let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
         let addr = listener.local_addr().expect("addr");
@@ -145,6 +155,11 @@ fn frames() -> Frames {
     Frames::from_bytes(vec![b"\x89PNG\r\n\x1a\nnot really".to_vec()], "fake PNG")
 }
 
+/// Runs the load `c` against `addr` with the fake frames.
+fn run(c: &LoadConfig, addr: SocketAddr) -> Report {
+    block_on(run_on(c, &Target::at(addr), &frames())).expect("runs")
+}
+
 fn cfg(load: Load) -> LoadConfig {
     LoadConfig {
         load,
@@ -218,18 +233,13 @@ fn answers_are_counted_as_ok_refused_or_errors_by_code() {
             ),
         }
     }
-    let addr = Fake {
-        service: Duration::from_millis(1),
-        stall: None,
-        answer: scripted,
-    }
-    .start();
+    let addr = Fake::steady(1, scripted);
     let c = LoadConfig {
         requests: Some(9),
         duration: None,
         ..cfg(Load::Closed)
     };
-    let r = block_on(run_on(&c, &Target::at(addr), &frames())).expect("runs");
+    let r = run(&c, addr);
     assert_eq!((r.requests, r.ok, r.refused, r.errors), (9, 3, 3, 3));
     assert_eq!(r.refused_by_code.get("overloaded"), Some(&3));
     assert_eq!(r.errors_by_kind.get("http 422 bad_image"), Some(&3));
@@ -244,12 +254,7 @@ fn a_closed_loop_without_warm_up_sends_exactly_its_requests_and_measures_them_al
         SEEN.fetch_add(1, Ordering::SeqCst);
         (200, "png")
     }
-    let addr = Fake {
-        service: Duration::from_millis(20),
-        stall: None,
-        answer: counted,
-    }
-    .start();
+    let addr = Fake::steady(20, counted);
     let c = LoadConfig {
         connections: 2,
         requests: Some(6),
@@ -257,7 +262,7 @@ fn a_closed_loop_without_warm_up_sends_exactly_its_requests_and_measures_them_al
         warmup: Duration::ZERO,
         ..cfg(Load::Closed)
     };
-    let r = block_on(run_on(&c, &Target::at(addr), &frames())).expect("runs");
+    let r = run(&c, addr);
     assert_eq!((r.requests, r.ok), (6, 6));
     // Each connection's first request once went before the window opened: 8 were sent, the
     // report counted 6, and its window included the 2 unmeasured ones' time.
@@ -273,18 +278,13 @@ fn a_closed_loop_without_warm_up_sends_exactly_its_requests_and_measures_them_al
 #[test]
 fn beyond_max_in_flight_requests_count_as_client_saturated_not_late() {
     let _serial = serial();
-    let addr = Fake {
-        service: Duration::from_millis(300),
-        stall: None,
-        answer: ok,
-    }
-    .start();
+    let addr = Fake::steady(300, ok);
     let c = LoadConfig {
         max_in_flight: 2,
         duration: Some(Duration::from_secs(1)),
         ..cfg(Load::Open { rate_per_s: 40.0 })
     };
-    let r = block_on(run_on(&c, &Target::at(addr), &frames())).expect("runs");
+    let r = run(&c, addr);
     assert_eq!(r.requests, 40);
     assert!(r.client_saturated >= 30, "{}", r.client_saturated);
     assert!(r.ok >= 2 && r.ok + r.client_saturated == 40, "{r:?}");
@@ -303,7 +303,7 @@ fn a_connection_refused_is_an_error_kind_not_a_crash() {
         duration: None,
         ..cfg(Load::Closed)
     };
-    let r = block_on(run_on(&c, &Target::at(addr), &frames())).expect("runs");
+    let r = run(&c, addr);
     assert_eq!((r.errors, r.ok), (3, 0));
     assert_eq!(r.errors_by_kind.get("connect"), Some(&3), "{r:?}");
 }
@@ -311,17 +311,12 @@ fn a_connection_refused_is_an_error_kind_not_a_crash() {
 #[test]
 fn the_json_report_round_trips_and_compares_equal_to_itself() {
     let _serial = serial();
-    let addr = Fake {
-        service: Duration::from_millis(2),
-        stall: None,
-        answer: ok,
-    }
-    .start();
+    let addr = Fake::steady(2, ok);
     let c = LoadConfig {
         duration: Some(Duration::from_millis(500)),
         ..cfg(Load::Open { rate_per_s: 50.0 })
     };
-    let r = block_on(run_on(&c, &Target::at(addr), &frames())).expect("runs");
+    let r = run(&c, addr);
     let back = Report::from_json(&r.to_json()).expect("parses");
     assert_eq!(
         (
@@ -346,12 +341,7 @@ fn the_json_report_round_trips_and_compares_equal_to_itself() {
 #[test]
 fn a_sweep_finds_the_knee_where_p99_leaves_the_objective() {
     let _serial = serial();
-    let addr = Fake {
-        service: Duration::from_millis(10),
-        stall: None,
-        answer: ok,
-    }
-    .start();
+    let addr = Fake::steady(10, ok);
     let c = LoadConfig {
         url: format!("http://localhost:{}", addr.port()),
         duration: Some(Duration::from_millis(600)),
@@ -398,12 +388,7 @@ fn succeeds(cmd: &mut Command) -> String {
 #[test]
 fn the_cli_writes_json_and_svg_and_compares_with_an_earlier_run() {
     let _serial = serial();
-    let addr = Fake {
-        service: Duration::from_millis(2),
-        stall: None,
-        answer: ok,
-    }
-    .start();
+    let addr = Fake::steady(2, ok);
     let dir = tempfile::tempdir().expect("tempdir");
     let json = dir.path().join("run.json");
     let svg = dir.path().join("run.svg");

@@ -2,12 +2,12 @@
 //! and on bad input.
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
-use std::path::{Path, PathBuf};
-
 use nalgebra::Vector3;
 use tre::geometry::raycast::{render_depth, MarchConfig};
 use tre::geometry::{Grid, Intrinsics, Mounting, Neighbourhood, Vec3};
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput, RoughnessError};
+
+use crate::common::{real_data, real_frames, spec};
 
 /// The paper's robot camera: 1 m high, looking down 60°, 256×256 with a 60° field of view.
 fn robot_camera() -> (Intrinsics, Mounting, (usize, usize)) {
@@ -18,14 +18,14 @@ fn robot_camera() -> (Intrinsics, Mounting, (usize, usize)) {
     )
 }
 
-fn annotate_depth(depth: &Grid<f64>, k: &Intrinsics) -> tre::roughness::Annotation {
-    let input = AnnotateInput {
-        depth_m: depth,
-        intrinsics: k,
-        normals: None,
-        labels: None,
-    };
-    annotate(&input, &AnnotateConfig::default()).unwrap()
+/// Every valid pixel of `ann` reads flat (under a micrometre).
+fn assert_flat(ann: &tre::roughness::Annotation) {
+    assert!(ann
+        .roughness_m
+        .as_slice()
+        .iter()
+        .filter(|r| r.is_finite())
+        .all(|r| *r < 1e-6));
 }
 
 /// Gravity-frame points of a depth map.
@@ -53,7 +53,7 @@ fn flat_planes_in_any_pose_read_zero() {
                 0.0
             }
         });
-        let ann = annotate_depth(&depth, &k);
+        let ann = spec(&depth, &k);
         let mut n_valid = 0;
         for r in ann.roughness_m.as_slice().iter().filter(|r| r.is_finite()) {
             assert!(*r < 1e-6, "plane {n:?}: roughness {r}");
@@ -69,12 +69,7 @@ fn flat_planes_in_any_pose_read_zero() {
             labels: None,
         };
         let ann = annotate(&input, &AnnotateConfig::default()).unwrap();
-        assert!(ann
-            .roughness_m
-            .as_slice()
-            .iter()
-            .filter(|r| r.is_finite())
-            .all(|r| *r < 1e-6));
+        assert_flat(&ann);
     }
 }
 
@@ -93,7 +88,7 @@ fn step_scene(step_m: f64, edge_y: f64) -> (Grid<f64>, Intrinsics, Mounting) {
 fn step_up_gives_a_ridge_along_its_edge_and_zero_beyond_the_radius() {
     let edge_y = 0.6;
     let (depth, k, m) = step_scene(0.10, edge_y);
-    let ann = annotate_depth(&depth, &k);
+    let ann = spec(&depth, &k);
     let g = gravity_points(&depth, &k, &m);
     let (mut ridge_max, mut far_max, mut far_n) = (0.0f64, 0.0f64, 0);
     for (p, r) in g.as_slice().iter().zip(ann.roughness_m.as_slice()) {
@@ -125,7 +120,7 @@ fn drop_gives_at_least_ten_cm_on_the_boundary_decaying_over_the_band() {
     let (k, m, size) = robot_camera();
     let field = move |_x: f64, y: f64| if y < edge_y { 0.10 } else { 0.0 };
     let depth = render_depth(&field, &k, &m, size, &MarchConfig::default());
-    let ann = annotate_depth(&depth, &k);
+    let ann = spec(&depth, &k);
     let (w, h) = size;
     let mut checked = 0;
     for x in 10..w - 10 {
@@ -193,16 +188,7 @@ fn sinusoidal_bumps_give_the_analytic_roughness() {
         },
         ..Default::default()
     };
-    let ann = annotate(
-        &AnnotateInput {
-            depth_m: &depth,
-            intrinsics: &k,
-            normals: None,
-            labels: None,
-        },
-        &cfg,
-    )
-    .unwrap();
+    let ann = annotate(&AnnotateInput::depth(&depth, &k), &cfg).unwrap();
     let x = std::f64::consts::SQRT_2 * kw * radius;
     let factor = 1.0 - 2.0 * bessel_j(1, x) / x;
     let g = gravity_points(&depth, &k, &m);
@@ -229,33 +215,13 @@ fn sinusoidal_bumps_give_the_analytic_roughness() {
     );
 }
 
-#[derive(serde::Deserialize)]
-struct RealFrames {
-    frames: Vec<RealFrame>,
-}
-
-#[derive(serde::Deserialize)]
-struct RealFrame {
-    dir: String,
-    depth: String,
-    floor: Option<[usize; 4]>,
-}
-
-fn real_data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd")
-}
-
 #[test]
 fn real_frames_annotate_and_their_floors_read_under_one_cm() {
-    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/real_floor.json");
-    let frames: RealFrames =
-        serde_json::from_str(&std::fs::read_to_string(fixture).unwrap()).unwrap();
-    assert_eq!(frames.frames.len(), 10);
-    for f in &frames.frames {
-        let dir = real_data().join(&f.dir);
-        let (cam, k) = tre::io::read_camera(&dir.join("intrinsics.json")).unwrap();
-        let depth = tre::io::read_depth(&dir.join(&f.depth), cam.depth_scale.unwrap()).unwrap();
-        let ann = annotate_depth(&depth, &k);
+    let frames = real_frames();
+    assert_eq!(frames.len(), 10);
+    for f in &frames {
+        let (depth, k) = f.depth();
+        let ann = spec(&depth, &k);
         let valid = ann
             .roughness_m
             .as_slice()
@@ -305,11 +271,11 @@ fn sparse_depth_does_not_panic() {
             *d = 0.0;
         }
     }
-    let ann = annotate_depth(&depth, &k);
+    let ann = spec(&depth, &k);
     assert!(ann.roughness_m.as_slice().iter().any(|r| r.is_finite()));
     let mut one = Grid::new(5, 4, 0.0);
     one[(2, 1)] = 1.0;
-    let ann = annotate_depth(&one, &k);
+    let ann = spec(&one, &k);
     assert_eq!(
         ann.roughness_m
             .as_slice()
@@ -325,12 +291,7 @@ fn all_invalid_depth_is_a_clear_error() {
     let k = Intrinsics::new(500.0, 500.0, 10.0, 10.0).unwrap();
     let depth = Grid::new(20, 20, 0.0);
     let err = annotate(
-        &AnnotateInput {
-            depth_m: &depth,
-            intrinsics: &k,
-            normals: None,
-            labels: None,
-        },
+        &AnnotateInput::depth(&depth, &k),
         &AnnotateConfig::default(),
     )
     .unwrap_err();
@@ -387,10 +348,8 @@ fn labels_of_another_size_are_a_clear_error() {
     let depth = Grid::new(20, 20, 1.0);
     let labels = Grid::new(21, 20, 1u32);
     let input = AnnotateInput {
-        depth_m: &depth,
-        intrinsics: &k,
-        normals: None,
         labels: Some(&labels),
+        ..AnnotateInput::depth(&depth, &k)
     };
     let err = annotate(&input, &AnnotateConfig::default()).unwrap_err();
     assert!(
@@ -417,20 +376,13 @@ fn labels_split_segments_and_void_is_no_data() {
         }
     });
     let input = AnnotateInput {
-        depth_m: &depth,
-        intrinsics: &k,
-        normals: None,
         labels: Some(&labels),
+        ..AnnotateInput::depth(&depth, &k)
     };
     let ann = annotate(&input, &AnnotateConfig::default()).unwrap();
     assert!(ann.roughness_m.row(0).iter().all(|r| r.is_nan()));
     assert!(ann.boundary[(19, 10)] && ann.boundary[(20, 10)] && !ann.boundary[(10, 10)]);
     assert_eq!(ann.segments.as_slice().iter().max(), Some(&2));
     // Neighbours on a flat plane are close: no edge term, roughness stays ~0.
-    assert!(ann
-        .roughness_m
-        .as_slice()
-        .iter()
-        .filter(|r| r.is_finite())
-        .all(|r| *r < 1e-6));
+    assert_flat(&ann);
 }

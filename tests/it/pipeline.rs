@@ -14,6 +14,8 @@ use tre::pipeline::{
 };
 use tre::synth::SynthConfig;
 
+use crate::common::synth_config;
+
 type TestResult = Result<(), Box<dyn Error>>;
 
 fn models() -> Result<Models, Box<dyn Error>> {
@@ -39,13 +41,8 @@ fn synth_frame() -> &'static (tempfile::TempDir, PathBuf) {
     FRAME.get_or_init(|| {
         let dir = tempfile::tempdir().expect("temp dir");
         let cfg = SynthConfig {
-            out: dir.path().to_owned(),
-            scenes: 1,
-            seed: 5,
-            size: (64, 64),
-            views: 1,
             ply: false,
-            ..SynthConfig::default()
+            ..synth_config(dir.path(), 1, 5, (64, 64), 1)
         };
         let manifest = tre::synth::generate(&cfg).expect("synth generates");
         let frame = dir.path().join(&manifest.scenes[0].frames[0].dir);

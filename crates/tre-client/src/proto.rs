@@ -8,7 +8,7 @@ use image::{DynamicImage, ImageFormat};
 use prost::Message;
 
 use super::config::{ClientConfig, Format};
-use super::event::{Frame, FrameResult, Roughness, ServerInfo};
+use super::event::{Event, Frame, FrameResult, Roughness, ServerInfo};
 use super::session::Stamp;
 use super::ClientError;
 use tre_core::geometry::Grid;
@@ -124,15 +124,8 @@ impl WireResult {
 pub(crate) enum Incoming {
     Ready(ServerInfo),
     Result(WireResult),
-    Dropped {
-        sequence: u64,
-        dropped_total: u64,
-    },
-    Error {
-        sequence: Option<u64>,
-        code: String,
-        message: String,
-    },
+    /// [`Event::Dropped`] or [`Event::Error`], as the session reports it.
+    Event(Event),
 }
 
 impl TryFrom<pb::ServerMessage> for Incoming {
@@ -146,15 +139,15 @@ impl TryFrom<pb::ServerMessage> for Incoming {
                 models: r.models,
             }),
             Some(Msg::Result(r)) => Self::Result(WireResult(r)),
-            Some(Msg::Dropped(d)) => Self::Dropped {
+            Some(Msg::Dropped(d)) => Self::Event(Event::Dropped {
                 sequence: d.sequence,
                 dropped_total: d.dropped_total,
-            },
-            Some(Msg::Error(e)) => Self::Error {
+            }),
+            Some(Msg::Error(e)) => Self::Event(Event::Error {
                 sequence: e.sequence,
                 code: e.code,
                 message: e.message,
-            },
+            }),
             None => return Err(ClientError::Protocol("empty ServerMessage".into())),
         })
     }

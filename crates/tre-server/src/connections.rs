@@ -7,7 +7,7 @@
 //!   Without it, a client that sent its headers a byte at a time, or a connection left open
 //!   with nothing on it, was kept until the server stopped (a task and a file descriptor each,
 //!   so enough of them exhaust the process's descriptors);
-//! - its writes are [`StallGuard`]ed (`--stall-timeout-ms`).
+//! - its writes are guarded against a stalled client ([`super::stall`], `--stall-timeout-ms`).
 //!
 //! Every request carries the connection's [`ReadBytes`], the bytes read from its socket so far,
 //! from which a stream judges the pace of its messages ([`super::pace`]).
@@ -26,7 +26,6 @@
 use std::future::Future;
 use std::io;
 use std::net::SocketAddr;
-use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::task::{Context, Poll};
@@ -40,7 +39,6 @@ use http_body_util::BodyExt;
 use hyper::server::conn::http1;
 use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::service::TowerToHyperService;
-use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
@@ -48,7 +46,8 @@ use super::error::{ApiError, ErrorCode};
 use super::metrics::Metrics;
 use super::pace::ReadBytes;
 use super::refusals::RefusalLog;
-use super::stall::StallGuard;
+use super::stall::Stall;
+use super::watched::{Watch, Watched, WriteOp};
 
 /// What a client may hold without doing anything.
 #[derive(Debug, Clone, Copy)]
@@ -200,11 +199,13 @@ impl Connection {
         };
         let head = Arc::new(AtomicBool::new(false));
         let read = ReadBytes::default();
-        let io = HeadWatch {
-            io: StallGuard::new(io, self.limits.write_stall),
-            head_started: head.clone(),
-            read: read.clone(),
-        };
+        let io = Watched::new(
+            Stall::guard(io, self.limits.write_stall),
+            HeadWatch {
+                head_started: head.clone(),
+                read: read.clone(),
+            },
+        );
         let app = WithReadBytes { app, read };
         let conn = builder
             .serve_connection(TokioIo::new(io), TowerToHyperService::new(app))
@@ -307,64 +308,27 @@ where
 /// that a header timeout can be told from an idle kept-alive connection (HTTP/1 without
 /// pipelining: what is read after an answer is the next request's head), and counts the bytes
 /// read.
-struct HeadWatch<T> {
-    io: T,
+struct HeadWatch {
     head_started: Arc<AtomicBool>,
     read: ReadBytes,
 }
 
-impl<T: AsyncRead + Unpin> AsyncRead for HeadWatch<T> {
-    fn poll_read(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &mut ReadBuf<'_>,
-    ) -> Poll<io::Result<()>> {
-        let before = buf.filled().len();
-        let poll = Pin::new(&mut self.io).poll_read(cx, buf);
-        let n = buf.filled().len() - before;
-        if n > 0 {
-            self.head_started.store(true, Ordering::Relaxed);
-            self.read.add(n);
-        }
-        poll
+impl Watch for HeadWatch {
+    fn read(&mut self, n: usize) {
+        self.head_started.store(true, Ordering::Relaxed);
+        self.read.add(n);
     }
-}
 
-impl<T: AsyncWrite + Unpin> AsyncWrite for HeadWatch<T> {
-    fn poll_write(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &[u8],
-    ) -> Poll<io::Result<usize>> {
-        let poll = Pin::new(&mut self.io).poll_write(cx, buf);
-        if matches!(poll, Poll::Ready(Ok(_))) {
+    fn wrote<R>(
+        &mut self,
+        _cx: &mut Context<'_>,
+        op: WriteOp,
+        poll: Poll<io::Result<R>>,
+    ) -> Poll<io::Result<R>> {
+        if op == WriteOp::Write && matches!(poll, Poll::Ready(Ok(_))) {
             self.head_started.store(false, Ordering::Relaxed);
         }
         poll
-    }
-
-    fn poll_write_vectored(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        bufs: &[io::IoSlice<'_>],
-    ) -> Poll<io::Result<usize>> {
-        let poll = Pin::new(&mut self.io).poll_write_vectored(cx, bufs);
-        if matches!(poll, Poll::Ready(Ok(_))) {
-            self.head_started.store(false, Ordering::Relaxed);
-        }
-        poll
-    }
-
-    fn is_write_vectored(&self) -> bool {
-        self.io.is_write_vectored()
-    }
-
-    fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        Pin::new(&mut self.io).poll_flush(cx)
-    }
-
-    fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        Pin::new(&mut self.io).poll_shutdown(cx)
     }
 }
 

@@ -12,7 +12,7 @@ use http_body_util::BodyExt;
 
 use super::error::{ApiError, ErrorCode};
 use super::metrics::Gauges;
-use super::openapi::{Binary, ErrorResponse, JsonObject, RoughnessForm};
+use super::openapi::{Binary, ErrorResponse, Guarded, JsonObject, RoughnessForm};
 use super::query::RoughnessQuery;
 use super::request::{
     image_header, strict_camera, DecodeLimits, Format, FrameReply, FrameRequest, SCALE_M,
@@ -58,15 +58,13 @@ fn bad(msg: impl Into<String>) -> ApiError {
             ),
         ),
         (status = 400, response = ErrorResponse),
-        (status = 401, response = ErrorResponse),
-        (status = 403, response = ErrorResponse),
+        Guarded,
         (status = 408, response = ErrorResponse),
         (status = 413, response = ErrorResponse),
         (status = 415, response = ErrorResponse),
         (status = 422, response = ErrorResponse),
         (status = 429, response = ErrorResponse),
         (status = 500, response = ErrorResponse),
-        (status = 503, response = ErrorResponse),
     ),
 )]
 pub async fn roughness(State(app): State<Arc<AppState>>, req: Request) -> Response {
@@ -502,9 +500,7 @@ pub async fn readyz(State(app): State<Arc<AppState>>) -> Response {
     summary = "Prometheus metrics",
     responses(
         (status = 200, description = "Text exposition format", body = String, content_type = "text/plain"),
-        (status = 401, response = ErrorResponse),
-        (status = 403, response = ErrorResponse),
-        (status = 503, response = ErrorResponse),
+        Guarded,
     ),
 )]
 pub async fn metrics(State(app): State<Arc<AppState>>) -> impl IntoResponse {
@@ -524,9 +520,7 @@ pub async fn metrics(State(app): State<Arc<AppState>>) -> impl IntoResponse {
     summary = "The model manifest the service runs",
     responses(
         (status = 200, description = "models/manifest.json", body = inline(JsonObject)),
-        (status = 401, response = ErrorResponse),
-        (status = 403, response = ErrorResponse),
-        (status = 503, response = ErrorResponse),
+        Guarded,
     ),
 )]
 pub async fn models(State(app): State<Arc<AppState>>) -> impl IntoResponse {
@@ -543,9 +537,7 @@ pub async fn models(State(app): State<Arc<AppState>>) -> impl IntoResponse {
     summary = "This document",
     responses(
         (status = 200, description = "OpenAPI 3.0", body = inline(JsonObject)),
-        (status = 401, response = ErrorResponse),
-        (status = 403, response = ErrorResponse),
-        (status = 503, response = ErrorResponse),
+        Guarded,
     ),
 )]
 pub async fn openapi() -> impl IntoResponse {
@@ -565,9 +557,7 @@ pub const DEMO_PAGE: &str = include_str!("demo/index.html");
     summary = "Demo page",
     responses(
         (status = 200, description = "HTML", body = String, content_type = "text/html"),
-        (status = 401, response = ErrorResponse),
-        (status = 403, response = ErrorResponse),
-        (status = 503, response = ErrorResponse),
+        Guarded,
     ),
 )]
 pub async fn demo() -> impl IntoResponse {

@@ -27,6 +27,7 @@ pub mod refusals;
 pub mod request;
 pub mod stall;
 pub mod stream;
+pub mod watched;
 pub mod workers;
 
 use std::future::Future;

@@ -8,12 +8,13 @@
 //! document as served, for readers of the repository; a test keeps it equal to the generated
 //! one (`TRE_WRITE_OPENAPI=1 cargo test -p tre-server --lib openapi` rewrites it).
 
+use std::collections::BTreeMap;
 use std::sync::LazyLock;
 
 use serde_json::Value;
 use utoipa::openapi::schema::{KnownFormat, ObjectBuilder, Schema, SchemaFormat, Type};
 use utoipa::openapi::{ContentBuilder, HeaderBuilder, Ref, RefOr, Response, ResponseBuilder};
-use utoipa::{OpenApi, PartialSchema, ToResponse, ToSchema};
+use utoipa::{IntoResponses, OpenApi, PartialSchema, ToResponse, ToSchema};
 
 use super::error::Body;
 
@@ -97,6 +98,20 @@ impl<'r> ToResponse<'r> for ErrorResponse {
             .content("application/json", body)
             .build();
         ("Error", response.into())
+    }
+}
+
+/// The refusals every path but the probes may answer, each an [`ErrorResponse`]: 401 without
+/// the API key, 403 for a browser origin not allowed, 503 when the service cannot take the
+/// request (not ready, shutting down or overloaded).
+pub struct Guarded;
+
+impl IntoResponses for Guarded {
+    fn responses() -> BTreeMap<String, RefOr<Response>> {
+        ["401", "403", "503"]
+            .into_iter()
+            .map(|status| (status.to_owned(), Ref::from_response_name("Error").into()))
+            .collect()
     }
 }
 

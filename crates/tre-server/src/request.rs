@@ -419,11 +419,20 @@ fn npy<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Result<Vec<u8>, A
 /// A mask as PNG part `name` (file `filename`): 8-bit grey, 255 where set.
 fn mask_part(name: OutputMap, filename: &'static str, mask: &Grid<bool>) -> Result<Part, ApiError> {
     let grey = mask.map(|&m| if m { 255u8 } else { 0 });
+    png_part(name, filename, &DynamicImage::ImageLuma8(io::gray8(&grey)))
+}
+
+/// Part `name` of the answer: `image` as a PNG file `filename`.
+fn png_part(
+    name: OutputMap,
+    filename: &'static str,
+    image: &DynamicImage,
+) -> Result<Part, ApiError> {
     Ok(Part {
         name: name.into(),
         content_type: "image/png",
         filename,
-        bytes: png(&DynamicImage::ImageLuma8(io::gray8(&grey)))?,
+        bytes: png(image)?,
     })
 }
 
@@ -532,24 +541,14 @@ pub fn encode_sensor_maps(
     };
     let maps = out.sensor_maps(frame, mode, model.as_ref(), described)?;
     if opts.extras.uncertainty {
-        reply.extras.push(Part {
-            name: OutputMap::Uncertainty.into(),
-            content_type: "image/png",
-            filename: "uncertainty.png",
-            bytes: png(&DynamicImage::ImageLumaA16(io::roughness_png16(
-                &maps.uncertainty_m,
-            )))?,
-        });
+        let image = DynamicImage::ImageLumaA16(io::roughness_png16(&maps.uncertainty_m));
+        let part = png_part(OutputMap::Uncertainty, "uncertainty.png", &image)?;
+        reply.extras.push(part);
     }
     if opts.extras.traversal {
-        reply.extras.push(Part {
-            name: OutputMap::Traversal.into(),
-            content_type: "image/png",
-            filename: "traversal.png",
-            bytes: png(&DynamicImage::ImageLuma8(io::traversal_gray8(
-                &maps.traversal,
-            )))?,
-        });
+        let image = DynamicImage::ImageLuma8(io::traversal_gray8(&maps.traversal));
+        let part = png_part(OutputMap::Traversal, "traversal.png", &image)?;
+        reply.extras.push(part);
     }
     if opts.traversal_bytes {
         reply.traversal = maps.traversal.as_slice().iter().map(|&t| t as u8).collect();

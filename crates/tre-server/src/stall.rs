@@ -11,31 +11,43 @@ use std::pin::Pin;
 use std::task::{Context, Poll};
 use std::time::Duration;
 
-use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::time::Sleep;
+
+use super::watched::{Watch, Watched, WriteOp};
 
 /// An IO whose writes (and flushes and shutdowns) fail with [`io::ErrorKind::TimedOut`] once
 /// one has been pending for the limit without any progress in between; reads pass through.
+pub type StallGuard<T> = Watched<T, Stall>;
+
+/// The watch of a [`StallGuard`]: the limit, and the deadline of a pending write.
 #[derive(Debug)]
-pub struct StallGuard<T> {
-    io: T,
+pub struct Stall {
     limit: Duration,
     /// Started when a write is first found pending; cleared by any progress.
     deadline: Option<Pin<Box<Sleep>>>,
 }
 
-impl<T> StallGuard<T> {
+impl Stall {
     /// Guards `io` with `limit`.
-    pub fn new(io: T, limit: Duration) -> Self {
-        Self {
+    pub fn guard<T>(io: T, limit: Duration) -> StallGuard<T> {
+        Watched::new(
             io,
-            limit,
-            deadline: None,
-        }
+            Self {
+                limit,
+                deadline: None,
+            },
+        )
     }
+}
 
+impl Watch for Stall {
     /// Passes a write's progress through, or, while it is pending, fails it at the deadline.
-    fn watch<R>(&mut self, cx: &mut Context<'_>, poll: Poll<io::Result<R>>) -> Poll<io::Result<R>> {
+    fn wrote<R>(
+        &mut self,
+        cx: &mut Context<'_>,
+        _op: WriteOp,
+        poll: Poll<io::Result<R>>,
+    ) -> Poll<io::Result<R>> {
         if poll.is_ready() {
             self.deadline = None;
             return poll;
@@ -57,50 +69,6 @@ impl<T> StallGuard<T> {
     }
 }
 
-impl<T: AsyncRead + Unpin> AsyncRead for StallGuard<T> {
-    fn poll_read(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &mut ReadBuf<'_>,
-    ) -> Poll<io::Result<()>> {
-        Pin::new(&mut self.io).poll_read(cx, buf)
-    }
-}
-
-impl<T: AsyncWrite + Unpin> AsyncWrite for StallGuard<T> {
-    fn poll_write(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &[u8],
-    ) -> Poll<io::Result<usize>> {
-        let poll = Pin::new(&mut self.io).poll_write(cx, buf);
-        self.watch(cx, poll)
-    }
-
-    fn poll_write_vectored(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        bufs: &[io::IoSlice<'_>],
-    ) -> Poll<io::Result<usize>> {
-        let poll = Pin::new(&mut self.io).poll_write_vectored(cx, bufs);
-        self.watch(cx, poll)
-    }
-
-    fn is_write_vectored(&self) -> bool {
-        self.io.is_write_vectored()
-    }
-
-    fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        let poll = Pin::new(&mut self.io).poll_flush(cx);
-        self.watch(cx, poll)
-    }
-
-    fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        let poll = Pin::new(&mut self.io).poll_shutdown(cx);
-        self.watch(cx, poll)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -110,7 +78,7 @@ mod tests {
     #[tokio::test(start_paused = true)]
     async fn a_write_without_progress_fails_at_the_limit_and_progress_resets_it() {
         let (near, mut far) = tokio::io::duplex(1024);
-        let mut guarded = StallGuard::new(near, Duration::from_secs(5));
+        let mut guarded = Stall::guard(near, Duration::from_secs(5));
         // Taken bit by bit (each read within the limit): no error, however long it all takes.
         let reader = tokio::spawn(async move {
             let mut buf = [0u8; 256];

@@ -63,17 +63,15 @@ impl HeightGrid {
                     }
                 });
         }
-        let mut grid = Self::from_heights(x0, y0, cell_m, nx, ny, heights);
+        let mut grid = Self::from_heights((x0, y0), cell_m, (nx, ny), heights);
         grid.owners = owners;
         grid
     }
 
     fn from_heights(
-        x0: f64,
-        y0: f64,
+        (x0, y0): (f64, f64),
         cell_m: f64,
-        nx: usize,
-        ny: usize,
+        (nx, ny): (usize, usize),
         heights: Vec<f32>,
     ) -> Self {
         let (bnx, bny) = (nx.div_ceil(BLOCK), ny.div_ceil(BLOCK));

@@ -11,6 +11,8 @@ use tre_core::geometry::hash::splitmix64;
 /// Terrain categories; the value is the semantic label written with each frame (0 = void).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
+#[derive(strum::VariantArray, strum::IntoStaticStr)]
+#[strum(serialize_all = "snake_case")]
 pub enum Category {
     /// Flat paving with fine texture.
     Pavement = 1,
@@ -89,58 +91,16 @@ impl Category {
     ];
 
     /// All categories, in label order (labels 1–20).
-    pub const ALL: [Category; 20] = [
-        Category::Pavement,
-        Category::Grass,
-        Category::Gravel,
-        Category::Rocks,
-        Category::Sand,
-        Category::Stairs,
-        Category::Tile,
-        Category::Wood,
-        Category::Carpet,
-        Category::Wall,
-        Category::Sill,
-        Category::Cable,
-        Category::Box,
-        Category::Furniture,
-        Category::Asphalt,
-        Category::Paving,
-        Category::Curb,
-        Category::KerbRamp,
-        Category::Drain,
-        Category::Post,
-    ];
+    pub const ALL: &'static [Category] = <Category as strum::VariantArray>::VARIANTS;
 
     /// The semantic label.
     pub fn label(self) -> u8 {
         self as u8
     }
 
-    /// Lower-case name.
+    /// Lower-case name (`kerb_ramp`), as in the dataset's JSON.
     pub fn name(self) -> &'static str {
-        match self {
-            Category::Pavement => "pavement",
-            Category::Grass => "grass",
-            Category::Gravel => "gravel",
-            Category::Rocks => "rocks",
-            Category::Sand => "sand",
-            Category::Stairs => "stairs",
-            Category::Tile => "tile",
-            Category::Wood => "wood",
-            Category::Carpet => "carpet",
-            Category::Wall => "wall",
-            Category::Sill => "sill",
-            Category::Cable => "cable",
-            Category::Box => "box",
-            Category::Furniture => "furniture",
-            Category::Asphalt => "asphalt",
-            Category::Paving => "paving",
-            Category::Curb => "curb",
-            Category::KerbRamp => "kerb_ramp",
-            Category::Drain => "drain",
-            Category::Post => "post",
-        }
+        self.into()
     }
 }
 

@@ -228,12 +228,7 @@ pub fn load_frame(frame: &RealFrame) -> anyhow::Result<LoadedFrame> {
     let rgb = io::read_image(&frame.rgb)?.to_rgb8();
     let start = Instant::now();
     let spec = annotate(
-        &AnnotateInput {
-            depth_m: &depth_m,
-            intrinsics: &frame.intrinsics,
-            normals: None,
-            labels: None,
-        },
+        &AnnotateInput::depth(&depth_m, &frame.intrinsics),
         &AnnotateConfig::default(),
     )?;
     let spec_ms = start.elapsed().as_secs_f64() * 1e3;

@@ -6,14 +6,9 @@ use super::*;
 fn tiny_dataset() -> tempfile::TempDir {
     let data = tempfile::tempdir().unwrap();
     let cfg = tre::synth::SynthConfig {
-        out: data.path().to_owned(),
-        scenes: 1,
-        seed: 7,
-        size: (64, 64),
-        views: 1,
         test_fraction: 1.0,
         ply: false,
-        ..tre::synth::SynthConfig::default()
+        ..crate::common::synth_config(data.path(), 1, 7, (64, 64), 1)
     };
     tre::synth::generate(&cfg).unwrap();
     data

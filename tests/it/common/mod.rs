@@ -230,3 +230,71 @@ where
         .spawn(f)
         .expect("the test thread starts")
 }
+
+/// A synthetic-dataset configuration writing to `out`: `scenes` scenes of `views` views each at
+/// `size` (width, height), drawn from `seed`; every other setting is the default.
+pub fn synth_config(
+    out: &Path,
+    scenes: u32,
+    seed: u64,
+    size: (usize, usize),
+    views: u32,
+) -> tre::synth::SynthConfig {
+    tre::synth::SynthConfig {
+        out: out.to_owned(),
+        scenes,
+        seed,
+        size,
+        views,
+        ..tre::synth::SynthConfig::default()
+    }
+}
+
+/// The real RGB-D frames (`../shared/data/real-rgbd`).
+pub fn real_data() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd")
+}
+
+/// One of the real frames, as `tests/fixtures/real_floor.json` lists it.
+#[derive(serde::Deserialize)]
+pub struct RealFrame {
+    /// Its folder under [`real_data`].
+    pub dir: String,
+    /// Its depth image, relative to `dir`.
+    pub depth: String,
+    /// A box of flat floor `[x0, y0, x1, y1]` (pixels, ends excluded), where it has one.
+    pub floor: Option<[usize; 4]>,
+}
+
+impl RealFrame {
+    /// Its depth (metres) and the intrinsics of its depth image.
+    pub fn depth(&self) -> (tre::geometry::Grid<f64>, tre::geometry::Intrinsics) {
+        let dir = real_data().join(&self.dir);
+        let (cam, k) = tre::io::read_camera(&dir.join("intrinsics.json")).unwrap();
+        let depth = tre::io::read_depth(&dir.join(&self.depth), cam.depth_scale.unwrap()).unwrap();
+        (depth, k)
+    }
+}
+
+/// The real frames of `tests/fixtures/real_floor.json`.
+pub fn real_frames() -> Vec<RealFrame> {
+    #[derive(serde::Deserialize)]
+    struct Fixture {
+        frames: Vec<RealFrame>,
+    }
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/real_floor.json");
+    let fixture: Fixture = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    fixture.frames
+}
+
+/// The spec (annotation spec v1, default settings) on a depth map alone.
+pub fn spec(
+    depth: &tre::geometry::Grid<f64>,
+    k: &tre::geometry::Intrinsics,
+) -> tre::roughness::Annotation {
+    tre::roughness::annotate(
+        &tre::roughness::AnnotateInput::depth(depth, k),
+        &tre::roughness::AnnotateConfig::default(),
+    )
+    .unwrap()
+}

@@ -16,7 +16,3 @@ use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 mod maps;
 mod noise_floor;
 mod real_frames;
-
-fn real_data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd")
-}

@@ -68,12 +68,7 @@ fn simulate(sensor: &SensorNoise, range_m: f64, tilt_deg: f64, seed: u64) -> Row
     let k = Intrinsics::new(525.0, 525.0, 59.5, 44.5).unwrap();
     let mut rng = Rng(seed);
     let (depth, _) = noisy_plane(&k, size, range_m, tilt_deg, sensor, &mut rng);
-    let input = AnnotateInput {
-        depth_m: &depth,
-        intrinsics: &k,
-        normals: None,
-        labels: None,
-    };
+    let input = AnnotateInput::depth(&depth, &k);
     let cfg = AnnotateConfig::default();
     let ann = annotate(&input, &cfg).unwrap();
     let noise = pixel_noise_map(&depth, &k, &ann.normals, sensor, &cfg);

@@ -1,18 +1,7 @@
 //! Three-state traversability on the shared real RGB-D frames.
 
 use super::*;
-
-#[derive(serde::Deserialize)]
-struct RealFrames {
-    frames: Vec<RealFrame>,
-}
-
-#[derive(serde::Deserialize)]
-struct RealFrame {
-    dir: String,
-    depth: String,
-    floor: Option<[usize; 4]>,
-}
+use crate::common::{real_frames, RealFrame};
 
 /// Counts of (traversable, hazard, unknown) among `states`.
 fn tally(states: impl Iterator<Item = Traversal>) -> [usize; 3] {
@@ -31,15 +20,8 @@ fn tally(states: impl Iterator<Item = Traversal>) -> [usize; 3] {
 /// three-state map with the roughness threshold alone (these frames' mountings are unknown,
 /// so no slope test).
 fn real_frame(f: &RealFrame) -> (Grid<f64>, Grid<f64>, Grid<f64>, Grid<Traversal>) {
-    let dir = real_data().join(&f.dir);
-    let (cam, k) = tre::io::read_camera(&dir.join("intrinsics.json")).unwrap();
-    let depth = tre::io::read_depth(&dir.join(&f.depth), cam.depth_scale.unwrap()).unwrap();
-    let input = AnnotateInput {
-        depth_m: &depth,
-        intrinsics: &k,
-        normals: None,
-        labels: None,
-    };
+    let (depth, k) = f.depth();
+    let input = AnnotateInput::depth(&depth, &k);
     let cfg = AnnotateConfig::default();
     let ann = annotate(&input, &cfg).unwrap();
     let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
@@ -116,20 +98,14 @@ fn count_real_frame(f: &RealFrame, counts: &mut RealCounts) {
 
 #[test]
 fn real_kinect_frames_near_floor_traversable_far_rough_unknown_drops_hazard() {
-    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/real_floor.json");
-    let frames: RealFrames =
-        serde_json::from_str(&std::fs::read_to_string(fixture).unwrap()).unwrap();
+    let frames = real_frames();
     let mut counts = RealCounts::default();
     eprintln!("frame | traversable % | hazard % | unknown % | far (≥ 4 m) rough px: unknown %");
-    for f in &frames.frames {
+    for f in &frames {
         count_real_frame(f, &mut counts);
     }
-    let RealCounts {
-        near_floor,
-        far_rough,
-        drops,
-        near_drops,
-    } = counts;
+    let (near_floor, far_rough) = (counts.near_floor, counts.far_rough);
+    let (drops, near_drops) = (counts.drops, counts.near_drops);
     let share = |c: [usize; 3], i: usize| c[i] as f64 / c.iter().sum::<usize>().max(1) as f64;
     eprintln!("near floor {near_floor:?}, far rough {far_rough:?}, drops {drops:?}");
     assert!(near_floor.iter().sum::<usize>() > 10_000, "{near_floor:?}");

@@ -38,12 +38,7 @@ fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
             .into_iter()
             .chain(bad_camera_forms(&rgb));
         for (what, form, code) in forms {
-            let resp = reqwest::Client::new()
-                .post(&url)
-                .multipart(form)
-                .send()
-                .await
-                .unwrap();
+            let resp = post_form(&url, form).await;
             let (s, c, message) = error_of(resp).await;
             assert_eq!(c, code, "{what}: {message}");
             assert!(
@@ -94,10 +89,7 @@ fn unreadable_bodies() -> Vec<BadBody> {
         (
             "truncated PNG",
             "image/png",
-            {
-                let f = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
-                f[..f.len() / 3].to_vec()
-            },
+            truncated("slambook2_ch7/1.png", 3),
             422,
             "bad_image",
         ),
@@ -105,14 +97,17 @@ fn unreadable_bodies() -> Vec<BadBody> {
             // Decoded leniently, this was a frame half filled with grey.
             "truncated JPEG",
             "image/jpeg",
-            {
-                let f = std::fs::read(real("metric3d_nyu/rgb/rgb_00000.jpg")).unwrap();
-                f[..f.len() / 2].to_vec()
-            },
+            truncated("metric3d_nyu/rgb/rgb_00000.jpg", 2),
             422,
             "bad_image",
         ),
     ]
+}
+
+/// The first `1/part` of the bytes of real file `path`.
+fn truncated(path: &str, part: usize) -> Vec<u8> {
+    let f = std::fs::read(real(path)).unwrap();
+    f[..f.len() / part].to_vec()
 }
 
 /// Images of no size or too large a one, and a body over `--max-body-bytes`.
@@ -282,12 +277,7 @@ async fn bad_queries_are_refused(url: &str, rgb: &[u8]) {
         "camera",
         Part::text(r#"{"fx": 500, "fy": 500, "cx": 320, "cy": 240}"#),
     );
-    let resp = reqwest::Client::new()
-        .post(format!("{url}?fx=525&fy=525&cx=319.5&cy=239.5"))
-        .multipart(twice)
-        .send()
-        .await
-        .unwrap();
+    let resp = post_form(&format!("{url}?fx=525&fy=525&cx=319.5&cy=239.5"), twice).await;
     let (s, c, message) = error_of(resp).await;
     assert_eq!((s, c.as_str()), (400, "bad_request"), "{message}");
     let (s, c, _) = error_of(post(&format!("{url}?mode=rgbd"), "image/png", rgb).await).await;
@@ -343,12 +333,7 @@ fn long_thin_images_and_implausible_cameras_are_refused_at_once() {
             let form = Form::new()
                 .part("rgb", Part::bytes(frame.clone()).file_name("1.png"))
                 .part("camera", Part::text(format!("{camera}{extra}")));
-            let resp = reqwest::Client::new()
-                .post(&url)
-                .multipart(form)
-                .send()
-                .await
-                .unwrap();
+            let resp = post_form(&url, form).await;
             if says.is_empty() {
                 assert_eq!(resp.status().as_u16(), 200, "{extra}");
                 continue;

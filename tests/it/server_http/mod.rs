@@ -34,6 +34,16 @@ async fn post(url: &str, content_type: &str, body: Vec<u8>) -> reqwest::Response
         .unwrap()
 }
 
+/// Posts `form` to `url` as multipart form data.
+async fn post_form(url: &str, form: Form) -> reqwest::Response {
+    reqwest::Client::new()
+        .post(url)
+        .multipart(form)
+        .send()
+        .await
+        .unwrap()
+}
+
 /// Status, error code and message of a JSON error answer.
 async fn error_of(resp: reqwest::Response) -> (u16, String, String) {
     let status = resp.status().as_u16();

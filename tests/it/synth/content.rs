@@ -140,14 +140,7 @@ fn natural_output_is_unchanged() {
     // `tre synth --out D --scenes 2 --width 160 --height 120 --views 3 --seed 5`, every file
     // but the JSON ones (images, depth, labels, normals, ground truth, PLY, contact sheet).
     let dir = tempfile::tempdir().unwrap();
-    let cfg = SynthConfig {
-        out: dir.path().to_owned(),
-        scenes: 2,
-        seed: 5,
-        size: (160, 120),
-        views: 3,
-        ..SynthConfig::default()
-    };
+    let cfg = synth_config(dir.path(), 2, 5, (160, 120), 3);
     tre::synth::generate(&cfg).unwrap();
     assert_eq!(
         digest_without_json(dir.path()),

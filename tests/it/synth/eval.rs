@@ -7,45 +7,14 @@ use super::*;
 fn eval_scores_the_geometric_baseline_on_a_generated_split() {
     let dir = tempfile::tempdir().unwrap();
     let cfg = SynthConfig {
-        out: dir.path().to_owned(),
-        scenes: 3,
-        seed: 11,
-        size: (96, 96),
-        views: 2,
         ply: false,
         test_fraction: 0.5,
-        ..SynthConfig::default()
+        ..synth_config(dir.path(), 3, 11, (96, 96), 2)
     };
     let m = tre::synth::generate(&cfg).unwrap();
     let split = if m.counts.1 > 0 { "test" } else { "train" };
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tre"))
-        .args([
-            "eval",
-            "--data",
-            dir.path().to_str().unwrap(),
-            "--mode",
-            "geometric",
-            "--split",
-            split,
-        ])
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let (rmse, text) = eval_geometric(dir.path(), split, &[]);
     // RMSE is a finite, positive number of centimetres, below a metre on ground seen from 1 m.
-    let rmse: f64 = text
-        .split("RMSE ")
-        .nth(1)
-        .unwrap()
-        .split(' ')
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap();
     assert!(rmse > 0.0 && rmse < 100.0, "{text}");
     assert!(text.contains("normals    mean"), "{text}");
     // A split with no frames is a clear error.
@@ -67,6 +36,12 @@ fn eval_scores_the_geometric_baseline_on_a_generated_split() {
 
 /// RMSE (cm) printed by `tre eval --mode geometric` on `data`'s split with `--depth-source`.
 fn eval_rmse(data: &Path, split: &str, source: &str) -> f64 {
+    eval_geometric(data, split, &["--depth-source", source]).0
+}
+
+/// `tre eval --mode geometric` on `data`'s split with `args`: the RMSE (cm) it printed and its
+/// output.
+fn eval_geometric(data: &Path, split: &str, args: &[&str]) -> (f64, String) {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_tre"))
         .args([
             "eval",
@@ -75,38 +50,36 @@ fn eval_rmse(data: &Path, split: &str, source: &str) -> f64 {
             "--mode",
             "geometric",
         ])
-        .args(["--split", split, "--depth-source", source])
+        .args(["--split", split])
+        .args(args)
         .output()
         .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    text.split("RMSE ")
+    let rmse = text
+        .split("RMSE ")
         .nth(1)
         .unwrap()
         .split(' ')
         .next()
         .unwrap()
         .parse()
-        .unwrap()
+        .unwrap();
+    (rmse, text)
 }
 
 #[test]
 fn eval_reads_sensor_depth_against_exact_ground_truth() {
     let dir = tempfile::tempdir().unwrap();
     let cfg = SynthConfig {
-        out: dir.path().to_owned(),
-        scenes: 2,
-        seed: 4,
-        size: (128, 96),
-        views: 2,
         ply: false,
         test_fraction: 0.0,
         sensors: vec![SensorPreset::KinectV1],
-        ..SynthConfig::default()
+        ..synth_config(dir.path(), 2, 4, (128, 96), 2)
     };
     tre::synth::generate(&cfg).unwrap();
     let exact = eval_rmse(dir.path(), "train", "exact");

@@ -6,6 +6,8 @@
 
 use std::path::Path;
 
+use crate::common::synth_config;
+
 use tre::geometry::{is_valid_point, Grid, Intrinsics, Mounting, Vec3};
 use tre::roughness::noise::SensorPreset;
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation};
@@ -24,14 +26,9 @@ mod sensors;
 
 fn small_config(out: &Path, seed: u64) -> SynthConfig {
     SynthConfig {
-        out: out.to_owned(),
-        scenes: 2,
-        seed,
-        size: (64, 48),
-        views: 3,
         sensors: SensorPreset::ALL.to_vec(),
         effects: ImageEffect::ALL.to_vec(),
-        ..SynthConfig::default()
+        ..synth_config(out, 2, seed, (64, 48), 3)
     }
 }
 

@@ -1,7 +1,7 @@
 //! The Kinect model's spec roughness on synthetic flat floor against real Kinect floor.
 
 use super::*;
-use std::path::PathBuf;
+use crate::common::{real_data, real_frames, spec};
 use tre::io::sheet::{
     colour_bar_legend, contact_sheet, depth_panel, fit_within, roughness_panel, Panel,
 };
@@ -23,43 +23,15 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-fn spec(depth: &Grid<f64>, k: &Intrinsics) -> Annotation {
-    let input = AnnotateInput {
-        depth_m: depth,
-        intrinsics: k,
-        normals: None,
-        labels: None,
-    };
-    annotate(&input, &AnnotateConfig::default()).unwrap()
-}
-
-#[derive(serde::Deserialize)]
-struct Fixture {
-    frames: Vec<RealFloor>,
-}
-
-#[derive(serde::Deserialize)]
-struct RealFloor {
-    dir: String,
-    depth: String,
-    floor: [usize; 4],
-}
-
-fn real_data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd")
-}
-
 /// Spec roughness of the real floor boxes' pixels, by range bin.
 fn real_floor() -> [Vec<f64>; 3] {
-    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/real_floor.json");
-    let fx: Fixture = serde_json::from_slice(&std::fs::read(fixture).unwrap()).unwrap();
     let mut bins: [Vec<f64>; 3] = Default::default();
-    for f in &fx.frames {
-        let dir = real_data().join(&f.dir);
-        let (cam, k) = tre::io::read_camera(&dir.join("intrinsics.json")).unwrap();
-        let depth = tre::io::read_depth(&dir.join(&f.depth), cam.depth_scale.unwrap()).unwrap();
+    for f in &real_frames() {
+        let Some([x0, y0, x1, y1]) = f.floor else {
+            continue;
+        };
+        let (depth, k) = f.depth();
         let r = spec(&depth, &k).roughness_m;
-        let [x0, y0, x1, y1] = f.floor;
         for (x, y) in (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))) {
             if let (Some(b), true) = (bin_of(depth[(x, y)]), r[(x, y)].is_finite()) {
                 bins[b].push(r[(x, y)]);

@@ -120,13 +120,9 @@ fn random_optics_draw_every_frame_within_the_documented_ranges() {
     use tre::synth::dataset::OPTICS;
     let dir = tempfile::tempdir().unwrap();
     let cfg = SynthConfig {
-        out: dir.path().to_owned(),
-        scenes: 2,
-        seed: 11,
-        size: (96, 72),
         ply: false,
         random_optics: true,
-        ..SynthConfig::default()
+        ..synth_config(dir.path(), 2, 11, (96, 72), 9)
     };
     tre::synth::generate(&cfg).unwrap();
     let within = |(lo, hi): (f64, f64), v: f64| v >= lo - 1e-9 && v <= hi + 1e-9;

@@ -10,7 +10,7 @@ use futures_util::{SinkExt, StreamExt};
 use tokio_tungstenite::tungstenite::{self, Message};
 
 use super::{Shared, Ws};
-use crate::event::ServerInfo;
+use crate::event::{Event, ServerInfo};
 use crate::proto::{self, Incoming};
 use crate::ClientError;
 
@@ -128,7 +128,7 @@ async fn await_ready(ws: &mut Ws, url: &str) -> Result<ServerInfo, ClientError> 
             Message::Binary(b) => {
                 return match proto::decode_server(&b)? {
                     Incoming::Ready(info) => Ok(info),
-                    Incoming::Error { code, message, .. } => {
+                    Incoming::Event(Event::Error { code, message, .. }) => {
                         Err(ClientError::HelloRefused { code, message })
                     }
                     other => Err(ClientError::Protocol(format!(

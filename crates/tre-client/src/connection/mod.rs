@@ -352,31 +352,18 @@ impl Link {
         };
         match incoming {
             Incoming::Result(wire) => self.on_result(wire).await,
-            Incoming::Dropped {
-                sequence,
-                dropped_total,
-            } => {
-                if self.pending.remove(&sequence).is_some() {
-                    self.settle(Event::Dropped {
-                        sequence,
-                        dropped_total,
-                    })
-                    .await;
-                }
-            }
-            Incoming::Error {
-                sequence,
-                code,
-                message,
-            } => {
-                let event = Event::Error {
-                    sequence,
-                    code,
-                    message,
+            Incoming::Event(event) => {
+                // A Dropped or Error about a frame still awaited settles it; an Error about
+                // none (or one already settled) is reported, a late Dropped is not.
+                let sequence = match &event {
+                    Event::Dropped { sequence, .. } => Some(*sequence),
+                    Event::Error { sequence, .. } => *sequence,
+                    _ => None,
                 };
                 match sequence.and_then(|s| self.pending.remove(&s)) {
                     Some(_) => self.settle(event).await,
-                    None => self.emit(event).await,
+                    None if matches!(event, Event::Error { .. }) => self.emit(event).await,
+                    None => {}
                 }
             }
             Incoming::Ready(_) => tracing::debug!("unexpected Ready ignored"),

@@ -73,7 +73,7 @@ impl Content {
     pub fn labels(self) -> &'static [Category] {
         match self {
             Self::Natural => &Category::NATURAL,
-            _ => &Category::ALL,
+            _ => Category::ALL,
         }
     }
 

@@ -48,6 +48,20 @@ pub struct AnnotateInput<'a> {
     pub labels: Option<&'a Grid<u32>>,
 }
 
+impl<'a> AnnotateInput<'a> {
+    /// A depth map alone: LS normals over the spec's radius and one label for all, as
+    /// `tre annotate` reads a depth image.
+    #[must_use]
+    pub fn depth(depth_m: &'a Grid<f64>, intrinsics: &'a Intrinsics) -> Self {
+        Self {
+            depth_m,
+            intrinsics,
+            normals: None,
+            labels: None,
+        }
+    }
+}
+
 /// Everything the annotator produces, per pixel.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Annotation {
