@@ -2,24 +2,14 @@
 //! map, the extra maps and the settings of the run ([`FrameOptions`]). HTTP queries and the
 //! stream's Hello both become these; the names a client writes are derived from the enums.
 
-use strum::{EnumMessage, IntoEnumIterator};
+use strum::{EnumIter, EnumMessage, EnumString, IntoEnumIterator, IntoStaticStr};
 
 use tre_core::kinds::{Mode, NormalsMethod, StreamFormat, Traversability};
 use tre_core::roughness::noise::SensorNoise;
 
 /// Encodings of the roughness map. Over HTTP a client asks for `png16`, `color` (or `colour`)
 /// or `npy`; the stream asks for [`StreamFormat`]s.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Default,
-    strum::EnumString,
-    strum::EnumIter,
-    strum::EnumMessage,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, EnumString, EnumIter, EnumMessage)]
 #[strum(serialize_all = "lowercase")]
 pub enum Format {
     /// 16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data (as `tre infer`).
@@ -67,17 +57,7 @@ impl From<StreamFormat> for Format {
 
 /// An extra map a client may ask for beside roughness, by the name of its part in the answer
 /// (HTTP `outputs=depth,slope`).
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    strum::EnumString,
-    strum::EnumIter,
-    strum::EnumMessage,
-    strum::IntoStaticStr,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, EnumIter, EnumMessage, IntoStaticStr)]
 #[strum(serialize_all = "lowercase")]
 pub enum OutputMap {
     /// Depth used, 16-bit grey PNG in millimetres.

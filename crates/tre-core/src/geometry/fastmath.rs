@@ -6,6 +6,8 @@
 //! `a op b` is one correctly rounded f32 operation, evaluated left to right as written.
 //! `max(a, b)` and `min(a, b)` take `b` when `a` is NaN (so NaN propagates into the result).
 
+use super::simd::from_fn;
+
 /// Lanes of one block of the lane arrays that the vectorised kernels loop over.
 pub const BLOCK: usize = 8;
 
@@ -182,8 +184,8 @@ pub fn sigmoid(x: f32) -> f32 {
 /// ```
 #[inline]
 pub fn sum_block(a: [f32; BLOCK]) -> f32 {
-    let h: [f32; 4] = std::array::from_fn(|l| a[l] + a[l + 4]);
-    let q: [f32; 2] = std::array::from_fn(|l| h[l] + h[l + 2]);
+    let h: [f32; 4] = from_fn(|l| a[l] + a[l + 4]);
+    let q: [f32; 2] = from_fn(|l| h[l] + h[l + 2]);
     q[0] + q[1]
 }
 

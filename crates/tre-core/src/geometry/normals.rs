@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use super::camera::{is_valid_point, PointMap, INVALID_POINT};
 use super::plane::{fit_normals, orient_towards_camera, Moments};
+use super::simd::from_fn;
 use super::{Grid, Vec3};
 
 /// The neighbourhood of a pixel: the valid points within `radius_m` of it, searched in a pixel
@@ -78,11 +79,17 @@ impl Neighbourhood {
         }
         let packed_half = half.map(|h| if h <= MAX_PACKED_HALF { h } else { 0 });
         let acc = packed.group_moments(x0, y, &packed_half, self.radius_m);
-        std::array::from_fn(|l| match half[l] {
-            0 => Moments::default(),
-            h if h <= MAX_PACKED_HALF => lane_moments(&acc, l),
-            h => window_moments(points, x0 + l, y, h, self.radius_m * self.radius_m),
-        })
+        // A loop, not `from_fn`: the wide windows' f64 path must inline into each compiled
+        // version of the row kernel ([`super::simd::from_fn`] says why).
+        let mut out = [Moments::default(); GROUP];
+        for (l, (m, h)) in out.iter_mut().zip(half).enumerate() {
+            *m = match h {
+                0 => Moments::default(),
+                h if h <= MAX_PACKED_HALF => lane_moments(&acc, l),
+                h => window_moments(points, x0 + l, y, h, self.radius_m * self.radius_m),
+            };
+        }
+        out
     }
 }
 
@@ -99,7 +106,9 @@ pub fn normal_from_moments(points: &PointMap, m: &Moments, x: usize, y: usize) -
 }
 
 /// Moments about `points[(x, y)]` of the valid points within `sqrt(r2)` of it in the window of
-/// half-width `h` (reference implementation, f64).
+/// half-width `h` (reference implementation, f64; the path of windows wider than the packed
+/// kernel's, inlined into each compiled version of the row kernel).
+#[inline(always)]
 fn window_moments(points: &PointMap, x: usize, y: usize, h: usize, r2: f64) -> Moments {
     let mut m = Moments::default();
     let p = points[(x, y)];
@@ -189,7 +198,7 @@ impl PackedPoints {
         // Per ring of window offsets (Chebyshev distance c = max(|dx|, |dy|)) and lane, the
         // largest squared distance kept: r² inside the lane's window, −1 (nothing) outside it.
         let limit: [[f32; GROUP]; MAX_PACKED_HALF + 1] =
-            std::array::from_fn(|c| std::array::from_fn(|l| if c <= half[l] { r2 } else { -1.0 }));
+            from_fn(|c| from_fn(|l| if c <= half[l] { r2 } else { -1.0 }));
         for yy in y.saturating_sub(reach)..(y + reach + 1).min(self.height) {
             let dy = yy.abs_diff(y);
             // Columns x0 − reach … x0 + reach + 7 of row yy, inside the padding.

@@ -3,6 +3,7 @@
 
 use nalgebra::Matrix3;
 
+use super::simd::from_fn;
 use super::Vec3;
 
 /// A plane through `centroid` with unit `normal`.
@@ -25,6 +26,7 @@ impl Plane {
     /// assert!((p.normal.z.abs() - 1.0).abs() < 1e-12);
     /// assert!(Plane::through(&Vector3::zeros(), &Vector3::x(), &(2.0 * Vector3::x())).is_none());
     /// ```
+    #[inline(always)]
     pub fn through(a: &Vec3, b: &Vec3, c: &Vec3) -> Option<Self> {
         let (ab, ac) = (b - a, c - a);
         let n = ab.cross(&ac);
@@ -155,7 +157,7 @@ const SYM_AXES: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (
 
 /// Symmetric matrices `m` in lanes.
 fn sym_lanes<const N: usize>(m: &[Matrix3<f64>; N]) -> SymLanes<N> {
-    std::array::from_fn(|e| m.map(|m| m[SYM_AXES[e]]))
+    from_fn(|e| m.map(|m| m[SYM_AXES[e]]))
 }
 
 /// Lane `l` of `a` as a matrix.
@@ -167,12 +169,11 @@ fn sym_matrix<const N: usize>(a: &SymLanes<N>, l: usize) -> Matrix3<f64> {
 /// The covariance matrices of `m` in lanes ([`Moments::covariance`] is one lane of it).
 #[inline(always)]
 pub fn covariance_lanes<const N: usize>(m: &[Moments; N]) -> SymLanes<N> {
-    let inv_n: [f64; N] = std::array::from_fn(|l| 1.0 / f64::from(m[l].count.max(1)));
-    let mean: [[f64; N]; 3] =
-        std::array::from_fn(|a| std::array::from_fn(|l| m[l].sum[a] * inv_n[l]));
-    std::array::from_fn(|e| {
+    let inv_n: [f64; N] = from_fn(|l| 1.0 / f64::from(m[l].count.max(1)));
+    let mean: [[f64; N]; 3] = from_fn(|a| from_fn(|l| m[l].sum[a] * inv_n[l]));
+    from_fn(|e| {
         let (i, j) = SYM_AXES[e];
-        std::array::from_fn(|l| m[l].sum_sq[e] * inv_n[l] - mean[i][l] * mean[j][l])
+        from_fn(|l| m[l].sum_sq[e] * inv_n[l] - mean[i][l] * mean[j][l])
     })
 }
 
@@ -182,7 +183,7 @@ pub fn covariance_lanes<const N: usize>(m: &[Moments; N]) -> SymLanes<N> {
 #[inline(always)]
 pub fn fit_normals<const N: usize>(m: &[Moments; N]) -> [Option<Vec3>; N] {
     let fits = smallest_eigenvectors(&covariance_lanes(m));
-    std::array::from_fn(|l| fits[l].filter(|_| m[l].count >= 3))
+    from_fn(|l| fits[l].filter(|_| m[l].count >= 3))
 }
 
 /// [`smallest_eigenvector`] for `N` matrices at once: scaling, the characteristic cubic and the
@@ -198,9 +199,9 @@ pub fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3
             *s = s.max(v.abs());
         }
     }
-    let inv: [f64; N] = std::array::from_fn(|l| 1.0 / scale[l]);
-    let a: SymLanes<N> = std::array::from_fn(|e| std::array::from_fn(|l| covs[e][l] * inv[l]));
-    let c: [[f64; 3]; N] = std::array::from_fn(|l| char_poly(&a, l));
+    let inv: [f64; N] = from_fn(|l| 1.0 / scale[l]);
+    let a: SymLanes<N> = from_fn(|e| from_fn(|l| covs[e][l] * inv[l]));
+    let c: [[f64; 3]; N] = from_fn(|l| char_poly(&a, l));
     let (mut l, mut done) = ([0.0f64; N], [false; N]);
     for _ in 0..6 {
         for i in 0..N {
@@ -215,9 +216,9 @@ pub fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3
             break;
         }
     }
-    let l_mid: [f64; N] = std::array::from_fn(|i| next_root(&c[i], l[i]));
+    let l_mid: [f64; N] = from_fn(|i| next_root(&c[i], l[i]));
     let vectors = eigenvectors_for(&a, &l, &l_mid);
-    std::array::from_fn(|i| {
+    from_fn(|i| {
         if !(scale[i] > 0.0) || !scale[i].is_finite() {
             None
         } else if done[i] {
@@ -263,7 +264,7 @@ fn eigenvectors_for<const N: usize>(
             axis[i] = v / len[i];
         }
     }
-    std::array::from_fn(|i| {
+    from_fn(|i| {
         let separated = l_mid[i] - l_min[i] > 1e-6;
         (separated && len[i] > 0.0 && len[i].is_finite())
             .then(|| Vec3::new(best[0][i], best[1][i], best[2][i]))

@@ -37,8 +37,15 @@ impl Frame<'_> {
     /// pixel, then the refits' inlier moments and eigen-solves over the lanes.
     #[inline(always)]
     pub(super) fn group_normals(&self, x0: usize, y: usize) -> [Option<Vec3>; REFIT_LANES] {
-        let best: [Option<(Plane, Vec3)>; REFIT_LANES] =
-            std::array::from_fn(|l| (x0 + l < self.width).then(|| self.pixel_best(x0 + l, y))?);
+        // A loop, not a closure: `pixel_best`, the bulk of the work, must inline into each
+        // compiled version of the row kernel ([`super::super::simd`]), and a closure this large
+        // is called, not inlined, from the unrolled loop of `from_fn`.
+        let mut best: [Option<(Plane, Vec3)>; REFIT_LANES] = [None; REFIT_LANES];
+        for (l, b) in best.iter_mut().enumerate() {
+            if x0 + l < self.width {
+                *b = self.pixel_best(x0 + l, y);
+            }
+        }
         let base = y * self.points.stride + x0;
         let tau = self.cfg.inlier_threshold_m;
         let moments: [Moments; REFIT_LANES] = if x0 + REFIT_LANES <= self.width {
@@ -64,12 +71,15 @@ impl Frame<'_> {
             moments
         } else {
             // The row's last, partial group: its windows would reach past the padding.
-            std::array::from_fn(|l| match best[l] {
-                Some((p, o)) => inlier_moments(self.points, base + l, &[p], &[o], tau)[0],
-                None => Moments::default(),
-            })
+            let mut moments = [Moments::default(); REFIT_LANES];
+            for (l, (m, b)) in moments.iter_mut().zip(best).enumerate() {
+                if let Some((p, o)) = b {
+                    *m = inlier_moments(self.points, base + l, &[p], &[o], tau)[0];
+                }
+            }
+            moments
         };
-        let refits = std::array::from_fn(|l| {
+        let refits = from_fn(|l| {
             best[l].map(|(plane, origin)| Refit {
                 moments: moments[l],
                 hypothesis: plane.normal,

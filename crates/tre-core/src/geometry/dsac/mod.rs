@@ -43,6 +43,7 @@ use super::camera::{is_valid_point, PointMap, INVALID_POINT};
 use super::fastmath::{self, recip_one_plus_exp2, sum_block, BLOCK};
 use super::hash::{pixel_stream, splitmix64, stream_uniform};
 use super::plane::{fit_normals, orient_towards_camera, Moments, Plane};
+use super::simd::from_fn;
 use super::{GeometryError, Grid, Vec3};
 
 /// Side of the candidate window.
@@ -154,7 +155,7 @@ pub fn candidate_probabilities(
     lanes[..CANDIDATES].copy_from_slice(logits);
     let points = PaddedPoints::of_candidates(cands);
     let rho = softmax(&lanes, &Window::new(&points, RADIUS, RADIUS).valid);
-    std::array::from_fn(|k| f64::from(rho[k]))
+    from_fn(|k| f64::from(rho[k]))
 }
 
 /// Draws 3 distinct candidates for hypothesis `hypothesis` of pixel `pixel`, inverting the CDF of

@@ -16,7 +16,7 @@ pub(super) fn inlier_moments<const N: usize>(
     origins: &[Vec3; N],
     tau_m: f64,
 ) -> [Moments; N] {
-    let by_axis = |v: [Vec3; N]| -> [[f64; N]; 3] { std::array::from_fn(|a| v.map(|v| v[a])) };
+    let by_axis = |v: [Vec3; N]| -> [[f64; N]; 3] { from_fn(|a| v.map(|v| v[a])) };
     let n = by_axis(planes.map(|p| p.normal));
     let c = by_axis(planes.map(|p| p.centroid));
     let o = by_axis(*origins);
@@ -32,10 +32,10 @@ pub(super) fn inlier_moments<const N: usize>(
         });
         add_inliers(&mut count, &mut acc, q, [&n, &c, &o], tau_m);
     }
-    std::array::from_fn(|l| Moments {
+    from_fn(|l| Moments {
         count: count[l] as u32,
         sum: Vec3::new(acc[0][l], acc[1][l], acc[2][l]),
-        sum_sq: std::array::from_fn(|e| acc[3 + e][l]),
+        sum_sq: from_fn(|e| acc[3 + e][l]),
     })
 }
 
@@ -90,8 +90,9 @@ pub(super) const MOMENT_LANES: usize = 4;
 /// result depends only on its own refit.
 #[inline(always)]
 pub(super) fn finish_refits<const N: usize>(refits: &[Option<Refit>; N]) -> [Option<Vec3>; N] {
-    let fits = fit_normals(&refits.map(|r| r.map_or(Moments::default(), |r| r.moments)));
-    std::array::from_fn(|l| {
+    let moments: [Moments; N] = from_fn(|l| refits[l].map_or(Moments::default(), |r| r.moments));
+    let fits = fit_normals(&moments);
+    from_fn(|l| {
         let r = refits[l]?;
         let n = fits[l].unwrap_or(r.hypothesis);
         Some(orient_towards_camera(&n, &r.origin))

@@ -110,6 +110,7 @@ impl Cdf {
     /// The triples of hypotheses `first..first + count` (`count ≤ BATCH`), drawn stage by stage
     /// (every first draw, then every second one, …) and with their binary searches in
     /// lockstep, so that the hypotheses' independent searches overlap in the processor.
+    #[inline(always)]
     pub(super) fn triples(
         &self,
         stream: u64,
@@ -146,11 +147,11 @@ impl Cdf {
                 }
             }
         }
-        std::array::from_fn(|j| alive[j].then_some(drawn[j]))
+        from_fn(|j| alive[j].then_some(drawn[j]))
     }
 
     /// The draw for `t`, given the candidates already drawn: settled, or a search to run.
-    #[inline]
+    #[inline(always)]
     pub(super) fn plan(&self, t: f64, drawn: &[usize]) -> Draw {
         if !self.monotone {
             return Draw::settled(self.pick_by_scan(t, drawn));

@@ -24,11 +24,14 @@ pub(super) fn best_hypothesis(
     while first < cfg.hypotheses {
         let count = (cfg.hypotheses - first).min(BATCH as u32) as usize;
         let triples = cdf.triples(stream, first, count);
-        let hyps: [Option<(Plane, Hyp32)>; BATCH] = std::array::from_fn(|j| {
-            let [a, b, c] = triples[j]?;
-            let plane = Plane::through(&window.point(a), &window.point(b), &window.point(c))?;
-            Some((plane, window.hyp32(&plane, &scorer)))
-        });
+        // A loop, not `from_fn`: the planes and their f32 forms must inline into each compiled
+        // version of the row kernel (see `Frame::group_normals`).
+        let mut hyps: [Option<(Plane, Hyp32)>; BATCH] = [None; BATCH];
+        for (hyp, triple) in hyps.iter_mut().zip(triples) {
+            let Some([a, b, c]) = triple else { continue };
+            let plane = Plane::through(&window.point(a), &window.point(b), &window.point(c));
+            *hyp = plane.map(|plane| (plane, window.hyp32(&plane, &scorer)));
+        }
         let base = first as usize;
         match record.as_mut() {
             Some(r) => {

@@ -45,6 +45,7 @@ impl PaddedPoints {
     }
 
     /// Whether pixel `(x, y)` holds a valid point.
+    #[inline(always)]
     pub(super) fn is_valid(&self, x: usize, y: usize) -> bool {
         self.planes[2][(y + RADIUS) * self.stride + x + RADIUS] > 0.0
     }
@@ -112,13 +113,14 @@ impl<'a> Window<'a> {
     }
 
     /// Candidate `k`'s point.
-    #[inline]
+    #[inline(always)]
     pub(super) fn point(&self, k: usize) -> Vec3 {
         let i = self.base + (k / WINDOW) * self.points.stride + k % WINDOW;
         Vec3::from(self.points.planes.each_ref().map(|p| p[i]))
     }
 
     /// `plane` in the scorer's f32 form.
+    #[inline(always)]
     pub(super) fn hyp32(&self, plane: &Plane, scorer: &Scorer) -> Hyp32 {
         let m = plane.normal * scorer.gain;
         let u = plane.centroid - self.origin;
@@ -151,6 +153,7 @@ impl<'a> Window<'a> {
     }
 
     /// The f32 soft inlier count of `h` over the valid candidates (module docs, step 4).
+    #[inline(always)]
     pub(super) fn full_score(&self, h: &Hyp32) -> f32 {
         let mut acc = [0.0; BLOCK];
         self.add_blocks(h, &mut acc, 0..BLOCKS);
@@ -161,6 +164,7 @@ impl<'a> Window<'a> {
     /// provably is below `floor`: the partial sum plus `most` ([`Scorer::most`]) per valid
     /// candidate still to come, plus [`PRUNE_MARGIN`] for the f32 rounding of the sums (at most
     /// 56 · 10 · 2⁻²⁴ relative), bounds it from above.
+    #[inline(always)]
     pub(super) fn finish_above(
         &self,
         h: &Hyp32,
