@@ -106,7 +106,8 @@ fn stage_split(
     split.report()
 }
 
-/// Benches one frame through the pipeline as `id` in `group` (named `group_name`), then prints its stage split.
+/// Benches one frame through the pipeline as `id` in `group` (named `group_name`), then prints
+/// its stage split.
 fn run_frame(
     group: &mut BenchmarkGroup<'_, WallTime>,
     pipeline: &mut Pipeline,

@@ -7,7 +7,7 @@ use tre::geometry::raycast::{render_depth, MarchConfig};
 use tre::geometry::{Grid, Intrinsics, Mounting, Neighbourhood, Vec3};
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput, RoughnessError};
 
-use crate::common::{real_data, real_frames, spec};
+use crate::common::{real, real_frames, spec};
 
 /// The paper's robot camera: 1 m high, looking down 60°, 256×256 with a 60° field of view.
 fn robot_camera() -> (Intrinsics, Mounting, (usize, usize)) {
@@ -262,7 +262,7 @@ fn real_frames_annotate_and_their_floors_read_under_one_cm() {
 #[test]
 fn sparse_depth_does_not_panic() {
     // Keep 1 pixel in 37 of a real frame, and a frame with a single valid pixel.
-    let dir = real_data().join("slambook2_ch5");
+    let dir = real("slambook2_ch5");
     let (cam, k) = tre::io::read_camera(&dir.join("intrinsics.json")).unwrap();
     let mut depth =
         tre::io::read_depth(&dir.join("depth/1.png"), cam.depth_scale.unwrap()).unwrap();

@@ -19,9 +19,9 @@ pub enum WriteOp {
     Shutdown,
 }
 
-/// What a [`Watched`] IO tells its watcher. Both methods default to doing nothing.
+/// What a [`Watched`] IO tells its watcher.
 pub trait Watch {
-    /// `n` (> 0) bytes were read.
+    /// `n` (> 0) bytes were read; by default nothing is noted.
     fn read(&mut self, n: usize) {
         let _ = n;
     }
@@ -33,10 +33,7 @@ pub trait Watch {
         cx: &mut Context<'_>,
         op: WriteOp,
         poll: Poll<io::Result<R>>,
-    ) -> Poll<io::Result<R>> {
-        let _ = (cx, op);
-        poll
-    }
+    ) -> Poll<io::Result<R>>;
 }
 
 /// `io` with every read and write shown to `watch`.

@@ -250,15 +250,10 @@ pub fn synth_config(
     }
 }
 
-/// The real RGB-D frames (`../shared/data/real-rgbd`).
-pub fn real_data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd")
-}
-
 /// One of the real frames, as `tests/fixtures/real_floor.json` lists it.
 #[derive(serde::Deserialize)]
 pub struct RealFrame {
-    /// Its folder under [`real_data`].
+    /// Its folder under the real frames ([`real`]).
     pub dir: String,
     /// Its depth image, relative to `dir`.
     pub depth: String,
@@ -269,7 +264,7 @@ pub struct RealFrame {
 impl RealFrame {
     /// Its depth (metres) and the intrinsics of its depth image.
     pub fn depth(&self) -> (tre::geometry::Grid<f64>, tre::geometry::Intrinsics) {
-        let dir = real_data().join(&self.dir);
+        let dir = real(&self.dir);
         let (cam, k) = tre::io::read_camera(&dir.join("intrinsics.json")).unwrap();
         let depth = tre::io::read_depth(&dir.join(&self.depth), cam.depth_scale.unwrap()).unwrap();
         (depth, k)

@@ -1,7 +1,7 @@
 //! The Kinect model's spec roughness on synthetic flat floor against real Kinect floor.
 
 use super::*;
-use crate::common::{real_data, real_frames, spec};
+use crate::common::{real, real_frames, spec};
 use tre::io::sheet::{
     colour_bar_legend, contact_sheet, depth_panel, fit_within, roughness_panel, Panel,
 };
@@ -27,9 +27,9 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn real_floor() -> [Vec<f64>; 3] {
     let mut bins: [Vec<f64>; 3] = Default::default();
     for f in &real_frames() {
-        let Some([x0, y0, x1, y1]) = f.floor else {
-            continue;
-        };
+        let [x0, y0, x1, y1] = f
+            .floor
+            .expect("every real frame of the fixture has a floor box");
         let (depth, k) = f.depth();
         let r = spec(&depth, &k).roughness_m;
         for (x, y) in (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))) {
@@ -126,7 +126,7 @@ fn kinect_floor_roughness_median_within_30_percent_of_real_floor() {
 
 /// Synthetic and real frame side by side: RGB, sensor depth, spec roughness (0–5 cm).
 fn write_sheet(out: &Path, f: &RenderedFrame, sensor: &Grid<f64>, rough: &Grid<f64>) {
-    let dir = real_data().join("slambook2_ch5");
+    let dir = real("slambook2_ch5");
     let (cam, k) = tre::io::read_camera(&dir.join("intrinsics.json")).unwrap();
     let depth = tre::io::read_depth(&dir.join("depth/1.png"), cam.depth_scale.unwrap()).unwrap();
     let real_rgb = tre::io::read_image(&dir.join("color/1.png"))

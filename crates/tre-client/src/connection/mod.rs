@@ -355,12 +355,7 @@ impl Link {
             Incoming::Event(event) => {
                 // A Dropped or Error about a frame still awaited settles it; an Error about
                 // none (or one already settled) is reported, a late Dropped is not.
-                let sequence = match &event {
-                    Event::Dropped { sequence, .. } => Some(*sequence),
-                    Event::Error { sequence, .. } => *sequence,
-                    _ => None,
-                };
-                match sequence.and_then(|s| self.pending.remove(&s)) {
+                match event.settles().and_then(|s| self.pending.remove(&s)) {
                     Some(_) => self.settle(event).await,
                     None if matches!(event, Event::Error { .. }) => self.emit(event).await,
                     None => {}

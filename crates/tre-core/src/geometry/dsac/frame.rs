@@ -38,7 +38,7 @@ impl Frame<'_> {
     #[inline(always)]
     pub(super) fn group_normals(&self, x0: usize, y: usize) -> [Option<Vec3>; REFIT_LANES] {
         // A loop, not a closure: `pixel_best`, the bulk of the work, must inline into each
-        // compiled version of the row kernel ([`super::super::simd`]), and a closure this large
+        // compiled version of the row kernel (`geometry::simd`), and a closure this large
         // is called, not inlined, from the unrolled loop of `from_fn`.
         let mut best: [Option<(Plane, Vec3)>; REFIT_LANES] = [None; REFIT_LANES];
         for (l, b) in best.iter_mut().enumerate() {
