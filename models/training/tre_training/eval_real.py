@@ -13,6 +13,13 @@ settings are reported:
 
 Median-scaled AbsRel (prediction scaled by the ratio of medians) is printed beside, as monocular
 depth papers do, to separate scale from shape.
+
+With `--split NAME` (and `--splits FILE`, default `models/real_splits.json`) the frames are those
+of that split of the real corpora instead (`real.load_real`: serving's working size, long side
+256), and the two settings are `mounting` (the stated mounting of the vehicle sets, else the
+floor fit of `real.py`) and `default` (pitch 60°, height 1 m: what serving uses when a request
+gives none). Depth up to 10 m (Kinect sets) or 80 m (LiDAR sets) is scored, per sequence and
+pooled per group (`kinect`: the hand-held indoor sets; `street`: KITTI and nuScenes).
 """
 
 from __future__ import annotations
@@ -81,12 +88,102 @@ def frames(real: Path) -> list[tuple[str, Path, Path, dict, list[int]]]:
     return out
 
 
+def metrics_capped(pred: np.ndarray, gt: np.ndarray, cap: float) -> dict[str, float] | None:
+    ok = np.isfinite(gt) & (gt > 0) & (gt <= cap)
+    if ok.sum() < 10:
+        return None
+    p, g = pred[ok], gt[ok]
+    ratio = np.maximum(p / g, g / p)
+    scaled = p * np.median(g) / np.median(p)
+    return {
+        "abs_rel": float(np.mean(np.abs(p - g) / g)),
+        "rmse_m": float(np.sqrt(np.mean((p - g) ** 2))),
+        "delta_1_25_pct": float(100 * np.mean(ratio < 1.25)),
+        "abs_rel_median_scaled": float(np.mean(np.abs(scaled - g) / g)),
+        "pixels": int(ok.sum()),
+    }
+
+
+def group_of(sequence: str) -> str:
+    return "street" if sequence.startswith(("kitti", "nuscenes")) else "kinect"
+
+
+def eval_split(predict, split: str, splits: Path, cache_dir: Path | None = None) -> dict:
+    """Depth figures of `predict(rgb N×3×H×W in [0, 1], prior N×1×H×W) → depth` on the frames
+    of `split`, per frame, per sequence and per group, for both mountings."""
+    from . import real
+
+    cache = None if cache_dir is None else cache_dir / f"{split}.npz"
+    s, meta = real.load_real(split, splits, cache)
+    rows = []
+    for i, m in enumerate(meta):
+        w, h = m["size"]
+        rgb = s.rgb[i, :h, :w].astype(np.float32).transpose(2, 0, 1)[None] / 255.0
+        gt = s.depth_m[i, :h, :w]
+        k = torch.from_numpy(s.intrinsics[i].copy()).view(1, 4)
+        cap = 80.0 if m["sensor"] == "lidar" else MAX_DEPTH_M
+        row = {**m}
+        for setting, mount in (
+            ("mounting", tuple(float(v) for v in s.mounting[i])),
+            ("default", real.DEFAULT_MOUNTING),
+        ):
+            prior = prior_depth(k, torch.tensor([mount], dtype=torch.float32), h, w).numpy()
+            pred = predict(rgb, prior)[0, 0]
+            row[setting] = metrics_capped(pred, gt, cap)
+        if row["mounting"] is not None:
+            rows.append(row)
+    summary: dict[str, dict] = {}
+    keys = sorted({r["sequence"] for r in rows}, key=lambda q: (group_of(q), q))
+    for label, sel in [(q, lambda r, q=q: r["sequence"] == q) for q in keys] + [
+        (f"all {g}", lambda r, g=g: group_of(r["sequence"]) == g) for g in ("kinect", "street")
+    ]:
+        rs = [r for r in rows if sel(r)]
+        if not rs:
+            continue
+        summary[label] = {"frames": len(rs)}
+        for setting in ("mounting", "default"):
+            summary[label][setting] = {
+                k: float(np.mean([r[setting][k] for r in rs]))
+                for k in ("abs_rel", "delta_1_25_pct", "abs_rel_median_scaled", "rmse_m")
+            }
+    return {"split": split, "frames": rows, "summary": summary}
+
+
+def print_summary(result: dict) -> None:
+    print(f"split {result['split']}: depth net, mean over frames")
+    print(
+        f"{'set':28s} {'n':>3s} | {'mounting: AbsRel':>16s} {'δ<1.25':>7s} {'med-sc':>6s} |"
+        f" {'default: AbsRel':>15s} {'δ<1.25':>7s} {'med-sc':>6s}"
+    )
+    for label, v in result["summary"].items():
+        a, b = v["mounting"], v["default"]
+        print(
+            f"{label:28s} {v['frames']:3d} | {a['abs_rel']:16.3f} {a['delta_1_25_pct']:6.1f}%"
+            f" {a['abs_rel_median_scaled']:6.3f} | {b['abs_rel']:15.3f}"
+            f" {b['delta_1_25_pct']:6.1f}% {b['abs_rel_median_scaled']:6.3f}"
+        )
+
+
+def onnx_predict(models: Path):
+    sess = ort.InferenceSession(str(models / "depth_net.onnx"), providers=["CPUExecutionProvider"])
+    return lambda rgb, prior: sess.run(None, {"rgb": rgb, "prior_depth_m": prior})[0]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--models", type=Path, default=REPO / "models")
     ap.add_argument("--real", type=Path, default=REPO.parent / "shared/data/real-rgbd")
     ap.add_argument("--json", type=Path, help="write the per-frame numbers here")
+    ap.add_argument("--split", choices=["train", "val", "test"], help="frames of this split")
+    ap.add_argument("--splits", type=Path, default=REPO / "models" / "real_splits.json")
+    ap.add_argument("--cache", type=Path, default=REPO / "data" / "real256")
     args = ap.parse_args(argv)
+    if args.split:
+        result = eval_split(onnx_predict(args.models), args.split, args.splits, args.cache)
+        print_summary(result)
+        if args.json:
+            args.json.write_text(json.dumps(result, indent=2) + "\n")
+        return 0
     sess = ort.InferenceSession(
         str(args.models / "depth_net.onnx"), providers=["CPUExecutionProvider"]
     )

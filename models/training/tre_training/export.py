@@ -146,12 +146,42 @@ def dataset_info(data: Path | None) -> dict | None:
     return {"generator": "tre synth", "folder": data.name, **keep}
 
 
+def real_data_info(sequences: list[str]) -> dict:
+    """Which real sets a model was trained on, and their licences (from each set's
+    `intrinsics.json`): the restriction a model trained on them carries."""
+    from . import real
+
+    sets = {}
+    for seq in sequences:
+        cam = json.loads((real.find_folder(seq) / "intrinsics.json").read_text())
+        sets[seq] = {"source": cam.get("source"), "licence": cam.get("licence")}
+    return {
+        "splits": "models/real_splits.json, split train (val chose the checkpoint; test unused)",
+        "sets": sets,
+        "restriction": "trained on KITTI, nuScenes and Microsoft 7-Scenes frames: those sets are"
+        " licensed for non-commercial research use only (KITTI CC BY-NC-SA 3.0, nuScenes CC"
+        " BY-NC-SA 4.0 and terms of use, 7-Scenes non-commercial research use); this model"
+        " carries that restriction",
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--data", type=Path, help="the training dataset, described in the manifest")
     ap.add_argument("--metrics", type=Path, help="JSON of test metrics per model (tre eval)")
     ap.add_argument("--allow-untrained", action="store_true", help="export random weights")
+    ap.add_argument(
+        "--nets",
+        nargs="+",
+        choices=list(nets.NETS),
+        help="export only these; the others keep their files, parity vectors and manifest entries",
+    )
     args = ap.parse_args(argv)
+    previous = (
+        json.loads((MODELS / "manifest.json").read_text())["models"]
+        if (MODELS / "manifest.json").exists()
+        else {}
+    )
     commit = subprocess.run(
         ["git", "-C", str(REPO), "rev-parse", "HEAD"], capture_output=True, text=True, check=False
     ).stdout.strip()
@@ -166,7 +196,13 @@ def main(argv: list[str] | None = None) -> int:
     data = dataset_info(args.data)
     write_prior_vectors()
     for name, cls in nets.NETS.items():
+        if args.nets and name not in args.nets and name in previous:
+            manifest["models"][name] = previous[name]
+            print(f"{name}: kept as it was ({previous[name]['sha256'][:12]})")
+            continue
         model, log = load_net(name, args.allow_untrained)
+        if log is not None and log.get("real_sets"):
+            log["real_data"] = real_data_info(log["real_sets"])
         path = MODELS / f"{name}.onnx"
         export_one(name, model, path)
         opset = max(
