@@ -385,7 +385,7 @@ fn geometric_real(c: &mut Criterion) {
         let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
         group.bench_function(format!("sensor_maps_{w}x{h}"), |b| {
             b.iter(|| {
-                out.sensor_maps(&input, Mode::Geometric, Some(&kinect), None)
+                out.sensor_maps(&input, Mode::Geometric, Some(&kinect), None, None)
                     .expect("maps")
             })
         });

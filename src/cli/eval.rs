@@ -30,8 +30,14 @@ pub struct Eval {
     /// folder with intrinsics.json, or a folder of them, as ../shared/data/real-rgbd). Every
     /// mode in --modes runs on each frame and is scored against annotation spec v1 on the same
     /// sensor depth; the geometric mode runs as the spec and as the surface-only baseline.
+    /// Give it more than once to pool several folders (../shared/data/real-rgbd and
+    /// ../shared/data/real-rgbd-2).
     #[arg(long, conflicts_with_all = ["data", "tables"])]
-    pub real: Option<PathBuf>,
+    pub real: Vec<PathBuf>,
+    /// Real-frame benchmark: score only the frames of --split in this splits file
+    /// (models/real_splits.json: train / val / test by sequence, docs/real-splits.md).
+    #[arg(long, requires = "real")]
+    pub real_splits: Option<PathBuf>,
     /// Floor boxes of the real frames (JSON, as tests/fixtures/real_floor.json): floor median
     /// and p90 per frame.
     #[arg(long, requires = "real")]
@@ -166,8 +172,8 @@ impl Eval {
     /// Scores every frame of the split and prints the metrics (and the tables), or runs the
     /// real-frame benchmark.
     pub fn run(self) -> anyhow::Result<()> {
-        if let Some(real) = &self.real {
-            return self.run_real(real);
+        if !self.real.is_empty() {
+            return self.run_real(&self.real);
         }
         let data = self.data.clone().context("--data or --real is needed")?;
         if let Some(json) = &self.json {
@@ -222,11 +228,12 @@ impl Eval {
     }
 
     /// The real-frame benchmark (`--real`): markdown on stdout, `--json`, `--sheets`.
-    fn run_real(&self, dir: &Path) -> anyhow::Result<()> {
+    fn run_real(&self, dirs: &[PathBuf]) -> anyhow::Result<()> {
         if let Some(json) = &self.json {
-            super::refuse_overwriting(&[json], &[dir])?;
+            let inputs: Vec<&Path> = dirs.iter().map(PathBuf::as_path).collect();
+            super::refuse_overwriting(&[json], &inputs)?;
         }
-        let frames = real::find_frames(dir, self.limit)?;
+        let frames = real::frames_of(dirs, self.real_splits.as_deref(), &self.split, self.limit)?;
         let floors = match &self.floors {
             Some(path) => real::read_floors(path)?,
             None => real::Floors::new(),
@@ -239,8 +246,9 @@ impl Eval {
                 .with_context(|| format!("creating {}", sheets.display()))?;
         }
         let sheets = self.sheets.as_deref();
+        let split = self.real_splits.as_ref().map(|_| self.split.as_str());
         let report = real::run_benchmark(
-            dir,
+            (dirs, split),
             &frames,
             &floors,
             &rows,

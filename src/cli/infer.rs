@@ -13,6 +13,7 @@ use crate::io;
 use crate::pipeline::{
     FrameInput, FrameOutput, Method, Mode, PipelineConfig, SensorMaps, Traversability,
 };
+use crate::roughness::interval::IntervalTable;
 use crate::roughness::noise::{SensorNoise, SensorPreset};
 use crate::roughness::traversal::shares;
 
@@ -102,26 +103,37 @@ impl Infer {
         let out = pipeline.run(&frame, &cfg)?;
         self.write(&out)?;
         print_summary(&out, &cfg.label());
-        if let Some(maps) = self.sensor_maps(&out, &frame, &cfg, described)? {
+        let table = pipeline.interval_table(cfg.mode);
+        if let Some(maps) = self.sensor_maps(&out, &frame, &cfg, described, table)? {
             self.write_sensor_maps(&maps)?;
         }
         Ok(())
     }
 
     /// The uncertainty and three-state maps when a noise model is known: from `--sensor`, else
-    /// the camera's `sensor` (`described`: the camera's sensor, a model or free text). Without
-    /// one, or in a mode without sensor depth, a note on stderr; `--sensor` in such a mode is
-    /// an error.
+    /// the camera's `sensor` (`described`: the camera's sensor, a model or free text), and in
+    /// `rgb` from the mode's calibration `table` alone. Without them, or in a mode without
+    /// sensor depth, a note on stderr; `--sensor` in such a mode is an error.
     fn sensor_maps(
         &self,
         out: &FrameOutput,
         frame: &FrameInput,
         cfg: &PipelineConfig,
         described: Option<io::SensorSpec>,
+        table: Option<&IntervalTable>,
     ) -> anyhow::Result<Option<SensorMaps>> {
         let model = self
             .sensor
             .or(described.as_ref().and_then(io::SensorSpec::noise));
+        let staged = cfg.method == crate::pipeline::Method::Pipeline;
+        if let (crate::pipeline::Mode::Rgb, Some(table), true) = (cfg.mode, table, staged) {
+            if self.sensor.is_some() {
+                bail!("--sensor: the rgb mode reads no sensor depth; its intervals come from models/uncertainty.json");
+            }
+            let maps = out.sensor_maps(frame, cfg.mode, None, None, Some(table))?;
+            print_shares("calibrated intervals", &maps);
+            return Ok(Some(maps));
+        }
         let Some(model) = model else {
             if let Some(io::SensorSpec::Description(d)) = &described {
                 eprintln!(
@@ -141,21 +153,21 @@ impl Infer {
             );
             return Ok(None);
         }
+        let table = table.filter(|_| staged);
         let maps = out
-            .sensor_maps(frame, cfg.mode, Some(&model), None)
+            .sensor_maps(frame, cfg.mode, Some(&model), None, table)
             .context("--sensor")?;
-        let (t, h, u) = shares(&maps.traversal);
-        println!(
-            "sensor {}: {:.1}% traversable, {:.1}% hazard, {:.1}% unknown",
-            model.label(),
-            100.0 * t,
-            100.0 * h,
-            100.0 * u
-        );
+        let how = if table.is_some() {
+            " with calibrated intervals"
+        } else {
+            ""
+        };
+        print_shares(&format!("sensor {}{how}", model.label()), &maps);
         Ok(Some(maps))
     }
 
-    /// Writes `<stem>_uncertainty.png|npy`, `<stem>_traversal.png` (0 unknown, 1 traversable,
+    /// Writes `<stem>_uncertainty.png|npy`, the interval's ends `<stem>_lo.npy` and
+    /// `<stem>_hi.npy` (`--format npy`, when calibrated), `<stem>_traversal.png` (0 unknown, 1 traversable,
     /// 2 hazard) and `<stem>_traversal_preview.png`.
     fn write_sensor_maps(&self, maps: &SensorMaps) -> anyhow::Result<()> {
         let u = &maps.uncertainty_m;
@@ -164,7 +176,13 @@ impl Infer {
                 &beside(&self.out, "uncertainty", "png"),
                 &DynamicImage::ImageLumaA16(io::roughness_png16(u)),
             )?,
-            Format::Npy => io::write_npy_f32(&beside(&self.out, "uncertainty", "npy"), u)?,
+            Format::Npy => {
+                io::write_npy_f32(&beside(&self.out, "uncertainty", "npy"), u)?;
+                if let Some((lo, hi)) = &maps.interval_m {
+                    io::write_npy_f32(&beside(&self.out, "lo", "npy"), lo)?;
+                    io::write_npy_f32(&beside(&self.out, "hi", "npy"), hi)?;
+                }
+            }
         }
         let grey = io::traversal_gray8(&maps.traversal);
         io::save(
@@ -331,4 +349,15 @@ fn print_summary(out: &FrameOutput, label: &str) {
         .map(|(name, d)| format!("{name} {:.1}", d.as_secs_f64() * 1e3))
         .collect();
     println!("ms: {}", stages.join(", "));
+}
+
+/// Prints the three states' shares of `maps`, naming where they come from.
+fn print_shares(what: &str, maps: &SensorMaps) {
+    let (t, h, u) = shares(&maps.traversal);
+    println!(
+        "{what}: {:.1}% traversable, {:.1}% hazard, {:.1}% unknown",
+        100.0 * t,
+        100.0 * h,
+        100.0 * u
+    );
 }

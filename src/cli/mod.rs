@@ -1,6 +1,7 @@
 //! Command-line subcommands, one file each; `main.rs` only parses and dispatches.
 
 pub mod annotate;
+pub mod calibrate;
 pub mod client;
 pub mod eval;
 pub mod infer;
@@ -41,6 +42,9 @@ pub enum Command {
     /// paper's Tables II, IV and V), or every mode on real RGB-D frames against the spec on
     /// the same sensor depth (--real).
     Eval(eval::Eval),
+    /// Fit every mode's calibrated 90% roughness intervals on real validation frames
+    /// (models/uncertainty.json; docs/uncertainty.md).
+    Calibrate(calibrate::Calibrate),
     /// Serve roughness over HTTP and a WebSocket stream.
     Serve(serve::Serve),
     /// Stream frames (a folder, a video or a camera) to `tre serve` over the WebSocket and
@@ -65,6 +69,7 @@ impl Command {
             Command::Synth(cmd) => cmd.run(),
             Command::Infer(cmd) => cmd.run(),
             Command::Eval(cmd) => cmd.run(),
+            Command::Calibrate(cmd) => cmd.run(),
             Command::Serve(cmd) => cmd.run(),
             Command::Client(cmd) => cmd.run(),
             Command::Loadtest(cmd) => cmd.run(),

@@ -10,8 +10,8 @@ use clap::{Args, ValueEnum};
 
 use crate::model::{locate_models, Models, SessionConfig};
 use crate::pipeline::{
-    CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod, Pipeline, PipelineConfig,
-    DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES,
+    read_calibration, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod, Pipeline,
+    PipelineConfig, DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES,
 };
 
 /// On or off.
@@ -91,7 +91,13 @@ impl StageArgs {
     /// A pipeline with the models loaded when any of `configs` runs a network.
     pub fn pipeline(&self, configs: &[PipelineConfig]) -> anyhow::Result<Pipeline> {
         if configs.iter().all(|c| c.networks().is_empty()) {
-            return Ok(Pipeline::new(None));
+            // The geometric mode needs no models, but reads their calibrated intervals when
+            // a models folder is found.
+            let calibration = match locate_models(self.models.as_deref()) {
+                Ok(found) => read_calibration(&found.dir)?,
+                Err(_) => None,
+            };
+            return Ok(Pipeline::new(None).with_calibration(calibration));
         }
         super::check_threads(None, self.ort_threads, super::cores())?;
         let session = SessionConfig {
@@ -101,6 +107,18 @@ impl StageArgs {
         let dir = find_models(self.models.as_deref())?;
         let models = Models::load(&dir, &session)
             .with_context(|| format!("loading models from {}", dir.display()))?;
-        Ok(Pipeline::new(Some(models)))
+        let calibration = read_calibration(&dir)?;
+        let pipeline = Pipeline::new(Some(models));
+        if let Some(c) = &calibration {
+            let key = super::calibrate::models_key(&pipeline);
+            if c.models != key {
+                tracing::warn!(
+                    "{}: the intervals were fitted on other models ({} against {key}); run `tre calibrate` again",
+                    dir.join(crate::roughness::interval::CALIBRATION_FILE).display(),
+                    c.models
+                );
+            }
+        }
+        Ok(pipeline.with_calibration(calibration))
     }
 }

@@ -11,6 +11,7 @@ use super::spares::Spares;
 use super::{Mode, PipelineError, Traversability};
 use tre_core::geometry::{Grid, Intrinsics, Mounting, PointMap, Vec3, INVALID_POINT};
 use tre_core::roughness::annotate::{boundary_mask, segment};
+use tre_core::roughness::interval::{self, IntervalTable, SecondAxis};
 use tre_core::roughness::noise::{uncertainty_map, SensorNoise, SensorPreset};
 use tre_core::roughness::traversal::{ThreeStateRule, Traversal};
 use tre_core::roughness::AnnotateConfig;
@@ -209,28 +210,47 @@ impl FrameOutput {
     }
 }
 
-/// The sensor-noise maps of a frame, at the frame's size (docs/sensor-noise.md).
+/// The sensor-noise maps of a frame, at the frame's size (docs/sensor-noise.md,
+/// docs/uncertainty.md).
 #[derive(Debug, Clone)]
 pub struct SensorMaps {
-    /// The p95 of the roughness sensor noise alone gives spec v1 on a flat surface, metres
-    /// (NaN: no depth).
+    /// Depth modes: the p95 of the roughness sensor noise alone gives spec v1 on a flat
+    /// surface; `rgb` (calibrated interval only): the interval's half-width. Metres (NaN: no
+    /// roughness).
     pub uncertainty_m: Grid<f64>,
+    /// The calibrated 90% interval `(lo, hi)` of the spec's value, metres, when the mode has
+    /// a calibration table.
+    pub interval_m: Option<(Grid<f64>, Grid<f64>)>,
     /// Three-state traversability.
     pub traversal: Grid<Traversal>,
 }
 
 impl FrameOutput {
-    /// The uncertainty and three-state maps of `frame`'s sensor depth under noise model
-    /// `sensor` (`None`: the camera gave none; `described`: its free-text sensor, if any), with
-    /// the frame's intrinsics (or the 60° default) and this output's normals. Only `rgbd` and
-    /// `geometric` read sensor depth; for `rgb` and the end-to-end baseline, an error.
+    /// The uncertainty and three-state maps of a frame. With a calibration `table` for the
+    /// mode (docs/uncertainty.md) the map reads the calibrated interval (`rgb`: no sensor depth
+    /// or noise model needed); without one, the depth modes read the sensor model alone
+    /// (docs/sensor-noise.md). `sensor`: the camera's noise model (`None`: it gave none;
+    /// `described`: its free-text sensor, if any); the frame's intrinsics (or the 60° default)
+    /// and this output's normals. For `rgb` without a table, and the end-to-end baseline, an
+    /// error.
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError::NoSensorDepth`] for a mode without sensor depth and no table,
+    /// [`PipelineError::NoSensorModel`] for a depth mode without a noise model.
     pub fn sensor_maps(
         &self,
         frame: &FrameInput,
         mode: Mode,
         sensor: Option<&SensorNoise>,
         described: Option<&str>,
+        table: Option<&IntervalTable>,
     ) -> Result<SensorMaps, PipelineError> {
+        if mode == Mode::Rgb {
+            if let (Some(table), Some(depth)) = (table, self.depth_m()) {
+                return Ok(self.interval_maps(table, None, &depth));
+            }
+        }
         let (Some(depth_m), Some(normals), false) =
             (&frame.depth_m, self.normals(), mode == Mode::Rgb)
         else {
@@ -265,6 +285,9 @@ impl FrameOutput {
                 *u = f64::NAN;
             }
         }
+        if let Some(table) = table {
+            return Ok(self.interval_maps(table, Some(uncertainty_m), depth_m));
+        }
         let rule = ThreeStateRule {
             max_roughness_m: self.working.limits.max_roughness_m,
             ..ThreeStateRule::default()
@@ -272,8 +295,53 @@ impl FrameOutput {
         let traversal = rule.map(&self.roughness_m, &uncertainty_m, &self.traversable());
         Ok(SensorMaps {
             uncertainty_m,
+            interval_m: None,
             traversal,
         })
+    }
+
+    /// The maps of a calibration table: its second feature is `uncertainty_m` (depth modes)
+    /// or `depth_m` (the sensor's, or the depth net's in `rgb`).
+    fn interval_maps(
+        &self,
+        table: &IntervalTable,
+        uncertainty_m: Option<Grid<f64>>,
+        depth_m: &Grid<f64>,
+    ) -> SensorMaps {
+        let second = match (table.second_axis, &uncertainty_m) {
+            (SecondAxis::Uncertainty, Some(u)) => u,
+            _ => depth_m,
+        };
+        let feature = table.feature(&self.roughness_m, depth_m);
+        let (lo, hi) = table.maps(&self.roughness_m, &feature, second);
+        let ok = self.slope_ok();
+        let t = self.working.limits.max_roughness_m;
+        let (w, h) = lo.size();
+        let traversal = Grid::from_fn(w, h, |x, y| {
+            interval::classify(lo[(x, y)], hi[(x, y)], t, ok[(x, y)])
+        });
+        let uncertainty_m = uncertainty_m
+            .unwrap_or_else(|| Grid::from_fn(w, h, |x, y| 0.5 * (hi[(x, y)] - lo[(x, y)])));
+        SensorMaps {
+            uncertainty_m,
+            interval_m: Some((lo, hi)),
+            traversal,
+        }
+    }
+
+    /// Pixels whose slope is within the threshold (every pixel with roughness when there are
+    /// no normals).
+    fn slope_ok(&self) -> Grid<bool> {
+        let w = &self.working;
+        let roughness = w.roughness_m.as_ref().unwrap_or(&self.roughness_m);
+        let tilt = w.stages.as_ref().map(|m| (&m.normals, &w.up_in_cam));
+        let limits = Traversability {
+            max_roughness_m: f64::INFINITY,
+            ..w.limits
+        };
+        let mut full = self.full_size(&traversable(roughness, tilt, &limits), false);
+        self.only_with_roughness(&mut full);
+        full
     }
 }
 
@@ -406,19 +474,19 @@ mod tests {
             ..FrameInput::default()
         };
         let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
-        let e = out.sensor_maps(&frame, Mode::Rgb, Some(&kinect), None);
+        let e = out.sensor_maps(&frame, Mode::Rgb, Some(&kinect), None, None);
         assert!(matches!(
             e,
             Err(PipelineError::NoSensorDepth { mode: "rgb" })
         ));
-        let e = out.sensor_maps(&frame, Mode::Rgbd, None, Some("Kinect"));
+        let e = out.sensor_maps(&frame, Mode::Rgbd, None, Some("Kinect"), None);
         let e = e.err().map(|e| e.to_string()).unwrap_or_default();
         assert!(
             e.contains("kinect_v1") && e.contains("\"Kinect\" names no preset"),
             "{e}"
         );
         let maps = out
-            .sensor_maps(&frame, Mode::Rgbd, Some(&kinect), None)
+            .sensor_maps(&frame, Mode::Rgbd, Some(&kinect), None, None)
             .unwrap();
         // The left column is rough (0.2 m, a drop above the noise): a hazard; the top right
         // is flat with millimetres of noise: traversable.

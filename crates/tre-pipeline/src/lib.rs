@@ -20,6 +20,7 @@
 //! # }
 //! ```
 
+pub mod calibration;
 pub mod centroid;
 pub mod config;
 pub mod depth;
@@ -30,6 +31,7 @@ pub mod run;
 mod spares;
 pub mod tensors;
 
+pub use calibration::read_calibration;
 pub use config::{
     check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod,
     PipelineConfig, Traversability, DEFAULT_DSAC_HYPOTHESES, DEFAULT_MAX_INPUT_PIXELS,
@@ -103,8 +105,10 @@ pub enum PipelineError {
     },
     /// Uncertainty or three-state maps asked for without sensor depth.
     #[error(
-        "the uncertainty and three-state maps need sensor depth (modes rgbd and geometric); the \
-         {mode} mode's depth comes from the depth net, whose error no sensor model describes"
+        "the uncertainty and three-state maps need sensor depth (modes rgbd and geometric) or the \
+         mode's calibration table (models/uncertainty.json, written by `tre calibrate`), which the \
+         loaded models lack for the {mode} mode; its depth comes from the depth net, whose error \
+         no sensor model describes"
     )]
     NoSensorDepth {
         /// The mode or method, in words.
@@ -120,6 +124,14 @@ pub enum PipelineError {
         presets: String,
         /// What the camera said instead, if anything, in words.
         described: String,
+    },
+    /// A calibration file (`uncertainty.json` beside the models) that does not read.
+    #[error("{}: {reason}", path.display())]
+    Calibration {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What is wrong.
+        reason: String,
     },
     /// Bad intrinsics or mounting, or geometry inputs that do not fit.
     #[error(transparent)]

@@ -21,6 +21,7 @@ use tre_core::geometry::dsac::DsacScratch;
 use tre_core::geometry::normals::{window_centroids_into, PackedPoints};
 use tre_core::geometry::{DsacConfig, Grid, Intrinsics, LocalPlanes, PointMap, Vec3};
 use tre_core::roughness::annotate::{spec_roughness_into, surface_term_into, SpecMaps, SpecPlanes};
+use tre_core::roughness::interval::{Calibration, IntervalTable};
 use tre_core::roughness::AnnotateConfig;
 use tre_model::Models;
 
@@ -85,6 +86,7 @@ struct Working {
 #[derive(Debug)]
 pub struct Pipeline {
     models: Option<Models>,
+    calibration: Option<Calibration>,
     scratch: Scratch,
 }
 
@@ -93,8 +95,21 @@ impl Pipeline {
     pub fn new(models: Option<Models>) -> Self {
         Self {
             models,
+            calibration: None,
             scratch: Scratch::default(),
         }
+    }
+
+    /// The same pipeline with calibrated roughness intervals (docs/uncertainty.md; `None`:
+    /// the depth modes' maps read the sensor model alone and `rgb` has none).
+    pub fn with_calibration(mut self, calibration: Option<Calibration>) -> Self {
+        self.calibration = calibration;
+        self
+    }
+
+    /// The calibration table of `mode`, if the pipeline has one.
+    pub fn interval_table(&self, mode: Mode) -> Option<&IntervalTable> {
+        self.calibration.as_ref()?.table(&mode.to_string())
     }
 
     /// The loaded models, if any.

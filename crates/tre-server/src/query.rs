@@ -52,10 +52,13 @@ pub struct RoughnessQuery {
     /// Extra maps, comma-separated: depth, normals, slope, traversable, boundary, uncertainty,
     /// traversal. With any, the answer is multipart/mixed with one part per map. uncertainty
     /// (16-bit grey + alpha PNG, 0.1 mm per unit: the p95 of the roughness sensor noise alone
-    /// gives on a flat surface) and traversal (8-bit grey PNG: 0 unknown, 1 traversable,
-    /// 2 hazard) need sensor depth (modes rgbd and geometric; otherwise 422 bad_input) and a
-    /// noise model (the sensor parameter or the camera's sensor; otherwise 422 bad_camera);
-    /// see docs/sensor-noise.md.
+    /// gives on a flat surface; in rgb the calibrated interval's half-width) and traversal
+    /// (8-bit grey PNG: 0 unknown, 1 traversable, 2 hazard) need sensor depth (modes rgbd and
+    /// geometric) and a noise model (the sensor parameter or the camera's sensor; otherwise
+    /// 422 bad_camera), or in rgb the models' calibrated intervals (otherwise 422 bad_input).
+    /// Where the models have calibrated intervals, a pixel is traversable only where the 90%
+    /// interval's upper end is below max_roughness_cm and a hazard only where its lower end
+    /// is above; see docs/uncertainty.md and docs/sensor-noise.md.
     outputs: Option<String>,
     /// Intrinsics in pixels; default: 60 degree horizontal field of view, centred. The camera
     /// in the query (fx, fy, cx, cy, pitch_deg, height_m, depth_scale) is for a body with no

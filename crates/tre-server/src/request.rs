@@ -9,6 +9,7 @@ use image::{DynamicImage, ImageFormat, ImageReader};
 use super::error::{ApiError, ErrorCode};
 pub use super::options::{Extras, Format, FrameOptions, OutputMap};
 use tre_core::geometry::{Grid, Mounting};
+use tre_core::roughness::interval::IntervalTable;
 use tre_io::{self as io, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
 use tre_pipeline::{
     FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, PipelineError,
@@ -521,11 +522,12 @@ pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply
 
 /// Adds the sensor-noise maps the options ask for to `reply`: parts `uncertainty` and
 /// `traversal` and the stream's bytes. The noise model is the options' `sensor`, else the
-/// camera's; an error names what is missing (a noise model, or sensor depth in this mode).
+/// camera's; `table`: the mode's calibrated intervals, if the models have them (docs/uncertainty.md);
+/// an error names what is missing (a noise model, or sensor depth in this mode).
 pub fn encode_sensor_maps(
     out: &FrameOutput,
     frame: &FrameInput,
-    mode: Mode,
+    (mode, table): (Mode, Option<&IntervalTable>),
     req: &FrameRequest,
     reply: &mut FrameReply,
 ) -> Result<(), ApiError> {
@@ -539,7 +541,7 @@ pub fn encode_sensor_maps(
         Some(io::SensorSpec::Description(d)) => Some(d.as_str()),
         _ => None,
     };
-    let maps = out.sensor_maps(frame, mode, model.as_ref(), described)?;
+    let maps = out.sensor_maps(frame, mode, model.as_ref(), described, table)?;
     if opts.extras.uncertainty {
         let image = DynamicImage::ImageLumaA16(io::roughness_png16(&maps.uncertainty_m));
         let part = png_part(OutputMap::Uncertainty, "uncertainty.png", &image)?;

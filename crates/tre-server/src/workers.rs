@@ -263,8 +263,15 @@ impl Workers {
 /// One worker: load, warm up, then serve until the queue closes.
 fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, metrics: &Metrics) {
     let started = Instant::now();
+    let calibration = match tre_pipeline::read_calibration(&cfg.models) {
+        Ok(c) => c,
+        Err(reason) => {
+            startup.fail(WorkerError::WarmUp { worker: i, reason });
+            return;
+        }
+    };
     let mut pipeline = match Models::load(&cfg.models, &cfg.session) {
-        Ok(models) => Pipeline::new(Some(models)),
+        Ok(models) => Pipeline::new(Some(models)).with_calibration(calibration),
         Err(reason) => {
             startup.fail(WorkerError::Load {
                 worker: i,
@@ -328,8 +335,9 @@ fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> Jo
     let cfg = config_for(&frame, &req.options, pool.limits.max_pixels, pool.defaults);
     let out = pipeline.run(&frame, &cfg)?;
     let started = Instant::now();
+    let table = pipeline.interval_table(cfg.mode);
     let reply = encode_reply(&out, &req.options).and_then(|mut reply| {
-        encode_sensor_maps(&out, &frame, cfg.mode, req, &mut reply)?;
+        encode_sensor_maps(&out, &frame, (cfg.mode, table), req, &mut reply)?;
         Ok(reply)
     });
     let encoded = started.elapsed();

@@ -15,8 +15,11 @@ pub struct RealRow {
     pub floor: Option<FloorStats>,
     /// Depth errors against the sensor (`rgb` mode only).
     pub depth: Option<DepthMetrics>,
-    /// The three-state map under the sensor's noise model (modes that read sensor depth).
+    /// The three-state map under the sensor's noise model (modes that read sensor depth),
+    /// or the mode's calibrated intervals.
     pub traversal: Option<TraversalMetrics>,
+    /// Missed hazards, floor coverage and interval coverage of the three-state map.
+    pub safety: Option<Safety>,
     /// Wall time per stage, ms (mean per frame when pooled).
     pub ms: BTreeMap<String, f64>,
 }
@@ -205,8 +208,10 @@ pub struct FrameReport {
 /// The whole report (`--json`).
 #[derive(Debug, Clone, Serialize)]
 pub struct RealReport {
-    /// The folder scored.
-    pub data: PathBuf,
+    /// The folders scored.
+    pub data: Vec<PathBuf>,
+    /// The split scored (`--real-splits`), if any.
+    pub split: Option<String>,
     /// Frames scored.
     pub frames: usize,
     /// Hazard threshold, metres.
@@ -219,6 +224,8 @@ pub struct RealReport {
     pub spec: SpecSummary,
     /// Each configuration pooled over frames (pixels pooled).
     pub pooled: Vec<RealRow>,
+    /// Each configuration pooled over the frames of each sequence folder.
+    pub per_sequence: BTreeMap<String, Vec<RealRow>>,
     /// Each frame.
     pub per_frame: Vec<FrameReport>,
 }
@@ -264,6 +271,7 @@ pub(super) struct RowAcc {
     depth: DepthAccumulator,
     has_depth: bool,
     traversal: Option<TraversalAcc>,
+    safety: Option<SafetyAcc>,
     ms: BTreeMap<String, f64>,
 }
 
@@ -281,6 +289,7 @@ impl RowAcc {
             floor: has_floor.then(|| floor_stats(self.floor.clone(), self.floor_missing)),
             depth: self.has_depth.then(|| self.depth.finish()),
             traversal: self.traversal.as_ref().map(|t| t.finish(has_floor)),
+            safety: self.safety.as_ref().map(SafetyAcc::finish),
             ms: self.ms.iter().map(|(k, v)| (k.clone(), v / n)).collect(),
         }
     }
@@ -293,6 +302,9 @@ impl RowAcc {
         self.has_depth |= other.has_depth;
         if let Some(t) = &other.traversal {
             self.traversal.get_or_insert_with(Default::default).merge(t);
+        }
+        if let Some(t) = &other.safety {
+            self.safety.get_or_insert_with(Default::default).merge(t);
         }
         for (k, v) in &other.ms {
             *self.ms.entry(k.clone()).or_default() += v;
@@ -309,7 +321,7 @@ impl RowAcc {
 ///
 /// When a frame does not read or a configuration fails on it.
 pub fn run_benchmark(
-    data: &Path,
+    (data, split): (&[PathBuf], Option<&str>),
     frames: &[RealFrame],
     floors: &Floors,
     rows: &[(String, PipelineConfig)],
@@ -318,13 +330,17 @@ pub fn run_benchmark(
     mut on_frame: impl FnMut(&RealFrame, &LoadedFrame, &[RowMaps]) -> anyhow::Result<()>,
 ) -> anyhow::Result<RealReport> {
     let mut pooled: Vec<RowAcc> = rows.iter().map(|_| RowAcc::default()).collect();
+    let mut per_sequence: BTreeMap<String, (usize, Vec<RowAcc>)> = BTreeMap::new();
     let mut spec_acc = SpecAcc::default();
     let mut per_frame = Vec::new();
     let any_floor = frames
         .iter()
         .any(|f| floors.contains_key(&(f.sequence.clone(), f.depth_rel.clone())));
+    let mut prev: Option<PrevView> = None;
     for (i, frame) in frames.iter().enumerate() {
         let loaded = load_frame(frame).with_context(|| frame.name())?;
+        let pose = Pose::of(frame)?;
+        let other = other_view(prev.as_ref(), frame, pose, &loaded);
         let floor_box = floors
             .get(&(frame.sequence.clone(), frame.depth_rel.clone()))
             .copied();
@@ -335,8 +351,13 @@ pub fn run_benchmark(
             loaded: &loaded,
             floor_box,
             sensor: frame_sensor(frame, sensor),
+            other: other.as_ref(),
         };
-        let (reports, maps) = scored.score(pipeline, rows, &mut pooled)?;
+        let seq = per_sequence
+            .entry(frame.sequence.clone())
+            .or_insert_with(|| (0, rows.iter().map(|_| RowAcc::default()).collect()));
+        seq.0 += 1;
+        let (reports, maps) = scored.score(pipeline, rows, [&mut pooled, &mut seq.1])?;
         on_frame(frame, &loaded, &maps)?;
         per_frame.push(FrameReport {
             name: frame.name(),
@@ -348,10 +369,23 @@ pub fn run_benchmark(
             rows: reports,
         });
         tracing::info!("{}/{} frames: {}", i + 1, frames.len(), frame.name());
+        prev = pose.map(|pose| PrevView {
+            sequence: frame.sequence.clone(),
+            index: frame.index,
+            depth_m: loaded
+                .input
+                .depth_m
+                .clone()
+                .unwrap_or_else(|| Grid::new(0, 0, 0.0)),
+            k: frame.intrinsics,
+            pose,
+            spec_m: loaded.spec.roughness_m.clone(),
+        });
     }
     let n = frames.len();
     Ok(RealReport {
         data: data.to_owned(),
+        split: split.map(str::to_owned),
         frames: n,
         hazard_m: HAZARD_M,
         flat_m: FLAT_M,
@@ -364,6 +398,14 @@ pub fn run_benchmark(
             .iter()
             .zip(&pooled)
             .map(|((key, _), acc)| acc.finish(key, n, any_floor))
+            .collect(),
+        per_sequence: per_sequence
+            .into_iter()
+            .map(|(name, (frames, accs))| {
+                let rows = rows.iter().zip(&accs);
+                let rows = rows.map(|((key, _), acc)| acc.finish(key, frames, any_floor));
+                (name, rows.collect())
+            })
             .collect(),
         per_frame,
     })
@@ -406,30 +448,78 @@ impl SpecAcc {
     }
 }
 
-/// One loaded frame to score, with its floor box and its sensor's noise model.
+/// The previous frame of a sequence with poses: what the next frame's `geometric` interval
+/// is checked against.
+struct PrevView {
+    sequence: String,
+    index: usize,
+    depth_m: Grid<f64>,
+    k: Intrinsics,
+    pose: Pose,
+    spec_m: Grid<f64>,
+}
+
+/// The pixels `frame` shares with the previous frame of its sequence (the one before it in
+/// the frame list, when both have poses), with that frame's spec.
+pub(super) struct OtherView {
+    pair: ViewPair,
+    spec_m: Grid<f64>,
+}
+
+fn other_view(
+    prev: Option<&PrevView>,
+    frame: &RealFrame,
+    pose: Option<Pose>,
+    loaded: &LoadedFrame,
+) -> Option<OtherView> {
+    let (prev, pose, depth_m) = (prev?, pose?, loaded.input.depth_m.as_ref()?);
+    if prev.sequence != frame.sequence || prev.index + 1 != frame.index {
+        return None;
+    }
+    let b = views::View {
+        depth_m,
+        k: frame.intrinsics,
+        pose,
+    };
+    let a = views::View {
+        depth_m: &prev.depth_m,
+        k: prev.k,
+        pose: prev.pose,
+    };
+    Some(OtherView {
+        pair: ViewPair::new(&b, &a),
+        spec_m: prev.spec_m.clone(),
+    })
+}
+
+/// One loaded frame to score, with its floor box, its sensor's noise model and the view of
+/// the previous frame.
 struct FrameScoring<'a> {
     frame: &'a RealFrame,
     loaded: &'a LoadedFrame,
     floor_box: Option<[usize; 4]>,
     sensor: SensorNoise,
+    other: Option<&'a OtherView>,
 }
 
 impl FrameScoring<'_> {
     /// Scores every configuration of `rows` on the frame, adding each into its accumulator of
-    /// `pooled`; returns the frame's rows and maps.
+    /// both `pools` (every frame, the frame's sequence); returns the frame's rows and maps.
     fn score(
         &self,
         pipeline: &mut Pipeline,
         rows: &[(String, PipelineConfig)],
-        pooled: &mut [RowAcc],
+        pools: [&mut [RowAcc]; 2],
     ) -> anyhow::Result<(Vec<RealRow>, Vec<RowMaps>)> {
         let mut maps = Vec::new();
         let mut reports = Vec::new();
-        for ((key, cfg), acc) in rows.iter().zip(pooled) {
-            let (one, map) = score_row(pipeline, self.loaded, cfg, self.floor_box, &self.sensor)
+        let [all, seq] = pools;
+        for (((key, cfg), acc), seq_acc) in rows.iter().zip(all).zip(seq) {
+            let (one, map) = score_row(pipeline, self, cfg)
                 .with_context(|| format!("{}: {key}", self.frame.name()))?;
             reports.push(one.finish(key, 1, self.floor_box.is_some()));
             acc.merge(&one);
+            seq_acc.merge(&one);
             maps.push(map);
         }
         Ok((reports, maps))
@@ -458,13 +548,12 @@ pub(super) fn spec_summary(loaded: &LoadedFrame, floor_box: Option<[usize; 4]>) 
 }
 
 /// Runs one configuration on a loaded frame and scores it; returns its roughness map too.
-pub(super) fn score_row(
+fn score_row(
     pipeline: &mut Pipeline,
-    loaded: &LoadedFrame,
+    scoring: &FrameScoring<'_>,
     cfg: &PipelineConfig,
-    floor_box: Option<[usize; 4]>,
-    sensor: &SensorNoise,
 ) -> anyhow::Result<(RowAcc, RowMaps)> {
+    let (loaded, floor_box) = (scoring.loaded, scoring.floor_box);
     let out = pipeline.run(&loaded.input, cfg)?;
     let sensor_depth = loaded
         .input
@@ -495,20 +584,65 @@ pub(super) fn score_row(
     }
     acc.ms
         .insert("total".to_owned(), out.timings.total().as_secs_f64() * 1e3);
-    let mut traversal = None;
-    if cfg.mode != Mode::Rgb {
-        let maps = out.sensor_maps(&loaded.input, cfg.mode, Some(sensor), None)?;
-        let mut t = TraversalAcc::default();
-        t.add(&maps, loaded, floor_box);
-        acc.traversal = Some(t);
-        traversal = Some(maps.traversal);
-    }
+    let traversal = three_state(pipeline, scoring, cfg, &out, &mut acc)?;
     let maps = RowMaps {
         roughness_m: out.roughness_m.clone(),
         traversal,
     };
     pipeline.recycle(out);
     Ok((acc, maps))
+}
+
+/// The three-state map of a row, when it has one: the mode's calibrated intervals (the spec
+/// row of `geometric`, and the learned modes), else the sensor model alone (`geometric`
+/// surface-only); adds its shares and safety figures to `acc`.
+fn three_state(
+    pipeline: &Pipeline,
+    scoring: &FrameScoring<'_>,
+    cfg: &PipelineConfig,
+    out: &crate::pipeline::FrameOutput,
+    acc: &mut RowAcc,
+) -> anyhow::Result<Option<Grid<Traversal>>> {
+    let loaded = scoring.loaded;
+    let spec_row = cfg.mode != Mode::Geometric || cfg.geometric == GeometricMethod::Spec;
+    let table = pipeline.interval_table(cfg.mode).filter(|_| spec_row);
+    if cfg.mode == Mode::Rgb && table.is_none() {
+        return Ok(None);
+    }
+    let maps = out.sensor_maps(&loaded.input, cfg.mode, Some(&scoring.sensor), None, table)?;
+    let depth = loaded
+        .input
+        .depth_m
+        .as_ref()
+        .context("a real frame has depth")?;
+    let mut t = TraversalAcc::default();
+    t.add(&maps, loaded, scoring.floor_box);
+    acc.traversal = Some(t);
+    let mut safety = SafetyAcc::default();
+    safety.add_states(&maps.traversal, &loaded.spec.roughness_m, depth);
+    if let Some((lo, hi)) = &maps.interval_m {
+        if cfg.mode == Mode::Geometric {
+            if let Some(other) = scoring.other {
+                let targets = other
+                    .pair
+                    .shared
+                    .iter()
+                    .map(|&(i, j)| (i, other.spec_m.as_slice()[j]));
+                safety.add_coverage((lo, hi), targets, depth, "another view");
+            }
+        } else {
+            let targets = loaded
+                .spec
+                .roughness_m
+                .as_slice()
+                .iter()
+                .copied()
+                .enumerate();
+            safety.add_coverage((lo, hi), targets, depth, "same depth");
+        }
+    }
+    acc.safety = Some(safety);
+    Ok(Some(maps.traversal))
 }
 
 /// One configuration's maps on a frame, for the contact sheet.

@@ -55,6 +55,8 @@ pub struct RealFrame {
     pub camera: CameraFile,
     /// Its intrinsics.
     pub intrinsics: Intrinsics,
+    /// Its place in the sequence's frame list.
+    pub index: usize,
 }
 
 impl RealFrame {
@@ -99,6 +101,32 @@ pub fn find_frames(dir: &Path, limit: Option<usize>) -> anyhow::Result<Vec<RealF
     Ok(frames)
 }
 
+/// The frames of every folder of `dirs` (each as [`find_frames`] reads it), only those of
+/// split `split` when a splits file is given, at most `limit`.
+///
+/// # Errors
+///
+/// Those of [`find_frames`] and [`Splits`]; none left after the split.
+pub fn frames_of(
+    dirs: &[PathBuf],
+    splits: Option<&Path>,
+    split: &str,
+    limit: Option<usize>,
+) -> anyhow::Result<Vec<RealFrame>> {
+    let mut frames = Vec::new();
+    for dir in dirs {
+        frames.extend(find_frames(dir, None)?);
+    }
+    if let Some(path) = splits {
+        frames = Splits::read(path)?.select(frames, split)?;
+        if frames.is_empty() {
+            bail!("{}: no frame is in split {split:?}", path.display());
+        }
+    }
+    frames.truncate(limit.unwrap_or(usize::MAX));
+    Ok(frames)
+}
+
 /// The frames of one sequence folder, by the layout's three rules.
 fn sequence_frames(seq: &Path) -> anyhow::Result<Vec<RealFrame>> {
     let cam_path = seq.join("intrinsics.json");
@@ -114,7 +142,7 @@ fn sequence_frames(seq: &Path) -> anyhow::Result<Vec<RealFrame>> {
         .file_name()
         .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
     let mut frames = Vec::new();
-    for (rgb, depth) in pairs {
+    for (index, (rgb, depth)) in pairs.into_iter().enumerate() {
         let (rgb_path, depth_path) = (seq.join(&rgb), seq.join(&depth));
         for p in [&rgb_path, &depth_path] {
             if !p.is_file() {
@@ -132,6 +160,7 @@ fn sequence_frames(seq: &Path) -> anyhow::Result<Vec<RealFrame>> {
             depth_rel: depth,
             camera: camera.clone(),
             intrinsics,
+            index,
         });
     }
     Ok(frames)
@@ -257,8 +286,14 @@ pub fn frame_sensor(frame: &RealFrame, default: &SensorNoise) -> SensorNoise {
 
 mod bench;
 mod report;
+mod safety;
 mod sheet;
+mod splits;
+mod views;
 
 pub use bench::*;
 pub use report::markdown;
+pub use safety::{Safety, SafetyAcc, SafetyFigures};
 pub use sheet::{sheet_panels, write_sheet, SHEET_MAX_M};
+pub use splits::Splits;
+pub use views::{Pose, View, ViewPair};

@@ -30,7 +30,16 @@ pub fn markdown(report: &RealReport) -> String {
          (`tre annotate`). Edge recall: spec ≥ {} cm read ≥ {} cm; false hazards: spec < {} cm \
          read ≥ {} cm.\n",
         report.frames,
-        report.data.display(),
+        report
+            .data
+            .iter()
+            .map(|d| d.display().to_string())
+            .collect::<Vec<_>>()
+            .join(" and ")
+            + &report
+                .split
+                .as_ref()
+                .map_or(String::new(), |s| format!(" (split {s})")),
         100.0 * report.hazard_m,
         100.0 * report.hazard_m,
         100.0 * report.flat_m,
@@ -40,8 +49,66 @@ pub fn markdown(report: &RealReport) -> String {
     range_table(&mut out, report);
     frame_table(&mut out, report);
     traversal_table(&mut out, report);
+    safety_table(&mut out, report);
+    sequence_table(&mut out, report);
     depth_table(&mut out, report);
     out
+}
+
+/// The safety figures of every row's three-state map, pooled and by range.
+fn safety_table(out: &mut String, report: &RealReport) {
+    use std::fmt::Write;
+    out.push_str("\nSafety of the three-state map (traversable only where the interval's upper end is below 5 cm, hazard only where its lower end is above): missed hazards = spec ≥ 5 cm read traversable; floor coverage = spec < 1 cm read traversable (pooled: within 3 m; by range: the whole bin); interval coverage = share of pixels whose target (the spec on the same depth, or for `geometric` the spec of the same surface in the previous frame of a sequence with poses) lies inside the 90% interval:\n\n| row | missed hazards | floor coverage ≤ 3 m | interval coverage | missed < 2 m / 2–4 m / > 4 m | floor coverage < 2 m / 2–4 m / > 4 m | coverage < 2 m / 2–4 m / > 4 m | interval checked against |\n|---|---|---|---|---|---|---|---|\n");
+    for r in &report.pooled {
+        let Some(s) = &r.safety else { continue };
+        let by = |f: fn(&SafetyFigures) -> f64| {
+            RANGE_BINS
+                .iter()
+                .map(|(n, _, _)| s.by_range.get(*n).map_or("–".to_owned(), |x| pct(f(x))))
+                .collect::<Vec<_>>()
+                .join(" / ")
+        };
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.key,
+            pct(s.all.missed_hazards),
+            pct(s.all.floor_coverage),
+            pct(s.all.interval_coverage),
+            by(|x| x.missed_hazards),
+            by(|x| x.floor_coverage),
+            by(|x| x.interval_coverage),
+            s.coverage_target,
+        );
+    }
+}
+
+/// Each sequence folder's figures: edge recall and false hazards within 4 m, floor, and the
+/// safety figures, per row.
+fn sequence_table(out: &mut String, report: &RealReport) {
+    use std::fmt::Write;
+    if report.per_sequence.len() < 2 {
+        return;
+    }
+    out.push_str("\nBy sequence folder:\n\n| sequence | row | edge recall < 4 m | false hazards < 4 m | missed hazards | floor coverage ≤ 3 m | interval coverage | depth AbsRel | δ < 1.25 |\n|---|---|---|---|---|---|---|---|---|\n");
+    for (seq, rows) in &report.per_sequence {
+        for r in rows {
+            let near = within_4m(&r.by_range);
+            let s = r.safety.as_ref().map(|s| s.all);
+            let _ = writeln!(
+                out,
+                "| {seq} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                r.key,
+                pct(near.0),
+                pct(near.1),
+                s.map_or("–".to_owned(), |s| pct(s.missed_hazards)),
+                s.map_or("–".to_owned(), |s| pct(s.floor_coverage)),
+                s.map_or("–".to_owned(), |s| pct(s.interval_coverage)),
+                num(r.depth.map(|d| d.abs_rel), 3),
+                r.depth.map_or("–".to_owned(), |d| pct(d.delta_1_25)),
+            );
+        }
+    }
 }
 
 /// The floor box's median and p90 roughness, centimetres, as table cells.
@@ -169,4 +236,24 @@ pub(super) fn depth_table(out: &mut String, report: &RealReport) {
         }
     }
     line(out, "pooled", &pooled.1);
+}
+
+/// Edge recall and false hazards over the range bins nearer than 4 m (pixel-weighted).
+pub(super) fn within_4m(by_range: &BTreeMap<String, ScoreMetrics>) -> (f64, f64) {
+    let (mut found, mut edges, mut false_h, mut flat) = (0.0, 0.0, 0.0, 0.0);
+    for bin in ["0_2m", "2_4m"] {
+        let Some(h) = by_range.get(bin).map(|m| m.hazard) else {
+            continue;
+        };
+        if h.edges > 0 {
+            found += h.edge_recall * h.edges as f64;
+            edges += h.edges as f64;
+        }
+        if h.flat > 0 {
+            false_h += h.false_hazards * h.flat as f64;
+            flat += h.flat as f64;
+        }
+    }
+    let share = |a: f64, n: f64| if n > 0.0 { a / n } else { f64::NAN };
+    (share(found, edges), share(false_h, flat))
 }

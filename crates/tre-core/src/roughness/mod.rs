@@ -4,6 +4,7 @@
 
 pub mod annotate;
 pub mod hazard;
+pub mod interval;
 pub mod metrics;
 pub mod noise;
 pub mod traversal;

@@ -1,0 +1,63 @@
+//! Reading the calibrated roughness intervals (`uncertainty.json` beside the models'
+//! manifest; docs/uncertainty.md).
+
+use std::path::Path;
+
+use super::PipelineError;
+use tre_core::roughness::interval::{Calibration, CALIBRATION_FILE};
+
+/// The calibration in the models folder `dir`, `None` when it has no `uncertainty.json`.
+///
+/// # Errors
+///
+/// [`PipelineError::Calibration`] when the file exists but does not read or parse, or has
+/// another format than 1.
+pub fn read_calibration(dir: &Path) -> Result<Option<Calibration>, PipelineError> {
+    let path = dir.join(CALIBRATION_FILE);
+    let fail = |reason: String| PipelineError::Calibration {
+        path: path.clone(),
+        reason,
+    };
+    let text = match std::fs::read_to_string(&path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(fail(e.to_string())),
+    };
+    let cal: Calibration = serde_json::from_str(&text).map_err(|e| fail(e.to_string()))?;
+    if cal.format != 1 {
+        return Err(fail(format!("format {} (this build reads 1)", cal.format)));
+    }
+    for (mode, t) in &cal.tables {
+        let cells =
+            tre_core::roughness::interval::READING_EDGES_M.len() * t.second_axis.edges().len();
+        if [t.lo_m.len(), t.hi_m.len(), t.samples.len(), t.own.len()] != [cells; 4] {
+            return Err(fail(format!("table {mode:?} does not have {cells} bins")));
+        }
+    }
+    Ok(Some(cal))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_missing_file_is_none_and_a_bad_one_an_error() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        assert!(read_calibration(dir.path()).expect("no file").is_none());
+        std::fs::write(dir.path().join(CALIBRATION_FILE), "{\"format\": 2}").expect("write");
+        let e = read_calibration(dir.path()).expect_err("bad file");
+        assert!(e.to_string().contains("uncertainty.json"), "{e}");
+    }
+
+    #[test]
+    fn the_committed_calibration_reads() {
+        let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models");
+        let cal = read_calibration(&models)
+            .expect("reads")
+            .expect("committed");
+        for mode in ["rgb", "rgbd", "geometric"] {
+            assert!(cal.table(mode).is_some(), "{mode}");
+        }
+    }
+}

@@ -1,0 +1,346 @@
+//! `tre calibrate`: fits the calibrated roughness intervals of every mode on real frames of a
+//! split (docs/uncertainty.md) and writes them beside the models (`uncertainty.json`).
+//!
+//! Samples: every `--stride`-th pixel (in x and y) with spec roughness. `rgb`: the reading,
+//! its 7×7 maximum and the depth net's depth, against the spec on the sensor depth. `rgbd`:
+//! the same with the sensor model's uncertainty instead of depth. `geometric`: the spec's own
+//! reading and uncertainty, against the spec of the same surface in the previous frame of a
+//! sequence with poses (pixels the two frames share, docs/uncertainty.md).
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Args;
+
+use super::options::StageArgs;
+use super::real::{self, LoadedFrame, Pose, RealFrame, ViewPair};
+use crate::geometry::Grid;
+use crate::pipeline::{FrameOutput, GeometricMethod, Mode, Pipeline, PipelineConfig};
+use crate::roughness::interval::{
+    feature_map, Calibration, FirstAxis, IntervalTable, Sample, SecondAxis, CALIBRATION_FILE,
+    COVERAGE,
+};
+use crate::roughness::noise::SensorNoise;
+
+/// Fit every mode's 90% roughness intervals on real frames.
+#[derive(Debug, Args)]
+pub struct Calibrate {
+    /// Folders of real RGB-D frames (as `tre eval --real` reads them); give it once per
+    /// folder.
+    #[arg(long, required = true)]
+    pub real: Vec<PathBuf>,
+    /// The splits file (train / val / test by sequence).
+    #[arg(long, default_value = "models/real_splits.json")]
+    pub real_splits: PathBuf,
+    /// The split to fit on. Never the test split: the figures of `tre eval` are read there.
+    #[arg(long, default_value = "val")]
+    pub split: String,
+    /// Noise model of sequences whose intrinsics.json names none.
+    #[arg(long, default_value = "kinect_v1", value_parser = parse_sensor)]
+    pub sensor: SensorNoise,
+    /// Take every N-th pixel in x and in y as a sample.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u16).range(1..=64))]
+    pub stride: u16,
+    /// Output file (default: uncertainty.json in the models folder).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Pipeline switches and models.
+    #[command(flatten)]
+    pub stages: StageArgs,
+}
+
+/// `--sensor`: a preset name or `a,b,c`.
+fn parse_sensor(s: &str) -> Result<SensorNoise, String> {
+    s.parse()
+}
+
+/// Samples of the three modes, each with its block (see [`block_of`]).
+#[derive(Default)]
+struct Samples {
+    rgb: Vec<(usize, Sample)>,
+    rgbd: Vec<(usize, Sample)>,
+    geometric: Vec<(usize, Sample)>,
+}
+
+/// Frames per block of a long sequence.
+const BLOCK_FRAMES: usize = 10;
+/// Percentile levels tried, narrowest first.
+const LEVELS: [f64; 7] = [0.90, 0.92, 0.94, 0.96, 0.97, 0.98, 0.99];
+/// Fewest samples a block needs to be held out.
+const MIN_BLOCK_SAMPLES: usize = 2_000;
+
+/// The block of a frame: its sequence, and within a long sequence every [`BLOCK_FRAMES`]
+/// frames of the list.
+fn block_of(blocks: &mut Vec<(String, usize)>, frame: &RealFrame) -> usize {
+    let key = (frame.sequence.clone(), frame.index / BLOCK_FRAMES);
+    match blocks.iter().position(|b| *b == key) {
+        Some(i) => i,
+        None => {
+            blocks.push(key);
+            blocks.len() - 1
+        }
+    }
+}
+
+/// The narrowest level of [`LEVELS`] whose table, fitted without one block, covers 90% of
+/// that block's samples on average over the blocks (each block counts once); with its
+/// held-out coverage. `None`: fewer than two blocks to hold out.
+fn held_out_level(
+    axes: (FirstAxis, SecondAxis),
+    samples: &[(usize, Sample)],
+) -> Option<(f64, f64)> {
+    let mut blocks: Vec<usize> = samples.iter().map(|&(b, _)| b).collect();
+    blocks.sort_unstable();
+    blocks.dedup();
+    let held: Vec<(Vec<Sample>, Vec<Sample>)> = blocks
+        .iter()
+        .map(|&b| {
+            let (inn, out): (Vec<&(usize, Sample)>, Vec<&(usize, Sample)>) =
+                samples.iter().partition(|(x, _)| *x == b);
+            let strip = |v: Vec<&(usize, Sample)>| v.into_iter().map(|x| x.1).collect::<Vec<_>>();
+            (strip(inn), strip(out))
+        })
+        .filter(|(inn, _): &(Vec<Sample>, Vec<Sample>)| inn.len() >= MIN_BLOCK_SAMPLES)
+        .collect();
+    if held.len() < 2 {
+        return None;
+    }
+    let mut last = None;
+    for level in LEVELS {
+        let covs: Vec<f64> = held
+            .iter()
+            .filter_map(|(inn, out)| {
+                Some(IntervalTable::fit_level(axes, out, level)?.coverage_of(inn))
+            })
+            .collect();
+        let mean = covs.iter().sum::<f64>() / covs.len().max(1) as f64;
+        last = Some((level, mean));
+        if mean >= COVERAGE {
+            break;
+        }
+    }
+    last
+}
+
+/// The previous frame of a sequence with poses.
+struct Previous {
+    frame: RealFrame,
+    pose: Pose,
+    depth_m: Grid<f64>,
+    spec_m: Grid<f64>,
+}
+
+impl Calibrate {
+    /// Runs the command.
+    pub fn run(self) -> anyhow::Result<()> {
+        if self.split == "test" {
+            anyhow::bail!(
+                "--split test: the intervals are judged on the test frames; fit them on val"
+            );
+        }
+        let frames = real::frames_of(&self.real, Some(&self.real_splits), &self.split, None)?;
+        let base = self.stages.config(Mode::Rgb);
+        let cfgs: Vec<PipelineConfig> = [Mode::Rgb, Mode::Rgbd, Mode::Geometric]
+            .into_iter()
+            .map(|mode| PipelineConfig {
+                mode,
+                geometric: GeometricMethod::Spec,
+                ..base
+            })
+            .collect();
+        let mut pipeline = self.stages.pipeline(&cfgs)?;
+        let models = models_key(&pipeline);
+        let mut samples = Samples::default();
+        let mut previous: Option<Previous> = None;
+        let mut blocks = Vec::new();
+        for (i, frame) in frames.iter().enumerate() {
+            let block = block_of(&mut blocks, frame);
+            let loaded = real::load_frame(frame).with_context(|| frame.name())?;
+            let sensor = real::frame_sensor(frame, &self.sensor);
+            let pose = Pose::of(frame)?;
+            let shared = shared_view(previous.as_ref(), frame, pose, &loaded);
+            for cfg in &cfgs {
+                let out = pipeline.run(&loaded.input, cfg)?;
+                let target = match (cfg.mode, &shared) {
+                    (Mode::Geometric, None) => None,
+                    (Mode::Geometric, Some((pair, prev))) => Some(shared_targets(pair, prev)),
+                    _ => Some(loaded.spec.roughness_m.clone()),
+                };
+                if let Some(target) = target {
+                    let s = self.samples(&out, &loaded, cfg.mode, &sensor, &target)?;
+                    let s = s.into_iter().map(|x| (block, x));
+                    match cfg.mode {
+                        Mode::Rgb => samples.rgb.extend(s),
+                        Mode::Rgbd => samples.rgbd.extend(s),
+                        Mode::Geometric => samples.geometric.extend(s),
+                    }
+                }
+                pipeline.recycle(out);
+            }
+            tracing::info!("{}/{} frames: {}", i + 1, frames.len(), frame.name());
+            previous = match (pose, loaded.input.depth_m) {
+                (Some(pose), Some(depth_m)) => Some(Previous {
+                    frame: frame.clone(),
+                    pose,
+                    depth_m,
+                    spec_m: loaded.spec.roughness_m,
+                }),
+                _ => None,
+            };
+        }
+        let mut tables = std::collections::BTreeMap::new();
+        for (mode, name, axis, s) in [
+            (Mode::Rgb, "rgb", SecondAxis::Depth, &samples.rgb),
+            (Mode::Rgbd, "rgbd", SecondAxis::Uncertainty, &samples.rgbd),
+            (
+                Mode::Geometric,
+                "geometric",
+                SecondAxis::Uncertainty,
+                &samples.geometric,
+            ),
+        ] {
+            let axes = (first_axis(mode), axis);
+            let (level, held) = held_out_level(axes, s).unwrap_or((COVERAGE, f64::NAN));
+            let all: Vec<Sample> = s.iter().map(|x| x.1).collect();
+            match IntervalTable::fit_level(axes, &all, level) {
+                Some(t) => {
+                    let own = t.own.iter().filter(|&&o| o).count();
+                    println!(
+                        "{name}: {} samples, {own} bins of their own; percentiles of {:.0}%, \
+                         held-out coverage {:.1}%",
+                        s.len(),
+                        100.0 * level,
+                        100.0 * held
+                    );
+                    tables.insert(name.to_owned(), t);
+                }
+                None => println!("{name}: {} samples, too few for a table", s.len()),
+            }
+        }
+        let cal = Calibration {
+            format: 1,
+            note: format!(
+                "tre calibrate, split {:?} of {}, every {}th pixel: rgb and rgbd against the spec \
+                 on the same sensor depth; geometric against the spec of the same surface in the \
+                 previous frame of a sequence with poses",
+                self.split,
+                self.real_splits.display(),
+                self.stride
+            ),
+            frames: frames.iter().map(RealFrame::name).collect(),
+            models,
+            tables,
+        };
+        let out = match &self.out {
+            Some(p) => p.clone(),
+            None => {
+                super::options::find_models(self.stages.models.as_deref())?.join(CALIBRATION_FILE)
+            }
+        };
+        super::write_file(&out, &serde_json::to_string_pretty(&cal)?)?;
+        println!("wrote {}", out.display());
+        Ok(())
+    }
+
+    /// The samples of one mode's output on a frame against `target` (NaN: none).
+    fn samples(
+        &self,
+        out: &FrameOutput,
+        loaded: &LoadedFrame,
+        mode: Mode,
+        sensor: &SensorNoise,
+        target: &Grid<f64>,
+    ) -> anyhow::Result<Vec<Sample>> {
+        let r = &out.roughness_m;
+        let second = match mode {
+            Mode::Rgb => out.depth_m().context("the rgb mode has depth")?,
+            _ => {
+                out.sensor_maps(&loaded.input, mode, Some(sensor), None, None)?
+                    .uncertainty_m
+            }
+        };
+        let depth = match mode {
+            Mode::Rgb => out.depth_m().context("the rgb mode has depth")?,
+            _ => loaded
+                .input
+                .depth_m
+                .clone()
+                .context("a real frame has depth")?,
+        };
+        let feature = feature_map(first_axis(mode), r, &depth);
+        let (w, h) = r.size();
+        let step = usize::from(self.stride);
+        let mut v = Vec::new();
+        for y in (0..h).step_by(step) {
+            for x in (0..w).step_by(step) {
+                let (reading_m, target_m) = (r[(x, y)], target[(x, y)]);
+                if reading_m.is_finite() && target_m.is_finite() {
+                    v.push(Sample {
+                        feature_m: feature[(x, y)],
+                        second: second[(x, y)],
+                        reading_m,
+                        target_m,
+                    });
+                }
+            }
+        }
+        Ok(v)
+    }
+}
+
+/// The first feature of each mode's table: the learned modes add their depth's steps (the
+/// spec marks every step, a net may read one flat); `geometric` is the spec, its reading is
+/// enough.
+fn first_axis(mode: Mode) -> FirstAxis {
+    match mode {
+        Mode::Geometric => FirstAxis::Reading,
+        Mode::Rgb | Mode::Rgbd => FirstAxis::ReadingOrStep,
+    }
+}
+
+/// The pixels `frame` shares with the previous frame (the one before it in its sequence's
+/// list, both with poses).
+fn shared_view<'a>(
+    prev: Option<&'a Previous>,
+    frame: &RealFrame,
+    pose: Option<Pose>,
+    loaded: &LoadedFrame,
+) -> Option<(ViewPair, &'a Previous)> {
+    let (prev, pose, depth_m) = (prev?, pose?, loaded.input.depth_m.as_ref()?);
+    if prev.frame.sequence != frame.sequence || prev.frame.index + 1 != frame.index {
+        return None;
+    }
+    let b = real::View {
+        depth_m,
+        k: frame.intrinsics,
+        pose,
+    };
+    let a = real::View {
+        depth_m: &prev.depth_m,
+        k: prev.frame.intrinsics,
+        pose: prev.pose,
+    };
+    Some((ViewPair::new(&b, &a), prev))
+}
+
+/// The previous frame's spec at the pixels of this frame it shares (NaN elsewhere).
+fn shared_targets(pair: &ViewPair, prev: &Previous) -> Grid<f64> {
+    let (w, h) = prev.spec_m.size();
+    let mut t = Grid::new(w, h, f64::NAN);
+    for &(i, j) in &pair.shared {
+        t.as_mut_slice()[i] = prev.spec_m.as_slice()[j];
+    }
+    t
+}
+
+/// The loaded models' files by hash, so that tables fitted on other models are told apart.
+pub fn models_key(pipeline: &Pipeline) -> String {
+    pipeline.models().map_or_else(String::new, |m| {
+        m.manifest()
+            .models
+            .iter()
+            .map(|(name, e)| format!("{name}:{}", &e.sha256[..12.min(e.sha256.len())]))
+            .collect::<Vec<_>>()
+            .join(",")
+    })
+}

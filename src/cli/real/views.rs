@@ -1,0 +1,166 @@
+//! Two views of one surface: camera poses of a real sequence (`poses/NAME.txt` in the
+//! sequence folder, a 4×4 camera-to-world matrix in metres, camera x right, y down, z forward,
+//! as 7-Scenes writes them) and the pixels two frames share. The spec's value at a point seen
+//! from two poses differs by what noise and view do to it: the measured spread that calibrates
+//! the `geometric` mode's interval (docs/uncertainty.md).
+
+use super::*;
+
+/// A camera-to-world pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose([[f64; 4]; 4]);
+
+/// Depth agreement of a shared pixel: the point must land within this plus
+/// [`AGREE_PER_M`] × depth of the other frame's depth (else it is occluded or off the surface).
+const AGREE_M: f64 = 0.02;
+/// Depth agreement, per metre of depth.
+const AGREE_PER_M: f64 = 0.02;
+
+impl Pose {
+    /// The pose of `frame`, when its sequence has `poses/NAME.txt` (NAME: the depth file's
+    /// stem).
+    ///
+    /// # Errors
+    ///
+    /// When the file exists but does not hold 16 numbers.
+    pub fn of(frame: &RealFrame) -> anyhow::Result<Option<Self>> {
+        let depth_rel = Path::new(&frame.depth_rel);
+        let Some(seq) = frame.depth.ancestors().nth(depth_rel.components().count()) else {
+            return Ok(None);
+        };
+        let stem = depth_rel
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned());
+        let path = seq
+            .join("poses")
+            .join(format!("{}.txt", stem.unwrap_or_default()));
+        if !path.is_file() {
+            return Ok(None);
+        }
+        let text = std::fs::read_to_string(&path)?;
+        let v: Vec<f64> = text
+            .split_whitespace()
+            .map(str::parse)
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("{}: not numbers", path.display()))?;
+        if v.len() != 16 || v.iter().any(|x| !x.is_finite()) {
+            bail!("{}: a pose is 16 finite numbers", path.display());
+        }
+        let mut m = [[0.0; 4]; 4];
+        for (i, x) in v.into_iter().enumerate() {
+            m[i / 4][i % 4] = x;
+        }
+        Ok(Some(Self(m)))
+    }
+
+    /// Camera point to world.
+    fn to_world(&self, p: [f64; 3]) -> [f64; 3] {
+        let m = &self.0;
+        std::array::from_fn(|r| m[r][0] * p[0] + m[r][1] * p[1] + m[r][2] * p[2] + m[r][3])
+    }
+
+    /// World point to camera (the rotation is orthonormal).
+    fn to_camera(&self, w: [f64; 3]) -> [f64; 3] {
+        let m = &self.0;
+        let d = [w[0] - m[0][3], w[1] - m[1][3], w[2] - m[2][3]];
+        std::array::from_fn(|c| m[0][c] * d[0] + m[1][c] * d[1] + m[2][c] * d[2])
+    }
+}
+
+/// One frame of a pair: depth (metres, 0: none), intrinsics, pose.
+pub struct View<'a> {
+    /// Sensor depth.
+    pub depth_m: &'a Grid<f64>,
+    /// Intrinsics of the depth map.
+    pub k: Intrinsics,
+    /// Camera to world.
+    pub pose: Pose,
+}
+
+/// The pixels two views share.
+pub struct ViewPair {
+    /// `(pixel of B, pixel of A)` as flat indices, for every pixel of B with depth whose point
+    /// lands on a pixel of A with agreeing depth.
+    pub shared: Vec<(usize, usize)>,
+}
+
+impl ViewPair {
+    /// The pixels of `b` seen in `a`.
+    pub fn new(b: &View<'_>, a: &View<'_>) -> Self {
+        let (wb, _) = b.depth_m.size();
+        let (wa, ha) = a.depth_m.size();
+        let mut shared = Vec::new();
+        for (i, &z) in b.depth_m.as_slice().iter().enumerate() {
+            if !(z.is_finite() && z > 0.0) {
+                continue;
+            }
+            let (x, y) = ((i % wb) as f64, (i / wb) as f64);
+            let p = [
+                (x - b.k.cx_px) / b.k.fx_px * z,
+                (y - b.k.cy_px) / b.k.fy_px * z,
+                z,
+            ];
+            let q = a.pose.to_camera(b.pose.to_world(p));
+            if q[2] <= 0.0 {
+                continue;
+            }
+            let u = (a.k.fx_px * q[0] / q[2] + a.k.cx_px).round();
+            let v = (a.k.fy_px * q[1] / q[2] + a.k.cy_px).round();
+            if !(u >= 0.0 && v >= 0.0 && u < wa as f64 && v < ha as f64) {
+                continue;
+            }
+            let j = v as usize * wa + u as usize;
+            let za = a.depth_m.as_slice()[j];
+            if za > 0.0 && (za - q[2]).abs() < AGREE_M + AGREE_PER_M * q[2] {
+                shared.push((i, j));
+            }
+        }
+        Self { shared }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_shifted_camera_sees_a_wall_where_it_should() {
+        let k = Intrinsics {
+            fx_px: 100.0,
+            fy_px: 100.0,
+            cx_px: 50.0,
+            cy_px: 50.0,
+        };
+        let wall = Grid::new(100, 100, 2.0);
+        let id = Pose([
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ]);
+        // B stands 0.2 m to the right of A: its pixel x sees A's pixel x + 10 at 2 m.
+        let mut right = id;
+        right.0[0][3] = 0.2;
+        let a = View {
+            depth_m: &wall,
+            k,
+            pose: id,
+        };
+        let b = View {
+            depth_m: &wall,
+            k,
+            pose: right,
+        };
+        let pair = ViewPair::new(&b, &a);
+        assert_eq!(pair.shared.len(), 90 * 100);
+        assert!(pair.shared.iter().all(|&(i, j)| j == i + 10));
+        // A wall 0.5 m nearer in A hides B's points: nothing agrees.
+        let near = Grid::new(100, 100, 1.5);
+        let a = View {
+            depth_m: &near,
+            k,
+            pose: id,
+        };
+        assert!(ViewPair::new(&b, &a).shared.is_empty());
+    }
+}
