@@ -54,12 +54,15 @@ fn parse_sensor(s: &str) -> Result<SensorNoise, String> {
     s.parse()
 }
 
-/// Samples of the three modes, each with its block (see [`block_of`]).
+/// A sample with its block (see [`block_of`]).
+type Tagged = (usize, Sample);
+
+/// Samples of the three modes.
 #[derive(Default)]
 struct Samples {
-    rgb: Vec<(usize, Sample)>,
-    rgbd: Vec<(usize, Sample)>,
-    geometric: Vec<(usize, Sample)>,
+    rgb: Vec<Tagged>,
+    rgbd: Vec<Tagged>,
+    geometric: Vec<Tagged>,
 }
 
 /// Frames per block of a long sequence.
@@ -85,19 +88,16 @@ fn block_of(blocks: &mut Vec<(String, usize)>, frame: &RealFrame) -> usize {
 /// The narrowest level of [`LEVELS`] whose table, fitted without one block, covers 90% of
 /// that block's samples on average over the blocks (each block counts once); with its
 /// held-out coverage. `None`: fewer than two blocks to hold out.
-fn held_out_level(
-    axes: (FirstAxis, SecondAxis),
-    samples: &[(usize, Sample)],
-) -> Option<(f64, f64)> {
+fn held_out_level(axes: (FirstAxis, SecondAxis), samples: &[Tagged]) -> Option<(f64, f64)> {
     let mut blocks: Vec<usize> = samples.iter().map(|&(b, _)| b).collect();
     blocks.sort_unstable();
     blocks.dedup();
     let held: Vec<(Vec<Sample>, Vec<Sample>)> = blocks
         .iter()
         .map(|&b| {
-            let (inn, out): (Vec<&(usize, Sample)>, Vec<&(usize, Sample)>) =
+            let (inn, out): (Vec<&Tagged>, Vec<&Tagged>) =
                 samples.iter().partition(|(x, _)| *x == b);
-            let strip = |v: Vec<&(usize, Sample)>| v.into_iter().map(|x| x.1).collect::<Vec<_>>();
+            let strip = |v: Vec<&Tagged>| v.into_iter().map(|x| x.1).collect::<Vec<_>>();
             (strip(inn), strip(out))
         })
         .filter(|(inn, _): &(Vec<Sample>, Vec<Sample>)| inn.len() >= MIN_BLOCK_SAMPLES)
@@ -150,6 +150,39 @@ impl Calibrate {
             .collect();
         let mut pipeline = self.stages.pipeline(&cfgs)?;
         let models = models_key(&pipeline);
+        let samples = self.collect(&frames, &mut pipeline, &cfgs)?;
+        let cal = Calibration {
+            format: 1,
+            note: format!(
+                "tre calibrate, split {:?} of {}, every {}th pixel: rgb and rgbd against the spec \
+                 on the same sensor depth; geometric against the spec of the same surface in the \
+                 previous frame of a sequence with poses",
+                self.split,
+                self.real_splits.display(),
+                self.stride
+            ),
+            frames: frames.iter().map(RealFrame::name).collect(),
+            models,
+            tables: fit_tables(&samples),
+        };
+        let out = match &self.out {
+            Some(p) => p.clone(),
+            None => {
+                super::options::find_models(self.stages.models.as_deref())?.join(CALIBRATION_FILE)
+            }
+        };
+        super::write_file(&out, &serde_json::to_string_pretty(&cal)?)?;
+        println!("wrote {}", out.display());
+        Ok(())
+    }
+
+    /// Every mode's samples on `frames`.
+    fn collect(
+        &self,
+        frames: &[RealFrame],
+        pipeline: &mut Pipeline,
+        cfgs: &[PipelineConfig],
+    ) -> anyhow::Result<Samples> {
         let mut samples = Samples::default();
         let mut previous: Option<Previous> = None;
         let mut blocks = Vec::new();
@@ -159,7 +192,7 @@ impl Calibrate {
             let sensor = real::frame_sensor(frame, &self.sensor);
             let pose = Pose::of(frame)?;
             let shared = shared_view(previous.as_ref(), frame, pose, &loaded);
-            for cfg in &cfgs {
+            for cfg in cfgs {
                 let out = pipeline.run(&loaded.input, cfg)?;
                 let target = match (cfg.mode, &shared) {
                     (Mode::Geometric, None) => None,
@@ -188,58 +221,7 @@ impl Calibrate {
                 _ => None,
             };
         }
-        let mut tables = std::collections::BTreeMap::new();
-        for (mode, name, axis, s) in [
-            (Mode::Rgb, "rgb", SecondAxis::Depth, &samples.rgb),
-            (Mode::Rgbd, "rgbd", SecondAxis::Uncertainty, &samples.rgbd),
-            (
-                Mode::Geometric,
-                "geometric",
-                SecondAxis::Uncertainty,
-                &samples.geometric,
-            ),
-        ] {
-            let axes = (first_axis(mode), axis);
-            let (level, held) = held_out_level(axes, s).unwrap_or((COVERAGE, f64::NAN));
-            let all: Vec<Sample> = s.iter().map(|x| x.1).collect();
-            match IntervalTable::fit_level(axes, &all, level) {
-                Some(t) => {
-                    let own = t.own.iter().filter(|&&o| o).count();
-                    println!(
-                        "{name}: {} samples, {own} bins of their own; percentiles of {:.0}%, \
-                         held-out coverage {:.1}%",
-                        s.len(),
-                        100.0 * level,
-                        100.0 * held
-                    );
-                    tables.insert(name.to_owned(), t);
-                }
-                None => println!("{name}: {} samples, too few for a table", s.len()),
-            }
-        }
-        let cal = Calibration {
-            format: 1,
-            note: format!(
-                "tre calibrate, split {:?} of {}, every {}th pixel: rgb and rgbd against the spec \
-                 on the same sensor depth; geometric against the spec of the same surface in the \
-                 previous frame of a sequence with poses",
-                self.split,
-                self.real_splits.display(),
-                self.stride
-            ),
-            frames: frames.iter().map(RealFrame::name).collect(),
-            models,
-            tables,
-        };
-        let out = match &self.out {
-            Some(p) => p.clone(),
-            None => {
-                super::options::find_models(self.stages.models.as_deref())?.join(CALIBRATION_FILE)
-            }
-        };
-        super::write_file(&out, &serde_json::to_string_pretty(&cal)?)?;
-        println!("wrote {}", out.display());
-        Ok(())
+        Ok(samples)
     }
 
     /// The samples of one mode's output on a frame against `target` (NaN: none).
@@ -286,6 +268,34 @@ impl Calibrate {
         }
         Ok(v)
     }
+}
+
+/// Each mode's table at its held-out level (see [`held_out_level`]), printing what it took.
+fn fit_tables(samples: &Samples) -> std::collections::BTreeMap<String, IntervalTable> {
+    let mut tables = std::collections::BTreeMap::new();
+    for (mode, axis, s) in [
+        (Mode::Rgb, SecondAxis::Depth, &samples.rgb),
+        (Mode::Rgbd, SecondAxis::Uncertainty, &samples.rgbd),
+        (Mode::Geometric, SecondAxis::Uncertainty, &samples.geometric),
+    ] {
+        let axes = (first_axis(mode), axis);
+        let (level, held) = held_out_level(axes, s).unwrap_or((COVERAGE, f64::NAN));
+        let all: Vec<Sample> = s.iter().map(|x| x.1).collect();
+        let Some(t) = IntervalTable::fit_level(axes, &all, level) else {
+            println!("{mode}: {} samples, too few for a table", s.len());
+            continue;
+        };
+        let own = t.own.iter().filter(|&&o| o).count();
+        println!(
+            "{mode}: {} samples, {own} bins of their own; percentiles of {:.0}%, held-out \
+             coverage {:.1}%",
+            s.len(),
+            100.0 * level,
+            100.0 * held
+        );
+        tables.insert(mode.to_string(), t);
+    }
+    tables
 }
 
 /// The first feature of each mode's table: the learned modes add their depth's steps (the

@@ -109,7 +109,7 @@ impl Pipeline {
 
     /// The calibration table of `mode`, if the pipeline has one.
     pub fn interval_table(&self, mode: Mode) -> Option<&IntervalTable> {
-        self.calibration.as_ref()?.table(&mode.to_string())
+        self.calibration.as_ref()?.table(mode.as_ref())
     }
 
     /// The loaded models, if any.

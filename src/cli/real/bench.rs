@@ -329,21 +329,18 @@ pub fn run_benchmark(
     sensor: &SensorNoise,
     mut on_frame: impl FnMut(&RealFrame, &LoadedFrame, &[RowMaps]) -> anyhow::Result<()>,
 ) -> anyhow::Result<RealReport> {
-    let mut pooled: Vec<RowAcc> = rows.iter().map(|_| RowAcc::default()).collect();
+    let mut pooled = fresh(rows);
     let mut per_sequence: BTreeMap<String, (usize, Vec<RowAcc>)> = BTreeMap::new();
     let mut spec_acc = SpecAcc::default();
     let mut per_frame = Vec::new();
-    let any_floor = frames
-        .iter()
-        .any(|f| floors.contains_key(&(f.sequence.clone(), f.depth_rel.clone())));
+    let key = |f: &RealFrame| (f.sequence.clone(), f.depth_rel.clone());
+    let any_floor = frames.iter().any(|f| floors.contains_key(&key(f)));
     let mut prev: Option<PrevView> = None;
     for (i, frame) in frames.iter().enumerate() {
         let loaded = load_frame(frame).with_context(|| frame.name())?;
         let pose = Pose::of(frame)?;
         let other = other_view(prev.as_ref(), frame, pose, &loaded);
-        let floor_box = floors
-            .get(&(frame.sequence.clone(), frame.depth_rel.clone()))
-            .copied();
+        let floor_box = floors.get(&key(frame)).copied();
         let spec = spec_summary(&loaded, floor_box);
         spec_acc.add(&spec, &loaded, floor_box);
         let scored = FrameScoring {
@@ -355,7 +352,7 @@ pub fn run_benchmark(
         };
         let seq = per_sequence
             .entry(frame.sequence.clone())
-            .or_insert_with(|| (0, rows.iter().map(|_| RowAcc::default()).collect()));
+            .or_insert_with(|| (0, fresh(rows)));
         seq.0 += 1;
         let (reports, maps) = scored.score(pipeline, rows, [&mut pooled, &mut seq.1])?;
         on_frame(frame, &loaded, &maps)?;
@@ -369,18 +366,7 @@ pub fn run_benchmark(
             rows: reports,
         });
         tracing::info!("{}/{} frames: {}", i + 1, frames.len(), frame.name());
-        prev = pose.map(|pose| PrevView {
-            sequence: frame.sequence.clone(),
-            index: frame.index,
-            depth_m: loaded
-                .input
-                .depth_m
-                .clone()
-                .unwrap_or_else(|| Grid::new(0, 0, 0.0)),
-            k: frame.intrinsics,
-            pose,
-            spec_m: loaded.spec.roughness_m.clone(),
-        });
+        prev = pose.map(|pose| PrevView::new(frame, pose, loaded));
     }
     let n = frames.len();
     Ok(RealReport {
@@ -399,14 +385,7 @@ pub fn run_benchmark(
             .zip(&pooled)
             .map(|((key, _), acc)| acc.finish(key, n, any_floor))
             .collect(),
-        per_sequence: per_sequence
-            .into_iter()
-            .map(|(name, (frames, accs))| {
-                let rows = rows.iter().zip(&accs);
-                let rows = rows.map(|((key, _), acc)| acc.finish(key, frames, any_floor));
-                (name, rows.collect())
-            })
-            .collect(),
+        per_sequence: finish_sequences(per_sequence, rows, any_floor),
         per_frame,
     })
 }
@@ -457,6 +436,41 @@ struct PrevView {
     k: Intrinsics,
     pose: Pose,
     spec_m: Grid<f64>,
+}
+
+impl PrevView {
+    /// A frame, kept as the next one's other view.
+    fn new(frame: &RealFrame, pose: Pose, loaded: LoadedFrame) -> Self {
+        Self {
+            sequence: frame.sequence.clone(),
+            index: frame.index,
+            depth_m: loaded.input.depth_m.unwrap_or_else(|| Grid::new(0, 0, 0.0)),
+            k: frame.intrinsics,
+            pose,
+            spec_m: loaded.spec.roughness_m,
+        }
+    }
+}
+
+/// One empty accumulator per row.
+fn fresh(rows: &[(String, PipelineConfig)]) -> Vec<RowAcc> {
+    rows.iter().map(|_| RowAcc::default()).collect()
+}
+
+/// Each sequence's rows, from its frame count and accumulators.
+fn finish_sequences(
+    per_sequence: BTreeMap<String, (usize, Vec<RowAcc>)>,
+    rows: &[(String, PipelineConfig)],
+    any_floor: bool,
+) -> BTreeMap<String, Vec<RealRow>> {
+    per_sequence
+        .into_iter()
+        .map(|(name, (frames, accs))| {
+            let rows = rows.iter().zip(&accs);
+            let rows = rows.map(|((key, _), acc)| acc.finish(key, frames, any_floor));
+            (name, rows.collect())
+        })
+        .collect()
 }
 
 /// The pixels `frame` shares with the previous frame of its sequence (the one before it in

@@ -54,13 +54,13 @@ impl Pose {
     }
 
     /// Camera point to world.
-    fn to_world(&self, p: [f64; 3]) -> [f64; 3] {
+    fn to_world(self, p: [f64; 3]) -> [f64; 3] {
         let m = &self.0;
         std::array::from_fn(|r| m[r][0] * p[0] + m[r][1] * p[1] + m[r][2] * p[2] + m[r][3])
     }
 
     /// World point to camera (the rotation is orthonormal).
-    fn to_camera(&self, w: [f64; 3]) -> [f64; 3] {
+    fn to_camera(self, w: [f64; 3]) -> [f64; 3] {
         let m = &self.0;
         let d = [w[0] - m[0][3], w[1] - m[1][3], w[2] - m[2][3]];
         std::array::from_fn(|c| m[0][c] * d[0] + m[1][c] * d[1] + m[2][c] * d[2])

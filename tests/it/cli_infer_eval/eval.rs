@@ -180,9 +180,22 @@ fn assert_modes_compare(rows: &[serde_json::Value]) {
     assert_eq!(rows[2]["all"]["roughness"]["rmse_cm"], 0.0);
     // The surface-only baseline misses the drops.
     assert!(rows[3]["all"]["edge_recall"].as_f64().unwrap() < 0.2);
-    // The three-state map under the Kinect model: for the modes that read sensor depth only;
-    // the spec's near floor traversable, its drops hazards.
-    assert!(rows[0]["traversal"].is_null());
+    // The three-state map of every row: the learned modes and the spec through the committed
+    // calibrated intervals, the surface-only baseline under the Kinect model alone; the
+    // spec's near floor traversable, its drops hazards.
+    for r in rows {
+        let safety = &r["safety"];
+        assert!(unit(&safety["all"]["missed_hazards"]).is_some(), "{safety}");
+        assert!(unit(&safety["all"]["floor_coverage"]).is_some(), "{safety}");
+    }
+    let target = |i: usize| rows[i]["safety"]["coverage_target"].as_str().unwrap();
+    assert_eq!(
+        [target(0), target(1), target(3)],
+        ["same depth", "same depth", "none"]
+    );
+    assert!(unit(&rows[0]["safety"]["all"]["interval_coverage"]).is_some());
+    // The spec never reads one of its own hazards traversable.
+    assert_eq!(rows[2]["safety"]["all"]["missed_hazards"], 0.0);
     let states = &rows[2]["traversal"];
     assert!(
         states["near_floor"]["traversable"].as_f64().unwrap() > 0.9,
@@ -202,4 +215,99 @@ fn assert_modes_compare(rows: &[serde_json::Value]) {
     assert!(depth["abs_rel"].as_f64().unwrap() > 0.0);
     assert!(unit(&depth["delta_1_25"]).is_some());
     assert!(rows[1]["depth"].is_null());
+}
+
+#[test]
+fn eval_real_pools_folders_and_scores_only_the_split_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("split.json");
+    let kitchen = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/real-rgbd-2/sevenscenes_redkitchen");
+    let o = tre(&[
+        "eval",
+        "--real",
+        s(&real("slambook2_ch7")),
+        "--real",
+        s(&kitchen),
+        "--real-splits",
+        "models/real_splits.json",
+        "--split",
+        "test",
+        "--modes",
+        "geometric",
+        "--limit",
+        "4",
+        "--json",
+        s(&json),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let names: Vec<&str> = report["per_frame"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["name"].as_str().unwrap())
+        .collect();
+    // The two TUM frames, then the kitchen's first test frames (list 160 on: frame-000800).
+    assert_eq!(
+        names,
+        [
+            "slambook2_ch7/1_depth.png",
+            "slambook2_ch7/2_depth.png",
+            "sevenscenes_redkitchen/depth/frame-000800.png",
+            "sevenscenes_redkitchen/depth/frame-000805.png"
+        ]
+    );
+    assert_eq!(report["split"], "test");
+    // The kitchen has poses: its second test frame checks the spec's interval against the
+    // first one's view of the same surfaces.
+    let spec = &report["per_sequence"]["sevenscenes_redkitchen"][0]["safety"];
+    assert_eq!(spec["coverage_target"], "another view", "{spec}");
+    let cov = unit(&spec["all"]["interval_coverage"]).unwrap();
+    assert!(cov > 0.7, "{spec}");
+    assert!(
+        spec["all"]["interval_px"].as_u64().unwrap() > 50_000,
+        "{spec}"
+    );
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("By sequence folder"), "{stdout}");
+}
+
+#[test]
+fn unsplit_sequences_and_calibrating_on_the_test_split_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let kitchen = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/real-rgbd-2/sevenscenes_redkitchen");
+    // A sequence the splits file does not name is refused, not scored silently.
+    let other = dir.path().join("elsewhere");
+    std::fs::create_dir(&other).unwrap();
+    for f in std::fs::read_dir(real("slambook2_ch7")).unwrap() {
+        let f = f.unwrap();
+        std::fs::copy(f.path(), other.join(f.file_name())).unwrap();
+    }
+    fails_saying(
+        &[
+            "eval",
+            "--real",
+            s(&other),
+            "--real-splits",
+            "models/real_splits.json",
+            "--modes",
+            "geometric",
+        ],
+        "\"elsewhere\" has no split",
+    );
+    fails_saying(
+        &[
+            "calibrate",
+            "--real",
+            s(&kitchen),
+            "--split",
+            "test",
+            "--out",
+            s(&dir.path().join("u.json")),
+        ],
+        "fit them on val",
+    );
 }

@@ -13,6 +13,7 @@ use tre::roughness::noise::{pixel_noise_map, SensorNoise, SensorPreset};
 use tre::roughness::traversal::{shares, ThreeStateRule, Traversal};
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 
+mod calibrated;
 mod maps;
 mod noise_floor;
 mod real_frames;
