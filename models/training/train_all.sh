@@ -42,3 +42,18 @@ t cache-n --depth pred
 t centroid --depth sensor --mix-pred --init checkpoints/centroid_sensor.pt --minutes "$(m 6)"
 python -m tre_training.export --data "$D"
 python -m tre_training.eval_real
+# Real frames (docs/real-training.md; REAL=1): the train split of models/real_splits.json, every
+# other batch synthetic, the checkpoint chosen on the val split. Needs ../shared/data/real-rgbd*.
+if [ "${REAL:-0}" = 1 ]; then
+  python -m tre_training.from_onnx
+  python -m tre_training.real train --annotate ../../target/release/tre
+  python -m tre_training.real val --annotate ../../target/release/tre
+  python -m tre_training.train_real depth --data "$D" --minutes "$(m 20)" --lr 2e-4 --val-every 120
+  python -m tre_training.train_real cache-n0 --data "$D"
+  python -m tre_training.train_real cache-n --data "$D"
+  t cache-n0 --depth sensor --frames 60
+  t cache-n --depth sensor
+  python -m tre_training.train_real centroid --data "$D" --minutes "$(m 10)" --lr 2e-4 --val-every 120
+  python -m tre_training.export --data "$D" --nets depth_net centroid_net
+  python -m tre_training.eval_real --split test
+fi

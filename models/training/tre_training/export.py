@@ -155,13 +155,17 @@ def real_data_info(sequences: list[str]) -> dict:
     for seq in sequences:
         cam = json.loads((real.find_folder(seq) / "intrinsics.json").read_text())
         sets[seq] = {"source": cam.get("source"), "licence": cam.get("licence")}
+    named = {
+        "kitti": "KITTI (CC BY-NC-SA 3.0)",
+        "nuscenes": "nuScenes (CC BY-NC-SA 4.0 and its terms of use)",
+        "sevenscenes": "Microsoft 7-Scenes (non-commercial research use)",
+    }
+    used = [v for k, v in named.items() if any(q.startswith(k) for q in sequences)]
     return {
         "splits": "models/real_splits.json, split train (val chose the checkpoint; test unused)",
         "sets": sets,
-        "restriction": "trained on KITTI, nuScenes and Microsoft 7-Scenes frames: those sets are"
-        " licensed for non-commercial research use only (KITTI CC BY-NC-SA 3.0, nuScenes CC"
-        " BY-NC-SA 4.0 and terms of use, 7-Scenes non-commercial research use); this model"
-        " carries that restriction",
+        "restriction": f"trained on frames of {', '.join(used)}: licensed for non-commercial"
+        " research use only; this model carries that restriction",
     }
 
 

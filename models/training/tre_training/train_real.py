@@ -114,17 +114,15 @@ def real_depth_loss(pred_m: torch.Tensor, gt_m: torch.Tensor) -> torch.Tensor:
 def jitter_prior(
     b: dict, rng: np.random.Generator, p_default: float, pitch_deg: float, height: float
 ) -> None:
-    """The prior from the frame's mounting jittered: stated mountings by ±1° and ±3 %, fitted
-    ones by ±`pitch_deg` and ±`height` (relative); for frames whose set states no mounting,
-    with probability `p_default` serving's default one instead (what the net gets when a
-    request gives none)."""
+    """The prior from the frame's mounting jittered by ±`pitch_deg` and ±`height` (relative);
+    for frames whose set states no mounting, with probability `p_default` serving's default one
+    instead (what the net gets when a request gives none)."""
     n = b["mounting"].shape[0]
     m = b["mounting"].clone()
-    stated = b["stated"].numpy()
-    dp = np.where(stated, 1.0, pitch_deg) * rng.uniform(-1, 1, n)
-    dh = np.where(stated, 0.03, height) * rng.uniform(-1, 1, n)
-    m[:, 0] += torch.from_numpy(np.deg2rad(dp).astype(np.float32))
-    m[:, 1] *= torch.from_numpy((1.0 + dh).astype(np.float32))
+    m[:, 0] += torch.from_numpy(
+        np.deg2rad(rng.uniform(-pitch_deg, pitch_deg, n)).astype(np.float32)
+    )
+    m[:, 1] *= torch.from_numpy((1.0 + rng.uniform(-height, height, n)).astype(np.float32))
     use_default = torch.from_numpy(rng.random(n) < p_default) & ~b["stated"]
     m[use_default] = torch.tensor(real.DEFAULT_MOUNTING, dtype=torch.float32)
     h, w = b["rgb"].shape[2:]
@@ -274,7 +272,7 @@ def run(args: argparse.Namespace) -> dict:
             val_history.append(
                 {"step": step, "seconds": round(time.time() - start, 1), "score": score, **logs_v}
             )
-            better = score < best_score
+            better = score < best_score or (best_step < args.min_step <= step)
             print(f"{stage} val at step {step}: {logs_v}{' (best)' if better else ''}", flush=True)
             if better:
                 best_score, best_state, best_step = score, copy.deepcopy(model.state_dict()), step
@@ -282,6 +280,7 @@ def run(args: argparse.Namespace) -> dict:
         "stage": stage,
         "net": STAGE_NET[stage],
         "fine_tuned_on_real": best_step > 0,
+        "min_step": args.min_step,
         "steps": step,
         "kept_step": best_step,
         "seconds": round(time.time() - start, 1),
@@ -291,10 +290,16 @@ def run(args: argparse.Namespace) -> dict:
         "device": "cpu",
         "threads": torch.get_num_threads(),
         "batches": "alternating: synthetic (even steps), real (odd steps)",
-        "synthetic_train_frames": len(synth),
-        "real_train_frames": len(train_real.frames),
-        "real_val_frames": len(val_real.frames),
-        "real_sets": sorted({m["sequence"] for m in train_real.meta}),
+        "synthetic_train_frames": len(synth.frames),
+        "real_train_frames": int((train_real.weights > 0).sum()),
+        "real_val_frames": int((val_real.weights > 0).sum()),
+        "real_sets": sorted(
+            {
+                train_real.meta[int(i)]["sequence"]
+                for i, w in zip(train_real.frames, train_real.weights, strict=True)
+                if w > 0
+            }
+        ),
         "real_splits": "models/real_splits.json (train; val for choosing the checkpoint)",
         "real_depth_target": "sensor depth at the working size (LiDAR: nearest point per block)"
         if stage == "depth"
@@ -308,9 +313,8 @@ def run(args: argparse.Namespace) -> dict:
         "init": f"{stage}_committed.pt",
         "started_from": init.name,
         "prior_jitter": {
-            "fitted_pitch_deg": args.jitter_pitch_deg,
-            "fitted_height_share": args.jitter_height,
-            "stated": "1 deg, 3 %",
+            "pitch_deg": args.jitter_pitch_deg,
+            "height_share": args.jitter_height,
             "p_default": args.p_default,
         },
         "street_share": args.street_share,
@@ -339,16 +343,18 @@ def main(argv: list[str] | None = None) -> int:
         default=0.3,
         help="share of hand-held real crops given serving's default prior (60°, 1 m)",
     )
-    ap.add_argument(
-        "--jitter-pitch-deg", type=float, default=3.0, help="fitted mountings: pitch ± this"
-    )
-    ap.add_argument(
-        "--jitter-height", type=float, default=0.1, help="fitted mountings: height ± this share"
-    )
+    ap.add_argument("--jitter-pitch-deg", type=float, default=3.0, help="prior: pitch ± this")
+    ap.add_argument("--jitter-height", type=float, default=0.1, help="prior: height ± this share")
     ap.add_argument(
         "--street-share", type=float, default=0.5, help="share of real crops from street sets"
     )
     ap.add_argument("--init", type=Path, help="start from this checkpoint (default: committed)")
+    ap.add_argument(
+        "--min-step",
+        type=int,
+        default=0,
+        help="keep no checkpoint from before this step (with --init: move away from it)",
+    )
     ap.add_argument("--val-every", type=float, default=90.0, help="seconds")
     ap.add_argument("--seed", type=int, default=2026)
     args = ap.parse_args(argv)
