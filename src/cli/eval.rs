@@ -38,6 +38,10 @@ pub struct Eval {
     /// (models/real_splits.json: train / val / test by sequence, docs/real-splits.md).
     #[arg(long, requires = "real")]
     pub real_splits: Option<PathBuf>,
+    /// Real-frame benchmark: read every camera file as if it stated no mounting (pitch_deg,
+    /// height_m), so that the modes run as for a camera of unknown mounting.
+    #[arg(long, requires = "real")]
+    pub no_mounting: bool,
     /// Floor boxes of the real frames (JSON, as tests/fixtures/real_floor.json): floor median
     /// and p90 per frame.
     #[arg(long, requires = "real")]
@@ -233,7 +237,13 @@ impl Eval {
             let inputs: Vec<&Path> = dirs.iter().map(PathBuf::as_path).collect();
             super::refuse_overwriting(&[json], &inputs)?;
         }
-        let frames = real::frames_of(dirs, self.real_splits.as_deref(), &self.split, self.limit)?;
+        let mut frames =
+            real::frames_of(dirs, self.real_splits.as_deref(), &self.split, self.limit)?;
+        if self.no_mounting {
+            for f in &mut frames {
+                (f.camera.pitch_deg, f.camera.height_m) = (None, None);
+            }
+        }
         let floors = match &self.floors {
             Some(path) => real::read_floors(path)?,
             None => real::Floors::new(),
@@ -247,7 +257,7 @@ impl Eval {
         }
         let sheets = self.sheets.as_deref();
         let split = self.real_splits.as_ref().map(|_| self.split.as_str());
-        let report = real::run_benchmark(
+        let mut report = real::run_benchmark(
             (dirs, split),
             &frames,
             &floors,
@@ -259,6 +269,7 @@ impl Eval {
                 None => Ok(()),
             },
         )?;
+        report.mounting_ignored = self.no_mounting;
         println!("{}", real::markdown(&report));
         if let Some(path) = &self.json {
             super::write_file(path, &serde_json::to_string_pretty(&report)?)?;

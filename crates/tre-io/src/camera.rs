@@ -16,9 +16,11 @@ use super::IoError;
 /// (`kinect_v1`, …) or `{"sigma_mm": [a, b, c]}`; any other text is kept as a description
 /// and means no noise model ([`SensorSpec`]).
 ///
-/// Other keys are allowed (files carry notes such as `source`), except ones that
-/// look like a misspelt parameter (another case or separator, such as `Depth_Scale`) or like
-/// the pitch or the camera height under another name (`pitch`, `tilt_rad`, `camera_height`):
+/// Other keys are metadata (files carry notes such as `source`, `licence`, `frames`), read past
+/// by every interface (`tre infer`, `tre eval`, `tre client`, HTTP), except ones that look like
+/// a misspelt parameter (another case or separator, such as `Depth_Scale`; within one edit of
+/// a two-letter key, such as `fz`, or two of a longer one, such as `depth_sacle`) or like the
+/// pitch or the camera height under another name (`pitch`, `tilt_rad`, `camera_height`):
 /// ignoring those would leave a default in place of the value meant, so they are errors.
 ///
 /// ```
@@ -31,6 +33,15 @@ use super::IoError;
 ///     r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "pitch": 30}"#,
 /// ).unwrap_err();
 /// assert!(e.to_string().contains("pitch_deg"), "{e}");
+/// // A typo is named; notes are metadata.
+/// let e = serde_json::from_str::<CameraFile>(
+///     r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "depth_sacle": 5000}"#,
+/// ).unwrap_err();
+/// assert!(e.to_string().contains("\"depth_scale\""), "{e}");
+/// let notes: CameraFile = serde_json::from_str(
+///     r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "licence": "CC BY 4.0", "notes": "x"}"#,
+/// ).unwrap();
+/// assert_eq!(notes.fx, 525.0);
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "CameraFileKeys")]
@@ -177,9 +188,8 @@ struct CameraFileKeys {
     other: std::collections::BTreeMap<String, serde::de::IgnoredAny>,
 }
 
-/// The keys a camera file is read for. Over HTTP and the stream they are the only keys allowed
-/// ([`tre_server::request::CAMERA_KEYS`]); files read by the CLI may keep notes beside them,
-/// such as `source` or `licence`.
+/// The keys a camera file is read for. Every other key is metadata, read past, unless it looks
+/// like a misspelt one ([`CameraFile`]).
 pub const CAMERA_KEYS: [&str; 10] = [
     "fx",
     "fy",
@@ -222,6 +232,22 @@ pub enum CameraKeyError {
     },
 }
 
+/// Levenshtein distance of two ASCII strings.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b = b.as_bytes();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.bytes().enumerate() {
+        let mut diag = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let up = row[j + 1];
+            row[j + 1] = (up + 1).min(row[j] + 1).min(diag + usize::from(ca != cb));
+            diag = up;
+        }
+    }
+    row[b.len()]
+}
+
 /// Why an unknown camera key must not be ignored, if it must not.
 fn misspelt_camera_key(key: &str) -> Option<CameraKeyError> {
     let bare = |k: &str| -> String {
@@ -232,7 +258,13 @@ fn misspelt_camera_key(key: &str) -> Option<CameraKeyError> {
     };
     let k = bare(key);
     let key = key.to_owned();
-    if let Some(known) = CAMERA_KEYS.iter().find(|c| bare(c) == k) {
+    // The same letters in another case or with other separators, or within one edit of a
+    // two-letter key (`fz`) and two of a longer one (`depth_sacle`): a typo, not a note.
+    let near = |c: &str| {
+        let c = bare(c);
+        c == k || edit_distance(&c, &k) <= if c.len() <= 2 { 1 } else { 2 }
+    };
+    if let Some(known) = CAMERA_KEYS.iter().find(|c| near(c)) {
         return Some(CameraKeyError::Misspelt { key, known });
     }
     if k.starts_with("pitch") || k.starts_with("tilt") {

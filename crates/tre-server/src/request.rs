@@ -232,23 +232,20 @@ pub fn check_camera_ranges(cam: &CameraFile, limits: DecodeLimits) -> Result<(),
     Ok(())
 }
 
-/// A camera JSON from a client: only [`CAMERA_KEYS`], within [`check_camera_ranges`].
+/// A camera JSON from a client, read as every interface reads a camera file
+/// ([`CameraFile`]: the parameters of [`CAMERA_KEYS`], other keys metadata unless they look
+/// like a misspelt parameter), within [`check_camera_ranges`].
 pub fn strict_camera(json: &[u8], limits: DecodeLimits) -> Result<CameraFile, ApiError> {
     let bad = |why: String| ApiError::new(ErrorCode::BadCamera, format!("camera: {why}"));
     let value: serde_json::Value =
         serde_json::from_slice(json).map_err(|e| bad(format!("not valid JSON ({e})")))?;
-    let Some(object) = value.as_object() else {
+    if !value.is_object() {
         return Err(bad("expected a JSON object {fx, fy, cx, cy, ...}".into()));
-    };
-    if let Some(k) = object.keys().find(|k| !CAMERA_KEYS.contains(&k.as_str())) {
-        return Err(bad(format!(
-            "unknown key {k:?}; known: {}",
-            CAMERA_KEYS.join(", ")
-        )));
     }
     let cam: CameraFile = serde_json::from_value(value).map_err(|e| {
         bad(format!(
-            "not valid camera JSON ({{fx, fy, cx, cy, pitch_deg?, height_m?, depth_scale?}}): {e}"
+            "not valid camera JSON ({{fx, fy, cx, cy, pitch_deg?, height_m?, depth_scale?, \
+             sensor?, width?, height?}}; other keys are notes): {e}"
         ))
     })?;
     check_camera_ranges(&cam, limits)?;

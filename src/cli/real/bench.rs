@@ -212,6 +212,8 @@ pub struct RealReport {
     pub data: Vec<PathBuf>,
     /// The split scored (`--real-splits`), if any.
     pub split: Option<String>,
+    /// Whether the cameras' stated mountings were left out (`--no-mounting`).
+    pub mounting_ignored: bool,
     /// Frames scored.
     pub frames: usize,
     /// Hazard threshold, metres.
@@ -372,6 +374,7 @@ pub fn run_benchmark(
     Ok(RealReport {
         data: data.to_owned(),
         split: split.map(str::to_owned),
+        mounting_ignored: false,
         frames: n,
         hazard_m: HAZARD_M,
         flat_m: FLAT_M,

@@ -39,7 +39,12 @@ pub fn markdown(report: &RealReport) -> String {
             + &report
                 .split
                 .as_ref()
-                .map_or(String::new(), |s| format!(" (split {s})")),
+                .map_or(String::new(), |s| format!(" (split {s})"))
+            + if report.mounting_ignored {
+                ", every camera's mounting left out"
+            } else {
+                ""
+            },
         100.0 * report.hazard_m,
         100.0 * report.hazard_m,
         100.0 * report.flat_m,

@@ -45,7 +45,10 @@ fn answers_equal_tre_infer_in_rgb_and_rgbd() {
         let form = Form::new()
             .part("rgb", Part::bytes(frame).file_name("1.png"))
             .part("depth", Part::bytes(std::fs::read(&depth_path).unwrap()))
-            .part("camera", Part::text(camera_part(&camera_path)));
+            .part(
+                "camera",
+                Part::text(std::fs::read_to_string(&camera_path).unwrap()),
+            );
         let resp = post_form(&format!("{}/v1/roughness?seed=3", server.url()), form).await;
         assert_eq!(resp.status().as_u16(), 200);
         let served = png16_values(&resp.bytes().await.unwrap());

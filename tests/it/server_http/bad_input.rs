@@ -307,7 +307,8 @@ fn clients_vanish_mid_request(addr: std::net::SocketAddr) {
 
 /// Long thin images are refused from their header at once, naming the limit: the 49 KB kind
 /// of PNG that declares 16777216×1 (once 11 s of resizing) gets 413 `--max-side`, a 8192×2
-/// one 422 `--max-aspect`; a camera part with an unknown key or a height of 1e300 m is 422.
+/// one 422 `--max-aspect`; a camera part with a misspelt key or a height of 1e300 m is 422,
+/// one with notes (`licence`) is read as `tre infer` reads it.
 #[test]
 fn long_thin_images_and_implausible_cameras_are_refused_at_once() {
     let server = Server::start(&["--workers", "1"]);
@@ -325,7 +326,8 @@ fn long_thin_images_and_implausible_cameras_are_refused_at_once() {
         let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
         let camera = r#"{"fx": 520.9, "fy": 521.0, "cx": 325.1, "cy": 249.7"#;
         for (extra, says) in [
-            (r#", "licence": "MIT"}"#, "unknown key \"licence\""),
+            (r#", "depth_sacle": 5000}"#, "did you mean \"depth_scale\""),
+            (r#", "licence": "MIT", "notes": "metadata"}"#, ""),
             (r#", "height_m": 1e300}"#, "height_m"),
             (r#", "pitch_deg": 135}"#, "pitch_deg"),
             (r#", "sensor": "a free-text description"}"#, ""),

@@ -68,18 +68,3 @@ async fn still_serves(server: &Server) {
     .await;
     assert_eq!(resp.status().as_u16(), 200, "the server stopped serving");
 }
-
-/// The camera JSON of a real frame with only the keys the service takes: the files carry
-/// notes (`source`, `licence`, ...) that `tre infer` reads past but HTTP refuses.
-fn camera_part(path: &std::path::Path) -> String {
-    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
-    let known = tre::server::request::CAMERA_KEYS;
-    let kept: serde_json::Map<_, _> = v
-        .as_object()
-        .unwrap()
-        .iter()
-        .filter(|(k, _)| known.contains(&k.as_str()))
-        .map(|(k, v)| (k.clone(), v.clone()))
-        .collect();
-    serde_json::Value::Object(kept).to_string()
-}
