@@ -192,7 +192,7 @@ fn frame_table(out: &mut String, report: &RealReport) {
 /// The three-state maps, pooled: shares over every pixel and the three checks.
 pub(super) fn traversal_table(out: &mut String, report: &RealReport) {
     use std::fmt::Write;
-    out.push_str("\nThree-state traversability under the sensor's noise model (slope left out: the mountings are unknown), pooled:\n\n| row | traversable | hazard | unknown | floor boxes within 2 m: traversable | … unknown | beyond 4 m, spec ≥ 5 cm: unknown | … hazard | drops (spec ≥ 10 cm) within 4 m: hazard | median uncertainty < 2 m / 2–4 m / > 4 m (cm) |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    out.push_str("\nThree-state maps (through the models' calibrated intervals where they carry them, else under the sensor's noise model alone; slope left out), pooled:\n\n| row | traversable | hazard | unknown | floor boxes within 2 m: traversable | … unknown | beyond 4 m, spec ≥ 5 cm: unknown | … hazard | drops (spec ≥ 10 cm) within 4 m: hazard | median uncertainty < 2 m / 2–4 m / > 4 m (cm) |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for r in &report.pooled {
         let Some(t) = &r.traversal else { continue };
         let u = |k: &str| num(t.median_uncertainty_m.get(k).map(|u| 100.0 * u), 2);
