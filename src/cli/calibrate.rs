@@ -13,7 +13,7 @@ use anyhow::Context;
 use clap::Args;
 
 use super::options::StageArgs;
-use super::real::{self, LoadedFrame, Pose, RealFrame, ViewPair};
+use super::real::{self, LoadedFrame, Pose, PrevView, RealFrame};
 use crate::geometry::Grid;
 use crate::pipeline::{FrameOutput, GeometricMethod, Mode, Pipeline, PipelineConfig};
 use crate::roughness::interval::{
@@ -122,14 +122,6 @@ fn held_out_level(axes: (FirstAxis, SecondAxis), samples: &[Tagged]) -> Option<(
     last
 }
 
-/// The previous frame of a sequence with poses.
-struct Previous {
-    frame: RealFrame,
-    pose: Pose,
-    depth_m: Grid<f64>,
-    spec_m: Grid<f64>,
-}
-
 impl Calibrate {
     /// Runs the command.
     pub fn run(self) -> anyhow::Result<()> {
@@ -184,19 +176,19 @@ impl Calibrate {
         cfgs: &[PipelineConfig],
     ) -> anyhow::Result<Samples> {
         let mut samples = Samples::default();
-        let mut previous: Option<Previous> = None;
+        let mut previous: Option<PrevView> = None;
         let mut blocks = Vec::new();
         for (i, frame) in frames.iter().enumerate() {
             let block = block_of(&mut blocks, frame);
             let loaded = real::load_frame(frame).with_context(|| frame.name())?;
             let sensor = real::frame_sensor(frame, &self.sensor);
             let pose = Pose::of(frame)?;
-            let shared = shared_view(previous.as_ref(), frame, pose, &loaded);
+            let shared = real::shared_with(previous.as_ref(), frame, pose, &loaded);
             for cfg in cfgs {
                 let out = pipeline.run(&loaded.input, cfg)?;
                 let target = match (cfg.mode, &shared) {
                     (Mode::Geometric, None) => None,
-                    (Mode::Geometric, Some((pair, prev))) => Some(shared_targets(pair, prev)),
+                    (Mode::Geometric, Some(other)) => Some(other.targets()),
                     _ => Some(loaded.spec.roughness_m.clone()),
                 };
                 if let Some(target) = target {
@@ -211,15 +203,7 @@ impl Calibrate {
                 pipeline.recycle(out);
             }
             tracing::info!("{}/{} frames: {}", i + 1, frames.len(), frame.name());
-            previous = match (pose, loaded.input.depth_m) {
-                (Some(pose), Some(depth_m)) => Some(Previous {
-                    frame: frame.clone(),
-                    pose,
-                    depth_m,
-                    spec_m: loaded.spec.roughness_m,
-                }),
-                _ => None,
-            };
+            previous = pose.map(|pose| PrevView::new(frame, pose, loaded));
         }
         Ok(samples)
     }
@@ -306,41 +290,6 @@ fn first_axis(mode: Mode) -> FirstAxis {
         Mode::Geometric => FirstAxis::Reading,
         Mode::Rgb | Mode::Rgbd => FirstAxis::ReadingOrStep,
     }
-}
-
-/// The pixels `frame` shares with the previous frame (the one before it in its sequence's
-/// list, both with poses).
-fn shared_view<'a>(
-    prev: Option<&'a Previous>,
-    frame: &RealFrame,
-    pose: Option<Pose>,
-    loaded: &LoadedFrame,
-) -> Option<(ViewPair, &'a Previous)> {
-    let (prev, pose, depth_m) = (prev?, pose?, loaded.input.depth_m.as_ref()?);
-    if prev.frame.sequence != frame.sequence || prev.frame.index + 1 != frame.index {
-        return None;
-    }
-    let b = real::View {
-        depth_m,
-        k: frame.intrinsics,
-        pose,
-    };
-    let a = real::View {
-        depth_m: &prev.depth_m,
-        k: prev.frame.intrinsics,
-        pose: prev.pose,
-    };
-    Some((ViewPair::new(&b, &a), prev))
-}
-
-/// The previous frame's spec at the pixels of this frame it shares (NaN elsewhere).
-fn shared_targets(pair: &ViewPair, prev: &Previous) -> Grid<f64> {
-    let (w, h) = prev.spec_m.size();
-    let mut t = Grid::new(w, h, f64::NAN);
-    for &(i, j) in &pair.shared {
-        t.as_mut_slice()[i] = prev.spec_m.as_slice()[j];
-    }
-    t
 }
 
 /// The loaded models' files by hash, so that tables fitted on other models are told apart.

@@ -341,7 +341,7 @@ pub fn run_benchmark(
     for (i, frame) in frames.iter().enumerate() {
         let loaded = load_frame(frame).with_context(|| frame.name())?;
         let pose = Pose::of(frame)?;
-        let other = other_view(prev.as_ref(), frame, pose, &loaded);
+        let other = shared_with(prev.as_ref(), frame, pose, &loaded);
         let floor_box = floors.get(&key(frame)).copied();
         let spec = spec_summary(&loaded, floor_box);
         spec_acc.add(&spec, &loaded, floor_box);
@@ -430,31 +430,6 @@ impl SpecAcc {
     }
 }
 
-/// The previous frame of a sequence with poses: what the next frame's `geometric` interval
-/// is checked against.
-struct PrevView {
-    sequence: String,
-    index: usize,
-    depth_m: Grid<f64>,
-    k: Intrinsics,
-    pose: Pose,
-    spec_m: Grid<f64>,
-}
-
-impl PrevView {
-    /// A frame, kept as the next one's other view.
-    fn new(frame: &RealFrame, pose: Pose, loaded: LoadedFrame) -> Self {
-        Self {
-            sequence: frame.sequence.clone(),
-            index: frame.index,
-            depth_m: loaded.input.depth_m.unwrap_or_else(|| Grid::new(0, 0, 0.0)),
-            k: frame.intrinsics,
-            pose,
-            spec_m: loaded.spec.roughness_m,
-        }
-    }
-}
-
 /// One empty accumulator per row.
 fn fresh(rows: &[(String, PipelineConfig)]) -> Vec<RowAcc> {
     rows.iter().map(|_| RowAcc::default()).collect()
@@ -474,39 +449,6 @@ fn finish_sequences(
             (name, rows.collect())
         })
         .collect()
-}
-
-/// The pixels `frame` shares with the previous frame of its sequence (the one before it in
-/// the frame list, when both have poses), with that frame's spec.
-pub(super) struct OtherView {
-    pair: ViewPair,
-    spec_m: Grid<f64>,
-}
-
-fn other_view(
-    prev: Option<&PrevView>,
-    frame: &RealFrame,
-    pose: Option<Pose>,
-    loaded: &LoadedFrame,
-) -> Option<OtherView> {
-    let (prev, pose, depth_m) = (prev?, pose?, loaded.input.depth_m.as_ref()?);
-    if prev.sequence != frame.sequence || prev.index + 1 != frame.index {
-        return None;
-    }
-    let b = views::View {
-        depth_m,
-        k: frame.intrinsics,
-        pose,
-    };
-    let a = views::View {
-        depth_m: &prev.depth_m,
-        k: prev.k,
-        pose: prev.pose,
-    };
-    Some(OtherView {
-        pair: ViewPair::new(&b, &a),
-        spec_m: prev.spec_m.clone(),
-    })
 }
 
 /// One loaded frame to score, with its floor box, its sensor's noise model and the view of

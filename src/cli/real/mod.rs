@@ -296,4 +296,4 @@ pub use report::markdown;
 pub use safety::{Safety, SafetyAcc, SafetyFigures};
 pub use sheet::{sheet_panels, write_sheet, SHEET_MAX_M};
 pub use splits::Splits;
-pub use views::{Pose, View, ViewPair};
+pub use views::{shared_with, OtherView, Pose, PrevView, View, ViewPair};

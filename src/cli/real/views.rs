@@ -119,6 +119,84 @@ impl ViewPair {
     }
 }
 
+/// A frame of a sequence with poses, kept as the next frame's other view: what the `geometric`
+/// interval is checked against (`tre eval`) and fitted to (`tre calibrate`).
+pub struct PrevView {
+    sequence: String,
+    index: usize,
+    depth_m: Grid<f64>,
+    k: Intrinsics,
+    pose: Pose,
+    spec_m: Grid<f64>,
+}
+
+/// The pixels a frame shares with the previous frame of its sequence, with that frame's spec.
+pub struct OtherView {
+    /// The shared pixels.
+    pub pair: ViewPair,
+    /// The previous frame's spec.
+    pub spec_m: Grid<f64>,
+}
+
+impl PrevView {
+    /// A frame, kept as the next one's other view.
+    pub fn new(frame: &RealFrame, pose: Pose, loaded: LoadedFrame) -> Self {
+        Self {
+            sequence: frame.sequence.clone(),
+            index: frame.index,
+            depth_m: loaded.input.depth_m.unwrap_or_else(|| Grid::new(0, 0, 0.0)),
+            k: frame.intrinsics,
+            pose,
+            spec_m: loaded.spec.roughness_m,
+        }
+    }
+
+    /// The pixels `frame` (at `pose`) shares with this frame, when it is the next one of the
+    /// same sequence's list.
+    pub fn shared(&self, frame: &RealFrame, pose: Pose, loaded: &LoadedFrame) -> Option<OtherView> {
+        let depth_m = loaded.input.depth_m.as_ref()?;
+        if self.sequence != frame.sequence || self.index + 1 != frame.index {
+            return None;
+        }
+        let b = View {
+            depth_m,
+            k: frame.intrinsics,
+            pose,
+        };
+        let a = View {
+            depth_m: &self.depth_m,
+            k: self.k,
+            pose: self.pose,
+        };
+        Some(OtherView {
+            pair: ViewPair::new(&b, &a),
+            spec_m: self.spec_m.clone(),
+        })
+    }
+}
+
+/// [`PrevView::shared`] when there is a previous frame and `frame` has a pose.
+pub fn shared_with(
+    prev: Option<&PrevView>,
+    frame: &RealFrame,
+    pose: Option<Pose>,
+    loaded: &LoadedFrame,
+) -> Option<OtherView> {
+    prev?.shared(frame, pose?, loaded)
+}
+
+impl OtherView {
+    /// The previous frame's spec at the pixels of this frame it shares (NaN elsewhere).
+    pub fn targets(&self) -> Grid<f64> {
+        let (w, h) = self.spec_m.size();
+        let mut t = Grid::new(w, h, f64::NAN);
+        for &(i, j) in &self.pair.shared {
+            t.as_mut_slice()[i] = self.spec_m.as_slice()[j];
+        }
+        t
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
