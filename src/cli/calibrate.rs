@@ -15,7 +15,7 @@ use clap::Args;
 use super::options::StageArgs;
 use super::real::{self, LoadedFrame, Pose, PrevView, RealFrame};
 use crate::geometry::Grid;
-use crate::pipeline::{FrameOutput, GeometricMethod, Mode, Pipeline, PipelineConfig};
+use crate::pipeline::{models_key, FrameOutput, GeometricMethod, Mode, Pipeline, PipelineConfig};
 use crate::roughness::interval::{
     feature_map, Calibration, FirstAxis, IntervalTable, Sample, SecondAxis, CALIBRATION_FILE,
     COVERAGE,
@@ -141,7 +141,9 @@ impl Calibrate {
             })
             .collect();
         let mut pipeline = self.stages.pipeline(&cfgs)?;
-        let models = models_key(&pipeline);
+        let models = pipeline
+            .models()
+            .map_or_else(String::new, |m| models_key(m.manifest()));
         let samples = self.collect(&frames, &mut pipeline, &cfgs)?;
         let cal = Calibration {
             format: 1,
@@ -290,16 +292,4 @@ fn first_axis(mode: Mode) -> FirstAxis {
         Mode::Geometric => FirstAxis::Reading,
         Mode::Rgb | Mode::Rgbd => FirstAxis::ReadingOrStep,
     }
-}
-
-/// The loaded models' files by hash, so that tables fitted on other models are told apart.
-pub fn models_key(pipeline: &Pipeline) -> String {
-    pipeline.models().map_or_else(String::new, |m| {
-        m.manifest()
-            .models
-            .iter()
-            .map(|(name, e)| format!("{name}:{}", &e.sha256[..12.min(e.sha256.len())]))
-            .collect::<Vec<_>>()
-            .join(",")
-    })
 }

@@ -10,8 +10,8 @@ use clap::{Args, ValueEnum};
 
 use crate::model::{locate_models, Models, SessionConfig};
 use crate::pipeline::{
-    read_calibration, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod, Pipeline,
-    PipelineConfig, DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES,
+    read_calibration, stale_calibration, CentroidMethod, GeometricMethod, Method, Mode,
+    NormalsMethod, Pipeline, PipelineConfig, DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES,
 };
 
 /// On or off.
@@ -108,17 +108,13 @@ impl StageArgs {
         let models = Models::load(&dir, &session)
             .with_context(|| format!("loading models from {}", dir.display()))?;
         let calibration = read_calibration(&dir)?;
-        let pipeline = Pipeline::new(Some(models));
-        if let Some(c) = &calibration {
-            let key = super::calibrate::models_key(&pipeline);
-            if c.models != key {
-                tracing::warn!(
-                    "{}: the intervals were fitted on other models ({} against {key}); run `tre calibrate` again",
-                    dir.join(crate::roughness::interval::CALIBRATION_FILE).display(),
-                    c.models
-                );
-            }
+        if let Some(stale) = calibration
+            .as_ref()
+            .and_then(|c| stale_calibration(c, models.manifest()))
+        {
+            tracing::warn!("{}: {stale}", dir.display());
         }
+        let pipeline = Pipeline::new(Some(models));
         Ok(pipeline.with_calibration(calibration))
     }
 }

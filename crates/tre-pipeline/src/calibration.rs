@@ -5,6 +5,31 @@ use std::path::Path;
 
 use super::PipelineError;
 use tre_core::roughness::interval::{Calibration, CALIBRATION_FILE};
+use tre_model::Manifest;
+
+/// The models of a manifest by name and hash, as a calibration records them
+/// ([`Calibration::models`]), so that tables fitted on other models are told apart.
+pub fn models_key(manifest: &Manifest) -> String {
+    manifest
+        .models
+        .iter()
+        .map(|(name, e)| format!("{name}:{}", &e.sha256[..12.min(e.sha256.len())]))
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// Why `cal` should be fitted again for the models of `manifest`, if it should: it names other
+/// models (a model changed since `tre calibrate` ran).
+pub fn stale_calibration(cal: &Calibration, manifest: &Manifest) -> Option<String> {
+    let key = models_key(manifest);
+    (cal.models != key).then(|| {
+        format!(
+            "the intervals of {CALIBRATION_FILE} were fitted on other models ({} against {key}); \
+             run `tre calibrate` again",
+            cal.models
+        )
+    })
+}
 
 /// The calibration in the models folder `dir`, `None` when it has no `uncertainty.json`.
 ///

@@ -200,11 +200,16 @@ impl FrameOutput {
     /// Pixels whose roughness and slope are within the thresholds (roughness only for the
     /// end-to-end baseline; no data is not traversable).
     pub fn traversable(&self) -> Grid<bool> {
+        self.within(&self.working.limits)
+    }
+
+    /// Pixels within `limits` at the frame's size; no pixel without roughness at the frame's
+    /// size passes (a sensor's hole).
+    fn within(&self, limits: &Traversability) -> Grid<bool> {
         let w = &self.working;
         let roughness = w.roughness_m.as_ref().unwrap_or(&self.roughness_m);
         let tilt = w.stages.as_ref().map(|m| (&m.normals, &w.up_in_cam));
-        let mut full = self.full_size(&traversable(roughness, tilt, &w.limits), false);
-        // No pixel without roughness at the frame's size is traversable (a sensor's hole).
+        let mut full = self.full_size(&traversable(roughness, tilt, limits), false);
         self.only_with_roughness(&mut full);
         full
     }
@@ -332,16 +337,10 @@ impl FrameOutput {
     /// Pixels whose slope is within the threshold (every pixel with roughness when there are
     /// no normals).
     fn slope_ok(&self) -> Grid<bool> {
-        let w = &self.working;
-        let roughness = w.roughness_m.as_ref().unwrap_or(&self.roughness_m);
-        let tilt = w.stages.as_ref().map(|m| (&m.normals, &w.up_in_cam));
-        let limits = Traversability {
+        self.within(&Traversability {
             max_roughness_m: f64::INFINITY,
-            ..w.limits
-        };
-        let mut full = self.full_size(&traversable(roughness, tilt, &limits), false);
-        self.only_with_roughness(&mut full);
-        full
+            ..self.working.limits
+        })
     }
 }
 

@@ -31,7 +31,7 @@ pub mod run;
 mod spares;
 pub mod tensors;
 
-pub use calibration::read_calibration;
+pub use calibration::{models_key, read_calibration, stale_calibration};
 pub use config::{
     check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod,
     PipelineConfig, Traversability, DEFAULT_DSAC_HYPOTHESES, DEFAULT_MAX_INPUT_PIXELS,

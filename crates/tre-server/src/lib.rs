@@ -186,7 +186,8 @@ impl ServeConfig {
 /// Errors that keep the service from starting or serving.
 #[derive(Debug, thiserror::Error)]
 pub enum ServeError {
-    /// A setting out of its range (the frames' default DSAC hypotheses).
+    /// A setting out of its range (the frames' default DSAC hypotheses), or a calibration
+    /// file beside the models that does not read.
     #[error(transparent)]
     Config(tre_pipeline::PipelineError),
     /// The manifest is missing or malformed.
@@ -286,6 +287,13 @@ pub async fn serve(
 fn start(cfg: &ServeConfig) -> Result<(Arc<AppState>, watch::Sender<bool>), ServeError> {
     check_dsac_hypotheses(cfg.defaults.dsac_hypotheses).map_err(ServeError::Config)?;
     let manifest = Manifest::read(&cfg.models)?;
+    let calibration = tre_pipeline::read_calibration(&cfg.models).map_err(ServeError::Config)?;
+    if let Some(stale) = calibration
+        .as_ref()
+        .and_then(|c| tre_pipeline::stale_calibration(c, &manifest))
+    {
+        tracing::warn!("{}: {stale}", cfg.models.display());
+    }
     let manifest_json = serde_json::to_string_pretty(&manifest).map_err(std::io::Error::other)?;
     let model_names = manifest.models.keys().cloned().collect();
     let metrics = Arc::new(Metrics::default());
@@ -296,6 +304,7 @@ fn start(cfg: &ServeConfig) -> Result<(Arc<AppState>, watch::Sender<bool>), Serv
         session: cfg.session,
         limits: cfg.decode_limits(),
         defaults: cfg.defaults,
+        calibration,
     };
     let workers = Workers::start(&pool, metrics.clone())?;
     let (stop_tx, stop_rx) = watch::channel(false);

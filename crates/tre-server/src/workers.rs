@@ -18,6 +18,7 @@ use super::request::{
     FrameReply, FrameRequest,
 };
 use tre_core::geometry::Grid;
+use tre_core::roughness::interval::Calibration;
 use tre_model::{Models, SessionConfig};
 use tre_pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
 
@@ -36,6 +37,8 @@ pub struct PoolConfig {
     pub limits: DecodeLimits,
     /// What frames get for the settings they do not choose.
     pub defaults: FrameDefaults,
+    /// The models' calibrated intervals (`uncertainty.json`), read once for every worker.
+    pub calibration: Option<Calibration>,
 }
 
 /// A frame's answer, or why there is none.
@@ -263,15 +266,8 @@ impl Workers {
 /// One worker: load, warm up, then serve until the queue closes.
 fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, metrics: &Metrics) {
     let started = Instant::now();
-    let calibration = match tre_pipeline::read_calibration(&cfg.models) {
-        Ok(c) => c,
-        Err(reason) => {
-            startup.fail(WorkerError::WarmUp { worker: i, reason });
-            return;
-        }
-    };
     let mut pipeline = match Models::load(&cfg.models, &cfg.session) {
-        Ok(models) => Pipeline::new(Some(models)).with_calibration(calibration),
+        Ok(models) => Pipeline::new(Some(models)).with_calibration(cfg.calibration.clone()),
         Err(reason) => {
             startup.fail(WorkerError::Load {
                 worker: i,

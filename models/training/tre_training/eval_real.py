@@ -56,9 +56,8 @@ def floor_mounting(depth_m: np.ndarray, k: np.ndarray, box: list[int]) -> tuple[
     return float(torch.asin(down[2].clamp(-1, 1))), float(abs(n @ c))
 
 
-def metrics(pred: np.ndarray, gt: np.ndarray) -> dict[str, float]:
-    ok = np.isfinite(gt) & (gt > 0) & (gt <= MAX_DEPTH_M)
-    p, g = pred[ok], gt[ok]
+def scores(p: np.ndarray, g: np.ndarray) -> dict[str, float]:
+    """AbsRel, RMSE, δ < 1.25 and median-scaled AbsRel of predicted `p` against sensor `g`."""
     scaled = p * np.median(g) / np.median(p)
     ratio = np.maximum(p / g, g / p)
     return {
@@ -66,8 +65,13 @@ def metrics(pred: np.ndarray, gt: np.ndarray) -> dict[str, float]:
         "rmse_m": float(np.sqrt(np.mean((p - g) ** 2))),
         "delta_1_25_pct": float(100 * np.mean(ratio < 1.25)),
         "abs_rel_median_scaled": float(np.mean(np.abs(scaled - g) / g)),
-        "pixels": int(ok.sum()),
+        "pixels": int(p.size),
     }
+
+
+def metrics(pred: np.ndarray, gt: np.ndarray) -> dict[str, float]:
+    ok = np.isfinite(gt) & (gt > 0) & (gt <= MAX_DEPTH_M)
+    return scores(pred[ok], gt[ok])
 
 
 def frames(real: Path) -> list[tuple[str, Path, Path, dict, list[int]]]:
@@ -92,16 +96,7 @@ def metrics_capped(pred: np.ndarray, gt: np.ndarray, cap: float) -> dict[str, fl
     ok = np.isfinite(gt) & (gt > 0) & (gt <= cap)
     if ok.sum() < 10:
         return None
-    p, g = pred[ok], gt[ok]
-    ratio = np.maximum(p / g, g / p)
-    scaled = p * np.median(g) / np.median(p)
-    return {
-        "abs_rel": float(np.mean(np.abs(p - g) / g)),
-        "rmse_m": float(np.sqrt(np.mean((p - g) ** 2))),
-        "delta_1_25_pct": float(100 * np.mean(ratio < 1.25)),
-        "abs_rel_median_scaled": float(np.mean(np.abs(scaled - g) / g)),
-        "pixels": int(ok.sum()),
-    }
+    return scores(pred[ok], gt[ok])
 
 
 def group_of(sequence: str) -> str:

@@ -5,6 +5,7 @@
 //! depth.
 
 use super::*;
+use crate::roughness::hazard::rate;
 
 /// Floor coverage counts flat pixels nearer than this, metres.
 pub const FLOOR_RANGE_M: f64 = 3.0;
@@ -61,20 +62,13 @@ impl Counts {
     }
 
     fn figures(&self) -> SafetyFigures {
-        let share = |a: u64, n: u64| {
-            if n == 0 {
-                f64::NAN
-            } else {
-                a as f64 / n as f64
-            }
-        };
         SafetyFigures {
             hazard_px: self.hazards,
-            missed_hazards: share(self.missed, self.hazards),
+            missed_hazards: rate(self.missed, self.hazards),
             flat_px: self.flat,
-            floor_coverage: share(self.flat_traversable, self.flat),
+            floor_coverage: rate(self.flat_traversable, self.flat),
             interval_px: self.covered,
-            interval_coverage: share(self.inside, self.covered),
+            interval_coverage: rate(self.inside, self.covered),
         }
     }
 }

@@ -78,19 +78,21 @@ impl HazardAccumulator {
     /// assert_eq!((m.edge_recall, m.false_hazards), (0.5, 0.5));
     /// ```
     pub fn finish(&self) -> HazardMetrics {
-        let rate = |k: u64, n: u64| {
-            if n == 0 {
-                f64::NAN
-            } else {
-                k as f64 / n as f64
-            }
-        };
         HazardMetrics {
             edge_recall: rate(self.edges_found, self.edges),
             false_hazards: rate(self.flat_as_hazard, self.flat),
             edges: self.edges,
             flat: self.flat,
         }
+    }
+}
+
+/// `k` of `n` as a share; NaN when `n` is 0 (no pixel of that kind: no rate, not 0%).
+pub fn rate(k: u64, n: u64) -> f64 {
+    if n == 0 {
+        f64::NAN
+    } else {
+        k as f64 / n as f64
     }
 }
 

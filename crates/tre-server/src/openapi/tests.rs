@@ -35,6 +35,7 @@ fn state() -> (Arc<AppState>, watch::Sender<bool>) {
         session: cfg.session,
         limits: cfg.decode_limits(),
         defaults: cfg.defaults,
+        calibration: None,
     };
     let workers = Workers::start(&pool, metrics.clone()).expect("a worker thread starts");
     let (stop, shutdown) = watch::channel(false);
