@@ -14,6 +14,7 @@ mod demo_page;
 mod deploy;
 mod dsac_parity;
 mod geometry;
+mod gravity;
 mod jpeg_decode;
 mod model_manifest;
 mod onnx_parity;

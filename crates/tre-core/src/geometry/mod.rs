@@ -4,6 +4,7 @@
 pub mod camera;
 pub mod dsac;
 pub mod fastmath;
+pub mod floor;
 pub mod gravity;
 pub mod grid;
 pub mod hash;
