@@ -27,7 +27,8 @@ use tre::pipeline::{
 use tre::roughness::noise::{SensorNoise, SensorPreset};
 use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 use tre::server::request::{
-    config_for, decode_frame, encode_reply, DecodeLimits, FrameDefaults, FrameOptions, FrameRequest,
+    assumptions, config_for, decode_frame, encode_reply, DecodeLimits, FrameDefaults, FrameOptions,
+    FrameRequest,
 };
 use tre::synth::dataset::{build_scene, scene_views, view_conditions};
 use tre::synth::{render, SynthConfig};
@@ -46,7 +47,7 @@ fn frame(side: usize) -> FrameInput {
         rgb: Some(f.rgb),
         depth_m: Some(f.depth_m),
         intrinsics: Some(view.intrinsics),
-        mounting: view.mounting,
+        mounting: Some(view.mounting),
     }
 }
 
@@ -183,8 +184,8 @@ fn request(frame: &FrameInput, depth: bool, normals: NormalsMethod) -> FrameRequ
             width: None,
             height: None,
             depth_scale: Some(1000.0),
-            pitch_deg: Some(frame.mounting.pitch_rad.to_degrees()),
-            height_m: Some(frame.mounting.height_m),
+            pitch_deg: frame.mounting.map(|m| m.pitch_rad.to_degrees()),
+            height_m: frame.mounting.map(|m| m.height_m),
             sensor: None,
         }),
         options: FrameOptions {
@@ -214,7 +215,8 @@ fn serve_one(pipeline: &mut Pipeline, req: &FrameRequest, split: &mut Split) {
     let decoded = t.elapsed();
     let out = pipeline.run(&frame, &cfg).expect("the frame runs");
     let t = Instant::now();
-    let reply = encode_reply(&out, &req.options).expect("encodes");
+    let facts = (cfg.mode, assumptions(req, &frame, cfg.mode));
+    let reply = encode_reply(&out, &req.options, facts).expect("encodes");
     pipeline.recycle(out);
     split.add("decode", decoded);
     split.add("encode", t.elapsed());

@@ -14,6 +14,7 @@ use crate::client::source::SourceSpec;
 use crate::client::{Backoff, ClientConfig, Format, Rate};
 use crate::io;
 use crate::pipeline::{Mode, NormalsMethod};
+use crate::roughness::noise::SensorNoise;
 
 /// Stream frames to `tre serve` and write the roughness maps it sends back.
 #[derive(Debug, Args)]
@@ -44,10 +45,15 @@ pub struct Client {
     /// the stream has no time for are skipped.
     #[arg(long, env = "TRE_CLIENT_DEVICE")]
     pub device: Option<PathBuf>,
-    /// Camera JSON: fx, fy, cx, cy in pixels of the frames; optional depth_scale, pitch_deg
-    /// (default 60) and height_m (default 1). Without it: the server's defaults.
+    /// Camera JSON (cameras/README.md), read as `tre infer` reads it: fx, fy, cx, cy in pixels
+    /// of the frames; optional depth_scale, sensor, pitch_deg, height_m; metadata under
+    /// "notes". Without it the server assumes a 60° field of view, and says so.
     #[arg(long, env = "TRE_CAMERA")]
     pub camera: Option<PathBuf>,
+    /// Depth sensor noise model, overriding the camera JSON's "sensor" (as `tre infer
+    /// --sensor`): a preset (kinect_v1, realsense_d435, azure_kinect, lidar, exact) or a,b,c.
+    #[arg(long, env = "TRE_SENSOR", value_parser = super::infer::parse_sensor)]
+    pub sensor: Option<SensorNoise>,
     /// Frames per second to send (the server drops frames it has no time for and says so).
     #[arg(long, env = "TRE_CLIENT_RATE", conflicts_with = "as_fast_as_results")]
     pub rate: Option<f64>,
@@ -57,7 +63,8 @@ pub struct Client {
     /// Input mode; default: rgbd for frames with depth, else rgb.
     #[arg(long, env = "TRE_MODE", value_enum)]
     pub mode: Option<Mode>,
-    /// Encoding of the maps asked of the server.
+    /// Encoding of the maps asked of the server: png16 (SEQ_NAME.png, 16-bit, 0.1 mm per
+    /// unit), color (a preview PNG) or f32 (SEQ_NAME.npy, float32 metres).
     #[arg(long, env = "TRE_CLIENT_FORMAT", value_enum, default_value = "png16")]
     pub format: Format,
     /// Seed of the DSAC sampler: the same seed gives the same output.
@@ -139,6 +146,7 @@ impl Client {
             want_traversal: self.traversal,
             max_roughness_cm: self.max_roughness_cm,
             max_slope_deg: self.max_slope_deg,
+            sensor: self.sensor,
             rate: self.rate.map_or(Rate::AsFastAsResults, Rate::Fixed),
             reconnect: Backoff {
                 initial: Duration::from_millis(self.reconnect_initial_ms),

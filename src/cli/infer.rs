@@ -8,10 +8,9 @@ use clap::{Args, ValueEnum};
 use image::DynamicImage;
 
 use super::options::StageArgs;
-use crate::geometry::Mounting;
 use crate::io;
 use crate::pipeline::{
-    FrameInput, FrameOutput, Method, Mode, PipelineConfig, SensorMaps, Traversability,
+    Assumption, FrameInput, FrameOutput, Method, Mode, PipelineConfig, SensorMaps, Traversability,
 };
 use crate::roughness::interval::IntervalTable;
 use crate::roughness::noise::{SensorNoise, SensorPreset};
@@ -39,9 +38,10 @@ pub struct Infer {
     /// else 1000.
     #[arg(long, env = "TRE_DEPTH_SCALE")]
     pub depth_scale: Option<f64>,
-    /// Camera JSON: fx, fy, cx, cy in pixels of this frame; optional depth_scale, pitch_deg
-    /// (default 60) and height_m (default 1). Without it: a 60° horizontal field of view,
-    /// centred, 60° pitch, 1 m height.
+    /// Camera JSON (cameras/README.md): fx, fy, cx, cy in pixels of this frame; optional
+    /// depth_scale, sensor, pitch_deg and height_m; metadata under "notes". Without it: a 60°
+    /// horizontal field of view, centred (a warning says so). Without pitch_deg, gravity comes
+    /// from the depth's ground plane, else it is unknown.
     #[arg(long)]
     pub camera: Option<PathBuf>,
     /// Input mode; default: rgbd with a frame and --depth, geometric with --depth alone, else
@@ -75,7 +75,7 @@ pub struct Infer {
 }
 
 /// `--sensor`: a preset name or `a,b,c`.
-fn parse_sensor(s: &str) -> Result<SensorNoise, String> {
+pub(super) fn parse_sensor(s: &str) -> Result<SensorNoise, String> {
     s.parse()
 }
 
@@ -97,12 +97,25 @@ impl Infer {
             traversability,
             ..self.stages.config(mode)
         };
-        let (frame, described) = self.read_frame()?;
+        let (frame, described, scale_stated) = self.read_frame()?;
         crate::pipeline::check_input(&frame, &cfg)?;
         let mut pipeline = self.stages.pipeline(&[cfg])?;
         let out = pipeline.run(&frame, &cfg)?;
         self.write(&out)?;
-        print_summary(&out, &cfg.label());
+        let depth_png = self
+            .depth
+            .as_ref()
+            .is_some_and(|d| !d.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy")));
+        let assumed = Assumption::of_frame(
+            frame.intrinsics.is_some(),
+            depth_png && !scale_stated,
+            frame.mounting.is_some(),
+            (mode, self.mode.is_some()),
+        );
+        for a in &assumed {
+            eprintln!("warning: {a}");
+        }
+        print_summary(&out, &cfg);
         let table = pipeline.interval_table(cfg.mode);
         if let Some(maps) = self.sensor_maps(&out, &frame, &cfg, described, table)? {
             self.write_sensor_maps(&maps)?;
@@ -251,18 +264,28 @@ impl Infer {
         })
     }
 
-    /// The frame, depth and camera from disk, and the camera's sensor.
-    fn read_frame(&self) -> anyhow::Result<(FrameInput, Option<io::SensorSpec>)> {
+    /// The frame, depth and camera from disk, the camera's sensor, and whether a depth scale
+    /// was given (`--depth-scale` or the camera's).
+    fn read_frame(&self) -> anyhow::Result<(FrameInput, Option<io::SensorSpec>, bool)> {
         let cam = self.camera.as_deref().map(io::read_camera).transpose()?;
-        let scale = self
+        let stated = self
             .depth_scale
-            .or(cam.as_ref().and_then(|(c, _)| c.depth_scale))
-            .unwrap_or(1000.0);
+            .or(cam.as_ref().and_then(|(c, _)| c.depth_scale));
+        let scale = stated.unwrap_or(1000.0);
         if !(scale.is_finite() && scale > 0.0) {
             bail!("--depth-scale must be positive, got {scale}");
         }
         let rgb = match &self.frame {
-            Some(path) => Some(io::read_image(path)?.to_rgb8()),
+            Some(path) => {
+                let image = io::read_image(path)?;
+                if let Some(why) = io::not_rgb(image.color()) {
+                    bail!(
+                        "{}: {why} (--depth, with --camera or --depth-scale)",
+                        path.display()
+                    );
+                }
+                Some(image.to_rgb8())
+            }
             None => None,
         };
         let depth_m = match &self.depth {
@@ -271,7 +294,7 @@ impl Infer {
         };
         let mounting = match &cam {
             Some((c, _)) => c.mounting().context("camera pitch or height")?,
-            None => Mounting::default(),
+            None => None,
         };
         let frame = FrameInput {
             rgb,
@@ -286,7 +309,7 @@ impl Infer {
                 .with_context(named)?;
             k.check_for(w, h).with_context(named)?;
         }
-        Ok((frame, cam.and_then(|(c, _)| c.sensor)))
+        Ok((frame, cam.and_then(|(c, _)| c.sensor), stated.is_some()))
     }
 
     /// Writes the roughness map in the chosen format and the preview beside it.
@@ -327,28 +350,59 @@ fn preview_path(out: &Path) -> PathBuf {
     out.with_file_name(format!("{stem}_preview.png"))
 }
 
-/// One line of results and one of timings, on stdout.
-fn print_summary(out: &FrameOutput, label: &str) {
+/// The results, gravity and timings, on stdout.
+fn print_summary(out: &FrameOutput, cfg: &PipelineConfig) {
     let valid = super::finite_sorted(&out.roughness_m);
     let median_cm = valid.get(valid.len() / 2).map_or(f64::NAN, |r| 100.0 * r);
-    let traversable = out.traversable().as_slice().iter().filter(|&&t| t).count();
-    // Without normals (the end-to-end baseline) only the roughness limit is checked.
-    let judged = if out.slope_rad().is_some() {
-        "traversable"
-    } else {
-        "within the roughness limit (no slope without normals)"
-    };
     let (w, h) = out.working_size;
+    let mode = if cfg.method == Method::EndToEnd {
+        "the end-to-end baseline".to_owned()
+    } else {
+        format!("mode {}", cfg.mode)
+    };
     println!(
-        "{label} at {w}×{h}: {} px with roughness, median {median_cm:.3} cm, {traversable} px {judged}",
+        "{mode} ({}) at {w}×{h}: {} px with roughness, median {median_cm:.3} cm",
+        stage_names(cfg),
         valid.len()
     );
+    println!("gravity: {}", out.gravity);
+    let slope_limit = cfg.traversability.max_slope_rad.to_degrees();
+    let rough_limit = 100.0 * cfg.traversability.max_roughness_m;
+    let ok = out.traversable().as_slice().iter().filter(|&&t| t).count();
+    if out.slope_rad().is_none() {
+        println!("binary map: {ok} px with roughness < {rough_limit} cm (no normals, so no slope)");
+    } else if out.gravity.up_in_cam().is_none() {
+        println!("binary map: none traversable: gravity unknown, so no slope < {slope_limit}° can be shown");
+    } else {
+        println!(
+            "binary map: {ok} px with roughness < {rough_limit} cm and slope < {slope_limit}°"
+        );
+    }
     let stages: Vec<String> = out
         .timings
         .iter()
         .map(|(name, d)| format!("{name} {:.1}", d.as_secs_f64() * 1e3))
         .collect();
     println!("ms: {}", stages.join(", "));
+}
+
+/// The stages in words: the pipeline label's abbreviations spelt out.
+fn stage_names(cfg: &PipelineConfig) -> String {
+    cfg.label()
+        .split('+')
+        .map(|p| match p {
+            "DE" => "depth net".to_owned(),
+            "LS" => "least-squares normals".to_owned(),
+            "NR" => "normal refiner".to_owned(),
+            "ESR" => "centroid net".to_owned(),
+            "window" => "window centroids".to_owned(),
+            "edge" => "edge term".to_owned(),
+            "E2E" => "end-to-end net".to_owned(),
+            d if d.starts_with("DSAC") => format!("DSAC normals ({d})"),
+            other => other.to_owned(),
+        })
+        .collect::<Vec<_>>()
+        .join(" + ")
 }
 
 /// Prints the three states' shares of `maps`, naming where they come from.

@@ -79,7 +79,7 @@ fn real_frame() -> Result<FrameInput, Box<dyn Error>> {
             cam.depth_scale.unwrap_or(1000.0),
         )?),
         intrinsics: Some(k),
-        mounting: Mounting::default(),
+        mounting: Some(Mounting::default()),
     })
 }
 
@@ -291,7 +291,7 @@ fn odd_sizes_work() -> TestResult {
             rgb: Some(rgb),
             depth_m: Some(depth),
             intrinsics: None,
-            mounting: Mounting::default(),
+            mounting: Some(Mounting::default()),
         };
         for mode in [Mode::Rgb, Mode::Rgbd, Mode::Geometric] {
             let out = pipeline.run(&frame, &small(mode))?;
@@ -315,7 +315,7 @@ fn a_twelve_megapixel_frame_runs_at_the_working_size() -> TestResult {
         rgb: Some(rgb),
         depth_m: Some(Grid::from_fn(w, h, |_, y| 1.0 + 0.001 * y as f64)),
         intrinsics: None,
-        mounting: Mounting::default(),
+        mounting: Some(Mounting::default()),
     };
     let mut pipeline = Pipeline::new(Some(models()?));
     for mode in [Mode::Rgb, Mode::Rgbd] {

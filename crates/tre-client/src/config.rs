@@ -5,6 +5,7 @@ use std::time::Duration;
 
 use super::ClientError;
 use tre_core::kinds::{Mode, NormalsMethod, Traversability};
+use tre_core::roughness::noise::SensorNoise;
 use tre_io::CameraFile;
 
 /// How fast frames go out.
@@ -113,6 +114,8 @@ pub struct ClientConfig {
     pub max_roughness_cm: Option<f64>,
     /// The mask's steepest slope, degrees; `None`: 20.
     pub max_slope_deg: Option<f64>,
+    /// The depth sensor's noise model, overriding the camera's `sensor`.
+    pub sensor: Option<SensorNoise>,
     /// How fast frames go out.
     pub rate: Rate,
     /// Reconnection back-off (also used for the first connection).
@@ -150,6 +153,7 @@ impl Default for ClientConfig {
             want_traversal: false,
             max_roughness_cm: None,
             max_slope_deg: None,
+            sensor: None,
             rate: Rate::AsFastAsResults,
             reconnect: Backoff::default(),
             frame_timeout: Duration::from_secs(30),

@@ -86,6 +86,14 @@ pub struct FrameResult {
     pub server_latency: Duration,
     /// Frames of this connection the server has dropped so far (latest frame wins).
     pub dropped_total: u64,
+    /// The mode that ran (empty from a server that does not say).
+    pub mode: String,
+    /// What stood in for what the frame or the settings did not give (`intrinsics`,
+    /// `depth_scale`, `mounting`, `mode`).
+    pub assumed: Vec<String>,
+    /// Where gravity came from, as the server words it (`stated; …`, `estimated; …`,
+    /// `unknown; reason=…`).
+    pub gravity: String,
 }
 
 impl FrameResult {

@@ -58,6 +58,14 @@ impl From<&ClientConfig> for pb::Hello {
             dsac_hypotheses: cfg.dsac_hypotheses.unwrap_or(0),
             max_roughness_cm: cfg.max_roughness_cm,
             max_slope_deg: cfg.max_slope_deg,
+            sensor: match cfg.sensor {
+                Some(SensorNoise::Preset(p)) => Some(p.to_string()),
+                _ => None,
+            },
+            sensor_sigma_mm: match cfg.sensor {
+                Some(SensorNoise::Coefficients { sigma_mm }) => sigma_mm.to_vec(),
+                _ => Vec::new(),
+            },
         }
     }
 }
@@ -220,6 +228,9 @@ impl TryFrom<(WireResult, Stamp)> for FrameResult {
             received_unix_us: received.unix_us,
             server_latency,
             dropped_total: r.dropped_total,
+            mode: r.mode,
+            assumed: r.assumed,
+            gravity: r.gravity,
         })
     }
 }

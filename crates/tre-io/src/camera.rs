@@ -334,14 +334,23 @@ impl CameraFile {
         })
     }
 
-    /// The checked mounting: the stated pitch and height, each defaulting to
-    /// [`Mounting::default`]'s (60°, 1 m).
-    pub fn mounting(&self) -> Result<Mounting, GeometryError> {
+    /// The checked mounting, if the file states one: the pitch (`pitch_deg`), with the height
+    /// defaulting to [`Mounting::default`]'s 1 m when only the pitch is stated (slope needs the
+    /// pitch alone). A height without a pitch is an error: it would leave a guessed pitch in
+    /// charge of slope.
+    ///
+    /// ```
+    /// let cam: tre_io::CameraFile =
+    ///     serde_json::from_str(r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5}"#).unwrap();
+    /// assert_eq!(cam.mounting().unwrap(), None);
+    /// ```
+    pub fn mounting(&self) -> Result<Option<Mounting>, GeometryError> {
         let default = Mounting::default();
-        Mounting::new(
-            self.pitch_deg.map_or(default.pitch_rad, f64::to_radians),
-            self.height_m.unwrap_or(default.height_m),
-        )
+        match (self.pitch_deg, self.height_m) {
+            (None, None) => Ok(None),
+            (None, Some(_)) => Err(GeometryError::HeightWithoutPitch),
+            (Some(p), h) => Mounting::new(p.to_radians(), h.unwrap_or(default.height_m)).map(Some),
+        }
     }
 }
 

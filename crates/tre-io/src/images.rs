@@ -28,6 +28,21 @@ pub fn read_image(path: &Path) -> Result<DynamicImage, IoError> {
     image::load_from_memory(&bytes).map_err(|e| failed(e.to_string()))
 }
 
+/// Why an image cannot be an RGB frame, if it cannot: 16-bit grey (with or without alpha) is
+/// how depth comes, never colour, so running it as colour would give an answer about nothing.
+///
+/// ```
+/// use image::ColorType;
+/// assert!(tre_io::not_rgb(ColorType::L16).unwrap().contains("depth"));
+/// assert!(tre_io::not_rgb(ColorType::Rgb8).is_none());
+/// ```
+pub fn not_rgb(color: image::ColorType) -> Option<&'static str> {
+    matches!(color, image::ColorType::L16 | image::ColorType::La16).then_some(
+        "a 16-bit grey image is depth, not an RGB frame: send it as depth (with the camera's \
+         depth_scale), alone for the geometric mode or beside the colour frame",
+    )
+}
+
 /// Decodes a JPEG, refusing truncated or corrupt data. (`image`'s own JPEG decoding is lenient,
 /// as browsers are: it fills what is missing with grey, so half a frame would pass for a whole
 /// one.) Grey JPEGs come back as 8-bit grey, every other kind as RGB. One flaw is not caught:

@@ -28,8 +28,8 @@ pub use depth::{
     MIN_MEDIAN_DEPTH_M,
 };
 pub use images::{
-    decode_jpeg, decode_roughness_png16, depth_png16, encode_png, gray8, metres_png16, read_image,
-    roughness_png16, save, traversal_gray8, write_mask_png, JpegError,
+    decode_jpeg, decode_roughness_png16, depth_png16, encode_png, gray8, metres_png16, not_rgb,
+    read_image, roughness_png16, save, traversal_gray8, write_mask_png, JpegError,
 };
 pub use maps::{
     npy_grid, read_labels, read_normals, write_normals_npy, write_npy_f32, write_npy_u32, write_ply,

@@ -6,6 +6,7 @@ use image::RgbImage;
 use rayon::prelude::*;
 
 use super::centroid::{slopes, traversable};
+use super::gravity::Gravity;
 use super::resize::{resize_nearest, resize_nearest_reusing};
 use super::spares::Spares;
 use super::{Mode, PipelineError, Traversability};
@@ -30,8 +31,10 @@ pub struct FrameInput {
     /// Intrinsics in pixels of this frame. `None`: a pinhole with a 60° horizontal field of view
     /// ([`DEFAULT_HFOV_DEG`]), square pixels and the principal point at the image centre.
     pub intrinsics: Option<Intrinsics>,
-    /// Camera pitch and height (default 60° down, 1 m).
-    pub mounting: Mounting,
+    /// Camera pitch and height, if stated. `None`: slope and traversability take gravity
+    /// from the depth's ground plane ([`Gravity`]), unknown without depth; the `rgb` depth
+    /// prior assumes 60° down and 1 m ([`Mounting::default`]).
+    pub mounting: Option<Mounting>,
 }
 
 impl FrameInput {
@@ -56,6 +59,8 @@ pub struct FrameOutput {
     pub working_size: (usize, usize),
     /// Wall time of each stage, in order.
     pub timings: StageTimings,
+    /// Where gravity's up axis came from (slope and traversability use it).
+    pub gravity: Gravity,
     working: WorkingMaps,
 }
 
@@ -66,7 +71,8 @@ struct WorkingMaps {
     roughness_m: Option<Grid<f64>>,
     /// `None` for the end-to-end baseline.
     stages: Option<StageMaps>,
-    up_in_cam: Vec3,
+    /// Gravity's up axis in the camera frame; `None`: unknown.
+    up_in_cam: Option<Vec3>,
     limits: Traversability,
 }
 
@@ -80,14 +86,14 @@ pub(crate) struct StageMaps {
 
 impl FrameOutput {
     /// The output of a frame of `size` from maps at the working size: roughness (always), the
-    /// stages' maps (`None` for the end-to-end baseline), gravity's up axis in the camera frame
-    /// and the traversability thresholds. A grid from `spare` becomes the roughness at the
+    /// stages' maps (`None` for the end-to-end baseline), gravity and the traversability
+    /// thresholds. A grid from `spare` becomes the roughness at the
     /// frame's size when that differs from the working size.
     pub(crate) fn new(
         size: (usize, usize),
         roughness_m: Grid<f64>,
         stages: Option<StageMaps>,
-        up_in_cam: Vec3,
+        gravity: Gravity,
         limits: Traversability,
         spare: &mut Spares,
     ) -> Self {
@@ -103,10 +109,11 @@ impl FrameOutput {
             roughness_m,
             working_size,
             timings: StageTimings::default(),
+            gravity,
             working: WorkingMaps {
                 roughness_m: working_roughness,
                 stages,
-                up_in_cam,
+                up_in_cam: gravity.up_in_cam(),
                 limits,
             },
         }
@@ -167,11 +174,12 @@ impl FrameOutput {
         Some(self.full_size(n, INVALID_POINT))
     }
 
-    /// Slope of the normals in the gravity frame, radians (NaN: none); `None` for the
-    /// end-to-end baseline.
+    /// Slope of the normals in the gravity frame, radians (NaN: none, or gravity unknown);
+    /// `None` for the end-to-end baseline.
     pub fn slope_rad(&self) -> Option<Grid<f64>> {
         let n = &self.working.stages.as_ref()?.normals;
-        Some(self.full_size(&slopes(n, &self.working.up_in_cam), f64::NAN))
+        let up = self.working.up_in_cam.unwrap_or(INVALID_POINT);
+        Some(self.full_size(&slopes(n, &up), f64::NAN))
     }
 
     /// Boundary pixels by annotation spec v1, steps 2 and 3, on the pipeline's own points and
@@ -198,7 +206,8 @@ impl FrameOutput {
     }
 
     /// Pixels whose roughness and slope are within the thresholds (roughness only for the
-    /// end-to-end baseline; no data is not traversable).
+    /// end-to-end baseline; no data is not traversable, and with gravity unknown no pixel is
+    /// unless the slope threshold is 90°).
     pub fn traversable(&self) -> Grid<bool> {
         self.within(&self.working.limits)
     }
@@ -208,7 +217,16 @@ impl FrameOutput {
     fn within(&self, limits: &Traversability) -> Grid<bool> {
         let w = &self.working;
         let roughness = w.roughness_m.as_ref().unwrap_or(&self.roughness_m);
-        let tilt = w.stages.as_ref().map(|m| (&m.normals, &w.up_in_cam));
+        let slope_tested = limits.max_slope_rad < std::f64::consts::FRAC_PI_2;
+        if slope_tested && w.stages.is_some() && w.up_in_cam.is_none() {
+            let (w, h) = self.roughness_m.size();
+            return Grid::new(w, h, false);
+        }
+        let tilt = w
+            .stages
+            .as_ref()
+            .zip(w.up_in_cam.as_ref())
+            .map(|(m, up)| (&m.normals, up));
         let mut full = self.full_size(&traversable(roughness, tilt, limits), false);
         self.only_with_roughness(&mut full);
         full
@@ -322,9 +340,10 @@ impl FrameOutput {
         let ok = self.slope_ok();
         let t = self.working.limits.max_roughness_m;
         let (w, h) = lo.size();
-        let traversal = Grid::from_fn(w, h, |x, y| {
+        let mut traversal = Grid::from_fn(w, h, |x, y| {
             interval::classify(lo[(x, y)], hi[(x, y)], t, ok[(x, y)])
         });
+        self.unknown_without_gravity(&mut traversal);
         let uncertainty_m = uncertainty_m
             .unwrap_or_else(|| Grid::from_fn(w, h, |x, y| 0.5 * (hi[(x, y)] - lo[(x, y)])));
         SensorMaps {
@@ -335,12 +354,31 @@ impl FrameOutput {
     }
 
     /// Pixels whose slope is within the threshold (every pixel with roughness when there are
-    /// no normals).
+    /// no normals, or gravity is unknown: [`unknown_without_gravity`](Self::unknown_without_gravity)
+    /// then turns traversable into unknown).
     fn slope_ok(&self) -> Grid<bool> {
+        let gravity_known = self.working.up_in_cam.is_some();
         self.within(&Traversability {
             max_roughness_m: f64::INFINITY,
-            ..self.working.limits
+            max_slope_rad: if gravity_known {
+                self.working.limits.max_slope_rad
+            } else {
+                std::f64::consts::FRAC_PI_2
+            },
         })
+    }
+
+    /// With gravity unknown and a slope threshold below 90°, no pixel can be called
+    /// traversable: those the roughness alone would pass become unknown.
+    fn unknown_without_gravity(&self, traversal: &mut Grid<Traversal>) {
+        let slope_tested = self.working.limits.max_slope_rad < std::f64::consts::FRAC_PI_2;
+        if self.working.up_in_cam.is_none() && self.working.stages.is_some() && slope_tested {
+            for t in traversal.as_mut_slice() {
+                if *t == Traversal::Traversable {
+                    *t = Traversal::Unknown;
+                }
+            }
+        }
     }
 }
 
@@ -353,7 +391,7 @@ pub struct StageTimings {
 
 impl StageTimings {
     /// Stage names the pipeline reports.
-    pub const NAMES: [&'static str; 9] = [
+    pub const NAMES: [&'static str; 10] = [
         "resize",
         "depth",
         "back_project",
@@ -361,6 +399,7 @@ impl StageTimings {
         "refine",
         "centroid",
         "roughness",
+        "gravity",
         "outputs",
         "end_to_end",
     ];
@@ -422,6 +461,11 @@ mod tests {
 
     /// A 2×2 working-size result for a 4×2 frame: left column rough, bottom-right too steep.
     fn output() -> FrameOutput {
+        output_with(Gravity::Stated(Mounting::default()))
+    }
+
+    /// [`output`] with another gravity.
+    fn output_with(gravity: Gravity) -> FrameOutput {
         let up = Mounting::default().up_in_cam();
         let roughness = Grid::from_fn(2, 2, |x, _| if x == 0 { 0.2 } else { 0.01 });
         let normals = Grid::from_fn(2, 2, |x, y| {
@@ -442,7 +486,7 @@ mod tests {
             (4, 2),
             roughness,
             Some(maps),
-            up,
+            gravity,
             Traversability::default(),
             &mut Spares::default(),
         )
@@ -496,6 +540,33 @@ mod tests {
     }
 
     #[test]
+    fn without_gravity_nothing_is_traversable_and_flat_is_unknown() {
+        let out = output_with(Gravity::Unknown(crate::gravity::GravityUnknown::NoDepth));
+        assert!(out.traversable().as_slice().iter().all(|&t| !t));
+        assert!(out
+            .slope_rad()
+            .unwrap()
+            .as_slice()
+            .iter()
+            .all(|s| s.is_nan()));
+        let frame = FrameInput {
+            depth_m: Some(Grid::new(4, 2, 1.5)),
+            ..FrameInput::default()
+        };
+        let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
+        let maps = out
+            .sensor_maps(&frame, Mode::Rgbd, Some(&kinect), None, None)
+            .unwrap();
+        // Rough is still a hazard; flat cannot be called traversable without gravity.
+        assert_eq!(maps.traversal[(0, 0)], Traversal::Hazard);
+        assert_eq!(maps.traversal[(3, 0)], Traversal::Unknown);
+        // A slope threshold of 90° needs no gravity.
+        let mut flat_only = output_with(Gravity::Unknown(crate::gravity::GravityUnknown::NoDepth));
+        flat_only.working.limits.max_slope_rad = std::f64::consts::FRAC_PI_2;
+        assert_eq!(flat_only.traversable().row(0), &[false, false, true, true]);
+    }
+
+    #[test]
     fn boundary_marks_both_sides_of_a_depth_step() {
         let points = Grid::from_fn(6, 2, |x, y| {
             let z = if x < 3 { 1.0 } else { 1.2 };
@@ -506,12 +577,11 @@ mod tests {
             normals: Grid::new(6, 2, Vec3::new(0.0, 0.0, -1.0)),
             points,
         };
-        let up = Mounting::default().up_in_cam();
         let out = FrameOutput::new(
             (12, 2),
             Grid::new(6, 2, 0.0),
             Some(maps),
-            up,
+            Gravity::Stated(Mounting::default()),
             Traversability::default(),
             &mut Spares::default(),
         );
@@ -528,7 +598,7 @@ mod tests {
             (2, 2),
             Grid::new(2, 2, 0.01),
             None,
-            Vec3::z(),
+            Gravity::Stated(Mounting::default()),
             Traversability::default(),
             &mut Spares::default(),
         );

@@ -25,6 +25,7 @@ pub mod centroid;
 pub mod config;
 pub mod depth;
 pub mod frame;
+pub mod gravity;
 pub mod normals;
 pub mod resize;
 pub mod run;
@@ -39,6 +40,7 @@ pub use config::{
 };
 pub use depth::{prior_depth, MAX_PRIOR_DEPTH_M};
 pub use frame::{FrameInput, FrameOutput, SensorMaps, StageTimings, DEFAULT_HFOV_DEG};
+pub use gravity::{Assumption, Gravity, GravityFigures, GravityUnknown};
 pub use run::{check_input, Pipeline, DEFAULT_WORKING_SIZE};
 
 use tre_core::geometry::GeometryError;

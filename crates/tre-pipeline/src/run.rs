@@ -9,6 +9,7 @@ use ndarray::Array4;
 use super::centroid::net_centroids;
 use super::depth::{prior_depth_into, MAX_PRIOR_DEPTH_M};
 use super::frame::{FrameInput, FrameOutput, StageMaps, StageTimings, DEFAULT_HFOV_DEG};
+use super::gravity::{Gravity, GravityUnknown};
 use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
 use super::resize::{resize_nearest_reusing, resize_rgb};
 use super::spares::Spares;
@@ -18,12 +19,29 @@ use super::{
     PipelineConfig, PipelineError, MAX_WORKING_SIDE,
 };
 use tre_core::geometry::dsac::DsacScratch;
+use tre_core::geometry::floor::{fit_floor, FloorFitConfig};
 use tre_core::geometry::normals::{window_centroids_into, PackedPoints};
 use tre_core::geometry::{DsacConfig, Grid, Intrinsics, LocalPlanes, PointMap, Vec3};
 use tre_core::roughness::annotate::{spec_roughness_into, surface_term_into, SpecMaps, SpecPlanes};
 use tre_core::roughness::interval::{Calibration, IntervalTable};
 use tre_core::roughness::AnnotateConfig;
 use tre_model::Models;
+
+/// A frame's gravity: its stated mounting, else (with sensor depth) a confident fit of the
+/// ground in its points at the working size, else unknown.
+fn frame_gravity(input: &FrameInput, mode: Mode, points: &PointMap) -> Gravity {
+    if let Some(m) = input.mounting {
+        return Gravity::Stated(m);
+    }
+    if mode == Mode::Rgb {
+        return Gravity::Unknown(GravityUnknown::NoDepth);
+    }
+    match fit_floor(points, &FloorFitConfig::default()) {
+        Ok(fit) if fit.confident => Gravity::Estimated(fit),
+        Ok(fit) => Gravity::Unknown(GravityUnknown::NotConfident(fit)),
+        Err(e) => Gravity::Unknown(GravityUnknown::NoFloor(e)),
+    }
+}
 
 /// Working size when no models are loaded, `(width, height)`.
 pub const DEFAULT_WORKING_SIZE: (usize, usize) = (256, 256);
@@ -207,10 +225,10 @@ impl Pipeline {
             points,
             normals,
         };
+        let gravity = timings.time("gravity", || frame_gravity(input, cfg.mode, &maps.points));
         let mut out = timings.time("outputs", || {
-            let up = input.mounting.up_in_cam();
             let (limits, spares) = (cfg.traversability, &mut self.scratch.spares);
-            let mut out = FrameOutput::new(size, roughness_m, Some(maps), up, limits, spares);
+            let mut out = FrameOutput::new(size, roughness_m, Some(maps), gravity, limits, spares);
             if let (Mode::Rgbd | Mode::Geometric, Some(given)) = (cfg.mode, &input.depth_m) {
                 out.keep_holes(given);
             }
@@ -308,7 +326,7 @@ impl Pipeline {
         if grid.size() != (w, h) {
             *grid = Grid::new(w, h, MAX_PRIOR_DEPTH_M);
         }
-        prior_depth_into(&work.k, &input.mounting, grid);
+        prior_depth_into(&work.k, &input.mounting.unwrap_or_default(), grid);
         scalar_tensor(grid, &mut self.scratch.prior);
     }
 
@@ -330,9 +348,11 @@ impl Pipeline {
         depth_from_tensor_into(r.view(), &mut roughness_m);
         timings.add("end_to_end", start.elapsed());
         let mut out = timings.time("outputs", || {
-            let (up, limits) = (input.mounting.up_in_cam(), cfg.traversability);
-            let spares = &mut self.scratch.spares;
-            FrameOutput::new(size, roughness_m, None, up, limits, spares)
+            let gravity = input
+                .mounting
+                .map_or(Gravity::Unknown(GravityUnknown::NoDepth), Gravity::Stated);
+            let (limits, spares) = (cfg.traversability, &mut self.scratch.spares);
+            FrameOutput::new(size, roughness_m, None, gravity, limits, spares)
         });
         out.timings = timings;
         Ok(out)

@@ -383,23 +383,57 @@ pub fn server_timing(reply: &FrameReply) -> String {
         .join(", ")
 }
 
+/// `text` as a header value can carry it: visible ASCII (`°` written `deg`, other characters
+/// dropped).
+fn header_text(text: &str) -> String {
+    text.replace('°', " deg")
+        .chars()
+        .filter(|c| c.is_ascii() && !c.is_ascii_control())
+        .collect()
+}
+
 fn reply_response(reply: FrameReply) -> Response {
     let mut headers = HeaderMap::new();
-    let mut set = |name: &'static str, value: String| {
+    let set = |headers: &mut HeaderMap, name: &'static str, value: String| {
         if let Ok(v) = HeaderValue::from_str(&value) {
             headers.insert(name, v);
         }
     };
-    set("x-roughness-scale-m", SCALE_M.to_string());
-    set("x-image-width", reply.size.0.to_string());
-    set("x-image-height", reply.size.1.to_string());
+    set(&mut headers, "x-roughness-scale-m", SCALE_M.to_string());
+    set(&mut headers, "x-image-width", reply.size.0.to_string());
+    set(&mut headers, "x-image-height", reply.size.1.to_string());
     set(
+        &mut headers,
         "x-working-size",
         format!("{}x{}", reply.working_size.0, reply.working_size.1),
     );
-    set("server-timing", server_timing(&reply));
+    set(&mut headers, "server-timing", server_timing(&reply));
+    set(&mut headers, "x-tre-mode", reply.mode.to_string());
+    set(
+        &mut headers,
+        "x-tre-gravity",
+        header_text(&reply.gravity.to_string()),
+    );
+    if !reply.assumed.is_empty() {
+        let keys: Vec<&str> = reply.assumed.iter().map(|a| a.key()).collect();
+        set(&mut headers, "x-tre-assumed", keys.join(", "));
+    }
+    // RFC 7234's Warning header, one per assumption, in words (code 199: miscellaneous).
+    for a in &reply.assumed {
+        let text = format!(
+            "199 tre \"{}\"",
+            header_text(&a.to_string()).replace('"', "'")
+        );
+        if let Ok(v) = HeaderValue::from_str(&text) {
+            headers.append("warning", v);
+        }
+    }
     if reply.extras.is_empty() {
-        set("content-type", reply.format.content_type().into());
+        set(
+            &mut headers,
+            "content-type",
+            reply.format.content_type().into(),
+        );
         return (StatusCode::OK, headers, reply.roughness).into_response();
     }
     let boundary = format!(
@@ -407,6 +441,7 @@ fn reply_response(reply: FrameReply) -> Response {
         tre_core::geometry::hash::splitmix64(reply.roughness.len() as u64 ^ 0x5eed)
     );
     set(
+        &mut headers,
         "content-type",
         format!("multipart/mixed; boundary={boundary}"),
     );

@@ -6,7 +6,7 @@ use prost::Message;
 use super::error::{ApiError, ErrorCode};
 use super::request::{FrameOptions, FrameReply, FrameRequest, SCALE_M};
 use tre_core::kinds::StreamFormat;
-use tre_core::roughness::noise::SensorNoise;
+use tre_core::roughness::noise::{SensorNoise, SensorPreset};
 use tre_io::{CameraFile, SensorSpec};
 use tre_pipeline::{check_dsac_hypotheses, Traversability};
 use tre_proto::v1 as pb;
@@ -132,9 +132,24 @@ impl TryFrom<pb::Hello> for StreamSettings {
                 format!("must be positive, got {m}"),
             ));
         }
+        let sensor = match sensor_from_pb(h.sensor, &h.sensor_sigma_mm) {
+            Ok(None) => None,
+            Ok(Some(SensorSpec::Model(m))) => Some(m),
+            Ok(Some(SensorSpec::Description(d))) => {
+                return Err(bad(
+                    "hello.sensor",
+                    format!(
+                        "{d:?} names no noise model; one of {}",
+                        SensorPreset::names()
+                    ),
+                ))
+            }
+            Err(e) => return Err(bad("hello.sensor", e.message)),
+        };
         Ok(Self {
             camera: h.camera.map(camera_from_pb).transpose()?,
             options: FrameOptions {
+                sensor,
                 mode: mode.into(),
                 format: StreamFormat::from(format).into(),
                 seed: h.seed,
@@ -294,6 +309,9 @@ pub fn result(
             .collect(),
         latency_ms,
         dropped_total,
+        mode: reply.mode.to_string(),
+        assumed: reply.assumed.iter().map(|a| a.key().to_owned()).collect(),
+        gravity: reply.gravity.to_string(),
     }))
 }
 

@@ -8,12 +8,12 @@ use image::{DynamicImage, ImageFormat, ImageReader};
 
 use super::error::{ApiError, ErrorCode};
 pub use super::options::{Extras, Format, FrameOptions, OutputMap};
-use tre_core::geometry::{Grid, Mounting};
+use tre_core::geometry::Grid;
 use tre_core::roughness::interval::IntervalTable;
 use tre_io::{self as io, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
 use tre_pipeline::{
-    FrameInput, FrameOutput, Mode, NormalsMethod, PipelineConfig, PipelineError,
-    DEFAULT_DSAC_HYPOTHESES,
+    Assumption, FrameInput, FrameOutput, Gravity, Mode, NormalsMethod, PipelineConfig,
+    PipelineError, DEFAULT_DSAC_HYPOTHESES,
 };
 
 /// A frame as received: encoded images and an unchecked camera.
@@ -134,6 +134,12 @@ pub struct FrameReply {
     pub uncertainty: Vec<u8>,
     /// Wall time of each stage.
     pub timings: tre_pipeline::StageTimings,
+    /// The mode that ran.
+    pub mode: Mode,
+    /// What stood in for what the request did not give.
+    pub assumed: Vec<Assumption>,
+    /// Where gravity came from.
+    pub gravity: Gravity,
 }
 
 /// PNG and JPEG magic numbers.
@@ -296,6 +302,22 @@ fn depth_of(bytes: &[u8], units_per_m: f64, limits: DecodeLimits) -> Result<Grid
     }
 }
 
+/// An RGB frame from `bytes`, refusing 16-bit grey (depth sent as colour) with 422
+/// `bad_image` that says where depth goes.
+fn rgb_frame(bytes: &[u8], limits: DecodeLimits) -> Result<image::RgbImage, ApiError> {
+    let image = decode_image("rgb", bytes, limits)?;
+    if let Some(why) = io::not_rgb(image.color()) {
+        return Err(ApiError::new(
+            ErrorCode::BadImage,
+            format!(
+                "rgb: {why}: the multipart part `depth` over HTTP (a `camera` part gives its \
+                 depth_scale), the frame's `depth` field on the stream"
+            ),
+        ));
+    }
+    Ok(image.to_rgb8())
+}
+
 /// The pipeline input for `req`: decoded images, checked camera.
 pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInput, ApiError> {
     let camera = |e: tre_core::geometry::GeometryError| {
@@ -307,7 +329,7 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
             c.mounting().map_err(camera)?,
             c.depth_scale.unwrap_or(1000.0),
         ),
-        None => (None, Mounting::default(), 1000.0),
+        None => (None, None, 1000.0),
     };
     if !(scale.is_finite() && scale > 0.0) {
         return Err(ApiError::new(
@@ -320,7 +342,7 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
     let geometric = req.options.mode == Some(Mode::Geometric) && req.depth.is_some();
     let (rgb, unused_rgb) = match &req.rgb {
         Some(b) if geometric => (None, Some(image_header("rgb", b, limits)?.1)),
-        Some(b) => (Some(decode_image("rgb", b, limits)?.to_rgb8()), None),
+        Some(b) => (Some(rgb_frame(b, limits)?), None),
         None => (None, None),
     };
     let depth_m = match &req.depth {
@@ -456,9 +478,29 @@ fn encode_roughness(r: &Grid<f64>, opts: &FrameOptions) -> Result<Vec<u8>, ApiEr
     })
 }
 
+/// What stood in for what `req` did not give, for `frame` (decoded from it) run in `mode`.
+pub fn assumptions(req: &FrameRequest, frame: &FrameInput, mode: Mode) -> Vec<Assumption> {
+    let depth_png = req
+        .depth
+        .as_ref()
+        .is_some_and(|d| !d.starts_with(b"\x93NUMPY"));
+    let scale_stated = req.camera.as_ref().is_some_and(|c| c.depth_scale.is_some());
+    Assumption::of_frame(
+        frame.intrinsics.is_some(),
+        depth_png && !scale_stated,
+        frame.mounting.is_some(),
+        (mode, req.options.mode.is_some()),
+    )
+}
+
 /// Encodes the pipeline's output as the options ask (the output stays the caller's, to hand
-/// back to [`Pipeline::recycle`](tre_pipeline::Pipeline::recycle)).
-pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply, ApiError> {
+/// back to [`Pipeline::recycle`](tre_pipeline::Pipeline::recycle)); `mode` ran, with the
+/// `assumed` stand-ins ([`assumptions`]).
+pub fn encode_reply(
+    out: &FrameOutput,
+    opts: &FrameOptions,
+    (mode, assumed): (Mode, Vec<Assumption>),
+) -> Result<FrameReply, ApiError> {
     let (w, h) = out.roughness_m.size();
     let roughness = encode_roughness(&out.roughness_m, opts)?;
     let mut extras = Vec::new();
@@ -514,6 +556,9 @@ pub fn encode_reply(out: &FrameOutput, opts: &FrameOptions) -> Result<FrameReply
         traversal: Vec::new(),
         uncertainty: Vec::new(),
         timings: out.timings.clone(),
+        mode,
+        assumed,
+        gravity: out.gravity,
     })
 }
 

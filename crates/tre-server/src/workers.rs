@@ -14,8 +14,8 @@ use tokio::sync::oneshot;
 use super::error::{ApiError, ErrorCode};
 use super::metrics::Metrics;
 use super::request::{
-    config_for, decode_frame, encode_reply, encode_sensor_maps, DecodeLimits, FrameDefaults,
-    FrameReply, FrameRequest,
+    assumptions, config_for, decode_frame, encode_reply, encode_sensor_maps, DecodeLimits,
+    FrameDefaults, FrameReply, FrameRequest,
 };
 use tre_core::geometry::Grid;
 use tre_core::roughness::interval::Calibration;
@@ -332,7 +332,8 @@ fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> Jo
     let out = pipeline.run(&frame, &cfg)?;
     let started = Instant::now();
     let table = pipeline.interval_table(cfg.mode);
-    let reply = encode_reply(&out, &req.options).and_then(|mut reply| {
+    let facts = (cfg.mode, assumptions(req, &frame, cfg.mode));
+    let reply = encode_reply(&out, &req.options, facts).and_then(|mut reply| {
         encode_sensor_maps(&out, &frame, (cfg.mode, table), req, &mut reply)?;
         Ok(reply)
     });

@@ -119,10 +119,23 @@ pub enum Notice {
     },
     /// The recording's final counts.
     Finished(Progress),
+    /// The first answer, and any answer whose mode, stand-ins or gravity source differs from
+    /// the last told: what ran and what the server assumed.
+    Answering {
+        /// The mode that ran.
+        mode: String,
+        /// What stood in for what was not given (`intrinsics`, `depth_scale`, `mounting`,
+        /// `mode`).
+        assumed: Vec<String>,
+        /// Where gravity came from, as the server words it.
+        gravity: String,
+    },
     /// Where the maps and `frames.csv` are.
     Written {
         /// The output folder.
         out: PathBuf,
+        /// Frames answered (each with its maps).
+        maps: u64,
     },
 }
 
@@ -141,7 +154,34 @@ impl fmt::Display for Notice {
                 downtime.as_secs_f64()
             ),
             Self::GaveUp { reason } => write!(f, "gave up: {reason}"),
-            Self::Written { out } => write!(f, "maps and frames.csv in {}", out.display()),
+            Self::Answering {
+                mode,
+                assumed,
+                gravity,
+            } => {
+                write!(f, "answers: mode {mode}, gravity {gravity}")?;
+                if !assumed.is_empty() {
+                    write!(
+                        f,
+                        "\nwarning: the server assumed {} (not given: see docs/service.md, \
+                         \"What the answer assumed\")",
+                        assumed.join(", ")
+                    )?;
+                }
+                Ok(())
+            }
+            Self::Written { out, maps: 0 } => write!(
+                f,
+                "frames.csv in {} (no maps: no frame was answered)",
+                out.display()
+            ),
+            Self::Written { out, maps } => {
+                write!(
+                    f,
+                    "maps of {maps} frames and frames.csv in {}",
+                    out.display()
+                )
+            }
         }
     }
 }
@@ -260,6 +300,7 @@ pub async fn record<N: FnMut(Notice)>(
     notify(Notice::Finished(done.clone()));
     notify(Notice::Written {
         out: cfg.out.clone(),
+        maps: stats.results,
     });
     written?;
     verdict(&stats, sent_outcome, &cfg.session.server)?;
@@ -317,8 +358,30 @@ mod tests {
             reconnected.to_string(),
             "reconnected after 1.3 s (3 attempts)"
         );
-        let written = Notice::Written { out: "o".into() };
-        assert_eq!(written.to_string(), "maps and frames.csv in o");
+        let written = Notice::Written {
+            out: "o".into(),
+            maps: 4,
+        };
+        assert_eq!(written.to_string(), "maps of 4 frames and frames.csv in o");
+        let none = Notice::Written {
+            out: "o".into(),
+            maps: 0,
+        };
+        assert_eq!(
+            none.to_string(),
+            "frames.csv in o (no maps: no frame was answered)"
+        );
+        let answering = Notice::Answering {
+            mode: "geometric".into(),
+            assumed: vec!["depth_scale".into()],
+            gravity: "estimated; pitch_deg=28.2".into(),
+        };
+        let line = answering.to_string();
+        assert!(
+            line.starts_with("answers: mode geometric, gravity estimated")
+                && line.contains("warning: the server assumed depth_scale"),
+            "{line}"
+        );
     }
 
     #[test]

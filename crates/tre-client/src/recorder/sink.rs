@@ -25,6 +25,10 @@ pub(super) struct Sink<'n, N> {
     out: PathBuf,
     jobs: mpsc::Sender<Job>,
     notify: &'n mut N,
+    /// Error codes already warned about: each is logged once, then only counted.
+    warned: std::collections::BTreeSet<String>,
+    /// The mode, stand-ins and gravity source last told, so a change is told once.
+    answering: Option<(String, Vec<String>, String)>,
 }
 
 impl<'n, N: FnMut(Notice)> Sink<'n, N> {
@@ -37,6 +41,34 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
             out: out.to_owned(),
             jobs,
             notify,
+            warned: std::collections::BTreeSet::new(),
+            answering: None,
+        }
+    }
+
+    /// Logs a server error the first time its code comes; later ones are counted only.
+    fn warn_once(&mut self, sequence: Option<u64>, code: &str, message: &str) {
+        if self.warned.insert(code.to_owned()) {
+            tracing::warn!(
+                ?sequence,
+                %code,
+                "{message} (further `{code}` errors are counted, not repeated)"
+            );
+        }
+    }
+
+    /// Tells the mode, the stand-ins and the gravity source of a result when they differ from
+    /// the last ones told.
+    fn tell_answering(&mut self, r: &FrameResult) {
+        let source = r.gravity.split(';').next().unwrap_or_default().to_owned();
+        let now = (r.mode.clone(), r.assumed.clone(), source);
+        if self.answering.as_ref() != Some(&now) {
+            (self.notify)(Notice::Answering {
+                mode: r.mode.clone(),
+                assumed: r.assumed.clone(),
+                gravity: r.gravity.clone(),
+            });
+            self.answering = Some(now);
         }
     }
 
@@ -104,7 +136,7 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
                 message,
             } => {
                 self.stats.errors += 1;
-                tracing::warn!(sequence, %code, "{message}");
+                self.warn_once(Some(sequence), &code, &message);
                 (sequence, format!(",,,error:{code}"))
             }
             Event::Lost { sequence, reason } => {
@@ -124,6 +156,7 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
 
     /// A result's map and row, with the send and receive times its latency runs between.
     fn result_job(&mut self, r: Box<FrameResult>) -> Job {
+        self.tell_answering(&r);
         let (name, _) = self.take_entry(r.sequence);
         self.stats.result(&r);
         let rest = format!(
@@ -139,7 +172,12 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
             r.received_unix_us,
             &rest,
         );
-        let path = self.out.join(format!("{}_{name}.png", r.sequence));
+        // Metres as float32 go to `.npy`; the PNG encodings stay PNG.
+        let ext = match r.format {
+            crate::Format::F32 => "npy",
+            _ => "png",
+        };
+        let path = self.out.join(format!("{}_{name}.{ext}", r.sequence));
         Job::Map {
             path,
             result: r,
@@ -152,7 +190,7 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
         match ev {
             Event::Error { code, message, .. } => {
                 self.stats.errors += 1;
-                tracing::warn!(%code, "{message}");
+                self.warn_once(None, &code, &message);
             }
             Event::Disconnected { reason } => (self.notify)(Notice::Disconnected { reason }),
             Event::Reconnected {

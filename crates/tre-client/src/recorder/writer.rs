@@ -81,13 +81,11 @@ fn io_error<'p>(
     }
 }
 
-/// Writes a result's map as `tre infer` does (a PNG16 as received; F32 encoded the same way;
-/// colour as received) and its traversability mask beside it.
+/// Writes a result's map as `tre infer` does (a PNG16 as received; F32 as a float32 `.npy` in
+/// metres, NaN where there is no data; colour as received) and its other maps beside it.
 fn write_map(path: &Path, r: &FrameResult) -> Result<(), RecordError> {
     match (r.format, r.roughness_m()) {
-        (Format::F32, Some(m)) => {
-            io::save(path, &DynamicImage::ImageLumaA16(io::roughness_png16(m)))?;
-        }
+        (Format::F32, Some(m)) => io::write_npy_f32(path, m)?,
         _ => std::fs::write(path, &r.encoded).map_err(io_error("writing", path))?,
     }
     let stem = path

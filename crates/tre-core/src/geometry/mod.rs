@@ -52,6 +52,12 @@ pub enum GeometryError {
         /// The value given.
         value: f64,
     },
+    /// A camera height stated without the pitch.
+    #[error(
+        "height_m is stated without pitch_deg: give the pitch too (degrees below the horizon), \
+         or neither and gravity comes from the depth"
+    )]
+    HeightWithoutPitch,
     /// A pitch outside [−90°, 90°].
     #[error("camera pitch must be within [-90°, 90°], got {:.3}°", pitch_rad.to_degrees())]
     BadPitch {

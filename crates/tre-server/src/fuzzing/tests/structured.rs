@@ -109,6 +109,8 @@ pub(super) fn stream_structured() -> impl Strategy<Value = Vec<u8>> {
                     max_slope_deg: s,
                     want_traversal: b,
                     want_uncertainty: c,
+                    sensor: a.then(|| "kinect_v1".to_owned()),
+                    sensor_sigma_mm: Vec::new(),
                 }))
             },
         );
