@@ -8,8 +8,9 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 
+use crate::io;
 use crate::loadtest::{
-    report, run, svg, sweep, FrameSource, Load, LoadConfig, Protocol, Report, SweepReport,
+    report, run, svg, sweep, Ask, FrameSource, Load, LoadConfig, Protocol, Report, SweepReport,
 };
 
 /// Interface to load.
@@ -64,6 +65,34 @@ pub struct Loadtest {
     /// A folder whose .png/.jpg/.jpeg files are sent, cycled in name order.
     #[arg(long, env = "TRE_LOADTEST_FRAMES")]
     pub frames: Option<PathBuf>,
+    /// A registered depth frame sent with the --frame at the same place (repeat, one per
+    /// --frame): a 16-bit PNG (the camera's depth_scale, default millimetres) or a float .npy
+    /// in metres. Without --frame or --frames, depth alone is sent (the geometric mode).
+    #[arg(long, env = "TRE_LOADTEST_DEPTH", conflicts_with = "depth_dir")]
+    pub depth: Vec<PathBuf>,
+    /// A folder of depth frames (.png/.npy), paired with the frames in name order (as
+    /// --depth); alone, depth only.
+    #[arg(long, env = "TRE_LOADTEST_DEPTH_DIR")]
+    pub depth_dir: Option<PathBuf>,
+    /// Camera JSON sent with every frame (the HTTP `camera` part, the stream's Hello), read as
+    /// `tre infer` reads it (cameras/README.md).
+    #[arg(long, env = "TRE_CAMERA")]
+    pub camera: Option<PathBuf>,
+    /// Input mode asked for; default: the server's choice from the inputs.
+    #[arg(long, env = "TRE_MODE", value_enum)]
+    pub mode: Option<crate::pipeline::Mode>,
+    /// Depth sensor noise model, overriding the camera's (as `tre infer --sensor`).
+    #[arg(long, env = "TRE_SENSOR", value_parser = super::infer::parse_sensor)]
+    pub sensor: Option<crate::roughness::noise::SensorNoise>,
+    /// Initial normals asked for: dsac or ls; default: the server's.
+    #[arg(long, env = "TRE_LOADTEST_NORMALS", value_enum)]
+    pub normals: Option<crate::pipeline::NormalsMethod>,
+    /// DSAC hypotheses per pixel asked for, 1 to 64; default: the server's.
+    #[arg(long, env = "TRE_LOADTEST_DSAC_HYPOTHESES", value_parser = super::options::dsac_hypotheses_arg())]
+    pub dsac_hypotheses: Option<u32>,
+    /// Also ask for the three-state map and the uncertainty (a sensor noise model needed).
+    #[arg(long, env = "TRE_LOADTEST_TRAVERSAL")]
+    pub traversal: bool,
     /// Side of the synthetic square frame, pixels (when no --frame or --frames).
     #[arg(long, env = "TRE_LOADTEST_SYNTH_SIZE", default_value_t = 256)]
     pub synth_size: usize,
@@ -127,8 +156,36 @@ impl Loadtest {
             (None, None) => Some(Duration::from_secs(10)),
             (d, _) => d.map(|d| seconds("duration", d)).transpose()?,
         };
+        // A query on --url (`…?normals=ls&outputs=slope`) goes with every HTTP request.
+        // So does the endpoint's own path (`…/v1/roughness?…`, as curl is given it).
+        let (url, query) = match self.url.split_once('?') {
+            Some((base, q)) => (base.to_owned(), q.to_owned()),
+            None => (self.url.clone(), String::new()),
+        };
+        let url = ["/v1/roughness", "/v1/stream"]
+            .iter()
+            .find_map(|e| url.strip_suffix(e))
+            .unwrap_or(&url)
+            .to_owned();
+        let camera = match &self.camera {
+            Some(path) => {
+                let (cam, _) = io::read_camera(path)?;
+                let json =
+                    std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+                Some((json, cam))
+            }
+            None => None,
+        };
+        let depth = if let Some(dir) = &self.depth_dir {
+            Some(FrameSource::Dir(dir.clone()))
+        } else if !self.depth.is_empty() {
+            Some(FrameSource::Files(self.depth.clone()))
+        } else {
+            None
+        };
+        let depth_only = depth.is_some() && self.frame.is_empty() && self.frames.is_none();
         let cfg = LoadConfig {
-            url: self.url.clone(),
+            url,
             api_key: self.api_key.clone(),
             ca_cert: self.ca_cert.clone(),
             allow_remote: self.allow_remote,
@@ -146,6 +203,17 @@ impl Loadtest {
             warmup: seconds("warmup", self.warmup)?,
             timeout: Duration::from_millis(self.timeout_ms),
             frames,
+            depth,
+            depth_only,
+            ask: Ask {
+                mode: self.mode,
+                camera,
+                sensor: self.sensor,
+                normals: self.normals,
+                dsac_hypotheses: self.dsac_hypotheses,
+                traversal: self.traversal,
+                query,
+            },
         };
         cfg.validate()?;
         if !self.sweep.is_empty() && self.compare.is_some() {
@@ -165,6 +233,9 @@ impl Loadtest {
             .frame
             .iter()
             .chain(&self.frames)
+            .chain(&self.depth)
+            .chain(&self.depth_dir)
+            .chain(&self.camera)
             .map(PathBuf::as_path)
             .collect();
         super::refuse_overwriting(&outputs, &inputs)?;

@@ -178,7 +178,10 @@ impl FrameOutput {
     /// `None` for the end-to-end baseline.
     pub fn slope_rad(&self) -> Option<Grid<f64>> {
         let n = &self.working.stages.as_ref()?.normals;
-        let up = self.working.up_in_cam.unwrap_or(INVALID_POINT);
+        let Some(up) = self.working.up_in_cam else {
+            let (w, h) = self.roughness_m.size();
+            return Some(Grid::new(w, h, f64::NAN));
+        };
         Some(self.full_size(&slopes(n, &up), f64::NAN))
     }
 
@@ -315,7 +318,17 @@ impl FrameOutput {
             max_roughness_m: self.working.limits.max_roughness_m,
             ..ThreeStateRule::default()
         };
-        let traversal = rule.map(&self.roughness_m, &uncertainty_m, &self.traversable());
+        // Without gravity the slope cannot be judged: the roughness alone decides hazards, and
+        // what it would pass becomes unknown.
+        let binary = match self.working.up_in_cam {
+            Some(_) => self.traversable(),
+            None => self.within(&Traversability {
+                max_slope_rad: std::f64::consts::FRAC_PI_2,
+                ..self.working.limits
+            }),
+        };
+        let mut traversal = rule.map(&self.roughness_m, &uncertainty_m, &binary);
+        self.unknown_without_gravity(&mut traversal);
         Ok(SensorMaps {
             uncertainty_m,
             interval_m: None,

@@ -34,10 +34,70 @@ impl Default for FrameSource {
 /// One encoded frame.
 #[derive(Debug, Clone)]
 pub struct Frame {
-    /// PNG or JPEG bytes.
+    /// The HTTP body: the image alone (PNG or JPEG), or with depth or a camera a multipart
+    /// form of parts `rgb`, `depth` and `camera`, built once.
     pub bytes: Bytes,
-    /// `image/png` or `image/jpeg`.
+    /// `image/png`, `image/jpeg` or the multipart form's type.
     pub content_type: &'static str,
+    /// The image for the stream (empty: depth only).
+    pub image: Bytes,
+    /// The depth for the stream (empty: none): a 16-bit PNG or a float `.npy`.
+    pub depth: Bytes,
+}
+
+/// The multipart boundary of load-test bodies.
+const BOUNDARY: &str = "tre-loadtest-5e1f7c";
+/// The content type of a multipart load-test body.
+const MULTIPART: &str = "multipart/form-data; boundary=tre-loadtest-5e1f7c";
+
+impl Frame {
+    /// A frame of `image` (may be empty) and `depth` (may be empty), with the camera JSON
+    /// `camera` as written (may be empty) for the HTTP form.
+    pub fn new(image: Vec<u8>, depth: Vec<u8>, camera: &[u8]) -> Self {
+        if depth.is_empty() && camera.is_empty() {
+            return Self {
+                content_type: content_type(&image).unwrap_or("image/png"),
+                bytes: Bytes::from(image.clone()),
+                image: Bytes::from(image),
+                depth: Bytes::new(),
+            };
+        }
+        let mut body = Vec::new();
+        let mut part = |name: &str, file: &str, ct: &str, bytes: &[u8]| {
+            if bytes.is_empty() {
+                return;
+            }
+            body.extend_from_slice(
+                format!(
+                    "--{BOUNDARY}\r\nContent-Disposition: form-data; name=\"{name}\"; \
+                     filename=\"{file}\"\r\nContent-Type: {ct}\r\n\r\n"
+                )
+                .as_bytes(),
+            );
+            body.extend_from_slice(bytes);
+            body.extend_from_slice(b"\r\n");
+        };
+        part(
+            "rgb",
+            "rgb",
+            content_type(&image).unwrap_or("image/png"),
+            &image,
+        );
+        let depth_type = if depth.starts_with(b"\x93NUMPY") {
+            "application/octet-stream"
+        } else {
+            "image/png"
+        };
+        part("depth", "depth", depth_type, &depth);
+        part("camera", "camera.json", "application/json", camera);
+        body.extend_from_slice(format!("--{BOUNDARY}--\r\n").as_bytes());
+        Self {
+            bytes: Bytes::from(body),
+            content_type: MULTIPART,
+            image: Bytes::from(image),
+            depth: Bytes::from(depth),
+        }
+    }
 }
 
 /// The frames of a run, cycled by request index.
@@ -54,7 +114,7 @@ impl Frames {
         match source {
             FrameSource::Synthetic { size } => synthetic(*size),
             FrameSource::Files(paths) => from_files(paths),
-            FrameSource::Dir(dir) => from_files(&images_in(dir)?),
+            FrameSource::Dir(dir) => from_files(&files_in(dir, &["png", "jpg", "jpeg"])?),
         }
     }
 
@@ -62,15 +122,93 @@ impl Frames {
     pub fn from_bytes(images: Vec<Vec<u8>>, description: impl Into<String>) -> Self {
         let frames = images
             .into_iter()
-            .map(|b| Frame {
-                content_type: content_type(&b).unwrap_or("image/png"),
-                bytes: Bytes::from(b),
-            })
+            .map(|b| Frame::new(b, Vec::new(), &[]))
             .collect();
         Self {
             frames,
             description: description.into(),
         }
+    }
+
+    /// The frames of `images` (`None`: depth only), each with the depth of `depth` at the same
+    /// place (cycled; both lists of files must then be as long), and the camera JSON `camera`
+    /// (as written, sent with every HTTP request; empty: none).
+    pub fn with_depth(
+        images: Option<&FrameSource>,
+        depth: Option<&FrameSource>,
+        camera: &[u8],
+    ) -> Result<Self, LoadError> {
+        let images = match images {
+            Some(src) => Some(Self::load(src)?),
+            None => None,
+        };
+        let Some(depth) = depth else {
+            let images = images.unwrap_or_else(|| Self::from_bytes(Vec::new(), ""));
+            if camera.is_empty() {
+                return Ok(images);
+            }
+            let frames = images
+                .frames
+                .iter()
+                .map(|f| Frame::new(f.image.to_vec(), Vec::new(), camera))
+                .collect();
+            return Ok(Self {
+                frames,
+                description: format!("{} with a camera", images.description),
+            });
+        };
+        let paths = match depth {
+            FrameSource::Files(p) => p.clone(),
+            FrameSource::Dir(d) => files_in(d, &["png", "npy"])?,
+            FrameSource::Synthetic { .. } => {
+                return Err(LoadError::Config(
+                    "depth: give depth files or a folder of them".into(),
+                ))
+            }
+        };
+        let mut depths = Vec::with_capacity(paths.len());
+        for path in &paths {
+            let bytes = std::fs::read(path).map_err(|e| LoadError::Frame {
+                path: path.clone(),
+                why: e.to_string(),
+            })?;
+            if !(bytes.starts_with(b"\x93NUMPY") || content_type(&bytes) == Some("image/png")) {
+                return Err(LoadError::Frame {
+                    path: path.clone(),
+                    why: "depth must be a 16-bit PNG or a float .npy".into(),
+                });
+            }
+            depths.push(bytes);
+        }
+        let kb = depths.iter().map(Vec::len).sum::<usize>().div_ceil(1024);
+        let frames: Vec<Frame> = match &images {
+            Some(images) if images.len() != depths.len() => {
+                return Err(LoadError::Config(format!(
+                    "{} images but {} depth frames: give one depth frame per image",
+                    images.len(),
+                    depths.len()
+                )))
+            }
+            Some(images) => images
+                .frames
+                .iter()
+                .zip(depths)
+                .map(|(f, d)| Frame::new(f.image.to_vec(), d, camera))
+                .collect(),
+            None => depths
+                .into_iter()
+                .map(|d| Frame::new(Vec::new(), d, camera))
+                .collect(),
+        };
+        let with_camera = if camera.is_empty() { "" } else { ", a camera" };
+        let description = match &images {
+            Some(i) => format!("{} with depth ({kb} KB{with_camera})", i.description),
+            None => format!("depth only: {} files, {kb} KB{with_camera}", frames.len()),
+        };
+        Ok(Self {
+            frames,
+            description,
+        })
     }
 
     /// Frame for request `i` (cycling).
@@ -149,10 +287,8 @@ fn from_files(paths: &[PathBuf]) -> Result<Frames, LoadError> {
             why: "not a PNG or JPEG".into(),
         })?;
         total += bytes.len();
-        frames.push(Frame {
-            bytes: Bytes::from(bytes),
-            content_type,
-        });
+        let _ = content_type;
+        frames.push(Frame::new(bytes, Vec::new(), &[]));
     }
     let description = match paths {
         [one] => format!("{} ({} KB)", one.display(), total.div_ceil(1024)),
@@ -164,8 +300,8 @@ fn from_files(paths: &[PathBuf]) -> Result<Frames, LoadError> {
     })
 }
 
-/// The image files of `dir`, sorted by name; an empty folder is an error.
-fn images_in(dir: &Path) -> Result<Vec<PathBuf>, LoadError> {
+/// The files of `dir` with one of the extensions `exts`, sorted by name; none is an error.
+fn files_in(dir: &Path, exts: &[&str]) -> Result<Vec<PathBuf>, LoadError> {
     let err = |why: String| LoadError::Frame {
         path: dir.to_path_buf(),
         why,
@@ -177,12 +313,16 @@ fn images_in(dir: &Path) -> Result<Vec<PathBuf>, LoadError> {
         .filter(|p| {
             p.extension()
                 .and_then(|e| e.to_str())
-                .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg"))
+                .is_some_and(|e| exts.contains(&e.to_ascii_lowercase().as_str()))
         })
         .collect();
     paths.sort();
     if paths.is_empty() {
-        return Err(err("no .png, .jpg or .jpeg file in this folder".into()));
+        let names: Vec<String> = exts.iter().map(|e| format!(".{e}")).collect();
+        return Err(err(format!(
+            "no {} file in this folder",
+            names.join(" or ")
+        )));
     }
     Ok(paths)
 }

@@ -52,7 +52,10 @@ pub(super) async fn drive(
     let plan = Plan::new(cfg);
     let shared = Arc::new(Shared {
         client,
-        url: target.roughness_url(),
+        url: match cfg.ask.http_query() {
+            q if q.is_empty() => target.roughness_url(),
+            q => format!("{}?{q}", target.roughness_url()),
+        },
         frames: frames.clone(),
         rec: Recorder::new(plan.measure_from),
         plan,

@@ -108,6 +108,86 @@ pub struct LoadConfig {
     pub timeout: Duration,
     /// The frames sent, cycled.
     pub frames: FrameSource,
+    /// Depth sent with each frame (files paired with the frames in order, or a folder of
+    /// `.png`/`.npy`), as `tre client --depth` sends it.
+    pub depth: Option<FrameSource>,
+    /// Send the depth alone, no image (the geometric mode's input).
+    pub depth_only: bool,
+    /// What every frame asks for.
+    pub ask: Ask,
+}
+
+/// What every frame of a load test asks for, as `tre client` asks it: over HTTP as the query
+/// (and a `camera` part), over the stream as the Hello.
+#[derive(Debug, Clone, Default)]
+pub struct Ask {
+    /// Input mode; `None`: the server's choice from the inputs.
+    pub mode: Option<tre_core::kinds::Mode>,
+    /// The camera file as written (sent as the HTTP `camera` part) and as read (the Hello).
+    pub camera: Option<(Vec<u8>, tre_io::CameraFile)>,
+    /// Sensor noise model, overriding the camera's.
+    pub sensor: Option<tre_core::roughness::noise::SensorNoise>,
+    /// Initial normals; `None`: the server's.
+    pub normals: Option<tre_core::kinds::NormalsMethod>,
+    /// DSAC hypotheses; `None`: the server's.
+    pub dsac_hypotheses: Option<u32>,
+    /// Also ask for the three-state map and the uncertainty.
+    pub traversal: bool,
+    /// More HTTP query parameters (`key=value&…`), passed as given (HTTP only).
+    pub query: String,
+}
+
+impl Ask {
+    /// The HTTP query (without `?`): the typed choices, then [`query`](Self::query).
+    pub fn http_query(&self) -> String {
+        let mut q: Vec<String> = Vec::new();
+        if let Some(m) = self.mode {
+            q.push(format!("mode={m}"));
+        }
+        if let Some(n) = self.normals {
+            q.push(format!("normals={n}"));
+        }
+        if let Some(k) = self.dsac_hypotheses {
+            q.push(format!("dsac_hypotheses={k}"));
+        }
+        match self.sensor {
+            Some(tre_core::roughness::noise::SensorNoise::Preset(p)) => {
+                q.push(format!("sensor={p}"))
+            }
+            Some(tre_core::roughness::noise::SensorNoise::Coefficients {
+                sigma_mm: [a, b, c],
+            }) => {
+                q.push(format!("sensor={a},{b},{c}"));
+            }
+            None => {}
+        }
+        if self.traversal {
+            q.push("outputs=traversal,uncertainty".into());
+        }
+        if !self.query.is_empty() {
+            q.push(self.query.clone());
+        }
+        q.join("&")
+    }
+
+    /// The stream's Hello: what `tre client` sends for the same choices.
+    pub fn hello(&self) -> tre_proto::v1::Hello {
+        let cfg = crate::ClientConfig {
+            camera: self.camera.as_ref().map(|(_, c)| c.clone()),
+            mode: self.mode,
+            sensor: self.sensor,
+            normals: self.normals,
+            dsac_hypotheses: self.dsac_hypotheses,
+            want_traversal: self.traversal,
+            ..crate::ClientConfig::default()
+        };
+        tre_proto::v1::Hello::from(&cfg)
+    }
+
+    /// The camera JSON as written, or nothing.
+    pub fn camera_json(&self) -> &[u8] {
+        self.camera.as_ref().map_or(&[], |(j, _)| j.as_slice())
+    }
 }
 
 impl Default for LoadConfig {
@@ -126,6 +206,9 @@ impl Default for LoadConfig {
             warmup: Duration::ZERO,
             timeout: Duration::from_secs(30),
             frames: FrameSource::default(),
+            depth: None,
+            depth_only: false,
+            ask: Ask::default(),
         }
     }
 }
@@ -154,7 +237,23 @@ impl LoadConfig {
         if self.timeout.is_zero() {
             return bad("timeout: must be positive".into());
         }
+        if self.depth_only && self.depth.is_none() {
+            return bad("depth only: give the depth frames".into());
+        }
+        if self.protocol == Protocol::Ws && !self.ask.query.is_empty() {
+            return bad(format!(
+                "query {:?}: extra query parameters go to HTTP only; the stream takes the mode, \
+                 camera, sensor, normals, DSAC hypotheses and traversal options",
+                self.ask.query
+            ));
+        }
         Ok(())
+    }
+
+    /// The frames of this run: images, depth and the camera as configured.
+    pub fn load_frames(&self) -> Result<Frames, LoadError> {
+        let images = (!self.depth_only).then_some(&self.frames);
+        Frames::with_depth(images, self.depth.as_ref(), self.ask.camera_json())
     }
 
     /// The offered rate of an open-loop run.
@@ -245,7 +344,7 @@ pub enum LoadError {
 pub async fn run(cfg: &LoadConfig) -> Result<Report, LoadError> {
     cfg.validate()?;
     let target = Target::resolve(&cfg.url, cfg.allow_remote).await?;
-    let frames = Frames::load(&cfg.frames)?;
+    let frames = cfg.load_frames()?;
     run_on(cfg, &target, &frames).await
 }
 
@@ -285,7 +384,7 @@ pub async fn sweep(
     rates.dedup();
     cfg.validate()?;
     let target = Target::resolve(&cfg.url, cfg.allow_remote).await?;
-    let frames = Frames::load(&cfg.frames)?;
+    let frames = cfg.load_frames()?;
     let mut rows = Vec::with_capacity(rates.len());
     for rate_per_s in rates {
         let one = LoadConfig {

@@ -86,10 +86,10 @@ impl Answer {
     }
 }
 
-/// A `ClientMessage` with the default Hello (rgb mode for image-only frames, 16-bit PNG).
-fn hello() -> Message {
+/// A `ClientMessage` with the Hello of `ask` (what `tre client` sends for the same choices).
+fn hello(ask: &super::Ask) -> Message {
     let msg = pb::ClientMessage {
-        msg: Some(pb::client_message::Msg::Hello(pb::Hello::default())),
+        msg: Some(pb::client_message::Msg::Hello(ask.hello())),
     };
     Message::Binary(msg.encode_to_vec().into())
 }
@@ -103,7 +103,8 @@ fn frame(sequence: u64, frames: &Frames) -> Message {
         msg: Some(pb::client_message::Msg::Frame(pb::Frame {
             sequence,
             timestamp_us,
-            image: frames.get(sequence).bytes.to_vec(),
+            image: frames.get(sequence).image.to_vec(),
+            depth: frames.get(sequence).depth.to_vec(),
             ..pb::Frame::default()
         })),
     };
@@ -113,6 +114,7 @@ fn frame(sequence: u64, frames: &Frames) -> Message {
 /// Opens a stream (over TLS with `tls`), sends the Hello and waits for Ready.
 async fn connect(
     target: &Target,
+    ask: &super::Ask,
     timeout: Duration,
     api_key: Option<&str>,
     tls: Option<&Arc<rustls::ClientConfig>>,
@@ -142,7 +144,7 @@ async fn connect(
             tokio_tungstenite::client_async_tls_with_config(request, tcp, None, connector)
                 .await
                 .map_err(|e| err(format!("handshake: {e}")))?;
-        ws.send(hello()).await.map_err(|e| err(e.to_string()))?;
+        ws.send(hello(ask)).await.map_err(|e| err(e.to_string()))?;
         while let Some(msg) = ws.next().await {
             let Message::Binary(b) = msg.map_err(|e| err(e.to_string()))? else {
                 continue;
@@ -172,7 +174,7 @@ pub(super) async fn drive(
     let mut sockets = Vec::with_capacity(cfg.connections);
     for _ in 0..cfg.connections {
         let key = cfg.api_key.as_deref();
-        sockets.push(connect(target, cfg.timeout, key, tls.as_ref()).await?);
+        sockets.push(connect(target, &cfg.ask, cfg.timeout, key, tls.as_ref()).await?);
     }
     let plan = Plan::new(cfg);
     let run = Arc::new(Run {
