@@ -40,8 +40,8 @@ pub struct FloorFitConfig {
 impl Default for FloorFitConfig {
     fn default() -> Self {
         Self {
-            hypotheses: 300,
-            max_points: 6000,
+            hypotheses: 128,
+            max_points: 4000,
             tolerance_m: 0.02,
             tolerance_per_m: 0.01,
             max_normal_angle_deg: 15.0,
