@@ -137,8 +137,9 @@ impl Annotate {
         io::write_mask_png(&p("boundary.png"), &ann.boundary)?;
         io::write_npy_f32(&p("edge_weight.npy"), &ann.edge_weight_m)?;
         io::write_npy_u32(&p("segments.npy"), &ann.segments)?;
+        let title = format!("roughness, annotation spec v1: {}", file_name(&self.depth));
         let preview =
-            io::colormap::roughness_preview(&ann.roughness_m, self.preview_max_cm / 100.0);
+            io::colormap::roughness_preview(&ann.roughness_m, self.preview_max_cm / 100.0, &title);
         io::save(&p("preview.png"), &image::DynamicImage::ImageRgb8(preview))?;
         Ok(())
     }
@@ -163,4 +164,12 @@ fn print_summary(ann: &Annotation) {
         q(0.99),
         q(1.0)
     );
+}
+
+/// The last component of `path`, for titles.
+pub(super) fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
 }

@@ -101,7 +101,7 @@ impl Infer {
         crate::pipeline::check_input(&frame, &cfg)?;
         let mut pipeline = self.stages.pipeline(&[cfg])?;
         let out = pipeline.run(&frame, &cfg)?;
-        self.write(&out)?;
+        self.write(&out, &self.title("roughness", mode))?;
         let depth_png = self
             .depth
             .as_ref()
@@ -118,7 +118,7 @@ impl Infer {
         print_summary(&out, &cfg);
         let table = pipeline.interval_table(cfg.mode);
         if let Some(maps) = self.sensor_maps(&out, &frame, &cfg, described, table)? {
-            self.write_sensor_maps(&maps)?;
+            self.write_sensor_maps(&maps, &self.title("three-state", mode))?;
         }
         Ok(())
     }
@@ -182,7 +182,7 @@ impl Infer {
     /// Writes `<stem>_uncertainty.png|npy`, the interval's ends `<stem>_lo.npy` and
     /// `<stem>_hi.npy` (`--format npy`, when calibrated), `<stem>_traversal.png` (0 unknown, 1 traversable,
     /// 2 hazard) and `<stem>_traversal_preview.png`.
-    fn write_sensor_maps(&self, maps: &SensorMaps) -> anyhow::Result<()> {
+    fn write_sensor_maps(&self, maps: &SensorMaps, title: &str) -> anyhow::Result<()> {
         let u = &maps.uncertainty_m;
         match self.format {
             Format::Png16 => io::save(
@@ -202,7 +202,7 @@ impl Infer {
             &beside(&self.out, "traversal", "png"),
             &DynamicImage::ImageLuma8(grey),
         )?;
-        let preview = io::colormap::traversal_preview(&maps.traversal);
+        let preview = io::colormap::traversal_preview(&maps.traversal, title);
         io::save(
             &beside(&self.out, "traversal_preview", "png"),
             &DynamicImage::ImageRgb8(preview),
@@ -312,8 +312,16 @@ impl Infer {
         Ok((frame, cam.and_then(|(c, _)| c.sensor), stated.is_some()))
     }
 
-    /// Writes the roughness map in the chosen format and the preview beside it.
-    fn write(&self, out: &FrameOutput) -> anyhow::Result<()> {
+    /// A preview's title: `what`, the mode and the input's file name.
+    fn title(&self, what: &str, mode: Mode) -> String {
+        let input = self.frame.as_ref().or(self.depth.as_ref());
+        let name = input.map_or_else(String::new, |p| super::annotate::file_name(p));
+        format!("{what}, mode {mode}: {name}")
+    }
+
+    /// Writes the roughness map in the chosen format and the preview (titled `title`) beside
+    /// it.
+    fn write(&self, out: &FrameOutput, title: &str) -> anyhow::Result<()> {
         if let Some(dir) = self.out.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         }
@@ -326,7 +334,7 @@ impl Infer {
                 .with_context(|| format!("writing {}", self.out.display()))?,
         }
         let preview =
-            io::colormap::roughness_preview(&out.roughness_m, self.preview_max_cm / 100.0);
+            io::colormap::roughness_preview(&out.roughness_m, self.preview_max_cm / 100.0, title);
         io::save(&preview_path(&self.out), &DynamicImage::ImageRgb8(preview))?;
         Ok(())
     }

@@ -44,87 +44,35 @@ pub fn turbo(t: f64) -> [u8; 3] {
 
 /// Colour of pixels without data.
 const NO_DATA: [u8; 3] = [40, 40, 40];
-/// Height of the legend strip, pixels.
-const LEGEND_H: u32 = 22;
 
-/// Renders roughness (metres, NaN: none) with Turbo over `[0, max_m]` and a legend strip below
-/// that shows the colour bar with its scale in centimetres.
-pub fn roughness_preview(roughness_m: &Grid<f64>, max_m: f64) -> RgbImage {
-    let (w, h) = (roughness_m.width() as u32, roughness_m.height() as u32);
-    let width = w.max(60);
-    let mut img = RgbImage::from_pixel(width, h + LEGEND_H, Rgb([255, 255, 255]));
-    image::imageops::replace(&mut img, &colourise(roughness_m, 0.0, max_m), 0, 0);
-    draw_legend(&mut img, h, max_m);
-    img
+/// Renders roughness (metres, NaN: none) for people: a title strip (`title`, e.g. the mode
+/// and the frame), the map in Turbo over `[0, max_m]` (the sheets' colours: no data grey),
+/// and the colour bar with ticks in centimetres below.
+pub fn roughness_preview(roughness_m: &Grid<f64>, max_m: f64, title: &str) -> RgbImage {
+    let max_cm = 100.0 * max_m;
+    let ticks: Vec<f64> = (0..=4).map(|i| max_cm * f64::from(i) / 4.0).collect();
+    let map = crate::sheet::roughness_panel(roughness_m, max_m);
+    let legend = crate::sheet::colour_bar_legend(map.width(), max_m, &ticks);
+    titled(title, &map, &legend)
 }
 
-fn draw_legend(img: &mut RgbImage, top: u32, max_m: f64) {
-    let width = img.width();
-    let (bar_x0, bar_x1) = (4, width.saturating_sub(5));
-    for x in bar_x0..=bar_x1 {
-        let t = f64::from(x - bar_x0) / f64::from((bar_x1 - bar_x0).max(1));
-        for y in top + 2..top + 9 {
-            img.put_pixel(x, y, Rgb(turbo(t)));
-        }
-    }
-    let max_cm = max_m * 100.0;
-    draw_text(img, bar_x0, top + 12, "0");
-    let mid = trim(max_cm / 2.0);
-    draw_text(
-        img,
-        (bar_x0 + bar_x1) / 2 - text_width(&mid) / 2,
-        top + 12,
-        &mid,
-    );
-    let end = format!("{}cm", trim(max_cm));
-    draw_text(
-        img,
-        bar_x1 + 1 - text_width(&end).min(bar_x1),
-        top + 12,
-        &end,
-    );
-}
-
-fn trim(v: f64) -> String {
-    let s = format!("{v:.2}");
-    s.trim_end_matches('0').trim_end_matches('.').to_string()
-}
-
-fn text_width(s: &str) -> u32 {
-    s.chars().count() as u32 * 4
-}
-
-/// 3×5 glyphs, one row per 3 bits (MSB left).
-fn glyph(c: char) -> [u8; 5] {
-    match c {
-        '0' => [7, 5, 5, 5, 7],
-        '1' => [2, 6, 2, 2, 7],
-        '2' => [7, 1, 7, 4, 7],
-        '3' => [7, 1, 7, 1, 7],
-        '4' => [5, 5, 7, 1, 1],
-        '5' => [7, 4, 7, 1, 7],
-        '6' => [7, 4, 7, 5, 7],
-        '7' => [7, 1, 1, 1, 1],
-        '8' => [7, 5, 7, 5, 7],
-        '9' => [7, 5, 7, 1, 7],
-        '.' => [0, 0, 0, 0, 2],
-        'c' => [0, 7, 4, 4, 7],
-        'm' => [0, 7, 7, 5, 5],
-        _ => [0; 5],
-    }
-}
-
-fn draw_text(img: &mut RgbImage, x0: u32, y0: u32, s: &str) {
-    for (i, c) in s.chars().enumerate() {
-        for (row, bits) in glyph(c).iter().enumerate() {
-            for col in 0..3u32 {
-                let (x, y) = (x0 + i as u32 * 4 + col, y0 + row as u32);
-                if bits & (4 >> col) != 0 && x < img.width() && y < img.height() {
-                    img.put_pixel(x, y, Rgb([0, 0, 0]));
-                }
-            }
-        }
-    }
+/// `image` under a title strip and over `legend`, on the sheets' background.
+fn titled(title: &str, image: &RgbImage, legend: &RgbImage) -> RgbImage {
+    use crate::sheet::{draw_text, text_size, BACKGROUND, INK};
+    const SCALE: u32 = 2;
+    const PAD: u32 = 8;
+    let (tw, th) = text_size(title, SCALE);
+    let width = image.width().max(legend.width()).max(tw + 2 * PAD);
+    let title_h = th + 2 * PAD;
+    let height = title_h + image.height() + legend.height();
+    let mut out = RgbImage::from_pixel(width, height, BACKGROUND);
+    draw_text(&mut out, PAD, PAD, title, SCALE, INK);
+    let x = (width - image.width()) / 2;
+    image::imageops::replace(&mut out, image, i64::from(x), i64::from(title_h));
+    let lx = (width - legend.width()) / 2;
+    let ly = title_h + image.height();
+    image::imageops::replace(&mut out, legend, i64::from(lx), i64::from(ly));
+    out
 }
 
 /// Turbo colours of a float map over `[lo, hi]` (non-finite: no-data grey).
@@ -183,9 +131,20 @@ pub fn traversal_rgb(t: tre_core::roughness::traversal::Traversal) -> [u8; 3] {
     }
 }
 
-/// Colour preview of a three-state map ([`traversal_rgb`]).
-pub fn traversal_preview(map: &Grid<tre_core::roughness::traversal::Traversal>) -> RgbImage {
-    RgbImage::from_fn(map.width() as u32, map.height() as u32, |x, y| {
+/// Colour preview of a three-state map ([`traversal_rgb`]) for people: `title` above, the
+/// legend (traversable, hazard, unknown) below.
+pub fn traversal_preview(
+    map: &Grid<tre_core::roughness::traversal::Traversal>,
+    title: &str,
+) -> RgbImage {
+    use tre_core::roughness::traversal::Traversal;
+    let image = RgbImage::from_fn(map.width() as u32, map.height() as u32, |x, y| {
         image::Rgb(traversal_rgb(map[(x as usize, y as usize)]))
-    })
+    });
+    let legend = crate::sheet::categorical_legend(&[
+        ("traversable", Rgb(traversal_rgb(Traversal::Traversable))),
+        ("hazard", Rgb(traversal_rgb(Traversal::Hazard))),
+        ("unknown", Rgb(traversal_rgb(Traversal::Unknown))),
+    ]);
+    titled(title, &image, &legend)
 }
