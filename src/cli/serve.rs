@@ -8,6 +8,7 @@ use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 
 use super::options::{dsac_hypotheses_arg, find_models};
+use crate::io;
 use crate::model::{ExecutionProvider, SessionConfig};
 use crate::pipeline::{NormalsMethod, DEFAULT_DSAC_HYPOTHESES};
 use crate::server::request::FrameDefaults;
@@ -51,14 +52,16 @@ pub struct Serve {
     /// Frames that may wait for a worker; beyond, requests get 503 at once (0: 2 per worker).
     #[arg(long, env = "TRE_QUEUE", default_value_t = 0)]
     pub queue: usize,
-    /// Largest request body, bytes.
-    #[arg(long, env = "TRE_MAX_BODY_BYTES", default_value_t = 32 << 20)]
+    /// Largest request body, bytes: a number with an optional k, M or G suffix (KiB, MiB,
+    /// GiB).
+    #[arg(long, env = "TRE_MAX_BODY_BYTES", default_value = "32MiB", value_parser = io::units::parse_size)]
     pub max_body_bytes: usize,
     /// Largest image, pixels (checked from the header, before decoding). The costliest frame
     /// is depth-only in the geometric mode, which runs at the frame's own size: at 4 Mpx (the
     /// default) about 1.6 s of one worker and 0.6 GB resident; at 16 Mpx 7.4 s and 1.3 GB
     /// (docs/security.md). RGB frames run at the working size and cost far less.
-    #[arg(long, env = "TRE_MAX_PIXELS", default_value_t = 4 << 20)]
+    /// A number with an optional k, M or G suffix (binary: 4Mi = 4,194,304).
+    #[arg(long, env = "TRE_MAX_PIXELS", default_value = "4Mi", value_parser = io::units::parse_size)]
     pub max_pixels: usize,
     /// Longest image side, pixels (checked from the header, before decoding; beyond: 413).
     #[arg(long, env = "TRE_MAX_SIDE", default_value_t = 8192)]
@@ -96,9 +99,9 @@ pub struct Serve {
     /// (then 503 `timeout`).
     #[arg(long, env = "TRE_REQUEST_TIMEOUT_MS", default_value_t = 30_000)]
     pub request_timeout_ms: u64,
-    /// Largest WebSocket message, bytes (up to 4× this gets an error message; beyond, the
-    /// connection is closed with 1009).
-    #[arg(long, env = "TRE_WS_MAX_MESSAGE_BYTES", default_value_t = 16 << 20)]
+    /// Largest WebSocket message, bytes, with an optional k, M or G suffix (up to 4× this gets
+    /// an error message; beyond, the connection is closed with 1009).
+    #[arg(long, env = "TRE_WS_MAX_MESSAGE_BYTES", default_value = "16MiB", value_parser = io::units::parse_size)]
     pub ws_max_message_bytes: usize,
     /// Initial normals of frames that do not choose: dsac (the paper's method) or ls (faster;
     /// see docs/evaluation.md and docs/benchmarks.md). Requests override it with `normals=`.

@@ -12,6 +12,7 @@ pub mod depth;
 pub mod images;
 pub mod maps;
 pub mod npy;
+pub mod units;
 pub mod sheet;
 
 use std::fs::File;

@@ -234,7 +234,10 @@ async fn read_within(mut body: Body, limit: usize, mut pace: BodyPace) -> Result
     let too_large = || {
         ApiError::new(
             ErrorCode::TooLarge,
-            format!("the body is larger than the limit of {limit} bytes"),
+            format!(
+                "the body is larger than the limit of {} (--max-body-bytes)",
+                tre_io::units::format_size(limit, "B")
+            ),
         )
     };
     // The declared length, if any, sizes the buffer once (never beyond the limit).

@@ -82,8 +82,9 @@ impl DecodeLimits {
             return Err(ApiError::new(
                 ErrorCode::TooLarge,
                 format!(
-                    "{what}: the image is {w}×{h} = {pixels} pixels, more than the limit of {} (--max-pixels)",
-                    self.max_pixels
+                    "{what}: the image is {w}×{h} = {pixels} pixels, more than the limit of {} ({} pixels, --max-pixels)",
+                    self.max_pixels,
+                    io::units::format_size(self.max_pixels, "")
                 ),
             ));
         }

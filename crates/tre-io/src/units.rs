@@ -1,0 +1,55 @@
+//! Sizes for people: byte counts and pixel counts read with binary suffixes (`32MiB`, `4Mi`,
+//! `512k`) and written the same way (`32 MiB`), so that help texts, errors and logs never show
+//! `33554432`.
+
+/// Reads a size: a whole number with an optional suffix `k`/`Ki`/`KiB` (2¹⁰), `M`/`Mi`/`MiB`
+/// (2²⁰) or `G`/`Gi`/`GiB` (2³⁰), case-insensitive, `B` optional, spaces allowed.
+///
+/// ```
+/// use tre_io::units::parse_size;
+/// assert_eq!(parse_size("32MiB"), Ok(32 << 20));
+/// assert_eq!(parse_size("4 Mi"), Ok(4 << 20));
+/// assert_eq!(parse_size("512k"), Ok(512 << 10));
+/// assert_eq!(parse_size("1000"), Ok(1000));
+/// assert!(parse_size("1.5M").is_err() && parse_size("M").is_err() && parse_size("9ZB").is_err());
+/// ```
+pub fn parse_size(text: &str) -> Result<usize, String> {
+    let t = text.trim();
+    let digits = t.chars().take_while(char::is_ascii_digit).count();
+    let (number, suffix) = t.split_at(digits);
+    let bad = || {
+        format!("{text:?}: expected a whole number with an optional k, M or G (KiB, MiB, GiB) suffix")
+    };
+    let n: usize = number.parse().map_err(|_| bad())?;
+    let shift = match suffix.trim().to_ascii_lowercase().trim_end_matches('b') {
+        "" => 0,
+        "k" | "ki" => 10,
+        "m" | "mi" => 20,
+        "g" | "gi" => 30,
+        _ => return Err(bad()),
+    };
+    n.checked_mul(1 << shift).ok_or_else(bad)
+}
+
+/// A count with a binary suffix when it is a whole number of them, else plain (`unit`: `B`
+/// for bytes, empty for pixels).
+///
+/// ```
+/// use tre_io::units::format_size;
+/// assert_eq!(format_size(32 << 20, "B"), "32 MiB");
+/// assert_eq!(format_size(4 << 20, ""), "4 Mi");
+/// assert_eq!(format_size(1500, "B"), "1500 B");
+/// assert_eq!(format_size(3 << 30, "B"), "3 GiB");
+/// ```
+pub fn format_size(n: usize, unit: &str) -> String {
+    for (shift, prefix) in [(30, "Gi"), (20, "Mi"), (10, "Ki")] {
+        if n >= 1 << shift && n % (1 << shift) == 0 {
+            return format!("{} {prefix}{unit}", n >> shift);
+        }
+    }
+    if unit.is_empty() {
+        n.to_string()
+    } else {
+        format!("{n} {unit}")
+    }
+}
