@@ -233,7 +233,10 @@ impl Eval {
             [one] => Ok(*one),
             more => bail!(
                 "--mode: the synthetic split scores one mode at a time, got {}",
-                more.iter().map(ToString::to_string).collect::<Vec<_>>().join(",")
+                more.iter()
+                    .map(ToString::to_string)
+                    .collect::<Vec<_>>()
+                    .join(",")
             ),
         }
     }

@@ -1,13 +1,17 @@
 // Headless-Chromium test of the demo page of `tre serve` (run by tests/demo_page.rs).
 //
-//   node tests/browser/demo.mjs http://127.0.0.1:PORT path/to/image.png path/to/depth_mm.png
+//   node tests/browser/demo.mjs http://127.0.0.1:PORT path/to/image.png path/to/depth.png \
+//        path/to/camera.json
 //
 // Drives Debian's Chromium (CHROMIUM, default /usr/bin/chromium) with playwright-core: picks the
 // image, waits for the roughness overlay and checks that it really rendered (size, colours,
-// legend, stage timings), streams it over the WebSocket until 3 results came back, sends a depth
-// PNG through the three-state section (unknown in its own colour, legend), then submits
-// a text file and checks that the server's error message is shown. Exits 0 when every check
-// passes, 1 with the failed check otherwise. TRE_SCREENSHOT=path saves a screenshot of the page.
+// legend, stage timings, the answer's mode, gravity and assumptions), streams it over the
+// WebSocket until 3 results came back, sends the depth PNG through the three-state section
+// (first with the sensor alone: no camera part, intrinsics and depth scale assumed; then with
+// the camera JSON, which fills the Camera fields and goes as the `camera` part: nothing
+// assumed; unknown in its own colour, legend), then submits a text file and checks that the
+// server's error message is shown. Exits 0 when every check passes, 1 with the failed check
+// otherwise. TRE_SCREENSHOT=path saves a screenshot of the page.
 import { mkdtempSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
@@ -91,18 +95,132 @@ async function checkSingleImage(page, imagePath) {
   const workingSize = (await page.textContent("#working-size")).trim();
   check(/\d+\s*×\s*\d+/.test(workingSize), `working size shown (${workingSize})`);
   check((await page.textContent("#error")).trim() === "", "no error shown");
+  // No camera given: the answer names its mode and gravity, and the intrinsics as assumed.
+  const answer = await answerShown(page, "#image-answer");
+  check(answer.mode === "rgb", `image answer names the mode that ran (${answer.mode})`);
+  check(answer.assumed.includes("intrinsics"),
+    `image answer shows the assumed intrinsics (${answer.assumed})`);
 }
 
-/** A depth PNG through the three-state section: the map is painted in the legend's colours,
+/** The answer line in `selector`: mode, gravity source, assumed keys, texts, whether visible and
+ *  whether the assumptions are styled apart (as warnings). */
+async function answerShown(page, selector) {
+  const a = await page.$eval(selector, (el) => {
+    const warnings = [...el.querySelectorAll("li")];
+    const assumed = el.querySelector(".assumed");
+    const plain = getComputedStyle(el).color;
+    return {
+      mode: el.dataset.mode || "", gravity: el.dataset.gravity || "",
+      assumed: (el.dataset.assumed || "").split(",").filter(Boolean),
+      text: el.textContent.replace(/\s+/g, " ").trim(),
+      warnings: warnings.map((li) => li.textContent),
+      warningStyled: warnings.every((li) => getComputedStyle(li).color !== plain)
+        && (!assumed || !assumed.classList.contains("warn")
+            || getComputedStyle(assumed).color !== plain),
+    };
+  });
+  a.visible = await page.isVisible(selector);
+  console.log(`${selector}: ${a.text}`);
+  check(a.visible && a.mode !== "", `${selector} shown with the mode that ran`);
+  check(/^(stated|estimated|unknown)$/.test(a.gravity), `${selector} shows gravity (${a.gravity})`);
+  check(a.warnings.length === a.assumed.length,
+    `${selector}: one warning in words per assumption (${a.warnings.length}, ${a.assumed.length})`);
+  check(a.warningStyled, `${selector}: assumptions styled as warnings`);
+  return a;
+}
+
+/** Waits until the depth section has an answer or an error, for a change made by `act`. */
+async function depthRun(page, act) {
+  await page.evaluate(() => { document.getElementById("sensor").dataset.state = "waiting"; });
+  await act();
+  await page.waitForFunction(
+    () => ["done", "error"].includes(document.getElementById("sensor").dataset.state), null,
+    { timeout: RESULT_TIMEOUT_MS },
+  );
+  return page.evaluate(() => document.getElementById("sensor").dataset.state);
+}
+
+/** The Camera fields: labelled inputs for every parameter, a sensor choice, a camera file. */
+async function checkCameraFields(page) {
+  const fields = await page.$$eval("#camera [name]", (els) => els.map((el) => ({
+    name: el.name, labelled: Boolean(el.id && document.querySelector(`label[for="${el.id}"]`)),
+  })));
+  const names = fields.map((f) => f.name);
+  for (const name of ["fx", "fy", "cx", "cy", "depth_scale", "sensor", "pitch_deg", "height_m"]) {
+    check(names.includes(name), `camera field ${name}`);
+  }
+  check(fields.every((f) => f.labelled), "every camera field has a label");
+  check(await page.$("#camera-file") !== null, "camera JSON file input");
+  const sensors = await page.$$eval("#cam-sensor option", (o) => o.map((x) => x.value));
+  check(sensors.join(",") === ",kinect_v1,realsense_d435,azure_kinect,lidar,exact",
+    `sensor choices: none and the presets (${sensors})`);
+}
+
+/** The multipart parts and query of the last depth request the page sent. */
+function depthRequests(page) {
+  const seen = [];
+  page.on("request", (r) => {
+    if (r.method() === "POST" && r.url().includes("/v1/roughness?") && r.url().includes("traversal")) {
+      const body = (r.postDataBuffer() || Buffer.alloc(0)).toString("latin1");
+      seen.push({ url: new URL(r.url()), body });
+    }
+  });
+  return seen;
+}
+
+/** A depth PNG through the three-state section: with no sensor the page asks for one; with the
+ *  sensor alone no camera part goes and the answer names the assumed intrinsics and depth
+ *  scale; an incomplete intrinsics is named inline; the camera JSON fills the fields and goes
+ *  as the `camera` part, and nothing is assumed. The map is painted in the legend's colours,
  *  unknown among them, and the legend names the three states. */
-async function checkTraversal(page, depthPath) {
-  await page.setInputFiles("#depth-file", depthPath);
-  await page.waitForFunction(() => {
-    const shown = !document.getElementById("traversal-view").classList.contains("hidden");
-    return shown || document.getElementById("sensor-error").textContent !== "";
-  }, null, { timeout: RESULT_TIMEOUT_MS });
-  const error = (await page.textContent("#sensor-error")).trim();
-  check(error === "", `three-state map rendered${error ? ` (#sensor-error: ${error})` : ""}`);
+async function checkTraversal(page, depthPath, cameraPath) {
+  await checkCameraFields(page);
+  const requests = depthRequests(page);
+  let state = await depthRun(page, () => page.setInputFiles("#depth-file", depthPath));
+  let error = (await page.textContent("#sensor-error")).trim();
+  check(state === "error" && /noise model/.test(error) && requests.length === 0,
+    `without a sensor, no request and the page asks for one (${error})`);
+
+  state = await depthRun(page, () => page.selectOption("#cam-sensor", "kinect_v1"));
+  error = (await page.textContent("#sensor-error")).trim();
+  check(state === "done", `three-state map with the sensor alone${error ? ` (${error})` : ""}`);
+  let sent = requests[requests.length - 1];
+  check(sent && !/name="camera"/.test(sent.body) && sent.url.searchParams.get("sensor") === "kinect_v1",
+    "the sensor alone goes as ?sensor=, with no camera part");
+  let answer = await answerShown(page, "#depth-answer");
+  check(answer.mode === "geometric", `depth answer names the mode (${answer.mode})`);
+  check(answer.assumed.includes("intrinsics") && answer.assumed.includes("depth_scale"),
+    `depth answer shows the assumed intrinsics and depth scale (${answer.assumed})`);
+
+  await page.fill("#cam-fx", "500");
+  const inline = (await page.textContent("#camera-error")).trim();
+  check(/fx, fy, cx and cy/.test(inline) && await page.getAttribute("#cam-cy", "aria-invalid") === "true",
+    `an incomplete intrinsics is named inline (${inline})`);
+
+  const camera = JSON.parse(readFileSync(cameraPath, "utf8"));
+  state = await depthRun(page, () => page.setInputFiles("#camera-file", cameraPath));
+  error = (await page.textContent("#sensor-error")).trim();
+  check(state === "done", `three-state map with the camera JSON${error ? ` (${error})` : ""}`);
+  const filled = await page.$$eval("#camera [name]", (els) =>
+    Object.fromEntries(els.map((el) => [el.name, el.value])));
+  check(Number(filled.fx) === camera.fx && Number(filled.depth_scale) === camera.depth_scale
+    && filled.sensor === camera.sensor && filled.pitch_deg === "" && (await page.textContent("#camera-error")) === "",
+    `the camera JSON fills the fields (${JSON.stringify(filled)})`);
+  sent = requests[requests.length - 1];
+  const part = /name="camera"; filename="camera\.json"\r\nContent-Type: application\/json\r\n\r\n(.*?)\r\n--/s
+    .exec(sent.body);
+  const json = part ? JSON.parse(part[1]) : {};
+  check(json.fx === camera.fx && json.depth_scale === camera.depth_scale && json.sensor === camera.sensor
+    && !sent.url.searchParams.has("sensor"),
+    `the camera goes as the part camera.json, application/json (${part ? part[1].slice(0, 80) : "none"}…)`);
+  answer = await answerShown(page, "#depth-answer");
+  check(answer.assumed.length === 0 && /Nothing assumed/.test(answer.text),
+    `with the camera nothing is assumed (${answer.assumed})`);
+  // The image goes again, with the camera: its intrinsics are no longer assumed.
+  await page.waitForFunction(() => document.body.dataset.state !== "loading", null,
+    { timeout: RESULT_TIMEOUT_MS });
+  const image = await answerShown(page, "#image-answer");
+  check(!image.assumed.includes("intrinsics"), `the image went with the camera (${image.assumed})`);
   const legend = await page.$$eval("#traversal-legend li", (li) => li.map((l) => l.dataset.state));
   check(legend.join(",") === "unknown,traversable,hazard", `legend names the states (${legend})`);
   const seen = await page.evaluate(() => {
@@ -128,6 +246,15 @@ async function checkTraversal(page, depthPath) {
   check(seen[0] > 0 && seen[1] + seen[2] > 0, "unknown shown in its own colour beside the others");
   const shares = (await page.textContent("#sensor-shares")).trim();
   check(/unknown \d/.test(shares), `shares shown (${shares})`);
+}
+
+/** Clear camera: the fields empty, no camera part; the image goes again without one. */
+async function clearCamera(page) {
+  await page.click("#camera-clear");
+  await page.waitForFunction(() => document.body.dataset.state !== "loading", null,
+    { timeout: RESULT_TIMEOUT_MS });
+  const json = (await page.textContent("#camera-json")).trim();
+  check(/no camera part/.test(json), `Clear camera leaves no camera part (${json})`);
 }
 
 async function checkStream(page) {
@@ -182,9 +309,9 @@ async function checkBadInput(page, baseUrl) {
 }
 
 async function main() {
-  const [baseArg, imagePath, depthPath] = process.argv.slice(2);
-  if (!baseArg || !imagePath || !depthPath) {
-    console.error("usage: node demo.mjs BASE_URL IMAGE DEPTH_PNG_MM");
+  const [baseArg, imagePath, depthPath, cameraPath] = process.argv.slice(2);
+  if (!baseArg || !imagePath || !depthPath || !cameraPath) {
+    console.error("usage: node demo.mjs BASE_URL IMAGE DEPTH_PNG CAMERA_JSON");
     return 2;
   }
   const baseUrl = baseArg.replace(/\/+$/, "");
@@ -211,8 +338,9 @@ async function main() {
     check(await page.title() === "tre — terrain roughness", "page title");
     await checkSingleImage(page, imagePath);
     await checkStream(page);
-    await checkTraversal(page, depthPath);
+    await checkTraversal(page, depthPath, cameraPath);
     await screenshot();
+    await clearCamera(page);
     await checkBadInput(page, baseUrl);
     check(pageErrors.length === 0, `no uncaught errors in the page (${pageErrors.join("; ")})`);
     console.log("demo page: all checks passed");

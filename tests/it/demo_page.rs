@@ -1,7 +1,9 @@
 //! The demo page at `/` in a real browser: starts `tre serve` on a loopback port with the
 //! committed models and runs `tests/browser/demo.mjs` (playwright-core driving Debian's
 //! headless Chromium) against it: one image through `POST /v1/roughness`, the live stream over
-//! the WebSocket, a depth frame's three-state map, and a bad file's error message.
+//! the WebSocket, a depth frame's three-state map (with the sensor alone, then with the camera
+//! JSON `cameras/real-rgbd_metric3d_nyu.json` as the `camera` part), what each answer says it did
+//! (mode, gravity, assumptions), and a bad file's error message.
 //!
 //! Needs `node`, Chromium (`CHROMIUM`, default `/usr/bin/chromium`) and
 //! `tests/browser/node_modules/playwright-core` (`tests/browser/setup.sh` installs them). Without
@@ -58,6 +60,7 @@ fn demo_page_renders_roughness_streams_and_shows_errors() {
         .arg(server.url())
         .arg(image())
         .arg(real("metric3d_nyu/depth/sync_depth_00000.png"))
+        .arg(root().join("cameras/real-rgbd_metric3d_nyu.json"))
         .output()
         .expect("cannot run node");
     println!("{}", String::from_utf8_lossy(&out.stdout));
@@ -67,4 +70,56 @@ fn demo_page_renders_roughness_streams_and_shows_errors() {
         "tests/browser/demo.mjs failed ({})",
         out.status
     );
+}
+
+/// Without a browser: the page served at `/` (embedded from this file) has the Camera fields,
+/// sends them as the `camera` part, shows what each answer says it did, and no longer assumes
+/// a depth unit or a field of view itself.
+#[test]
+fn demo_page_has_camera_inputs_and_reads_the_answers_assumptions() {
+    let html = std::fs::read_to_string(root().join("crates/tre-server/src/demo/index.html"))
+        .expect("the demo page");
+    for field in [
+        "fx",
+        "fy",
+        "cx",
+        "cy",
+        "width",
+        "height",
+        "depth_scale",
+        "pitch_deg",
+        "height_m",
+    ] {
+        let input = format!("name=\"{field}\"");
+        assert!(html.contains(&input), "no camera input {input}");
+    }
+    assert!(html.contains("<select id=\"cam-sensor\" name=\"sensor\">"));
+    for preset in [
+        "kinect_v1",
+        "realsense_d435",
+        "azure_kinect",
+        "lidar",
+        "exact",
+    ] {
+        assert!(
+            html.contains(&format!("<option value=\"{preset}\">")),
+            "no sensor {preset}"
+        );
+    }
+    assert!(
+        html.contains("id=\"camera-file\""),
+        "no camera JSON file input"
+    );
+    assert!(html.contains("1000 = millimetres, 5000 = TUM"));
+    assert!(html.contains(r#"form.append("camera", cameraBlob(cam.camera), "camera.json")"#));
+    assert!(html.contains(r#"type: "application/json""#));
+    for header in ["x-tre-mode", "x-tre-gravity", "x-tre-assumed", "warning"] {
+        assert!(
+            html.contains(&format!("headers.get(\"{header}\")")),
+            "the page does not read {header}"
+        );
+    }
+    // The old label that took millimetres and a 60° field of view for granted.
+    assert!(!html.contains("PNG in millimetres"));
+    assert!(!html.contains("60° field of view)"));
 }

@@ -12,8 +12,8 @@ pub mod depth;
 pub mod images;
 pub mod maps;
 pub mod npy;
-pub mod units;
 pub mod sheet;
+pub mod units;
 
 use std::fs::File;
 use std::path::{Path, PathBuf};

@@ -18,7 +18,9 @@ pub fn parse_size(text: &str) -> Result<usize, String> {
     let digits = t.chars().take_while(char::is_ascii_digit).count();
     let (number, suffix) = t.split_at(digits);
     let bad = || {
-        format!("{text:?}: expected a whole number with an optional k, M or G (KiB, MiB, GiB) suffix")
+        format!(
+            "{text:?}: expected a whole number with an optional k, M or G (KiB, MiB, GiB) suffix"
+        )
     };
     let n: usize = number.parse().map_err(|_| bad())?;
     let shift = match suffix.trim().to_ascii_lowercase().trim_end_matches('b') {

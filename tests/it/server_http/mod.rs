@@ -12,6 +12,7 @@ use common::{get, infer_png16, png16_values, png_with_header, real, Server};
 use reqwest::multipart::{Form, Part};
 
 mod answers;
+mod assumptions;
 mod auth;
 mod bad_input;
 mod overload;

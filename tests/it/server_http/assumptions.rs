@@ -1,0 +1,123 @@
+//! No silent guesses over HTTP: every answer names its mode and its gravity, says what stood in
+//! for what the request did not give, and depth sent as the RGB frame is refused.
+
+use super::*;
+
+/// The value of header `name`, or "".
+fn header(h: &reqwest::header::HeaderMap, name: &str) -> String {
+    h.get(name)
+        .map(|v| v.to_str().unwrap().to_owned())
+        .unwrap_or_default()
+}
+
+/// The three-state map part's bytes of a multipart answer, PNG-decoded.
+async fn traversal_values(resp: reqwest::Response) -> Vec<u8> {
+    let ct = header(resp.headers(), "content-type");
+    let body = resp.bytes().await.unwrap();
+    let boundary = format!("--{}", ct.split("boundary=").nth(1).unwrap());
+    let text = body.as_ref();
+    let start = text
+        .windows(b"name=\"traversal\"".len())
+        .position(|w| w == b"name=\"traversal\"")
+        .unwrap();
+    let data = start
+        + text[start..]
+            .windows(4)
+            .position(|w| w == b"\r\n\r\n")
+            .unwrap()
+        + 4;
+    let end = data
+        + text[data..]
+            .windows(boundary.len())
+            .position(|w| w == boundary.as_bytes())
+            .unwrap()
+        - 2;
+    image::load_from_memory(&text[data..end])
+        .unwrap()
+        .to_luma8()
+        .into_raw()
+}
+
+#[test]
+fn answers_name_their_mode_gravity_and_assumptions() {
+    let server = Server::start(&["--workers", "1"]);
+    let url = format!("{}/v1/roughness", server.url());
+    let rgb = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
+    let depth = std::fs::read(real("slambook2_ch7/1_depth.png")).unwrap();
+    // The shared camera file, with its notes (depth_file_format, licence): the README example.
+    let shared_camera = std::fs::read_to_string(real("slambook2_ch7/intrinsics.json")).unwrap();
+    rt().block_on(async {
+        // Depth sent as the RGB frame: refused, saying where depth goes.
+        let (s, code, message) = error_of(post(&url, "image/png", depth.clone()).await).await;
+        assert_eq!((s, code.as_str()), (422, "bad_image"), "{message}");
+        assert!(message.contains("16-bit grey") && message.contains("depth"), "{message}");
+
+        // RGB + depth without a camera: runs, and says it assumed intrinsics, the depth scale
+        // and the mode, in the keys header and in words.
+        let form = Form::new()
+            .part("rgb", Part::bytes(rgb.clone()))
+            .part("depth", Part::bytes(depth.clone()));
+        let resp = post_form(&url, form).await;
+        assert_eq!(resp.status().as_u16(), 200);
+        let h = resp.headers();
+        assert_eq!(header(h, "x-tre-mode"), "rgbd");
+        assert_eq!(header(h, "x-tre-assumed"), "intrinsics, depth_scale, mode");
+        let warnings: Vec<_> = h.get_all("warning").iter().collect();
+        assert_eq!(warnings.len(), 3, "{warnings:?}");
+        assert!(
+            warnings[1].to_str().unwrap().contains("read as millimetres"),
+            "{warnings:?}"
+        );
+
+        // The README's example: the shared camera file, geometric, three-state. Nothing
+        // assumed; no mounting stated, so gravity comes from the depth's ground plane.
+        let form = Form::new()
+            .part("rgb", Part::bytes(rgb.clone()))
+            .part("depth", Part::bytes(depth.clone()))
+            .part("camera", Part::text(shared_camera.clone()));
+        let resp = post_form(&format!("{url}?mode=geometric&outputs=traversable"), form).await;
+        assert_eq!(resp.status().as_u16(), 200);
+        let h = resp.headers();
+        assert_eq!(header(h, "x-tre-mode"), "geometric");
+        assert_eq!(header(h, "x-tre-assumed"), "");
+        assert!(
+            header(h, "x-tre-gravity").starts_with("estimated; pitch_deg="),
+            "{}",
+            header(h, "x-tre-gravity")
+        );
+
+        // rgb without a mounting: the prior's mounting is assumed and gravity is unknown, so the
+        // three-state map has no traversable pixel.
+        let camera = r#"{"fx": 520.9, "fy": 521.0, "cx": 325.1, "cy": 249.7, "sensor": "kinect_v1"}"#;
+        let form = Form::new()
+            .part("rgb", Part::bytes(rgb.clone()))
+            .part("camera", Part::text(camera));
+        let resp = post_form(&format!("{url}?mode=rgb&outputs=traversal"), form).await;
+        assert_eq!(resp.status().as_u16(), 200);
+        let h = resp.headers();
+        assert_eq!(header(h, "x-tre-assumed"), "mounting");
+        assert!(header(h, "x-tre-gravity").starts_with("unknown; reason="));
+        let t = traversal_values(resp).await;
+        assert!(!t.is_empty() && t.iter().all(|&v| v != 1), "traversable without gravity");
+
+        // The same with a stated mounting: gravity is stated, and some pixels are traversable.
+        let camera = r#"{"fx": 520.9, "fy": 521.0, "cx": 325.1, "cy": 249.7, "pitch_deg": 30, "height_m": 1.2}"#;
+        let form = Form::new()
+            .part("rgb", Part::bytes(rgb.clone()))
+            .part("camera", Part::text(camera));
+        let resp = post_form(&format!("{url}?mode=rgb"), form).await;
+        let h = resp.headers();
+        assert_eq!(header(h, "x-tre-assumed"), "");
+        assert_eq!(
+            header(h, "x-tre-gravity"),
+            "stated; pitch_deg=30.0; roll_deg=0.0; height_m=1.20"
+        );
+        // A height without a pitch would leave a guessed pitch in charge: refused.
+        let form = Form::new()
+            .part("rgb", Part::bytes(rgb.clone()))
+            .part("camera", Part::text(r#"{"fx": 520.9, "fy": 521.0, "cx": 325.1, "cy": 249.7, "height_m": 1.2}"#));
+        let (s, code, message) = error_of(post_form(&url, form).await).await;
+        assert_eq!((s, code.as_str()), (422, "bad_camera"), "{message}");
+        assert!(message.contains("pitch_deg"), "{message}");
+    });
+}
