@@ -141,23 +141,11 @@ fn seconds(name: &str, s: f64) -> anyhow::Result<Duration> {
 }
 
 impl Loadtest {
-    /// The checked configuration.
-    pub fn config(&self) -> anyhow::Result<LoadConfig> {
-        let frames = if let Some(dir) = &self.frames {
-            FrameSource::Dir(dir.clone())
-        } else if !self.frame.is_empty() {
-            FrameSource::Files(self.frame.clone())
-        } else {
-            FrameSource::Synthetic {
-                size: (self.synth_size, self.synth_size),
-            }
-        };
-        let duration = match (self.duration, self.requests) {
-            (None, None) => Some(Duration::from_secs(10)),
-            (d, _) => d.map(|d| seconds("duration", d)).transpose()?,
-        };
-        // A query on --url (`…?normals=ls&outputs=slope`) goes with every HTTP request.
-        // So does the endpoint's own path (`…/v1/roughness?…`, as curl is given it).
+    /// The service's base URL and what every frame asks for: a query on --url
+    /// (`…/v1/roughness?normals=ls&outputs=slope`, as curl is given it) goes with every HTTP
+    /// request, the endpoint's path is dropped, and the camera file is read as `tre infer`
+    /// reads it.
+    fn ask(&self) -> anyhow::Result<(String, Ask)> {
         let (url, query) = match self.url.split_once('?') {
             Some((base, q)) => (base.to_owned(), q.to_owned()),
             None => (self.url.clone(), String::new()),
@@ -176,6 +164,34 @@ impl Loadtest {
             }
             None => None,
         };
+        let ask = Ask {
+            mode: self.mode,
+            camera,
+            sensor: self.sensor,
+            normals: self.normals,
+            dsac_hypotheses: self.dsac_hypotheses,
+            traversal: self.traversal,
+            query,
+        };
+        Ok((url, ask))
+    }
+
+    /// The checked configuration.
+    pub fn config(&self) -> anyhow::Result<LoadConfig> {
+        let frames = if let Some(dir) = &self.frames {
+            FrameSource::Dir(dir.clone())
+        } else if !self.frame.is_empty() {
+            FrameSource::Files(self.frame.clone())
+        } else {
+            FrameSource::Synthetic {
+                size: (self.synth_size, self.synth_size),
+            }
+        };
+        let duration = match (self.duration, self.requests) {
+            (None, None) => Some(Duration::from_secs(10)),
+            (d, _) => d.map(|d| seconds("duration", d)).transpose()?,
+        };
+        let (url, ask) = self.ask()?;
         let depth = if let Some(dir) = &self.depth_dir {
             Some(FrameSource::Dir(dir.clone()))
         } else if !self.depth.is_empty() {
@@ -205,15 +221,7 @@ impl Loadtest {
             frames,
             depth,
             depth_only,
-            ask: Ask {
-                mode: self.mode,
-                camera,
-                sensor: self.sensor,
-                normals: self.normals,
-                dsac_hypotheses: self.dsac_hypotheses,
-                traversal: self.traversal,
-                query,
-            },
+            ask,
         };
         cfg.validate()?;
         if !self.sweep.is_empty() && self.compare.is_some() {

@@ -1,6 +1,7 @@
 //! Gravity from depth (`tre_core::geometry::floor`) against the gravity that real sequences
 //! state: the 7-Scenes kitchen (a pose and the gravity direction for every frame) and KITTI
 //! (cameras 1.65 m up, pitch about 0).
+#![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use std::path::{Path, PathBuf};
 

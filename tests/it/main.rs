@@ -20,6 +20,7 @@ mod model_manifest;
 mod onnx_parity;
 mod ort_runtime;
 mod pipeline;
+mod readme;
 mod sensor;
 mod server_http;
 mod server_stream;

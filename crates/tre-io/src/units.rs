@@ -45,7 +45,7 @@ pub fn parse_size(text: &str) -> Result<usize, String> {
 /// ```
 pub fn format_size(n: usize, unit: &str) -> String {
     for (shift, prefix) in [(30, "Gi"), (20, "Mi"), (10, "Ki")] {
-        if n >= 1 << shift && n % (1 << shift) == 0 {
+        if n >= 1 << shift && n.is_multiple_of(1 << shift) {
             return format!("{} {prefix}{unit}", n >> shift);
         }
     }

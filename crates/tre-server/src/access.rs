@@ -27,8 +27,8 @@ pub struct RequestId(pub String);
 /// Routes that answer without a key or an origin check: probes of orchestrators.
 const OPEN_PATHS: [&str; 2] = ["/healthz", "/readyz"];
 /// Response headers a page of an allowed origin may read.
-const EXPOSED: &str =
-    "server-timing, x-roughness-scale-m, x-image-width, x-image-height, x-working-size, x-request-id";
+const EXPOSED: &str = "server-timing, x-roughness-scale-m, x-image-width, x-image-height, \
+     x-working-size, x-request-id, x-tre-mode, x-tre-gravity, x-tre-assumed, warning";
 
 /// Source of the server's own request ids.
 static NEXT_ID: AtomicU64 = AtomicU64::new(1);

@@ -395,42 +395,42 @@ fn header_text(text: &str) -> String {
         .collect()
 }
 
-fn reply_response(reply: FrameReply) -> Response {
+/// Sets header `name` to `value` when it can be a header value.
+fn set(headers: &mut HeaderMap, name: &'static str, value: String) {
+    if let Ok(v) = HeaderValue::from_str(&value) {
+        headers.insert(name, v);
+    }
+}
+
+/// The headers of an answer: the map's scale and sizes, the stage times, and what ran and
+/// what it assumed ([`FrameReply::mode`], [`FrameReply::gravity`], [`FrameReply::assumed`]).
+fn reply_headers(reply: &FrameReply) -> HeaderMap {
     let mut headers = HeaderMap::new();
-    let set = |headers: &mut HeaderMap, name: &'static str, value: String| {
-        if let Ok(v) = HeaderValue::from_str(&value) {
-            headers.insert(name, v);
-        }
-    };
     set(&mut headers, "x-roughness-scale-m", SCALE_M.to_string());
     set(&mut headers, "x-image-width", reply.size.0.to_string());
     set(&mut headers, "x-image-height", reply.size.1.to_string());
-    set(
-        &mut headers,
-        "x-working-size",
-        format!("{}x{}", reply.working_size.0, reply.working_size.1),
-    );
-    set(&mut headers, "server-timing", server_timing(&reply));
+    let (w, h) = reply.working_size;
+    set(&mut headers, "x-working-size", format!("{w}x{h}"));
+    set(&mut headers, "server-timing", server_timing(reply));
     set(&mut headers, "x-tre-mode", reply.mode.to_string());
-    set(
-        &mut headers,
-        "x-tre-gravity",
-        header_text(&reply.gravity.to_string()),
-    );
+    let gravity = header_text(&reply.gravity.to_string());
+    set(&mut headers, "x-tre-gravity", gravity);
     if !reply.assumed.is_empty() {
         let keys: Vec<&str> = reply.assumed.iter().map(|a| a.key()).collect();
         set(&mut headers, "x-tre-assumed", keys.join(", "));
     }
     // RFC 7234's Warning header, one per assumption, in words (code 199: miscellaneous).
     for a in &reply.assumed {
-        let text = format!(
-            "199 tre \"{}\"",
-            header_text(&a.to_string()).replace('"', "'")
-        );
-        if let Ok(v) = HeaderValue::from_str(&text) {
+        let words = header_text(&a.to_string()).replace('"', "'");
+        if let Ok(v) = HeaderValue::from_str(&format!("199 tre \"{words}\"")) {
             headers.append("warning", v);
         }
     }
+    headers
+}
+
+fn reply_response(reply: FrameReply) -> Response {
+    let mut headers = reply_headers(&reply);
     if reply.extras.is_empty() {
         set(
             &mut headers,

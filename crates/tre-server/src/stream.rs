@@ -159,7 +159,7 @@ enum Place {
 /// What woke the connection up.
 enum Event {
     Message(Option<Result<Message, axum::Error>>),
-    Done((JobResult, Duration)),
+    Done(Box<(JobResult, Duration)>),
     WorkerGone,
     Ping,
     Pace,
@@ -205,7 +205,7 @@ impl Connection {
             let event = tokio::select! {
                 m = self.socket.recv() => Event::Message(m),
                 r = async { (&mut self.in_flight.as_mut().expect("guarded by the branch condition; this is a bug").rx).await }, if self.in_flight.is_some() => {
-                    r.map_or(Event::WorkerGone, Event::Done)
+                    r.map_or(Event::WorkerGone, |d| Event::Done(Box::new(d)))
                 }
                 _ = ping.tick() => Event::Ping,
                 _ = pace.tick(), if paced => Event::Pace,
@@ -231,7 +231,7 @@ impl Connection {
                     false
                 }
                 Event::Message(None) => false,
-                Event::Done(done) => self.answer(done).await && self.start_waiting().await,
+                Event::Done(done) => self.answer(*done).await && self.start_waiting().await,
                 Event::WorkerGone => {
                     let frame = self.in_flight.take().map(|f| f.frame.sequence);
                     let e =

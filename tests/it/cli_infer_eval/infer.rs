@@ -56,7 +56,13 @@ fn infer_takes_the_traversability_thresholds() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("geo.npy");
     let depth = real("slambook2_ch5/depth/1.png");
-    let camera = real("slambook2_ch5/intrinsics.json");
+    // The shared camera with a stated pitch, so that slope is judged against stated gravity.
+    let mut cam: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(real("slambook2_ch5/intrinsics.json")).unwrap())
+            .unwrap();
+    cam["pitch_deg"] = serde_json::json!(30.0);
+    let camera = dir.path().join("camera.json");
+    std::fs::write(&camera, cam.to_string()).unwrap();
     let base = [
         "infer",
         "--format",
@@ -73,17 +79,17 @@ fn infer_takes_the_traversability_thresholds() {
         let o = tre(&args);
         assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
         let text = String::from_utf8_lossy(&o.stdout).into_owned();
-        // "LS+window at 640×480: N px with roughness, median … cm, M px traversable"
+        // "mode geometric (…) at 640×480: N px with roughness, median … cm" and
+        // "binary map: M px with roughness < 5 cm and slope < 20°"
         let number_before = |what: &str| -> usize {
             let head = &text[..text
                 .find(what)
                 .unwrap_or_else(|| panic!("{what} in {text}"))];
             head.split_whitespace().last().unwrap().parse().unwrap()
         };
-        (
-            number_before(" px traversable"),
-            number_before(" px with roughness"),
-        )
+        let binary = &text[text.find("binary map: ").unwrap() + "binary map: ".len()..];
+        let traversable = binary.split_whitespace().next().unwrap().parse().unwrap();
+        (traversable, number_before(" px with roughness,"))
     };
     let (default, valid) = counts(&[]);
     assert!(0 < default && default < valid, "{default} of {valid}");

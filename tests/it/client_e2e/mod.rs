@@ -20,6 +20,7 @@ use image::DynamicImage;
 use tre::client::{ClientConfig, Event, Frame, LostReason, Rate, Session};
 use tre::pipeline::{Mode, NormalsMethod};
 
+mod depth;
 mod frames;
 mod reconnect;
 mod tls;

@@ -38,6 +38,18 @@ async fn traversal_values(resp: reqwest::Response) -> Vec<u8> {
         .into_raw()
 }
 
+/// A form of `rgb` with optional `depth` and `camera` parts.
+fn form(rgb: &[u8], depth: Option<&[u8]>, camera: Option<&str>) -> Form {
+    let mut f = Form::new().part("rgb", Part::bytes(rgb.to_vec()));
+    if let Some(d) = depth {
+        f = f.part("depth", Part::bytes(d.to_vec()));
+    }
+    if let Some(c) = camera {
+        f = f.part("camera", Part::text(c.to_owned()));
+    }
+    f
+}
+
 #[test]
 fn answers_name_their_mode_gravity_and_assumptions() {
     let server = Server::start(&["--workers", "1"]);
@@ -54,10 +66,7 @@ fn answers_name_their_mode_gravity_and_assumptions() {
 
         // RGB + depth without a camera: runs, and says it assumed intrinsics, the depth scale
         // and the mode, in the keys header and in words.
-        let form = Form::new()
-            .part("rgb", Part::bytes(rgb.clone()))
-            .part("depth", Part::bytes(depth.clone()));
-        let resp = post_form(&url, form).await;
+        let resp = post_form(&url, form(&rgb, Some(&depth), None)).await;
         assert_eq!(resp.status().as_u16(), 200);
         let h = resp.headers();
         assert_eq!(header(h, "x-tre-mode"), "rgbd");
@@ -71,11 +80,8 @@ fn answers_name_their_mode_gravity_and_assumptions() {
 
         // The README's example: the shared camera file, geometric, three-state. Nothing
         // assumed; no mounting stated, so gravity comes from the depth's ground plane.
-        let form = Form::new()
-            .part("rgb", Part::bytes(rgb.clone()))
-            .part("depth", Part::bytes(depth.clone()))
-            .part("camera", Part::text(shared_camera.clone()));
-        let resp = post_form(&format!("{url}?mode=geometric&outputs=traversable"), form).await;
+        let readme = form(&rgb, Some(&depth), Some(&shared_camera));
+        let resp = post_form(&format!("{url}?mode=geometric&outputs=traversable"), readme).await;
         assert_eq!(resp.status().as_u16(), 200);
         let h = resp.headers();
         assert_eq!(header(h, "x-tre-mode"), "geometric");
@@ -89,10 +95,11 @@ fn answers_name_their_mode_gravity_and_assumptions() {
         // rgb without a mounting: the prior's mounting is assumed and gravity is unknown, so the
         // three-state map has no traversable pixel.
         let camera = r#"{"fx": 520.9, "fy": 521.0, "cx": 325.1, "cy": 249.7, "sensor": "kinect_v1"}"#;
-        let form = Form::new()
-            .part("rgb", Part::bytes(rgb.clone()))
-            .part("camera", Part::text(camera));
-        let resp = post_form(&format!("{url}?mode=rgb&outputs=traversal"), form).await;
+        let resp = post_form(
+            &format!("{url}?mode=rgb&outputs=traversal"),
+            form(&rgb, None, Some(camera)),
+        )
+        .await;
         assert_eq!(resp.status().as_u16(), 200);
         let h = resp.headers();
         assert_eq!(header(h, "x-tre-assumed"), "mounting");
@@ -102,10 +109,7 @@ fn answers_name_their_mode_gravity_and_assumptions() {
 
         // The same with a stated mounting: gravity is stated, and some pixels are traversable.
         let camera = r#"{"fx": 520.9, "fy": 521.0, "cx": 325.1, "cy": 249.7, "pitch_deg": 30, "height_m": 1.2}"#;
-        let form = Form::new()
-            .part("rgb", Part::bytes(rgb.clone()))
-            .part("camera", Part::text(camera));
-        let resp = post_form(&format!("{url}?mode=rgb"), form).await;
+        let resp = post_form(&format!("{url}?mode=rgb"), form(&rgb, None, Some(camera))).await;
         let h = resp.headers();
         assert_eq!(header(h, "x-tre-assumed"), "");
         assert_eq!(

@@ -45,10 +45,21 @@ fn the_hello_sets_the_traversability_thresholds() {
     });
 }
 
-/// An RGB-mode Hello for float maps with the traversable map, under these thresholds.
+/// An RGB-mode Hello for float maps with the traversable map, under these thresholds, with
+/// the TUM camera at a stated pitch (without one, `rgb`'s gravity is unknown and nothing is
+/// traversable).
 fn hello_with(max_roughness_cm: Option<f64>, max_slope_deg: Option<f64>) -> Vec<u8> {
     pb::ClientMessage {
         msg: Some(pb::client_message::Msg::Hello(pb::Hello {
+            camera: Some(pb::Camera {
+                fx: 520.9,
+                fy: 521.0,
+                cx: 325.1,
+                cy: 249.7,
+                pitch_deg: Some(30.0),
+                height_m: Some(1.0),
+                ..Default::default()
+            }),
             mode: pb::Mode::Rgb as i32,
             format: pb::Format::F32 as i32,
             want_traversable: true,
@@ -84,6 +95,14 @@ async fn traversable_and_valid(
         .filter(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]).is_finite())
         .count();
     let traversable = r.traversable.iter().filter(|&&t| t == 1).count();
+    // The Result names what ran and where gravity came from; nothing was assumed.
+    assert_eq!(r.mode, "rgb");
+    assert!(r.assumed.is_empty(), "{:?}", r.assumed);
+    assert!(
+        r.gravity.starts_with("stated; pitch_deg=30.0"),
+        "{}",
+        r.gravity
+    );
     ws.close(None).await.unwrap();
     (traversable, valid)
 }

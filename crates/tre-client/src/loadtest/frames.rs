@@ -166,20 +166,7 @@ impl Frames {
                 ))
             }
         };
-        let mut depths = Vec::with_capacity(paths.len());
-        for path in &paths {
-            let bytes = std::fs::read(path).map_err(|e| LoadError::Frame {
-                path: path.clone(),
-                why: e.to_string(),
-            })?;
-            if !(bytes.starts_with(b"\x93NUMPY") || content_type(&bytes) == Some("image/png")) {
-                return Err(LoadError::Frame {
-                    path: path.clone(),
-                    why: "depth must be a 16-bit PNG or a float .npy".into(),
-                });
-            }
-            depths.push(bytes);
-        }
+        let depths = read_depth_files(&paths)?;
         let kb = depths.iter().map(Vec::len).sum::<usize>().div_ceil(1024);
         let frames: Vec<Frame> = match &images {
             Some(images) if images.len() != depths.len() => {
@@ -226,6 +213,25 @@ impl Frames {
     pub fn is_empty(&self) -> bool {
         self.frames.is_empty()
     }
+}
+
+/// The bytes of depth files, each a 16-bit PNG or a float `.npy` (checked by its magic bytes).
+fn read_depth_files(paths: &[PathBuf]) -> Result<Vec<Vec<u8>>, LoadError> {
+    let mut depths = Vec::with_capacity(paths.len());
+    for path in paths {
+        let bytes = std::fs::read(path).map_err(|e| LoadError::Frame {
+            path: path.clone(),
+            why: e.to_string(),
+        })?;
+        if !(bytes.starts_with(b"\x93NUMPY") || content_type(&bytes) == Some("image/png")) {
+            return Err(LoadError::Frame {
+                path: path.clone(),
+                why: "depth must be a 16-bit PNG or a float .npy".into(),
+            });
+        }
+        depths.push(bytes);
+    }
+    Ok(depths)
 }
 
 /// `image/png` or `image/jpeg` from the magic bytes.

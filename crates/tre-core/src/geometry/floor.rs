@@ -47,7 +47,7 @@ impl Default for FloorFitConfig {
             max_normal_angle_deg: 15.0,
             min_support: 0.05,
             max_below: 0.01,
-            seed: 0x7e_f1_00_4,
+            seed: 0x07ef_1004,
         }
     }
 }
@@ -199,85 +199,20 @@ pub fn fit_floor(points: &PointMap, cfg: &FloorFitConfig) -> Result<FloorFit, No
     if valid < MIN_POINTS {
         return Err(NoFloor::TooFewPoints { valid });
     }
-    let (mut pts, mut normals) = sample(points, valid, cfg.max_points.max(MIN_POINTS));
-    // Sparse depth (projected LiDAR) has no local normals: planes through three points, and
-    // every point within the tolerance is on the plane.
-    let dense = pts.len() >= MIN_POINTS;
-    if !dense {
-        let stride = valid.div_ceil(cfg.max_points.max(MIN_POINTS));
-        pts = points
-            .as_slice()
-            .iter()
-            .filter(|p| is_valid_point(p))
-            .step_by(stride)
-            .copied()
-            .collect();
-        normals = vec![Vec3::zeros(); pts.len()];
-    }
-    let min_cos = if dense {
-        cfg.max_normal_angle_deg.to_radians().cos()
-    } else {
-        0.0
-    };
-    let tol: Vec<f64> = pts
-        .iter()
-        .map(|p| cfg.tolerance_m + cfg.tolerance_per_m * p.z)
-        .collect();
-    // Points on the plane and points clearly below it (which the ground should not have).
-    // On the plane: within the tolerance and with a local normal along the plane's, so that a
-    // slanted plane cutting across walls and cabinet fronts gains nothing from them.
-    let on = |h: &Hyp, i: usize| -> bool {
-        h.height_of(&pts[i]).abs() <= tol[i] && h.n.dot(&normals[i]).abs() >= min_cos
-    };
-    // Points on the plane and points clearly below it (which the ground should not have).
-    let count = |h: &Hyp| -> (usize, usize) {
-        (0..pts.len()).fold((0, 0), |(n_on, below), i| {
-            let z = h.height_of(&pts[i]);
-            (
-                n_on + usize::from(on(h, i)),
-                below + usize::from(z < -3.0 * tol[i]),
-            )
-        })
-    };
-    let score = |(on, below): (usize, usize)| on as f64 - BELOW_WEIGHT * below as f64;
-    let mut rng = Rng(cfg.seed | 1);
-    let mut best: Option<(Hyp, f64)> = None;
-    for _ in 0..cfg.hypotheses {
-        // A hypothesis from one point and its local normal, as DSAC draws them, or from
-        // three points where there are no normals.
-        let i = rng.below(pts.len());
-        let h = if dense {
-            Hyp::oriented(normals[i], &pts[i])
-        } else {
-            let (j, k) = (rng.below(pts.len()), rng.below(pts.len()));
-            Hyp::through(&pts[i], &pts[j], &pts[k])
-        };
-        let Some(h) = h.filter(Hyp::plausible) else {
-            continue;
-        };
-        let s = score(count(&h));
-        if best.is_none_or(|(_, b)| s > b) {
-            best = Some((h, s));
-        }
-    }
-    let Some((mut h, s)) = best else {
-        return Err(NoFloor::NoGroundPlane);
-    };
-    if s < 3.0 {
-        return Err(NoFloor::NoGroundPlane);
-    }
+    let sampled = Sampled::new(points, valid, cfg);
+    let mut h = sampled.ransac(cfg).ok_or(NoFloor::NoGroundPlane)?;
     for _ in 0..2 {
-        let inliers: Vec<&Vec3> = (0..pts.len())
-            .filter(|&i| on(&h, i))
-            .map(|i| &pts[i])
+        let inliers: Vec<&Vec3> = (0..sampled.pts.len())
+            .filter(|&i| sampled.on(&h, i))
+            .map(|i| &sampled.pts[i])
             .collect();
         match refit(&inliers) {
-            Some(r) if r.plausible() && score(count(&r)) >= score(count(&h)) => h = r,
+            Some(r) if r.plausible() && sampled.score(&r) >= sampled.score(&h) => h = r,
             _ => break,
         }
     }
-    let (on, below) = count(&h);
-    let n = pts.len() as f64;
+    let (on, below) = sampled.count(&h);
+    let n = sampled.pts.len() as f64;
     let (support, below) = (on as f64 / n, below as f64 / n);
     let (pitch_rad, roll_rad) = FloorFit::pitch_roll(&h.n);
     Ok(FloorFit {
@@ -287,9 +222,107 @@ pub fn fit_floor(points: &PointMap, cfg: &FloorFitConfig) -> Result<FloorFit, No
         roll_rad,
         support,
         below,
-        points: pts.len(),
+        points: sampled.pts.len(),
         confident: support >= cfg.min_support && below <= cfg.max_below,
     })
+}
+
+/// The points a fit scores: a subsample with local normals (dense depth) or without (sparse),
+/// and each point's inlier tolerance.
+struct Sampled {
+    pts: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    tol: Vec<f64>,
+    /// Whether the points have normals.
+    dense: bool,
+    /// Smallest `|n·normal|` of a point on the plane (0 without normals).
+    min_cos: f64,
+}
+
+impl Sampled {
+    /// The subsample of `points` (`valid` of them valid). Sparse depth (projected LiDAR) has
+    /// no local normals: then every point within the tolerance is on a plane.
+    fn new(points: &PointMap, valid: usize, cfg: &FloorFitConfig) -> Self {
+        let max_points = cfg.max_points.max(MIN_POINTS);
+        let (mut pts, mut normals) = sample(points, valid, max_points);
+        let dense = pts.len() >= MIN_POINTS;
+        if !dense {
+            pts = points
+                .as_slice()
+                .iter()
+                .filter(|p| is_valid_point(p))
+                .step_by(valid.div_ceil(max_points))
+                .copied()
+                .collect();
+            normals = vec![Vec3::zeros(); pts.len()];
+        }
+        let tol = pts
+            .iter()
+            .map(|p| cfg.tolerance_m + cfg.tolerance_per_m * p.z)
+            .collect();
+        let min_cos = if dense {
+            cfg.max_normal_angle_deg.to_radians().cos()
+        } else {
+            0.0
+        };
+        Self {
+            pts,
+            normals,
+            tol,
+            dense,
+            min_cos,
+        }
+    }
+
+    /// Point `i` is on `h`: within its tolerance and with a local normal along the plane's, so
+    /// that a slanted plane cutting across walls and cabinet fronts gains nothing from them.
+    fn on(&self, h: &Hyp, i: usize) -> bool {
+        h.height_of(&self.pts[i]).abs() <= self.tol[i]
+            && h.n.dot(&self.normals[i]).abs() >= self.min_cos
+    }
+
+    /// Points on `h` and points clearly below it (which the ground should not have).
+    fn count(&self, h: &Hyp) -> (usize, usize) {
+        (0..self.pts.len()).fold((0, 0), |(on, below), i| {
+            let z = h.height_of(&self.pts[i]);
+            (
+                on + usize::from(self.on(h, i)),
+                below + usize::from(z < -3.0 * self.tol[i]),
+            )
+        })
+    }
+
+    /// Points on `h` less [`BELOW_WEIGHT`] times those below it.
+    fn score(&self, h: &Hyp) -> f64 {
+        let (on, below) = self.count(h);
+        on as f64 - BELOW_WEIGHT * below as f64
+    }
+
+    /// The best plausible hypothesis, if one scores at least 3.
+    fn ransac(&self, cfg: &FloorFitConfig) -> Option<Hyp> {
+        let n = self.pts.len();
+        let mut rng = Rng(cfg.seed | 1);
+        let mut best: Option<(Hyp, f64)> = None;
+        for _ in 0..cfg.hypotheses {
+            // A hypothesis from one point and its local normal, as DSAC draws them, or from
+            // three points where there are no normals.
+            let i = rng.below(n);
+            let h = if self.dense {
+                Hyp::oriented(self.normals[i], &self.pts[i])
+            } else {
+                let (j, k) = (rng.below(n), rng.below(n));
+                Hyp::through(&self.pts[i], &self.pts[j], &self.pts[k])
+            };
+            let Some(h) = h.filter(Hyp::plausible) else {
+                continue;
+            };
+            let s = self.score(&h);
+            if best.is_none_or(|(_, b)| s > b) {
+                best = Some((h, s));
+            }
+        }
+        best.filter(|&(_, s)| s >= 3.0).map(|(h, _)| h)
+    }
 }
 
 /// An even subsample of about `max_points` of the `valid` points of `points`, each with its
