@@ -6,4 +6,5 @@
 //! `tre-server`) build on it, and a robot can use it alone on its own depth.
 pub mod geometry;
 pub mod kinds;
+pub mod map;
 pub mod roughness;
