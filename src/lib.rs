@@ -13,7 +13,7 @@ pub mod cli;
 
 pub use tre_client as client;
 pub use tre_client::loadtest;
-pub use tre_core::{geometry, kinds, roughness};
+pub use tre_core::{geometry, kinds, map, roughness};
 pub use tre_io as io;
 pub use tre_model as model;
 pub use tre_pipeline as pipeline;

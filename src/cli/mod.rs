@@ -6,6 +6,7 @@ pub mod client;
 pub mod eval;
 pub mod infer;
 pub mod loadtest;
+pub mod map;
 pub mod options;
 pub mod real;
 pub mod serve;
@@ -45,6 +46,9 @@ pub enum Command {
     /// Fit every mode's calibrated 90% roughness intervals on real validation frames
     /// (models/uncertainty.json; docs/uncertainty.md).
     Calibrate(calibrate::Calibrate),
+    /// Fuse a sequence of depth frames (with their poses) into a gravity-aligned roughness grid
+    /// map, written layer by layer (docs/map.md).
+    Map(map::Map),
     /// Serve roughness over HTTP and a WebSocket stream.
     Serve(serve::Serve),
     /// Stream frames (a folder, a video or a camera) to `tre serve` over the WebSocket and
@@ -70,6 +74,7 @@ impl Command {
             Command::Infer(cmd) => cmd.run(),
             Command::Eval(cmd) => cmd.run(),
             Command::Calibrate(cmd) => cmd.run(),
+            Command::Map(cmd) => cmd.run(),
             Command::Serve(cmd) => cmd.run(),
             Command::Client(cmd) => cmd.run(),
             Command::Loadtest(cmd) => cmd.run(),

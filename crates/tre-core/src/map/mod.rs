@@ -12,8 +12,9 @@
 //! cell's neighbouring pixels, so the count does not shrink it). A measurement more than
 //! three standard deviations of the innovation from the estimate is an outlier: it is not
 //! fused and is counted; three outliers in a row mean the cell changed (an object moved in or
-//! out), and the cell restarts from the new measurement. Roughness is the count-weighted mean of
-//! the frames' per-pixel roughness in the cell; slope and step height come from the heights of
+//! out), and the cell restarts from the new measurement. Roughness is the mean of the frames'
+//! per-pixel roughness in the cell weighted by 1/σ_z² (near pixels, whose roughness carries
+//! less sensor noise, count most); slope and step height come from the heights of
 //! neighbouring cells when the map is read ([`GridMap::layers`]).
 
 mod layers;
@@ -103,11 +104,12 @@ impl MapFrame {
     /// assert!((up - nalgebra::Vector3::z()).norm() < 1e-12);
     /// ```
     pub fn from_gravity(down: &Vec3) -> Result<Self, MapError> {
-        let up = -down.try_normalize(1e-9).ok_or_else(|| {
-            MapError::Config(format!("gravity {down:?} has no direction"))
-        })?;
-        let rot = nalgebra::Rotation3::rotation_between(&up, &Vector3::z())
-            .unwrap_or_else(|| nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+        let up = -down
+            .try_normalize(1e-9)
+            .ok_or_else(|| MapError::Config(format!("gravity {down:?} has no direction")))?;
+        let rot = nalgebra::Rotation3::rotation_between(&up, &Vector3::z()).unwrap_or_else(|| {
+            nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+        });
         Ok(Self {
             map_from_world: *rot.matrix(),
         })
@@ -142,13 +144,27 @@ impl Pose {
         let error = orth.max(det).max(last);
         if !(error <= 1e-3) || m.iter().any(|v| !v.is_finite()) {
             return Err(MapError::NotRigid {
-                error: if error.is_finite() { error } else { f64::INFINITY },
+                error: if error.is_finite() {
+                    error
+                } else {
+                    f64::INFINITY
+                },
             });
         }
         Ok(Self {
             rotation: r,
             translation: Vector3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]),
         })
+    }
+
+    /// The pose of 16 numbers, a 4×4 camera-to-world matrix row by row, if it is rigid.
+    pub fn from_row_major(v: &[f64]) -> Result<Self, MapError> {
+        if v.len() != 16 {
+            return Err(MapError::NotRigid {
+                error: f64::INFINITY,
+            });
+        }
+        Self::from_matrix(&Matrix4::from_row_slice(v))
     }
 
     /// The identity: the camera is the world (a robot-centred map of one frame).
@@ -175,8 +191,8 @@ pub struct Cell {
     pub last_s: f64,
     /// Count-weighted mean roughness, metres.
     pub roughness_m: f32,
-    /// Pixels behind the roughness mean.
-    pub roughness_n: u32,
+    /// Weight behind the roughness mean (Σ 1/σ_z² of its pixels, m⁻²).
+    pub roughness_w: f32,
 }
 
 impl Default for Cell {
@@ -188,7 +204,7 @@ impl Default for Cell {
             outliers: 0,
             last_s: f64::NAN,
             roughness_m: f32::NAN,
-            roughness_n: 0,
+            roughness_w: 0.0,
         }
     }
 }
@@ -255,22 +271,23 @@ impl Cell {
         self.outliers = 0;
         self.last_s = t_s;
         self.roughness_m = f32::NAN;
-        self.roughness_n = 0;
+        self.roughness_w = 0.0;
     }
 
-    /// Adds `n` pixels of mean roughness `mean_m` to the cell's mean.
-    fn add_roughness(&mut self, mean_m: f64, n: u32) {
-        if !mean_m.is_finite() || n == 0 {
+    /// Adds roughness `mean_m` of weight `w` (Σ 1/σ_z² of its pixels) to the cell's weighted
+    /// mean: near pixels, whose roughness noise is small, count most.
+    fn add_roughness(&mut self, mean_m: f64, w: f64) {
+        if !(mean_m.is_finite() && w > 0.0) {
             return;
         }
-        let (old, m) = (f64::from(self.roughness_n), f64::from(n));
-        let prev = if self.roughness_n == 0 {
-            0.0
-        } else {
+        let old = f64::from(self.roughness_w);
+        let prev = if old > 0.0 {
             f64::from(self.roughness_m)
+        } else {
+            0.0
         };
-        self.roughness_m = ((prev * old + mean_m * m) / (old + m)) as f32;
-        self.roughness_n = self.roughness_n.saturating_add(n);
+        self.roughness_m = ((prev * old + mean_m * w) / (old + w)) as f32;
+        self.roughness_w = (old + w) as f32;
     }
 }
 
@@ -306,7 +323,7 @@ struct Acc {
     z_sum: f64,
     n: u32,
     r_sum: f64,
-    r_n: u32,
+    r_w: f64,
     depth_sum: f64,
 }
 
@@ -388,7 +405,9 @@ impl GridMap {
         let mut cleared = 0;
         // World columns / rows in the old window but not the new one.
         let leaving = |o: i64, n: i64| -> Vec<i64> {
-            (o..o + side).filter(|v| !(n..n + side).contains(v)).collect()
+            (o..o + side)
+                .filter(|v| !(n..n + side).contains(v))
+                .collect()
         };
         let cols = leaving(old.0, new.0);
         let rows = leaving(old.1, new.1);
@@ -469,15 +488,16 @@ impl GridMap {
                     continue;
                 };
                 let a = &mut self.acc[i];
-                if a.n == 0 && a.r_n == 0 {
+                if a.n == 0 {
                     touched.push(i);
                 }
                 a.z_sum += m.z;
                 a.n += 1;
                 a.depth_sum += p.z;
                 if let Some(r) = roughness_m.map(|r| r[(x, y)]).filter(|r| r.is_finite()) {
-                    a.r_sum += r;
-                    a.r_n += 1;
+                    let w = 1.0 / sigma_z(p.z).powi(2).max(1e-8);
+                    a.r_sum += w * r;
+                    a.r_w += w;
                 }
                 stats.points += 1;
             }
@@ -500,8 +520,8 @@ impl GridMap {
                     continue;
                 }
             }
-            if a.r_n > 0 {
-                cell.add_roughness(a.r_sum / f64::from(a.r_n), a.r_n);
+            if a.r_w > 0.0 {
+                cell.add_roughness(a.r_sum / a.r_w, a.r_w);
             }
             stats.cells += 1;
         }

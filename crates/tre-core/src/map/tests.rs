@@ -26,8 +26,14 @@ fn the_kalman_update_matches_hand_computed_values() {
     // 2 s later: P = 0.0004 + 0.01·2 = 0.0204; R = 0.0004; S = 0.0208; K = 0.980769…;
     // d = 0.1; h = 0.5 + 0.0980769 = 0.5980769; P = (1 − K)·P = 0.000392308.
     assert_eq!(cell.fuse_height(0.60, 0.0004, 12.0, &c), Fused::Updated);
-    assert!((f64::from(cell.height_m) - 0.598_076_9).abs() < 1e-6, "{cell:?}");
-    assert!((f64::from(cell.var_m2) - 0.000_392_308).abs() < 1e-9, "{cell:?}");
+    assert!(
+        (f64::from(cell.height_m) - 0.598_076_9).abs() < 1e-6,
+        "{cell:?}"
+    );
+    assert!(
+        (f64::from(cell.var_m2) - 0.000_392_308).abs() < 1e-9,
+        "{cell:?}"
+    );
     assert_eq!((cell.count, cell.last_s), (2, 12.0));
 }
 
@@ -44,7 +50,10 @@ fn outliers_do_not_drag_a_cell_and_three_in_a_row_restart_it() {
     // A good measurement in between resets the run.
     assert_eq!(cell.fuse_height(0.001, 1e-4, 4.0, &c), Fused::Updated);
     for t in 5..7 {
-        assert_eq!(cell.fuse_height(0.30, 1e-4, f64::from(t), &c), Fused::Outlier);
+        assert_eq!(
+            cell.fuse_height(0.30, 1e-4, f64::from(t), &c),
+            Fused::Outlier
+        );
     }
     assert_eq!(cell.fuse_height(0.30, 1e-4, 7.0, &c), Fused::Started);
     assert!((cell.height_m - 0.30).abs() < 1e-6 && cell.count == 1);
@@ -69,7 +78,11 @@ fn recentring_clears_only_the_cells_that_leave_and_keeps_the_rest_in_place() {
         for iy in -4..6 {
             let cell = map.cell(ix, iy).unwrap();
             if ix < 5 && iy < 5 {
-                assert_eq!(cell.height_m, (ix as f64 + 10.0 * iy as f64) as f32, "{ix},{iy}");
+                assert_eq!(
+                    cell.height_m,
+                    (ix as f64 + 10.0 * iy as f64) as f32,
+                    "{ix},{iy}"
+                );
             } else {
                 assert_eq!(cell.count, 0, "{ix},{iy} should be new");
             }
@@ -92,7 +105,7 @@ fn layers_are_row_major_with_north_up_and_judge_steps() {
                 let z = if (ix, iy) == (2, 7) { 0.2 } else { 0.0 };
                 let i = map.slot(ix, iy).unwrap();
                 map.cells[i].fuse_height(z, 1e-6, f64::from(t), &c);
-                map.cells[i].add_roughness(0.001, 10);
+                map.cells[i].add_roughness(0.001, 10.0);
             }
         }
     }

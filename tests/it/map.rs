@@ -1,0 +1,113 @@
+//! `tre map` on real kitchen frames with their poses: every layer written in both encodings with
+//! the geometry stated, the PNG decoding to the `.npy` by `map.json`'s scale, and a pose that is
+//! not a rigid transform skipped with a message while the map keeps the other frames.
+#![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
+
+use std::path::Path;
+use std::process::Command;
+
+/// Six kitchen frames in a sequence folder of the layout `tre map` reads, the fourth pose
+/// broken (a scaled rotation).
+fn sequence(dir: &Path) {
+    let src = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/data/real-rgbd-2/sevenscenes_redkitchen"
+    ));
+    for sub in ["depth", "poses"] {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+    }
+    for (n, i) in (0..30).step_by(5).enumerate() {
+        let stem = format!("frame-{i:06}");
+        std::fs::copy(
+            src.join(format!("depth/{stem}.png")),
+            dir.join(format!("depth/{stem}.png")),
+        )
+        .unwrap();
+        let mut pose = std::fs::read_to_string(src.join(format!("poses/{stem}.txt"))).unwrap();
+        if n == 3 {
+            pose = pose.replacen(pose.split_whitespace().next().unwrap(), "2.0", 1);
+        }
+        std::fs::write(dir.join(format!("poses/{stem}.txt")), pose).unwrap();
+    }
+    std::fs::copy(src.join("gravity.json"), dir.join("gravity.json")).unwrap();
+    let camera = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("cameras/real-rgbd-2_sevenscenes_redkitchen.json");
+    std::fs::copy(camera, dir.join("intrinsics.json")).unwrap();
+}
+
+/// A `.npy` of float32 written by `tre map`: its shape and values.
+fn npy_f32(path: &Path) -> ((usize, usize), Vec<f32>) {
+    let a = tre::io::npy::read_npy(std::fs::File::open(path).unwrap()).unwrap();
+    let g = tre::io::npy_grid(a).unwrap();
+    (
+        (g.height(), g.width()),
+        g.as_slice().iter().map(|&v| v as f32).collect(),
+    )
+}
+
+#[test]
+fn tre_map_writes_every_layer_and_skips_a_broken_pose() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("seq");
+    sequence(&seq);
+    let out = dir.path().join("map");
+    let o = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .arg("map")
+        .arg(&seq)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert!(o.status.success(), "{stderr}");
+    assert!(stdout.starts_with("5 frames fused, 1 skipped"), "{stdout}");
+    assert!(
+        stderr.contains("skipped frame-000015") && stderr.contains("not a rigid transform"),
+        "{stderr}"
+    );
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("map.json")).unwrap()).unwrap();
+    assert_eq!(meta["cell_m"], 0.04);
+    assert_eq!(meta["side_cells"], 200);
+    assert_eq!(meta["frames_fused"], 5);
+    for name in tre::map::LAYER_NAMES {
+        let (shape, values) = npy_f32(&out.join(format!("{name}.npy")));
+        assert_eq!(shape, (200, 200), "{name}");
+        // The PNG decodes to the .npy by the stated scale and offset (0: no data).
+        let png = image::open(out.join(format!("{name}.png")))
+            .unwrap()
+            .to_luma16();
+        let layer = &meta["layers"][name];
+        let (scale, offset) = (
+            layer["png_scale"].as_f64().unwrap(),
+            layer["png_offset"].as_f64().unwrap(),
+        );
+        for (p, v) in png.as_raw().iter().zip(&values) {
+            if *p == 0 {
+                assert!(
+                    v.is_nan() || name == "count" || name == "traversal",
+                    "{name}: {v}"
+                );
+            } else {
+                let decoded = offset + f64::from(p - 1) * scale;
+                assert!(
+                    (decoded - f64::from(*v)).abs() <= scale * 0.5 + 1e-6,
+                    "{name}: {decoded} against {v}"
+                );
+            }
+        }
+    }
+    // Seen cells: a height, a count of at least one, and a three-state value.
+    let (_, count) = npy_f32(&out.join("count.npy"));
+    let (_, elevation) = npy_f32(&out.join("elevation.npy"));
+    let seen = count.iter().filter(|&&c| c > 0.0).count();
+    assert!(seen > 1000, "{seen} cells seen");
+    assert!(count
+        .iter()
+        .zip(&elevation)
+        .all(|(c, e)| (*c > 0.0) == e.is_finite()));
+    assert!(out.join("layers.png").is_file());
+}
