@@ -77,16 +77,7 @@ impl Map {
             .clone()
             .unwrap_or_else(|| self.sequence.join("intrinsics.json"));
         let (cam, k) = io::read_camera(&cam_path)?;
-        let sensor = self
-            .sensor
-            .or_else(|| cam.sensor.as_ref().and_then(io::SensorSpec::noise))
-            .context(
-                "the map's height variance needs the depth sensor's noise model: give --sensor \
-                 or a camera file with \"sensor\"",
-            )?;
-        let scale = cam.depth_scale.context(
-            "the camera file states no depth_scale: the map will not guess the depth's units",
-        )?;
+        let (sensor, scale) = self.sensor_and_scale(&cam)?;
         let mut frames = self.frames()?;
         let posed = frames.iter().all(|f| f.pose.is_some());
         if !posed {
@@ -124,16 +115,7 @@ impl Map {
                     map.insert(GridMap::new(cfg, frame, (c.x, c.y))?)
                 }
             };
-            let rgb = match (&f.rgb, self.mode) {
-                (Some(p), Mode::Rgb | Mode::Rgbd) => Some(io::read_image(p)?.to_rgb8()),
-                _ => None,
-            };
-            let input = FrameInput {
-                rgb,
-                depth_m: Some(depth_m),
-                intrinsics: Some(k),
-                mounting: None,
-            };
+            let input = self.input(f, depth_m, k)?;
             let out = pipeline.run(&input, &pcfg)?;
             let start = Instant::now();
             let result = m.fuse(&points, Some(&out.roughness_m), &pose, i as f64, |z| {
@@ -149,6 +131,41 @@ impl Map {
         let map = map.context("no frame could start the map")?;
         let layers = map.layers(&MapLimits::default());
         self.write(&map, &layers, (fused, &skipped, &mut fuse_ms))
+    }
+
+    /// The noise model (`--sensor`, else the camera's) and the depth scale (the camera's): the
+    /// map guesses neither.
+    fn sensor_and_scale(&self, cam: &io::CameraFile) -> anyhow::Result<(SensorNoise, f64)> {
+        let sensor = self
+            .sensor
+            .or_else(|| cam.sensor.as_ref().and_then(io::SensorSpec::noise))
+            .context(
+                "the map's height variance needs the depth sensor's noise model: give --sensor \
+                 or a camera file with \"sensor\"",
+            )?;
+        let scale = cam.depth_scale.context(
+            "the camera file states no depth_scale: the map will not guess the depth's units",
+        )?;
+        Ok((sensor, scale))
+    }
+
+    /// The pipeline's input for frame `f`: its depth, its colour when the mode reads it.
+    fn input(
+        &self,
+        f: &SeqFrame,
+        depth_m: Grid<f64>,
+        k: crate::geometry::Intrinsics,
+    ) -> anyhow::Result<FrameInput> {
+        let rgb = match (&f.rgb, self.mode) {
+            (Some(p), Mode::Rgb | Mode::Rgbd) => Some(io::read_image(p)?.to_rgb8()),
+            _ => None,
+        };
+        Ok(FrameInput {
+            rgb,
+            depth_m: Some(depth_m),
+            intrinsics: Some(k),
+            mounting: None,
+        })
     }
 
     /// The map frame: `gravity.json` beside the sequence, else the stated pitch, else the
@@ -244,31 +261,7 @@ impl Map {
             .with_context(|| format!("creating {}", self.out.display()))?;
         let mut meta = serde_json::Map::new();
         for (name, grid) in LAYER_NAMES.iter().zip(layers.all()) {
-            let g64 = grid.map(|&v| f64::from(v));
-            io::write_npy_f32(&self.out.join(format!("{name}.npy")), &g64)?;
-            let (scale, offset, unit) = png_scale(name, &g64);
-            let png = Grid::from_fn(g64.width(), g64.height(), |x, y| {
-                let v = g64[(x, y)];
-                if v.is_finite() {
-                    (1.0 + ((v - offset) / scale).round()).clamp(1.0, 65535.0) as u16
-                } else {
-                    0
-                }
-            });
-            let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(
-                png.width() as u32,
-                png.height() as u32,
-                png.into_vec(),
-            )
-            .context("layer image")?;
-            io::save(
-                &self.out.join(format!("{name}.png")),
-                &DynamicImage::ImageLuma16(img),
-            )?;
-            meta.insert(
-                (*name).to_owned(),
-                json!({"unit": unit, "png_scale": scale, "png_offset": offset}),
-            );
+            meta.insert((*name).to_owned(), self.write_layer(name, grid)?);
         }
         io::save(
             &self.out.join("layers.png"),
@@ -311,6 +304,35 @@ impl Map {
             eprintln!("skipped {s}");
         }
         Ok(())
+    }
+}
+
+impl Map {
+    /// Writes layer `name` as `<name>.npy` (float32) and `<name>.png` (16-bit, 0 = no data);
+    /// its unit and PNG scale for `map.json`.
+    fn write_layer(&self, name: &str, grid: &Grid<f32>) -> anyhow::Result<serde_json::Value> {
+        let g64 = grid.map(|&v| f64::from(v));
+        io::write_npy_f32(&self.out.join(format!("{name}.npy")), &g64)?;
+        let (scale, offset, unit) = png_scale(name, &g64);
+        let png = Grid::from_fn(g64.width(), g64.height(), |x, y| {
+            let v = g64[(x, y)];
+            if v.is_finite() {
+                (1.0 + ((v - offset) / scale).round()).clamp(1.0, 65535.0) as u16
+            } else {
+                0
+            }
+        });
+        let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(
+            png.width() as u32,
+            png.height() as u32,
+            png.into_vec(),
+        )
+        .context("layer image")?;
+        io::save(
+            &self.out.join(format!("{name}.png")),
+            &DynamicImage::ImageLuma16(img),
+        )?;
+        Ok(json!({"unit": unit, "png_scale": scale, "png_offset": offset}))
     }
 }
 
@@ -370,21 +392,7 @@ fn picture(l: &Layers) -> RgbImage {
         }
     };
     let (elo, ehi) = finite(&l.elevation);
-    let trav = RgbImage::from_fn(
-        l.traversal.width() as u32,
-        l.traversal.height() as u32,
-        |x, y| {
-            let t = l.traversal[(x as usize, y as usize)];
-            if l.count[(x as usize, y as usize)] == 0.0 {
-                return Rgb([40, 40, 40]);
-            }
-            Rgb(io::colormap::traversal_rgb(match t as u8 {
-                1 => crate::roughness::traversal::Traversal::Traversable,
-                2 => crate::roughness::traversal::Traversal::Hazard,
-                _ => crate::roughness::traversal::Traversal::Unknown,
-            }))
-        },
-    );
+    let trav = traversal_image(l);
     let panels = [
         sheet::Panel::new(
             format!("elevation {elo:.2}..{ehi:.2} m"),
@@ -396,28 +404,42 @@ fn picture(l: &Layers) -> RgbImage {
         sheet::Panel::new("score 0..1", scaled(&l.score, 0.0, 1.0)),
         sheet::Panel::new("three-state", trav),
     ];
-    let legend = sheet::categorical_legend(&[
-        (
-            "traversable",
-            Rgb(io::colormap::traversal_rgb(
-                crate::roughness::traversal::Traversal::Traversable,
-            )),
-        ),
-        (
-            "hazard",
-            Rgb(io::colormap::traversal_rgb(
-                crate::roughness::traversal::Traversal::Hazard,
-            )),
-        ),
-        (
-            "unknown",
-            Rgb(io::colormap::traversal_rgb(
-                crate::roughness::traversal::Traversal::Unknown,
-            )),
-        ),
-        ("not seen", Rgb([40, 40, 40])),
-    ]);
+    let legend = map_legend();
     sheet::contact_sheet(&panels, 3, Some(&legend))
+}
+
+/// The three-state layer in the previews' colours, never-seen cells dark.
+fn traversal_image(l: &Layers) -> RgbImage {
+    use crate::roughness::traversal::Traversal;
+    let (w, h) = l.traversal.size();
+    RgbImage::from_fn(w as u32, h as u32, |x, y| {
+        let (x, y) = (x as usize, y as usize);
+        if l.count[(x, y)] == 0.0 {
+            return Rgb(NOT_SEEN);
+        }
+        Rgb(io::colormap::traversal_rgb(
+            match l.traversal[(x, y)] as u8 {
+                1 => Traversal::Traversable,
+                2 => Traversal::Hazard,
+                _ => Traversal::Unknown,
+            },
+        ))
+    })
+}
+
+/// Colour of cells never seen.
+const NOT_SEEN: [u8; 3] = [40, 40, 40];
+
+/// The legend of the three-state panel.
+fn map_legend() -> RgbImage {
+    use crate::roughness::traversal::Traversal;
+    let c = |t| Rgb(io::colormap::traversal_rgb(t));
+    sheet::categorical_legend(&[
+        ("traversable", c(Traversal::Traversable)),
+        ("hazard", c(Traversal::Hazard)),
+        ("unknown", c(Traversal::Unknown)),
+        ("not seen", Rgb(NOT_SEEN)),
+    ])
 }
 
 /// A 4×4 camera-to-world pose from a text file of 16 numbers, checked rigid.

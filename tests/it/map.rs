@@ -45,6 +45,31 @@ fn npy_f32(path: &Path) -> ((usize, usize), Vec<f32>) {
     )
 }
 
+/// Layer `name` in `out`: 200 × 200, its PNG decoding to its `.npy` by the stated scale and
+/// offset (0: no data).
+fn assert_png_is_npy(out: &Path, name: &str, layer: &serde_json::Value) {
+    let (shape, values) = npy_f32(&out.join(format!("{name}.npy")));
+    assert_eq!(shape, (200, 200), "{name}");
+    let png = image::open(out.join(format!("{name}.png")))
+        .unwrap()
+        .to_luma16();
+    let (scale, offset) = (
+        layer["png_scale"].as_f64().unwrap(),
+        layer["png_offset"].as_f64().unwrap(),
+    );
+    for (p, v) in png.as_raw().iter().zip(&values) {
+        if *p == 0 {
+            assert!(v.is_nan(), "{name}: {v}");
+        } else {
+            let decoded = offset + f64::from(p - 1) * scale;
+            assert!(
+                (decoded - f64::from(*v)).abs() <= scale * 0.5 + 1e-6,
+                "{name}: {decoded} against {v}"
+            );
+        }
+    }
+}
+
 #[test]
 fn tre_map_writes_every_layer_and_skips_a_broken_pose() {
     let dir = tempfile::tempdir().unwrap();
@@ -74,31 +99,7 @@ fn tre_map_writes_every_layer_and_skips_a_broken_pose() {
     assert_eq!(meta["side_cells"], 200);
     assert_eq!(meta["frames_fused"], 5);
     for name in tre::map::LAYER_NAMES {
-        let (shape, values) = npy_f32(&out.join(format!("{name}.npy")));
-        assert_eq!(shape, (200, 200), "{name}");
-        // The PNG decodes to the .npy by the stated scale and offset (0: no data).
-        let png = image::open(out.join(format!("{name}.png")))
-            .unwrap()
-            .to_luma16();
-        let layer = &meta["layers"][name];
-        let (scale, offset) = (
-            layer["png_scale"].as_f64().unwrap(),
-            layer["png_offset"].as_f64().unwrap(),
-        );
-        for (p, v) in png.as_raw().iter().zip(&values) {
-            if *p == 0 {
-                assert!(
-                    v.is_nan() || name == "count" || name == "traversal",
-                    "{name}: {v}"
-                );
-            } else {
-                let decoded = offset + f64::from(p - 1) * scale;
-                assert!(
-                    (decoded - f64::from(*v)).abs() <= scale * 0.5 + 1e-6,
-                    "{name}: {decoded} against {v}"
-                );
-            }
-        }
+        assert_png_is_npy(&out, name, &meta["layers"][name]);
     }
     // Seen cells: a height, a count of at least one, and a three-state value.
     let (_, count) = npy_f32(&out.join("count.npy"));

@@ -127,43 +127,57 @@ impl GridMap {
                 out.roughness[(col, row)] = cell.roughness_m;
                 out.last_update[(col, row)] = cell.last_s as f32;
                 let slope = slope_at(&height, (c, r), h, self.cfg.cell_m);
-                let mut step = f64::NAN;
-                for (dc, dr) in NEIGHBOURS {
-                    if let Some(n) = height(c + dc, r + dr) {
-                        let d = (n - h).abs();
-                        step = if step.is_nan() { d } else { step.max(d) };
-                    }
-                }
+                let step = step_at(&height, (c, r), h);
                 out.slope[(col, row)] = slope.map_or(f32::NAN, |s| s.to_degrees() as f32);
                 out.step[(col, row)] = step as f32;
-                let rough = f64::from(cell.roughness_m);
-                let parts = [
-                    rough / limits.max_roughness_m,
-                    slope.map_or(f64::NAN, |s| s / limits.max_slope_rad),
-                    step / limits.max_step_m,
-                ];
-                // NaN parts (no roughness, no neighbour) do not count against the cell.
-                let worst = parts
-                    .iter()
-                    .copied()
-                    .filter(|v| v.is_finite())
-                    .fold(0.0f64, f64::max);
-                out.score[(col, row)] = (1.0 - worst).clamp(0.0, 1.0) as f32;
-                let judged = cell.count >= limits.min_count
-                    && f64::from(cell.var_m2).sqrt() <= limits.max_sigma_m
-                    && rough.is_finite();
-                let state = if !judged {
-                    Traversal::Unknown
-                } else if worst >= 1.0 {
-                    Traversal::Hazard
-                } else {
-                    Traversal::Traversable
-                };
+                let (score, state) = judge(cell, slope, step, limits);
+                out.score[(col, row)] = score;
                 out.traversal[(col, row)] = f32::from(state as u8);
             }
         }
         out
     }
+}
+
+/// A seen cell's score and three-state value from its roughness, `slope` (radians) and `step`
+/// (metres; NaN parts, no roughness or no neighbour, do not count against it).
+fn judge(
+    cell: &super::Cell,
+    slope: Option<f64>,
+    step: f64,
+    limits: &MapLimits,
+) -> (f32, Traversal) {
+    let rough = f64::from(cell.roughness_m);
+    let parts = [
+        rough / limits.max_roughness_m,
+        slope.map_or(f64::NAN, |s| s / limits.max_slope_rad),
+        step / limits.max_step_m,
+    ];
+    let worst = parts
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max);
+    let judged = cell.count >= limits.min_count
+        && f64::from(cell.var_m2).sqrt() <= limits.max_sigma_m
+        && rough.is_finite();
+    let state = if !judged {
+        Traversal::Unknown
+    } else if worst >= 1.0 {
+        Traversal::Hazard
+    } else {
+        Traversal::Traversable
+    };
+    ((1.0 - worst).clamp(0.0, 1.0) as f32, state)
+}
+
+/// The largest height difference from `h` to a seen 8-neighbour of `(c, r)` (NaN: none seen).
+fn step_at(height: &impl Fn(isize, isize) -> Option<f64>, (c, r): (isize, isize), h: f64) -> f64 {
+    NEIGHBOURS
+        .iter()
+        .filter_map(|(dc, dr)| height(c + dc, r + dr))
+        .map(|n| (n - h).abs())
+        .fold(f64::NAN, f64::max)
 }
 
 /// The 8-neighbourhood, `(dcol, drow)`.

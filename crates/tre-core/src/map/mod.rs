@@ -473,9 +473,48 @@ impl GridMap {
             self.recentre((cam.x, cam.y));
         }
         let rot = self.frame.map_from_world * pose.rotation;
-        let trans = cam;
-        let mut stats = FuseStats::default();
+        let (touched, points_in) = self.accumulate(points, roughness_m, (&rot, &cam), &sigma_z);
+        if touched.is_empty() {
+            return Err(MapError::NothingSeen);
+        }
+        let mut stats = FuseStats {
+            points: points_in,
+            ..FuseStats::default()
+        };
+        for i in touched {
+            let a = std::mem::take(&mut self.acc[i]);
+            let n = f64::from(a.n);
+            let (z, depth) = (a.z_sum / n, a.depth_sum / n);
+            let r = sigma_z(depth).powi(2) + self.cfg.cell_m.powi(2) / 12.0;
+            let cell = &mut self.cells[i];
+            stats.cells += 1;
+            match cell.fuse_height(z, r, t_s, &self.cfg) {
+                Fused::Started => stats.started += 1,
+                Fused::Updated => {}
+                Fused::Outlier => {
+                    stats.outliers += 1;
+                    continue;
+                }
+            }
+            if a.r_w > 0.0 {
+                cell.add_roughness(a.r_sum / a.r_w, a.r_w);
+            }
+        }
+        Ok(stats)
+    }
+
+    /// Adds the frame's points (camera frame, turned by `rot` and moved by `trans` into the
+    /// map frame) to the accumulators of their cells; returns the cells touched and the points
+    /// that landed in the window.
+    fn accumulate(
+        &mut self,
+        points: &PointMap,
+        roughness_m: Option<&Grid<f64>>,
+        (rot, trans): (&Matrix3<f64>, &Vec3),
+        sigma_z: &impl Fn(f64) -> f64,
+    ) -> (Vec<usize>, usize) {
         let mut touched: Vec<usize> = Vec::new();
+        let mut landed = 0;
         let (w, h) = points.size();
         for y in 0..h {
             for x in 0..w {
@@ -499,33 +538,10 @@ impl GridMap {
                     a.r_sum += w * r;
                     a.r_w += w;
                 }
-                stats.points += 1;
+                landed += 1;
             }
         }
-        if touched.is_empty() {
-            return Err(MapError::NothingSeen);
-        }
-        for i in touched {
-            let a = std::mem::take(&mut self.acc[i]);
-            let n = f64::from(a.n);
-            let (z, depth) = (a.z_sum / n, a.depth_sum / n);
-            let r = sigma_z(depth).powi(2) + self.cfg.cell_m.powi(2) / 12.0;
-            let cell = &mut self.cells[i];
-            match cell.fuse_height(z, r, t_s, &self.cfg) {
-                Fused::Started => stats.started += 1,
-                Fused::Updated => {}
-                Fused::Outlier => {
-                    stats.outliers += 1;
-                    stats.cells += 1;
-                    continue;
-                }
-            }
-            if a.r_w > 0.0 {
-                cell.add_roughness(a.r_sum / a.r_w, a.r_w);
-            }
-            stats.cells += 1;
-        }
-        Ok(stats)
+        (touched, landed)
     }
 
     /// The window's centre in the map frame, metres.
