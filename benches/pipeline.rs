@@ -192,6 +192,7 @@ fn request(frame: &FrameInput, depth: bool, normals: NormalsMethod) -> FrameRequ
             normals: Some(normals),
             ..FrameOptions::default()
         },
+        map: None,
     }
 }
 

@@ -58,6 +58,7 @@ impl From<&ClientConfig> for pb::Hello {
             dsac_hypotheses: cfg.dsac_hypotheses.unwrap_or(0),
             max_roughness_cm: cfg.max_roughness_cm,
             max_slope_deg: cfg.max_slope_deg,
+            map: None,
             sensor: match cfg.sensor {
                 Some(SensorNoise::Preset(p)) => Some(p.to_string()),
                 _ => None,
@@ -112,6 +113,7 @@ pub(crate) fn frame(frame: Frame, sequence: u64, timestamp_us: i64) -> Vec<u8> {
         image: frame.image,
         depth: frame.depth.unwrap_or_default(),
         camera: frame.camera.as_ref().map(pb_camera),
+        pose: Vec::new(),
     });
     pb::ClientMessage { msg: Some(msg) }.encode_to_vec()
 }
@@ -134,6 +136,8 @@ pub(crate) enum Incoming {
     Result(WireResult),
     /// [`Event::Dropped`] or [`Event::Error`], as the session reports it.
     Event(Event),
+    /// A message this client never asks for (a map update: its Hello asks for no map).
+    Ignored,
 }
 
 impl TryFrom<pb::ServerMessage> for Incoming {
@@ -156,6 +160,7 @@ impl TryFrom<pb::ServerMessage> for Incoming {
                 code: e.code,
                 message: e.message,
             }),
+            Some(Msg::Map(_)) => Self::Ignored,
             None => return Err(ClientError::Protocol("empty ServerMessage".into())),
         })
     }

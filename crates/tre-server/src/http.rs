@@ -486,6 +486,52 @@ pub async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri
     ApiError::new(ErrorCode::MethodNotAllowed, why).into_response()
 }
 
+/// `GET /v1/streams/{id}/map`: the grid map of an open stream whose Hello asked for one.
+#[utoipa::path(
+    get,
+    path = "/v1/streams/{id}/map",
+    summary = "The current grid map of a stream",
+    description = "The map of the stream whose Ready carried this stream_id, as a \
+        roughness.v1.MapUpdate protobuf message (docs/map.md), while the stream is open.",
+    params(("id" = String, Path, description = "The stream's id (Ready.stream_id).")),
+    responses(
+        (status = 200, description = "The map (a MapUpdate message).",
+            content((inline(Binary) = "application/x-protobuf"))),
+        (status = 404, response = ErrorResponse),
+    ),
+)]
+pub async fn stream_map(
+    State(app): State<Arc<AppState>>,
+    axum::extract::Path(id): axum::extract::Path<String>,
+) -> Response {
+    let update = app.maps.get(&id).map(|m| {
+        m.lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .update()
+    });
+    match update {
+        Some(Some(u)) => {
+            use prost::Message as _;
+            (
+                StatusCode::OK,
+                [(header::CONTENT_TYPE, "application/x-protobuf")],
+                u.encode_to_vec(),
+            )
+                .into_response()
+        }
+        Some(None) => ApiError::new(
+            ErrorCode::NotFound,
+            format!("stream {id:?} keeps a map, but no frame has been fused into it yet"),
+        )
+        .into_response(),
+        None => ApiError::new(
+            ErrorCode::NotFound,
+            format!("no open stream {id:?} keeps a map (ask for one with Hello.map)"),
+        )
+        .into_response(),
+    }
+}
+
 /// `GET /healthz`: the process is up.
 #[utoipa::path(
     get,

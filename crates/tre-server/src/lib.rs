@@ -17,6 +17,7 @@ pub mod connections;
 pub mod error;
 pub mod fuzzing;
 pub mod http;
+pub mod map;
 pub mod metrics;
 pub mod openapi;
 pub mod options;
@@ -170,6 +171,8 @@ pub struct AppState {
     pub shutdown: watch::Receiver<bool>,
     /// The rate-limited log of refusals.
     pub refusals: Arc<RefusalLog>,
+    /// The grid maps of the open streams that keep one.
+    pub maps: map::MapRegistry,
 }
 
 impl ServeConfig {
@@ -212,6 +215,7 @@ pub fn routes() -> OpenApiRouter<Arc<AppState>> {
         .routes(routes!(http::openapi))
         .routes(routes!(http::models))
         .routes(routes!(http::roughness))
+        .routes(routes!(http::stream_map))
         .routes(routes!(stream::stream))
 }
 
@@ -319,6 +323,7 @@ fn start(cfg: &ServeConfig) -> Result<(Arc<AppState>, watch::Sender<bool>), Serv
         model_names,
         shutdown: stop_rx,
         refusals: Arc::new(RefusalLog::default()),
+        maps: map::MapRegistry::default(),
     });
     Ok((state, stop_tx))
 }

@@ -4,8 +4,10 @@
 use prost::Message;
 
 use super::error::{ApiError, ErrorCode};
+use super::map::{settings_from_pb, MapSettings};
 use super::request::{FrameOptions, FrameReply, FrameRequest, SCALE_M};
 use tre_core::kinds::StreamFormat;
+use tre_core::map::Pose;
 use tre_core::roughness::noise::{SensorNoise, SensorPreset};
 use tre_io::{CameraFile, SensorSpec};
 use tre_pipeline::{check_dsac_hypotheses, Traversability};
@@ -18,6 +20,8 @@ pub struct StreamSettings {
     pub camera: Option<CameraFile>,
     /// Options of every frame.
     pub options: FrameOptions,
+    /// The stream's grid map, if asked for.
+    pub map: Option<MapSettings>,
 }
 
 /// A frame from the stream, with the fields echoed in its answer.
@@ -33,6 +37,8 @@ pub struct StreamFrame {
     pub image: Vec<u8>,
     /// Encoded depth (empty: none).
     pub depth: Vec<u8>,
+    /// Camera-to-world pose for the map.
+    pub pose: Option<Pose>,
 }
 
 impl StreamFrame {
@@ -43,6 +49,7 @@ impl StreamFrame {
             depth: (!self.depth.is_empty()).then_some(self.depth),
             camera: self.camera.or_else(|| settings.camera.clone()),
             options: settings.options,
+            map: None,
         }
     }
 }
@@ -109,6 +116,31 @@ fn camera_from_pb(c: pb::Camera) -> Result<CameraFile, ApiError> {
     Ok(cam)
 }
 
+/// The Hello's map settings, checked, with the noise model the map's variance needs (the
+/// Hello's `sensor` or the camera's).
+fn hello_map(
+    map: Option<&pb::MapSettings>,
+    sensor: Option<&SensorNoise>,
+    camera: Option<&CameraFile>,
+) -> Result<Option<MapSettings>, ApiError> {
+    let Some(m) = map else {
+        return Ok(None);
+    };
+    let camera_model = camera
+        .and_then(|c| c.sensor.as_ref())
+        .and_then(SensorSpec::noise);
+    if sensor.is_none() && camera_model.is_none() {
+        return Err(bad(
+            "hello.map",
+            "the map's height variance needs a sensor noise model: the camera's sensor or \
+             hello.sensor",
+        ));
+    }
+    settings_from_pb(m)
+        .map(Some)
+        .map_err(|e| ApiError::new(ErrorCode::BadRequest, e))
+}
+
 impl TryFrom<pb::Hello> for StreamSettings {
     type Error = ApiError;
 
@@ -146,8 +178,11 @@ impl TryFrom<pb::Hello> for StreamSettings {
             }
             Err(e) => return Err(bad("hello.sensor", e.message)),
         };
+        let camera = h.camera.map(camera_from_pb).transpose()?;
+        let map = hello_map(h.map.as_ref(), sensor.as_ref(), camera.as_ref())?;
         Ok(Self {
-            camera: h.camera.map(camera_from_pb).transpose()?,
+            camera,
+            map,
             options: FrameOptions {
                 sensor,
                 mode: mode.into(),
@@ -177,9 +212,19 @@ impl TryFrom<pb::Frame> for StreamFrame {
                 "frame: neither image nor depth is set",
             ));
         }
+        let pose = match f.pose.as_slice() {
+            [] => None,
+            v => Some(Pose::from_row_major(v).map_err(|e| {
+                ApiError::new(
+                    ErrorCode::BadRequest,
+                    format!("frame.pose: {e}; 16 values, a 4×4 camera-to-world matrix row by row"),
+                )
+            })?),
+        };
         Ok(Self {
             sequence: f.sequence,
             timestamp_us: f.timestamp_us,
+            pose,
             camera: f.camera.map(camera_from_pb).transpose()?,
             image: f.image,
             depth: f.depth,
@@ -255,11 +300,17 @@ fn encode(msg: pb::server_message::Msg) -> Vec<u8> {
 }
 
 /// The Ready message.
-pub fn ready(max_message_bytes: usize, models: Vec<String>) -> Vec<u8> {
+pub fn ready(max_message_bytes: usize, models: Vec<String>, stream_id: &str) -> Vec<u8> {
     encode(pb::server_message::Msg::Ready(pb::Ready {
         max_message_bytes: max_message_bytes as u64,
         models,
+        stream_id: stream_id.to_owned(),
     }))
+}
+
+/// A MapUpdate message.
+pub fn map_update(update: pb::MapUpdate) -> Vec<u8> {
+    encode(pb::server_message::Msg::Map(update))
 }
 
 /// An Error message.

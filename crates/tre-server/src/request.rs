@@ -27,6 +27,8 @@ pub struct FrameRequest {
     pub camera: Option<CameraFile>,
     /// What to run and return.
     pub options: FrameOptions,
+    /// The stream's map this frame is fused into, if it keeps one.
+    pub map: Option<super::map::MapJob>,
 }
 
 /// Decoding limits, all checked from the header before any pixel is decoded.

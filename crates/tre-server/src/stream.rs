@@ -24,6 +24,7 @@ use tokio::time::MissedTickBehavior;
 
 use super::access::RequestId;
 use super::error::{ApiError, ErrorCode};
+use super::map::{MapJob, SessionMap, SharedMap};
 use super::pace::{MessagePace, ReadBytes, PACE_WINDOW};
 use super::proto::{self, Incoming, StreamFrame, StreamSettings};
 use super::workers::JobResult;
@@ -146,6 +147,8 @@ struct Connection {
     place: Place,
     /// The pace its messages keep; `None` where the connection's reads are not counted.
     pace: Option<MessagePace>,
+    /// Its grid map, if the Hello asked for one, and when an update last went out.
+    map: Option<(SharedMap, Option<Instant>)>,
 }
 
 /// The permit a stream holds.
@@ -189,6 +192,7 @@ impl Connection {
             dropped_total: 0,
             last_heard: Instant::now(),
             id,
+            map: None,
         }
     }
 
@@ -354,9 +358,14 @@ impl Connection {
         }
         match proto::decode_client(&bytes) {
             Ok(Incoming::Hello(settings)) => {
+                self.map = settings.map.map(|m| {
+                    let shared = Arc::new(std::sync::Mutex::new(SessionMap::new(m)));
+                    self.app.maps.insert(&self.id, &shared);
+                    (shared, None)
+                });
                 self.settings = Some(settings);
                 let models = self.app.model_names.clone();
-                self.send(proto::ready(limit, models)).await
+                self.send(proto::ready(limit, models, &self.id)).await
             }
             Ok(Incoming::Frame(frame)) => self.on_frame(frame).await,
             Err((seq, e)) => self.refuse(seq, &e).await,
@@ -396,7 +405,12 @@ impl Connection {
     /// Submits `frame`; a refusal (queue full) is reported for that frame.
     async fn start(&mut self, frame: StreamFrame, arrived: Instant) -> bool {
         let settings = self.settings.clone().unwrap_or_default();
-        let request = frame.clone().into_request(&settings);
+        let mut request = frame.clone().into_request(&settings);
+        request.map = self.map.as_ref().map(|(m, _)| MapJob {
+            map: m.clone(),
+            pose: frame.pose,
+            sequence: frame.sequence,
+        });
         match self.app.workers.submit(request) {
             Ok(rx) => {
                 self.in_flight = Some(InFlight { frame, arrived, rx });
@@ -429,10 +443,33 @@ impl Connection {
                     latency.as_secs_f64() * 1e3,
                     self.dropped_total,
                 );
-                self.send(msg).await
+                self.send(msg).await && self.send_map().await
             }
             Err(e) => self.refuse(Some(done.frame.sequence), &e).await,
         }
+    }
+
+    /// Sends the map when the stream keeps one and its rate allows (`send_hz`; 0: every time).
+    async fn send_map(&mut self) -> bool {
+        let Some((map, last)) = self.map.as_mut() else {
+            return true;
+        };
+        let update = {
+            let m = map
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            let hz = m.settings.send_hz;
+            let due = hz <= 0.0 || last.is_none_or(|t| t.elapsed().as_secs_f64() >= 1.0 / hz);
+            if !due {
+                return true;
+            }
+            m.update()
+        };
+        let Some(update) = update else {
+            return true;
+        };
+        *last = Some(Instant::now());
+        self.send(proto::map_update(update)).await
     }
 
     /// On shutdown: takes the messages that have already arrived as usual, answers the frame

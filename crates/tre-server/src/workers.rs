@@ -330,6 +330,9 @@ fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> Jo
     let decoded = started.elapsed();
     let cfg = config_for(&frame, &req.options, pool.limits.max_pixels, pool.defaults);
     let out = pipeline.run(&frame, &cfg)?;
+    if let Some(job) = &req.map {
+        fuse_into_map(req, &frame, &out, job);
+    }
     let started = Instant::now();
     let table = pipeline.interval_table(cfg.mode);
     let facts = (cfg.mode, assumptions(req, &frame, cfg.mode));
@@ -351,6 +354,26 @@ fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> Jo
     reply.timings.add_first("decode", decoded);
     reply.timings.add("encode", encoded);
     Ok(reply)
+}
+
+/// Fuses an answered frame into its stream's map, with the request's noise model (checked
+/// present when the Hello asked for the map).
+fn fuse_into_map(
+    req: &FrameRequest,
+    frame: &FrameInput,
+    out: &tre_pipeline::FrameOutput,
+    job: &crate::map::MapJob,
+) {
+    let camera_model = req
+        .camera
+        .as_ref()
+        .and_then(|c| c.sensor.as_ref())
+        .and_then(tre_io::SensorSpec::noise);
+    let Some(sensor) = req.options.sensor.or(camera_model) else {
+        return;
+    };
+    let mut map = job.map.lock().unwrap_or_else(PoisonError::into_inner);
+    map.fuse(frame, out, job, &sensor);
 }
 
 /// Frames of more pixels than this (1280×1024) give their memory back once answered: the

@@ -18,6 +18,7 @@ mod bad_messages;
 mod hello;
 mod lifecycle;
 mod limits;
+mod map;
 
 type Ws =
     tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;

@@ -362,6 +362,7 @@ impl Link {
                 }
             }
             Incoming::Ready(_) => tracing::debug!("unexpected Ready ignored"),
+            Incoming::Ignored => {}
         }
     }
 

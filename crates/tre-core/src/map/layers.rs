@@ -19,6 +19,19 @@ pub const LAYER_NAMES: [&str; 9] = [
     "last_update",
 ];
 
+/// The unit of each layer, in [`LAYER_NAMES`] order.
+pub const LAYER_UNITS: [&str; 9] = [
+    "m",
+    "m^2",
+    "measurements",
+    "m",
+    "degrees",
+    "m",
+    "0 to 1",
+    "0 unknown, 1 traversable, 2 hazard",
+    "s",
+];
+
 /// Thresholds of the map's traversability.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MapLimits {

@@ -19,7 +19,7 @@
 
 mod layers;
 
-pub use layers::{Layers, MapLimits, LAYER_NAMES};
+pub use layers::{Layers, MapLimits, LAYER_NAMES, LAYER_UNITS};
 
 use nalgebra::{Matrix3, Matrix4, Vector3};
 

@@ -98,6 +98,7 @@ fn the_geometric_mode_checks_an_rgb_part_without_decoding_it() {
         rgb: Some(rgb),
         depth: Some(depth.clone()),
         camera: None,
+        map: None,
         options: FrameOptions {
             mode,
             ..FrameOptions::default()

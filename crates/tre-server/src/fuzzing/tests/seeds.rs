@@ -225,6 +225,7 @@ pub(super) fn stream_messages() -> Vec<Vec<u8>> {
             image,
             depth,
             camera,
+            pose: Vec::new(),
         }))
     };
     vec![

@@ -111,6 +111,12 @@ pub(super) fn stream_structured() -> impl Strategy<Value = Vec<u8>> {
                     want_uncertainty: c,
                     sensor: a.then(|| "kinect_v1".to_owned()),
                     sensor_sigma_mm: Vec::new(),
+                    map: b.then(|| pb::MapSettings {
+                        cell_m: 0.05,
+                        side: 20,
+                        send_hz: 0.0,
+                        gravity: Vec::new(),
+                    }),
                 }))
             },
         );
@@ -127,6 +133,7 @@ pub(super) fn stream_structured() -> impl Strategy<Value = Vec<u8>> {
             image: pick(i),
             depth: pick(d),
             camera,
+            pose: if i == 2 { vec![1.0; 16] } else { Vec::new() },
         }))
     });
     prop_oneof![hello, frame]

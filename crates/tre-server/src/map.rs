@@ -1,0 +1,231 @@
+//! A stream's grid map (docs/map.md): kept per stream when its Hello asks for one, fused by the
+//! worker that ran each frame, sent as `MapUpdate` messages and served by
+//! `GET /v1/streams/{id}/map`.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, PoisonError, Weak};
+
+use tre_core::geometry::{Intrinsics, Vec3};
+use tre_core::map::{GridMap, MapConfig, MapFrame, MapLimits, Pose, LAYER_NAMES, LAYER_UNITS};
+use tre_core::roughness::noise::SensorNoise;
+use tre_pipeline::{FrameInput, FrameOutput, DEFAULT_HFOV_DEG};
+use tre_proto::v1 as pb;
+
+/// What a Hello asks of the map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapSettings {
+    /// Cell side, metres, and cells along a side.
+    pub config: MapConfig,
+    /// Most updates a second (0: after every fused frame).
+    pub send_hz: f64,
+    /// The world's down direction in the pose frame, if given.
+    pub gravity: Option<Vec3>,
+}
+
+/// A stream's map and its counts.
+#[derive(Debug)]
+pub struct SessionMap {
+    /// The settings.
+    pub settings: MapSettings,
+    /// The map, once a frame started it.
+    pub map: Option<GridMap>,
+    /// The last frame fused.
+    pub sequence: u64,
+    /// Frames fused and skipped.
+    pub fused: u64,
+    /// Frames skipped, with the last reason.
+    pub skipped: u64,
+}
+
+/// A shared handle on a stream's map.
+pub type SharedMap = Arc<Mutex<SessionMap>>;
+
+/// The maps of the open streams, by stream id (entries of closed streams are dropped when
+/// looked up or when a stream opens).
+#[derive(Debug, Default)]
+pub struct MapRegistry {
+    maps: Mutex<HashMap<String, Weak<Mutex<SessionMap>>>>,
+}
+
+impl MapRegistry {
+    /// Registers the map of stream `id`.
+    pub fn insert(&self, id: &str, map: &SharedMap) {
+        let mut maps = self.maps.lock().unwrap_or_else(PoisonError::into_inner);
+        maps.retain(|_, m| m.strong_count() > 0);
+        maps.insert(id.to_owned(), Arc::downgrade(map));
+    }
+
+    /// The map of stream `id`, while the stream is open.
+    pub fn get(&self, id: &str) -> Option<SharedMap> {
+        let maps = self.maps.lock().unwrap_or_else(PoisonError::into_inner);
+        maps.get(id).and_then(Weak::upgrade)
+    }
+}
+
+/// A frame's part in the map: the map and the frame's pose (`None`: the frame alone).
+#[derive(Debug, Clone)]
+pub struct MapJob {
+    /// The stream's map.
+    pub map: SharedMap,
+    /// The camera-to-world pose.
+    pub pose: Option<Pose>,
+    /// The frame's sequence number.
+    pub sequence: u64,
+}
+
+impl SessionMap {
+    /// An empty map with these settings.
+    pub fn new(settings: MapSettings) -> Self {
+        Self {
+            settings,
+            map: None,
+            sequence: 0,
+            fused: 0,
+            skipped: 0,
+        }
+    }
+
+    /// Fuses one answered frame (on the worker that ran it): its sensor depth and roughness,
+    /// the pose (without one the map restarts on the frame, centred on the camera), the noise
+    /// model. A frame that cannot be fused is counted skipped, logged, and the map keeps what
+    /// it had.
+    pub fn fuse(
+        &mut self,
+        frame: &FrameInput,
+        out: &FrameOutput,
+        job: &MapJob,
+        sensor: &SensorNoise,
+    ) {
+        match self.try_fuse(frame, out, job, sensor) {
+            Ok(()) => {
+                self.fused += 1;
+                self.sequence = job.sequence;
+            }
+            Err(why) => {
+                self.skipped += 1;
+                tracing::info!(sequence = job.sequence, "map: frame skipped: {why}");
+            }
+        }
+    }
+
+    fn try_fuse(
+        &mut self,
+        frame: &FrameInput,
+        out: &FrameOutput,
+        job: &MapJob,
+        sensor: &SensorNoise,
+    ) -> Result<(), String> {
+        let depth = frame
+            .depth_m
+            .as_ref()
+            .ok_or("the frame has no sensor depth")?;
+        let (w, h) = depth.size();
+        let k = match frame.intrinsics {
+            Some(k) => k,
+            None => Intrinsics::from_hfov(w, h, DEFAULT_HFOV_DEG).map_err(|e| e.to_string())?,
+        };
+        let points = k.back_project_map(depth);
+        let pose = job.pose.unwrap_or_else(Pose::identity);
+        if job.pose.is_none() {
+            self.map = None;
+        }
+        let map = match &mut self.map {
+            Some(m) => m,
+            None => {
+                let down = match self.settings.gravity {
+                    Some(g) => g,
+                    None => {
+                        let up = out.gravity.up_in_cam().ok_or_else(|| {
+                            format!("gravity unknown to start the map ({})", out.gravity)
+                        })?;
+                        -(pose.rotation * up)
+                    }
+                };
+                let frame = MapFrame::from_gravity(&down).map_err(|e| e.to_string())?;
+                let c = frame.map_from_world * pose.translation;
+                let m = GridMap::new(self.settings.config, frame, (c.x, c.y))
+                    .map_err(|e| e.to_string())?;
+                self.map.insert(m)
+            }
+        };
+        map.fuse(
+            &points,
+            Some(&out.roughness_m),
+            &pose,
+            job.sequence as f64,
+            |z| sensor.sigma_z_m(z),
+        )
+        .map(|_| ())
+        .map_err(|e| e.to_string())
+    }
+
+    /// The map as a `MapUpdate` message, once a frame started it.
+    pub fn update(&self) -> Option<pb::MapUpdate> {
+        let map = self.map.as_ref()?;
+        let layers = map.layers(&MapLimits::default());
+        let cfg = map.config();
+        let r = map.frame().map_from_world;
+        Some(pb::MapUpdate {
+            sequence: self.sequence,
+            cell_m: cfg.cell_m,
+            side: cfg.side as u32,
+            origin_x: map.origin().0,
+            origin_y: map.origin().1,
+            map_from_world: (0..3)
+                .flat_map(|i| (0..3).map(move |j| r[(i, j)]))
+                .collect(),
+            layers: LAYER_NAMES
+                .iter()
+                .zip(LAYER_UNITS)
+                .zip(layers.all())
+                .map(|((name, unit), grid)| pb::MapLayer {
+                    name: (*name).to_owned(),
+                    unit: unit.to_owned(),
+                    data: grid
+                        .as_slice()
+                        .iter()
+                        .flat_map(|v| v.to_le_bytes())
+                        .collect(),
+                })
+                .collect(),
+            fused: self.fused,
+            skipped: self.skipped,
+        })
+    }
+}
+
+/// The map settings of a Hello's `map`, checked: a cell of 1 mm to 1 m, 1 to 1,000 cells a
+/// side, a finite non-negative rate, gravity of 3 finite values if given.
+pub fn settings_from_pb(m: &pb::MapSettings) -> Result<MapSettings, String> {
+    let cell_m = if m.cell_m == 0.0 { 0.04 } else { m.cell_m };
+    let side = if m.side == 0 { 200 } else { m.side as usize };
+    if !(cell_m.is_finite() && (0.001..=1.0).contains(&cell_m)) {
+        return Err(format!("hello.map.cell_m: {cell_m} is outside 0.001–1 m"));
+    }
+    if side > 1000 {
+        return Err(format!("hello.map.side: {side} is more than 1000 cells"));
+    }
+    if !(m.send_hz.is_finite() && m.send_hz >= 0.0) {
+        return Err(format!("hello.map.send_hz: {} is not a rate", m.send_hz));
+    }
+    let gravity = match m.gravity.as_slice() {
+        [] => None,
+        &[x, y, z] if [x, y, z].iter().all(|v| v.is_finite()) && (x, y, z) != (0.0, 0.0, 0.0) => {
+            Some(Vec3::new(x, y, z))
+        }
+        other => {
+            return Err(format!(
+                "hello.map.gravity: expected 3 finite values, not all 0, got {other:?}"
+            ))
+        }
+    };
+    Ok(MapSettings {
+        config: MapConfig {
+            cell_m,
+            side,
+            ..MapConfig::default()
+        },
+        send_hz: m.send_hz,
+        gravity,
+    })
+}
