@@ -111,8 +111,8 @@ fn demo_page_has_camera_inputs_and_reads_the_answers_assumptions() {
         "no camera JSON file input"
     );
     assert!(html.contains("1000 = millimetres, 5000 = TUM"));
-    assert!(html.contains(r#"form.append("camera", cameraBlob(cam.camera), "camera.json")"#));
-    assert!(html.contains(r#"type: "application/json""#));
+    assert!(html.contains(r#"["camera", "camera.json", "application/json""#));
+    assert!(html.contains("cameraPart(cam.camera)"));
     for header in ["x-tre-mode", "x-tre-gravity", "x-tre-assumed", "warning"] {
         assert!(
             html.contains(&format!("headers.get(\"{header}\")")),
@@ -122,4 +122,58 @@ fn demo_page_has_camera_inputs_and_reads_the_answers_assumptions() {
     // The old label that took millimetres and a 60° field of view for granted.
     assert!(!html.contains("PNG in millimetres"));
     assert!(!html.contains("60° field of view)"));
+}
+
+/// Without a browser: the page has the Map panel (a canvas drawing a chosen layer of the latest
+/// MapUpdate, and a form that fetches a stream's map by its id), decodes `ServerMessage.map` and
+/// `Ready.stream_id`, and can ask its own stream for a map (Hello.map, with the sensor).
+#[test]
+fn demo_page_has_the_map_panel_and_decodes_map_updates() {
+    let html = std::fs::read_to_string(root().join("crates/tre-server/src/demo/index.html"))
+        .expect("the demo page");
+    for id in [
+        "id=\"map\"",
+        "id=\"map-canvas\"",
+        "id=\"map-layer\"",
+        "id=\"map-fetch\"",
+        "id=\"map-stream-id\"",
+        "id=\"map-info\"",
+        "id=\"stream-map\"",
+        "id=\"stream-id\"",
+    ] {
+        assert!(html.contains(id), "no element {id}");
+    }
+    assert!(html.contains("<label for=\"map-stream-id\">"));
+    assert!(html.contains("<label for=\"map-layer\">"));
+    for layer in [
+        "traversal",
+        "roughness",
+        "elevation",
+        "slope",
+        "step",
+        "score",
+    ] {
+        assert!(
+            html.contains(&format!("<option value=\"{layer}\"")),
+            "no map layer option {layer}"
+        );
+    }
+    // Ready.stream_id (field 3) and ServerMessage.map (field 5) are decoded.
+    assert!(html.contains("stream_id"));
+    assert!(html.contains("streamId: r.string(f, 3)"));
+    assert!(html.contains("[1, 2, 3, 4, 5].filter((n) => top.has(n))"));
+    assert!(html.contains("function decodeMapUpdate(buf)"));
+    assert!(
+        html.contains("BigInt.asIntN(bits, v)"),
+        "origin_x/y are signed int64"
+    );
+    // The map of any open stream, by id.
+    assert!(html.contains("/v1/streams/"));
+    assert!(html.contains("fetch(`/v1/streams/${encodeURIComponent(id)}/map`)"));
+    // Hello.map (field 15) with the sensor (Hello.sensor 13, or its coefficients 14).
+    assert!(html.contains(".string(13, sensor).doubles(14, sensorSigmaMm)"));
+    assert!(html.contains("hello.message(15,"));
+    assert!(html.contains("const MAP_REQUEST = { cellM: 0.05, side: 160, sendHz: 2 };"));
+    // Self-contained: nothing from another origin.
+    assert!(!html.contains("http://") && !html.contains("https://"));
 }
