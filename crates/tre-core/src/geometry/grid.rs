@@ -2,6 +2,18 @@
 
 use super::GeometryError;
 
+/// The 8-neighbourhood of a cell, `(dx, dy)`: row above, same row, row below.
+pub const NEIGHBOURS_8: [(i32, i32); 8] = [
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+    (-1, 0),
+    (1, 0),
+    (-1, 1),
+    (0, 1),
+    (1, 1),
+];
+
 /// A row-major `width × height` buffer of per-pixel values.
 ///
 /// ```

@@ -186,24 +186,12 @@ fn judge(
 
 /// The largest height difference from `h` to a seen 8-neighbour of `(c, r)` (NaN: none seen).
 fn step_at(height: &impl Fn(isize, isize) -> Option<f64>, (c, r): (isize, isize), h: f64) -> f64 {
-    NEIGHBOURS
+    crate::geometry::grid::NEIGHBOURS_8
         .iter()
-        .filter_map(|(dc, dr)| height(c + dc, r + dr))
+        .filter_map(|&(dc, dr)| height(c + dc as isize, r + dr as isize))
         .map(|n| (n - h).abs())
         .fold(f64::NAN, f64::max)
 }
-
-/// The 8-neighbourhood, `(dcol, drow)`.
-const NEIGHBOURS: [(isize, isize); 8] = [
-    (-1, -1),
-    (0, -1),
-    (1, -1),
-    (-1, 0),
-    (1, 0),
-    (-1, 1),
-    (0, 1),
-    (1, 1),
-];
 
 /// Slope at `(c, r)` of height `h` from its neighbours' heights: central differences where both
 /// neighbours are seen, one-sided where one is; `None` without any along an axis.

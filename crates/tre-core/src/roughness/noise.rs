@@ -341,16 +341,7 @@ fn count_within(points: &PointMap, x: usize, y: usize, half: usize, radius_m: f6
 fn neighbour_spacing(k: &Intrinsics, (x, y): (usize, usize), p: &Vec3, n: &Vec3) -> f64 {
     let d = n.dot(p);
     let mut far: f64 = 0.0;
-    for (dx, dy) in [
-        (-1, -1),
-        (0, -1),
-        (1, -1),
-        (-1, 0),
-        (1, 0),
-        (-1, 1),
-        (0, 1),
-        (1, 1),
-    ] {
+    for (dx, dy) in crate::geometry::grid::NEIGHBOURS_8 {
         let ray = Vec3::new(
             (x as f64 + f64::from(dx) - k.cx_px) / k.fx_px,
             (y as f64 + f64::from(dy) - k.cy_px) / k.fy_px,
