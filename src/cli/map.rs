@@ -444,15 +444,5 @@ fn map_legend() -> RgbImage {
 
 /// A 4×4 camera-to-world pose from a text file of 16 numbers, checked rigid.
 fn read_pose(path: &Path) -> anyhow::Result<Pose> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let v: Vec<f64> = text
-        .split_whitespace()
-        .map(str::parse)
-        .collect::<Result<_, _>>()
-        .with_context(|| format!("{}: expected 16 numbers", path.display()))?;
-    if v.len() != 16 {
-        bail!("{}: expected 16 numbers, got {}", path.display(), v.len());
-    }
-    Ok(Pose::from_row_major(&v)?)
+    Ok(Pose::from_row_major(&io::read_pose(path)?)?)
 }

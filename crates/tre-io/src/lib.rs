@@ -33,7 +33,8 @@ pub use images::{
     read_image, roughness_png16, save, traversal_gray8, write_mask_png, JpegError,
 };
 pub use maps::{
-    npy_grid, read_labels, read_normals, write_normals_npy, write_npy_f32, write_npy_u32, write_ply,
+    npy_grid, read_labels, read_normals, read_pose, write_normals_npy, write_npy_f32,
+    write_npy_u32, write_ply,
 };
 pub use npy::NpyError;
 
@@ -70,6 +71,14 @@ pub enum IoError {
         /// The file.
         path: PathBuf,
         /// What the decoder said.
+        reason: String,
+    },
+    /// A pose file that is not 16 finite numbers.
+    #[error("{}: {reason}", path.display())]
+    Pose {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
         reason: String,
     },
     /// An image of the wrong kind (e.g. an 8-bit colour file given as depth).

@@ -134,6 +134,29 @@ pub fn write_ply(
     Ok(())
 }
 
+/// Reads a pose file: a 4×4 camera-to-world matrix as 16 finite numbers, row by row
+/// (`poses/NAME.txt` beside a sequence, as 7-Scenes writes them).
+pub fn read_pose(path: &Path) -> Result<[f64; 16], IoError> {
+    let text = std::fs::read_to_string(path).map_err(|reason| IoError::Read {
+        path: path.to_owned(),
+        reason,
+    })?;
+    let bad = |reason: String| IoError::Pose {
+        path: path.to_owned(),
+        reason,
+    };
+    let v: Vec<f64> = text
+        .split_whitespace()
+        .map(str::parse)
+        .collect::<Result<_, _>>()
+        .map_err(|e| bad(format!("not numbers ({e})")))?;
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err(bad("a pose is 16 finite numbers".into()));
+    }
+    v.try_into()
+        .map_err(|v: Vec<f64>| bad(format!("a pose is 16 finite numbers, got {}", v.len())))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -220,8 +220,7 @@ impl FrameOutput {
     fn within(&self, limits: &Traversability) -> Grid<bool> {
         let w = &self.working;
         let roughness = w.roughness_m.as_ref().unwrap_or(&self.roughness_m);
-        let slope_tested = limits.max_slope_rad < std::f64::consts::FRAC_PI_2;
-        if slope_tested && w.stages.is_some() && w.up_in_cam.is_none() {
+        if self.slope_without_gravity(limits) {
             let (w, h) = self.roughness_m.size();
             return Grid::new(w, h, false);
         }
@@ -381,11 +380,19 @@ impl FrameOutput {
         })
     }
 
+    /// Whether `limits` test a slope (below 90°) that this output cannot judge: it has normals
+    /// but no gravity.
+    fn slope_without_gravity(&self, limits: &Traversability) -> bool {
+        let w = &self.working;
+        limits.max_slope_rad < std::f64::consts::FRAC_PI_2
+            && w.stages.is_some()
+            && w.up_in_cam.is_none()
+    }
+
     /// With gravity unknown and a slope threshold below 90°, no pixel can be called
     /// traversable: those the roughness alone would pass become unknown.
     fn unknown_without_gravity(&self, traversal: &mut Grid<Traversal>) {
-        let slope_tested = self.working.limits.max_slope_rad < std::f64::consts::FRAC_PI_2;
-        if self.working.up_in_cam.is_none() && self.working.stages.is_some() && slope_tested {
+        if self.slope_without_gravity(&self.working.limits) {
             for t in traversal.as_mut_slice() {
                 if *t == Traversal::Traversable {
                     *t = Traversal::Unknown;

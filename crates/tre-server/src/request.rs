@@ -31,6 +31,16 @@ pub struct FrameRequest {
     pub map: Option<super::map::MapJob>,
 }
 
+impl FrameRequest {
+    /// The depth sensor's noise model: the options' `sensor`, else the camera's.
+    pub fn noise_model(&self) -> Option<tre_core::roughness::noise::SensorNoise> {
+        let camera = self.camera.as_ref().and_then(|c| c.sensor.as_ref());
+        self.options
+            .sensor
+            .or_else(|| camera.and_then(io::SensorSpec::noise))
+    }
+}
+
 /// Decoding limits, all checked from the header before any pixel is decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct DecodeLimits {
@@ -581,7 +591,7 @@ pub fn encode_sensor_maps(
         return Ok(());
     }
     let spec = req.camera.as_ref().and_then(|c| c.sensor.as_ref());
-    let model = opts.sensor.or_else(|| spec.and_then(io::SensorSpec::noise));
+    let model = req.noise_model();
     let described = match spec {
         Some(io::SensorSpec::Description(d)) => Some(d.as_str()),
         _ => None,

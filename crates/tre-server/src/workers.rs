@@ -364,12 +364,7 @@ fn fuse_into_map(
     out: &tre_pipeline::FrameOutput,
     job: &crate::map::MapJob,
 ) {
-    let camera_model = req
-        .camera
-        .as_ref()
-        .and_then(|c| c.sensor.as_ref())
-        .and_then(tre_io::SensorSpec::noise);
-    let Some(sensor) = req.options.sensor.or(camera_model) else {
+    let Some(sensor) = req.noise_model() else {
         return;
     };
     let mut map = job.map.lock().unwrap_or_else(PoisonError::into_inner);

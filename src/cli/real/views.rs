@@ -37,15 +37,7 @@ impl Pose {
         if !path.is_file() {
             return Ok(None);
         }
-        let text = std::fs::read_to_string(&path)?;
-        let v: Vec<f64> = text
-            .split_whitespace()
-            .map(str::parse)
-            .collect::<Result<_, _>>()
-            .with_context(|| format!("{}: not numbers", path.display()))?;
-        if v.len() != 16 || v.iter().any(|x| !x.is_finite()) {
-            bail!("{}: a pose is 16 finite numbers", path.display());
-        }
+        let v = io::read_pose(&path)?;
         let mut m = [[0.0; 4]; 4];
         for (i, x) in v.into_iter().enumerate() {
             m[i / 4][i % 4] = x;

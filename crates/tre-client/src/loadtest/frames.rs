@@ -288,12 +288,11 @@ fn from_files(paths: &[PathBuf]) -> Result<Frames, LoadError> {
             path: path.clone(),
             why: e.to_string(),
         })?;
-        let content_type = content_type(&bytes).ok_or_else(|| LoadError::Frame {
+        content_type(&bytes).ok_or_else(|| LoadError::Frame {
             path: path.clone(),
             why: "not a PNG or JPEG".into(),
         })?;
         total += bytes.len();
-        let _ = content_type;
         frames.push(Frame::new(bytes, Vec::new(), &[]));
     }
     let description = match paths {
