@@ -72,35 +72,25 @@ fn demo_page_renders_roughness_streams_and_shows_errors() {
     );
 }
 
+/// The demo page's source, as the server embeds it.
+fn demo_html() -> String {
+    std::fs::read_to_string(root().join("crates/tre-server/src/demo/index.html"))
+        .expect("the demo page")
+}
+
 /// Without a browser: the page served at `/` (embedded from this file) has the Camera fields,
 /// sends them as the `camera` part, shows what each answer says it did, and no longer assumes
 /// a depth unit or a field of view itself.
 #[test]
 fn demo_page_has_camera_inputs_and_reads_the_answers_assumptions() {
-    let html = std::fs::read_to_string(root().join("crates/tre-server/src/demo/index.html"))
-        .expect("the demo page");
-    for field in [
-        "fx",
-        "fy",
-        "cx",
-        "cy",
-        "width",
-        "height",
-        "depth_scale",
-        "pitch_deg",
-        "height_m",
-    ] {
+    let html = demo_html();
+    // Every parameter a camera file is read for (the sensor is the select below).
+    for field in tre::io::CAMERA_KEYS {
         let input = format!("name=\"{field}\"");
         assert!(html.contains(&input), "no camera input {input}");
     }
     assert!(html.contains("<select id=\"cam-sensor\" name=\"sensor\">"));
-    for preset in [
-        "kinect_v1",
-        "realsense_d435",
-        "azure_kinect",
-        "lidar",
-        "exact",
-    ] {
+    for preset in tre::roughness::noise::SensorPreset::ALL.map(|p| p.name()) {
         assert!(
             html.contains(&format!("<option value=\"{preset}\">")),
             "no sensor {preset}"
@@ -129,8 +119,7 @@ fn demo_page_has_camera_inputs_and_reads_the_answers_assumptions() {
 /// `Ready.stream_id`, and can ask its own stream for a map (Hello.map, with the sensor).
 #[test]
 fn demo_page_has_the_map_panel_and_decodes_map_updates() {
-    let html = std::fs::read_to_string(root().join("crates/tre-server/src/demo/index.html"))
-        .expect("the demo page");
+    let html = demo_html();
     for id in [
         "id=\"map\"",
         "id=\"map-canvas\"",
