@@ -3,22 +3,16 @@
 //! normal angle errors; depth errors in rgb mode; mean time per stage. `--tables` runs every
 //! row of the paper's Tables II, IV and V and prints them as markdown.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use clap::Args;
-use serde::Serialize;
+use tre_eval::synthetic::{self, DepthSource, RowSpec, SplitReport};
+use tre_eval::{real, tables};
 
 use super::options::StageArgs;
-use super::{real, tables};
-use crate::geometry::{Grid, Vec3};
-use crate::io;
-use crate::pipeline::{FrameInput, Method, Mode, Pipeline, PipelineConfig};
-use crate::roughness::metrics::{DepthMetrics, NormalMetrics, RoughnessMetrics};
+use crate::pipeline::{Mode, PipelineConfig};
 use crate::roughness::noise::SensorNoise;
-use crate::roughness::{DepthAccumulator, NormalAccumulator, RoughnessAccumulator};
-use crate::synth::dataset::Manifest;
 
 /// Score a method on a synthetic dataset's split, or every mode on real RGB-D frames.
 #[derive(Debug, Args)]
@@ -88,83 +82,9 @@ pub struct Eval {
     pub depth_source: DepthSource,
 }
 
-/// Which depth of a `tre synth` frame the modes read.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum DepthSource {
-    /// The exact rendered depth (`depth.png`).
-    Exact,
-    /// The depth-sensor model's depth (`depth_sensor.png`).
-    Sensor,
-}
-
-impl DepthSource {
-    /// The frame's file holding that depth.
-    fn file_name(self) -> &'static str {
-        match self {
-            Self::Exact => "depth.png",
-            Self::Sensor => "depth_sensor.png",
-        }
-    }
-}
-
 /// `--sensor`: a preset name or `a,b,c`.
 fn parse_sensor(s: &str) -> Result<SensorNoise, String> {
     s.parse()
-}
-
-/// One configuration to score, with a stable key (`mode:label`).
-#[derive(Debug, Clone)]
-pub struct RowSpec {
-    /// `rgb:DE+DSAC+NR+ESR`, `geometric:LS+window`, `e2e:E2E`, ...
-    pub key: String,
-    /// What runs.
-    pub cfg: PipelineConfig,
-}
-
-/// The scores of one configuration over the split.
-#[derive(Debug, Clone, Serialize)]
-pub struct RowResult {
-    /// The row's key.
-    pub key: String,
-    /// What ran.
-    pub config: PipelineConfig,
-    /// Roughness errors, cm.
-    pub roughness: RoughnessMetrics,
-    /// Normal errors (none for the end-to-end baseline).
-    pub normals: Option<NormalMetrics>,
-    /// Depth errors (rgb mode only: elsewhere depth is given).
-    pub depth: Option<DepthMetrics>,
-    /// Mean wall time per frame of each stage, ms.
-    pub mean_ms: BTreeMap<String, f64>,
-}
-
-/// The JSON report.
-#[derive(Debug, Serialize)]
-struct Report<'a> {
-    data: &'a Path,
-    split: &'a str,
-    frames: usize,
-    rows: &'a [RowResult],
-}
-
-/// Accumulators of one row.
-#[derive(Default)]
-struct Score {
-    roughness: RoughnessAccumulator,
-    normals: NormalAccumulator,
-    depth: DepthAccumulator,
-    has_normals: bool,
-    has_depth: bool,
-    total_ms: BTreeMap<String, f64>,
-}
-
-/// One frame's inputs and ground truth.
-struct Frame {
-    input: FrameInput,
-    roughness_m: Grid<f64>,
-    boundary: Grid<bool>,
-    normals: Grid<Vec3>,
-    depth_m: Grid<f64>,
 }
 
 impl Eval {
@@ -178,40 +98,23 @@ impl Eval {
         if let Some(json) = &self.json {
             // The dataset's manifest and its scene folders are inputs; a report beside them
             // is fine.
-            let mut inputs = vec![data.join("dataset.json")];
-            if let Ok(entries) = std::fs::read_dir(&data) {
-                inputs.extend(entries.flatten().map(|e| e.path()).filter(|p| p.is_dir()));
-            }
+            let inputs = synthetic::dataset_inputs(&data);
             let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
             super::refuse_overwriting(&[json], &inputs)?;
         }
-        let dirs = self.frame_dirs(&data)?;
+        let dirs = synthetic::frame_dirs(&data, &self.split, self.limit)?;
         let specs = if self.tables {
             tables::row_specs(&self.stages.config(self.synthetic_mode()?))
         } else {
             let cfg = self.stages.config(self.synthetic_mode()?);
             vec![RowSpec {
-                key: row_key(&cfg),
+                key: synthetic::row_key(&cfg),
                 cfg,
             }]
         };
         let configs: Vec<PipelineConfig> = specs.iter().map(|s| s.cfg).collect();
         let mut pipeline = self.stages.pipeline(&configs)?;
-        let mut scores: Vec<Score> = specs.iter().map(|_| Score::default()).collect();
-        for (i, dir) in dirs.iter().enumerate() {
-            let frame = read_frame(dir, self.depth_source)
-                .with_context(|| format!("frame {}", dir.display()))?;
-            for (spec, score) in specs.iter().zip(&mut scores) {
-                score_frame(&mut pipeline, &frame, spec, score)
-                    .with_context(|| format!("frame {}, {}", dir.display(), spec.key))?;
-            }
-            tracing::info!("{}/{} frames", i + 1, dirs.len());
-        }
-        let rows: Vec<RowResult> = specs
-            .iter()
-            .zip(&scores)
-            .map(|(spec, score)| score.finish(spec, dirs.len()))
-            .collect();
+        let rows = synthetic::score_split(&mut pipeline, &dirs, &specs, self.depth_source)?;
         println!(
             "{}, split {}, {} frames\n",
             data.display(),
@@ -221,7 +124,8 @@ impl Eval {
         if self.tables {
             println!("{}", tables::markdown(&rows));
         } else {
-            rows.iter().for_each(print_row);
+            rows.iter()
+                .for_each(|r| print!("{}", synthetic::row_text(r)));
         }
         self.write_json(&data, dirs.len(), &rows)
     }
@@ -292,30 +196,16 @@ impl Eval {
         Ok(())
     }
 
-    /// The frame folders of the split, at most `--limit`.
-    fn frame_dirs(&self, data: &Path) -> anyhow::Result<Vec<PathBuf>> {
-        let path = data.join("dataset.json");
-        let text = std::fs::read_to_string(&path)
-            .with_context(|| format!("reading {}", path.display()))?;
-        let manifest: Manifest = serde_json::from_str(&text).context("parsing dataset.json")?;
-        let dirs: Vec<PathBuf> = manifest
-            .scenes
-            .iter()
-            .filter(|s| s.split == self.split)
-            .flat_map(|s| s.frames.iter().map(|f| data.join(&f.dir)))
-            .take(self.limit.unwrap_or(usize::MAX))
-            .collect();
-        if dirs.is_empty() {
-            bail!("no frames in split {:?}", self.split);
-        }
-        Ok(dirs)
-    }
-
-    fn write_json(&self, data: &Path, frames: usize, rows: &[RowResult]) -> anyhow::Result<()> {
+    fn write_json(
+        &self,
+        data: &Path,
+        frames: usize,
+        rows: &[synthetic::RowResult],
+    ) -> anyhow::Result<()> {
         let Some(path) = &self.json else {
             return Ok(());
         };
-        let report = Report {
+        let report = SplitReport {
             data,
             split: &self.split,
             frames,
@@ -323,141 +213,4 @@ impl Eval {
         };
         super::write_file(path, &serde_json::to_string_pretty(&report)?)
     }
-}
-
-/// `mode:label`, e.g. `rgbd:DSAC+NR+ESR`; `e2e:E2E` for the baseline.
-pub fn row_key(cfg: &PipelineConfig) -> String {
-    let mode = match cfg.method {
-        Method::EndToEnd => "e2e",
-        Method::Pipeline => cfg.mode.into(),
-    };
-    format!("{mode}:{}", cfg.label())
-}
-
-/// Reads a `tre synth` frame folder: inputs (depth from `source`) and ground truth.
-fn read_frame(dir: &Path, source: DepthSource) -> anyhow::Result<Frame> {
-    let (cam, k) = io::read_camera(&dir.join("camera.json"))?;
-    let scale = cam.depth_scale.unwrap_or(1000.0);
-    let depth_m = io::read_depth(&dir.join("depth.png"), scale)?;
-    let input_depth_m = match source {
-        DepthSource::Exact => Some(depth_m.clone()),
-        other => read_sensor_depth(&dir.join(other.file_name()), scale)?,
-    };
-    let input = FrameInput {
-        rgb: Some(io::read_image(&dir.join("rgb.png"))?.to_rgb8()),
-        depth_m: input_depth_m,
-        intrinsics: Some(k),
-        mounting: cam.mounting()?,
-    };
-    Ok(Frame {
-        input,
-        roughness_m: io::decode_roughness_png16(&io::read_image(&dir.join("roughness.png"))?),
-        boundary: io::read_labels(&dir.join("boundary.png"))?.map(|&b| b > 0),
-        normals: io::read_normals(&dir.join("normals.npy"))?,
-        depth_m,
-    })
-}
-
-/// A depth-sensor model's depth; `None` when the sensor saw nothing at all (every pixel 0, such
-/// as a Kinect whose whole view is beyond its range), which no depth mode can run on. The PNG is
-/// decoded once; anything else goes through [`io::read_depth`] and its checks.
-fn read_sensor_depth(path: &Path, scale: f64) -> anyhow::Result<Option<Grid<f64>>> {
-    let image::DynamicImage::ImageLuma16(img) = io::read_image(path)? else {
-        return Ok(Some(io::read_depth(path, scale)?));
-    };
-    if img.pixels().all(|p| p.0[0] == 0) {
-        tracing::warn!(
-            "{}: the sensor saw nothing; scored as every pixel without prediction",
-            path.display()
-        );
-        return Ok(None);
-    }
-    let depth = io::depth_from_luma16(img, scale);
-    io::check_depth(&depth).map_err(|why| anyhow::anyhow!("{}: {why}", path.display()))?;
-    Ok(Some(depth))
-}
-
-/// Runs one configuration on one frame and adds its errors and timings to `score`. A mode that
-/// reads depth on a frame whose sensor saw nothing predicts no pixel.
-fn score_frame(
-    pipeline: &mut Pipeline,
-    frame: &Frame,
-    spec: &RowSpec,
-    score: &mut Score,
-) -> anyhow::Result<()> {
-    if frame.input.depth_m.is_none()
-        && spec.cfg.mode != Mode::Rgb
-        && spec.cfg.method != Method::EndToEnd
-    {
-        let (w, h) = frame.roughness_m.size();
-        let none = Grid::new(w, h, f64::NAN);
-        score
-            .roughness
-            .add(&none, &frame.roughness_m, &frame.boundary)?;
-        return Ok(());
-    }
-    let out = pipeline.run(&frame.input, &spec.cfg)?;
-    score
-        .roughness
-        .add(&out.roughness_m, &frame.roughness_m, &frame.boundary)?;
-    if let Some(normals) = &out.normals() {
-        score.normals.add(normals, &frame.normals)?;
-        score.has_normals = true;
-    }
-    if let (Some(depth), crate::pipeline::Mode::Rgb) = (&out.depth_m(), spec.cfg.mode) {
-        score.depth.add(depth, &frame.depth_m)?;
-        score.has_depth = true;
-    }
-    for (name, took) in out.timings.iter() {
-        *score.total_ms.entry(name.to_owned()).or_default() += took.as_secs_f64() * 1e3;
-    }
-    pipeline.recycle(out);
-    Ok(())
-}
-
-impl Score {
-    fn finish(&self, spec: &RowSpec, frames: usize) -> RowResult {
-        RowResult {
-            key: spec.key.clone(),
-            config: spec.cfg.as_run(),
-            roughness: self.roughness.finish(),
-            normals: self.has_normals.then(|| self.normals.finish()),
-            depth: self.has_depth.then(|| self.depth.finish()),
-            mean_ms: self
-                .total_ms
-                .iter()
-                .map(|(k, v)| (k.clone(), v / frames.max(1) as f64))
-                .collect(),
-        }
-    }
-}
-
-/// The metrics of one row, as lines of text.
-fn print_row(row: &RowResult) {
-    let r = &row.roughness;
-    println!("{}", row.key);
-    println!(
-        "roughness  RMSE {:.3} cm  B-RMSE {:.3} cm  F-RMSE {:.3} cm  ({} px, {} without prediction)",
-        r.rmse_cm, r.b_rmse_cm, r.f_rmse_cm, r.pixels, r.missing
-    );
-    if let Some(n) = &row.normals {
-        println!(
-            "normals    mean {:.2}°  median {:.2}°  <11.25° {:.1}%  <22.5° {:.1}%  <30° {:.1}%",
-            n.mean_deg, n.median_deg, n.under_11_25_pct, n.under_22_5_pct, n.under_30_pct
-        );
-    }
-    if let Some(d) = &row.depth {
-        println!(
-            "depth      AbsRel {:.4}  RMSE {:.3} m  δ<1.25 {:.1}%",
-            d.abs_rel,
-            d.rmse_m,
-            100.0 * d.delta_1_25
-        );
-    }
-    let stages: Vec<String> = row
-        .mean_ms
-        .iter()
-        .map(|(k, v)| format!("{k} {v:.1}"))
-        .collect();
-    println!("mean ms    {}", stages.join(", "));
 }

@@ -8,10 +8,8 @@ pub mod infer;
 pub mod loadtest;
 pub mod map;
 pub mod options;
-pub mod real;
 pub mod serve;
 pub mod synth;
-pub mod tables;
 
 use clap::{Parser, Subcommand};
 

@@ -189,13 +189,13 @@ fn geometric_surface_only_is_ls_normals_and_window_centroids_at_the_frame_size()
 fn geometric_mode_is_the_annotator_on_every_shared_real_frame() -> TestResult {
     // The spec (`tre annotate` without labels) and the geometric mode at the frame's own size
     // must agree bit for bit: one implementation serves both.
-    let frames = tre::cli::real::find_frames(&real(""), None)?;
+    let frames = tre::eval::real::find_frames(&real(""), None)?;
     assert_eq!(frames.len(), 10, "the shared real frames");
     let mut pipeline = Pipeline::new(None);
     let cfg = PipelineConfig::for_mode(Mode::Geometric);
     assert_eq!(cfg.label(), "LS+window+edge");
     for frame in &frames {
-        let loaded = tre::cli::real::load_frame(frame)?;
+        let loaded = tre::eval::real::load_frame(frame)?;
         let input = FrameInput {
             rgb: None,
             ..loaded.input.clone()

@@ -5,7 +5,7 @@
 //! depth.
 
 use super::*;
-use crate::roughness::hazard::rate;
+use tre_core::roughness::hazard::rate;
 
 /// Floor coverage counts flat pixels nearer than this, metres.
 pub const FLOOR_RANGE_M: f64 = 3.0;

@@ -24,21 +24,21 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::{Grid, Intrinsics};
-use crate::io::sheet::{
-    categorical_legend, colour_bar_legend, contact_sheet, roughness_panel, stack, Panel,
-};
-use crate::io::{self, CameraFile};
-use crate::pipeline::frame::SensorMaps;
-use crate::pipeline::{FrameInput, GeometricMethod, Mode, Pipeline, PipelineConfig};
-use crate::roughness::hazard::{
+use image::Rgb;
+use tre_core::geometry::{Grid, Intrinsics};
+use tre_core::roughness::hazard::{
     box_values, floor_stats, FloorStats, RangeScores, ScoreMetrics, FLAT_M, HAZARD_M, RANGE_BINS,
 };
-use crate::roughness::metrics::DepthMetrics;
-use crate::roughness::noise::SensorNoise;
-use crate::roughness::traversal::Traversal;
-use crate::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation, DepthAccumulator};
-use image::Rgb;
+use tre_core::roughness::metrics::DepthMetrics;
+use tre_core::roughness::noise::SensorNoise;
+use tre_core::roughness::traversal::Traversal;
+use tre_core::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation, DepthAccumulator};
+use tre_io::sheet::{
+    categorical_legend, colour_bar_legend, contact_sheet, roughness_panel, stack, Panel,
+};
+use tre_io::{self as io, CameraFile};
+use tre_pipeline::frame::SensorMaps;
+use tre_pipeline::{FrameInput, GeometricMethod, Mode, Pipeline, PipelineConfig};
 
 /// One real frame on disk.
 #[derive(Debug, Clone)]

@@ -2,10 +2,8 @@
 
 use std::fmt::Write;
 
-use super::eval::{row_key, RowResult, RowSpec};
-use crate::pipeline::{
-    CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod, PipelineConfig,
-};
+use crate::synthetic::{row_key, RowResult, RowSpec};
+use tre_pipeline::{CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod, PipelineConfig};
 
 /// The ablations of Table IV per input mode: (normals, refiner, centroid).
 const ABLATIONS: [(NormalsMethod, bool, CentroidMethod); 5] = [

@@ -25,7 +25,7 @@ pub struct RealRow {
 }
 
 /// How the three-state map reads a frame (or pooled frames): shares of all pixels and per
-/// range bin, and the three checks of DESIGN.md: near floor traversable, far noisy range
+/// range bin, and the three checks of docs/design.md: near floor traversable, far noisy range
 /// unknown, drops hazards.
 #[derive(Debug, Clone, Serialize)]
 pub struct TraversalMetrics {
@@ -239,7 +239,7 @@ pub fn real_rows(modes: &[Mode], base: &PipelineConfig) -> Vec<(String, Pipeline
     // The frames' mountings are unknown, so slope (which needs the pitch) does not count:
     // the three-state map judges roughness and noise alone.
     let base = &PipelineConfig {
-        traversability: crate::pipeline::Traversability {
+        traversability: tre_pipeline::Traversability {
             max_slope_rad: std::f64::consts::FRAC_PI_2,
             ..base.traversability
         },
@@ -260,7 +260,7 @@ pub fn real_rows(modes: &[Mode], base: &PipelineConfig) -> Vec<(String, Pipeline
         }
     }
     cfgs.into_iter()
-        .map(|c| (crate::cli::eval::row_key(&c), c))
+        .map(|c| (crate::synthetic::row_key(&c), c))
         .collect()
 }
 
@@ -559,7 +559,7 @@ fn three_state(
     pipeline: &Pipeline,
     scoring: &FrameScoring<'_>,
     cfg: &PipelineConfig,
-    out: &crate::pipeline::FrameOutput,
+    out: &tre_pipeline::FrameOutput,
     acc: &mut RowAcc,
 ) -> anyhow::Result<Option<Grid<Traversal>>> {
     let loaded = scoring.loaded;
