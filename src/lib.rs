@@ -7,12 +7,12 @@
 //! makes synthetic scenes; [`model`] (`tre-model`) owns ONNX Runtime and the manifest;
 //! [`pipeline`] (`tre-pipeline`) runs one frame through every stage; [`server`] (`tre-server`)
 //! serves it over HTTP and a WebSocket stream whose messages are [`proto`] (`tre-proto`);
-//! [`client`] is the robot's end of that stream and [`loadtest`] measures a running service
-//! (both `tre-client`); [`eval`] (`tre-eval`) scores the modes on real and synthetic frames.
+//! [`client`] (`tre-client`) is the robot's end of that stream and [`loadtest`]
+//! (`tre-loadtest`) measures a running service; [`eval`] (`tre-eval`) scores the modes on real and synthetic frames.
 pub mod cli;
 
 pub use tre_client as client;
-pub use tre_client::loadtest;
+pub use tre_loadtest as loadtest;
 pub use tre_core::{geometry, kinds, map, roughness};
 pub use tre_eval as eval;
 pub use tre_io as io;

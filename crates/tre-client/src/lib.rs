@@ -38,7 +38,6 @@ mod config;
 mod connection;
 mod error;
 mod event;
-pub mod loadtest;
 mod proto;
 pub mod recorder;
 mod session;

@@ -8,16 +8,16 @@
 //! each send the next request when the previous answer is back.
 //!
 //! ```no_run
-//! # async fn demo() -> Result<(), tre_client::loadtest::LoadError> {
+//! # async fn demo() -> Result<(), tre_loadtest::LoadError> {
 //! use std::time::Duration;
-//! use tre_client::loadtest::{run, Load, LoadConfig};
+//! use tre_loadtest::{run, Load, LoadConfig};
 //! let cfg = LoadConfig {
 //!     load: Load::Open { rate_per_s: 10.0 },
 //!     duration: Some(Duration::from_secs(5)),
 //!     ..LoadConfig::default()
 //! };
 //! let report = run(&cfg).await?;
-//! println!("{}", tre_client::loadtest::report::text(&report));
+//! println!("{}", tre_loadtest::report::text(&report));
 //! # Ok(())
 //! # }
 //! ```
@@ -172,14 +172,14 @@ impl Ask {
 
     /// The stream's Hello: what `tre client` sends for the same choices.
     pub fn hello(&self) -> tre_proto::v1::Hello {
-        let cfg = crate::ClientConfig {
+        let cfg = tre_client::ClientConfig {
             camera: self.camera.as_ref().map(|(_, c)| c.clone()),
             mode: self.mode,
             sensor: self.sensor,
             normals: self.normals,
             dsac_hypotheses: self.dsac_hypotheses,
             want_traversal: self.traversal,
-            ..crate::ClientConfig::default()
+            ..tre_client::ClientConfig::default()
         };
         tre_proto::v1::Hello::from(&cfg)
     }

@@ -492,8 +492,8 @@ fn by_rate_panel(sw: &SweepReport) -> Panel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::loadtest::report::tests::report;
-    use crate::loadtest::stats::Sample;
+    use crate::report::tests::report;
+    use crate::stats::Sample;
     use approx::assert_relative_eq;
 
     /// Light well-formedness check: balanced tags, one root, no stray `<` or `&` in text.

@@ -398,8 +398,8 @@ pub fn compare(old: &Report, new: &Report) -> String {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::loadtest::stats::{histogram, record, spectrum, RunInfo};
-    use crate::loadtest::Protocol;
+    use crate::stats::{histogram, record, spectrum, RunInfo};
+    use crate::Protocol;
     use std::time::Duration;
 
     /// A report with `ok` results at `ms` and `refused` refusals.
