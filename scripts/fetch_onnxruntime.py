@@ -65,9 +65,7 @@ def download_wheel(version: str, tmp: Path) -> Path:
         )
     wheels = sorted(tmp.glob(f"onnxruntime-{version}-*.whl"))
     if not wheels:
-        raise FetchError(
-            f"pip succeeded but left no onnxruntime-{version} wheel in {tmp}"
-        )
+        raise FetchError(f"pip succeeded but left no onnxruntime-{version} wheel in {tmp}")
     return wheels[0]
 
 
@@ -78,9 +76,7 @@ def extract(wheel: Path, version: str, staging: Path) -> None:
         for name in library_names(version):
             member = WHEEL_DIR + name
             if member not in members:
-                raise FetchError(
-                    f"{wheel.name} has no {member}; is {version} the right version?"
-                )
+                raise FetchError(f"{wheel.name} has no {member}; is {version} the right version?")
             target = staging / name
             with archive.open(member) as src, open(target, "wb") as dst:
                 shutil.copyfileobj(src, dst)
@@ -98,9 +94,7 @@ def fetch(dest: Path, version: str) -> Path:
     if library.is_file():
         return library
     if dest.exists():
-        raise FetchError(
-            f"{dest} exists but holds no {library.name}; remove it and run again"
-        )
+        raise FetchError(f"{dest} exists but holds no {library.name}; remove it and run again")
     dest.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=".ort-fetch-", dir=dest.parent) as tmp:
         wheel = download_wheel(version, Path(tmp))
@@ -119,9 +113,7 @@ def fetch(dest: Path, version: str) -> Path:
 def main(argv: list[str] | None = None) -> int:
     """Parse arguments, fetch, print the library's path."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--version", default=DEFAULT_VERSION, help="onnxruntime version"
-    )
+    parser.add_argument("--version", default=DEFAULT_VERSION, help="onnxruntime version")
     parser.add_argument(
         "--dest", type=Path, help="target folder (default: .ort/onnxruntime-VERSION)"
     )

@@ -24,9 +24,7 @@ WEIGHTS = [0.5, -1.0, 0.25, 1.5, 2.0, -0.75, -0.5, 0.125, 1.0]
 BIAS = -0.1
 OPSET = 17
 IR_VERSION = 8  # the IR version that goes with opset 17; older runtimes read it too
-DEFAULT_OUT = (
-    Path(__file__).resolve().parent.parent / "tests" / "fixtures" / "tiny_conv.onnx"
-)
+DEFAULT_OUT = Path(__file__).resolve().parent.parent / "tests" / "fixtures" / "tiny_conv.onnx"
 
 
 def build_model() -> onnx.ModelProto:
@@ -44,18 +42,14 @@ def build_model() -> onnx.ModelProto:
         pads=[1, 1, 1, 1],
     )
     relu = helper.make_node("Relu", ["conv"], ["y"], name="relu")
-    graph = helper.make_graph(
-        [conv, relu], "tiny_conv", [x], [y], initializer=[weight, bias]
-    )
+    graph = helper.make_graph([conv, relu], "tiny_conv", [x], [y], initializer=[weight, bias])
     model = helper.make_model(
         graph,
         producer_name="tre-tests",
         opset_imports=[helper.make_opsetid("", OPSET)],
         ir_version=IR_VERSION,
     )
-    model.doc_string = (
-        "3x3 conv (padding 1) + bias + relu; fixture for tests/it/ort_runtime.rs"
-    )
+    model.doc_string = "3x3 conv (padding 1) + bias + relu; fixture for tests/it/ort_runtime.rs"
     onnx.checker.check_model(model, full_check=True)
     return model
 
@@ -63,9 +57,7 @@ def build_model() -> onnx.ModelProto:
 def main() -> None:
     """Build, check and write the model."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--out", type=Path, default=DEFAULT_OUT, help="output .onnx path"
-    )
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output .onnx path")
     args = parser.parse_args()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     onnx.save_model(build_model(), args.out)

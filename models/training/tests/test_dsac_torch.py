@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
 
 from tre_training import dsac
-from tre_training import dsac_torch as dt
+
+torch = pytest.importorskip(
+    "torch", reason="PyTorch is not installed (never in CI); pip install -r requirements.txt"
+)
+# Imported after the skip: it imports torch itself.
+from tre_training import dsac_torch as dt  # noqa: E402
 
 
 def test_uniforms_match_the_serving_hash():

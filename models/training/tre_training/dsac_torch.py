@@ -1,10 +1,11 @@
 """The DSAC sampler of DESIGN.md in PyTorch, batched over pixels, for training.
 
 Same definition as serving (`crates/tre-core/src/geometry/dsac/SAMPLER.md`) and its numpy
-mirror (`dsac.py`): candidates are the 7×7 window, ρ the softmax of the logits over valid candidates, each of K hypotheses draws
-3 distinct candidates by inverting the CDF of ρ renormalised without those already drawn, with
-uniforms from SplitMix64 of (seed, pixel, hypothesis, draw); planes through the triples are scored
-by the soft inlier count Σ sigmoid(β(τ − dist)). Given the same ρ, this module draws the same
+mirror (`dsac.py`): candidates are the 7×7 window, ρ the softmax of the logits over valid
+candidates, each of K hypotheses draws 3 distinct candidates by inverting the CDF of ρ
+renormalised without those already drawn, with uniforms from SplitMix64 of (seed, pixel,
+hypothesis, draw); planes through the triples are scored by the soft inlier count
+Σ sigmoid(β(τ − dist)). Given the same ρ, this module draws the same
 triples as `dsac.sample_triple` (tests/test_dsac_torch.py checks every draw).
 
 Training (`dsac_loss`) takes the softmax-weighted expectation of the hypotheses' normal errors

@@ -412,10 +412,10 @@ def vectors() -> dict[str, Any]:
     return {
         "about": (
             "DSAC parity vectors written by models/training (python -m tre_training.make_vectors);"
-            " checked by tests/it/dsac_parity.rs. Floats are decimal strings that round-trip exactly"
-            " (float64: Python repr; float32: shortest float32 repr); u64 values are decimal"
-            " strings. Frames: points[y][x] (NaN: invalid), logits[k] row-major H×W, pixels in"
-            " row-major order (null: invalid point), pixel index i = y·W + x."
+            " checked by tests/it/dsac_parity.rs. Floats are decimal strings that round-trip"
+            " exactly (float64: Python repr; float32: shortest float32 repr); u64 values are"
+            " decimal strings. Frames: points[y][x] (NaN: invalid), logits[k] row-major H×W,"
+            " pixels in row-major order (null: invalid point), pixel index i = y·W + x."
         ),
         "config": {
             "hypotheses": CONFIG.hypotheses,
