@@ -10,8 +10,10 @@ pub mod camera;
 pub mod colormap;
 pub mod depth;
 pub mod images;
+pub mod map_files;
 pub mod maps;
 pub mod npy;
+pub mod sequence;
 pub mod sheet;
 pub mod units;
 
@@ -113,6 +115,20 @@ pub enum IoError {
         path: PathBuf,
         /// What is wrong with it.
         reason: NpyError,
+    },
+    /// A sequence folder without a depth frame.
+    #[error("{}: no .png or .npy depth frame", dir.display())]
+    NoFrames {
+        /// The folder searched.
+        dir: PathBuf,
+    },
+    /// A malformed `gravity.json`.
+    #[error("{}: expected {{\"gravity\": [x, y, z]}}: {reason}", path.display())]
+    Gravity {
+        /// The file.
+        path: PathBuf,
+        /// What the JSON reader said.
+        reason: serde_json::Error,
     },
     /// A malformed camera JSON file.
     #[error("{}: bad camera JSON: {reason}", path.display())]

@@ -23,6 +23,7 @@ pub use layers::{Layers, MapLimits, LAYER_NAMES, LAYER_UNITS};
 
 use nalgebra::{Matrix3, Matrix4, Vector3};
 
+use crate::geometry::floor::{fit_floor, FloorFitConfig};
 use crate::geometry::{is_valid_point, Grid, PointMap, Vec3};
 
 /// How a map is laid out.
@@ -84,6 +85,18 @@ pub enum MapError {
     /// A bad configuration.
     #[error("map configuration: {0}")]
     Config(String),
+    /// No gravity was given or stated and the first frame shows no ground to level by.
+    #[error("no gravity given, no pitch stated, and no ground in the first frame")]
+    NoGround,
+    /// No gravity was given or stated and the first frame's ground fit is not confident.
+    #[error(
+        "no gravity given, no pitch stated, and the first frame's ground fit is not confident \
+         ({:.1}% of the points on it): the map cannot be levelled", 100.0 * support
+    )]
+    GroundNotConfident {
+        /// Share of the valid points on the fitted plane.
+        support: f64,
+    },
 }
 
 /// The map frame: the world frame of the poses turned so that z is gravity's up.
@@ -113,6 +126,37 @@ impl MapFrame {
         Ok(Self {
             map_from_world: *rot.matrix(),
         })
+    }
+}
+
+impl MapFrame {
+    /// The map frame of a sequence, from the first of: the world's gravity `down` (a
+    /// sequence's `gravity.json`), the camera's stated up direction `up_in_cam` (its mounting)
+    /// turned into the world by the first frame's `pose`, the ground plane fitted on the first
+    /// frame's `points` (only when the fit is confident).
+    pub fn levelled(
+        down: Option<Vec3>,
+        up_in_cam: Option<Vec3>,
+        points: &PointMap,
+        pose: &Pose,
+    ) -> Result<Self, MapError> {
+        if let Some(down) = down {
+            return Self::from_gravity(&down);
+        }
+        let up_cam = match up_in_cam {
+            Some(up) => up,
+            None => {
+                let fit = fit_floor(points, &FloorFitConfig::default())
+                    .map_err(|_| MapError::NoGround)?;
+                if !fit.confident {
+                    return Err(MapError::GroundNotConfident {
+                        support: fit.support,
+                    });
+                }
+                fit.up_in_cam
+            }
+        };
+        Self::from_gravity(&-(pose.rotation * up_cam))
     }
 }
 
