@@ -101,35 +101,6 @@ fn write_file(path: &std::path::Path, text: &str) -> anyhow::Result<()> {
     std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }
 
-/// Inference workers allowed per core.
-const MAX_WORKERS_PER_CORE: usize = 4;
-
-/// The cores this process may use (its CPU affinity and quota).
-fn cores() -> usize {
-    std::thread::available_parallelism().map_or(1, usize::from)
-}
-
-/// Refuses thread counts that `cores` cannot use: more ONNX Runtime threads per operator than
-/// cores, or more than [`MAX_WORKERS_PER_CORE`] workers per core, only slow every frame, and
-/// large ones exhaust the system's threads (`--ort-threads 50000` stalls every process of the
-/// user, the robot's own included). `workers` is `None` for the one-pipeline commands.
-fn check_threads(workers: Option<usize>, ort_threads: usize, cores: usize) -> anyhow::Result<()> {
-    if ort_threads > cores {
-        anyhow::bail!(
-            "--ort-threads {ort_threads}: at most {cores}, the cores this process may use (0 \
-             chooses); more threads per operator than cores only slow each frame"
-        );
-    }
-    if let Some(w) = workers.filter(|&w| w > MAX_WORKERS_PER_CORE * cores) {
-        anyhow::bail!(
-            "--workers {w}: at most {} ({MAX_WORKERS_PER_CORE} per core, {cores} cores here; 0 \
-             chooses one per core); each worker holds its own sessions and frame buffers",
-            MAX_WORKERS_PER_CORE * cores
-        );
-    }
-    Ok(())
-}
-
 /// `path` as the file system names it: its longest existing ancestor made canonical, with the
 /// rest appended (so that `out.png` and `./dir/../out.png` compare equal before either exists).
 fn resolved(path: &std::path::Path) -> std::path::PathBuf {
@@ -169,18 +140,6 @@ fn refuse_overwriting(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn thread_counts_beyond_the_cores_are_refused() {
-        for (workers, ort) in [(None, 0), (None, 2), (Some(8), 2), (Some(1), 1)] {
-            check_threads(workers, ort, 2).unwrap();
-        }
-        let e = check_threads(None, 3, 2).unwrap_err().to_string();
-        assert!(e.contains("--ort-threads 3: at most 2"), "{e}");
-        let e = check_threads(Some(9), 1, 2).unwrap_err().to_string();
-        assert!(e.contains("--workers 9: at most 8"), "{e}");
-        assert!(check_threads(Some(1), 50_000, 16).is_err());
-    }
 
     #[test]
     fn outputs_may_not_replace_inputs() {

@@ -99,7 +99,7 @@ impl StageArgs {
             };
             return Ok(Pipeline::new(None).with_calibration(calibration));
         }
-        super::check_threads(None, self.ort_threads, super::cores())?;
+        crate::model::check_threads(None, self.ort_threads, crate::model::cores())?;
         let session = SessionConfig {
             intra_threads: self.ort_threads,
             ..SessionConfig::default()

@@ -9,7 +9,7 @@ use clap::{Args, ValueEnum};
 
 use super::options::{dsac_hypotheses_arg, find_models};
 use crate::io;
-use crate::model::{ExecutionProvider, SessionConfig};
+use crate::model::{cores, ExecutionProvider, SessionConfig};
 use crate::pipeline::{NormalsMethod, DEFAULT_DSAC_HYPOTHESES};
 use crate::server::request::FrameDefaults;
 use crate::server::{serve, ServeConfig};
@@ -138,10 +138,8 @@ pub struct Serve {
 impl Serve {
     /// The checked service configuration.
     pub fn config(&self) -> anyhow::Result<ServeConfig> {
-        let (workers, ort_threads) = self.threads()?;
-        self.check_limits()?;
-        let api_key = self.api_key()?;
-        Ok(ServeConfig {
+        let (workers, ort_threads) = self.threads();
+        let cfg = ServeConfig {
             addr: self.addr,
             models: find_models(self.models.as_deref())?,
             workers,
@@ -162,7 +160,7 @@ impl Serve {
             header_timeout: Duration::from_millis(self.header_timeout_ms),
             body_timeout: Duration::from_millis(self.body_timeout_ms),
             min_body_rate: self.min_body_rate,
-            api_key,
+            api_key: self.api_key.clone().filter(|k| !k.is_empty()),
             allow_origins: self.allow_origin.clone(),
             max_concurrent: self.max_concurrent,
             request_timeout: Duration::from_millis(self.request_timeout_ms),
@@ -176,13 +174,14 @@ impl Serve {
                 normals: self.normals,
                 dsac_hypotheses: self.dsac_hypotheses,
             },
-        })
+        };
+        cfg.validate(cores())?;
+        Ok(cfg)
     }
 
     /// Inference workers and ONNX Runtime threads per worker: 0 takes every core, shared out.
-    fn threads(&self) -> anyhow::Result<(usize, usize)> {
-        let cores = super::cores();
-        super::check_threads(Some(self.workers), self.ort_threads, cores)?;
+    fn threads(&self) -> (usize, usize) {
+        let cores = cores();
         let workers = if self.workers == 0 {
             cores
         } else {
@@ -193,37 +192,7 @@ impl Serve {
         } else {
             self.ort_threads
         };
-        Ok((workers, ort_threads))
-    }
-
-    /// Refuses a limit or timeout of 0.
-    fn check_limits(&self) -> anyhow::Result<()> {
-        if self.max_body_bytes == 0
-            || self.max_pixels == 0
-            || self.max_concurrent == 0
-            || self.request_timeout_ms == 0
-            || self.ws_max_message_bytes == 0
-            || self.max_streams == 0
-            || self.ws_idle_timeout_ms == 0
-            || self.stall_timeout_ms == 0
-            || self.max_connections == 0
-            || self.max_side == 0
-            || self.max_aspect == 0
-            || self.header_timeout_ms == 0
-            || self.body_timeout_ms == 0
-        {
-            bail!("--max-body-bytes, --max-pixels, --max-side, --max-aspect, --max-concurrent, --header-timeout-ms, --body-timeout-ms, --request-timeout-ms, --ws-max-message-bytes, --max-streams, --ws-idle-timeout-ms, --stall-timeout-ms and --max-connections must be positive");
-        }
-        Ok(())
-    }
-
-    /// The API key, if one is set (an empty one is none); a key too short to be one is refused.
-    fn api_key(&self) -> anyhow::Result<Option<String>> {
-        let api_key = self.api_key.clone().filter(|k| !k.is_empty());
-        if let Some(k) = api_key.as_deref().filter(|k| k.len() < 16) {
-            bail!("--api-key: {} characters is too short to be a key; use at least 16 (e.g. `openssl rand -hex 32`)", k.len());
-        }
-        Ok(api_key)
+        (workers, ort_threads)
     }
 
     fn provider(&self) -> anyhow::Result<ExecutionProvider> {

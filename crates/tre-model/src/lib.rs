@@ -31,7 +31,10 @@ pub use locate::{locate_models, FoundModels, ModelSearch, ModelsRule, MODELS_ENV
 pub use manifest::{Manifest, ModelEntry, TensorSpec};
 pub use models::{Models, CENTROID_NET, DEPTH_NET, END_TO_END, NEIGHBOUR_NET, NORMAL_REFINER};
 pub use runtime::RuntimeError;
-pub use session::{ExecutionProvider, ModelSession, Optimisation, SessionConfig};
+pub use session::{
+    check_threads, cores, ExecutionProvider, ModelSession, Optimisation, SessionConfig,
+    ThreadsError, MAX_WORKERS_PER_CORE,
+};
 
 /// Errors of the model layer; every variant about one model names it.
 #[derive(Debug, thiserror::Error)]

@@ -368,3 +368,78 @@ fn check_outlets(
     }
     Ok(())
 }
+
+/// Inference workers allowed per core.
+pub const MAX_WORKERS_PER_CORE: usize = 4;
+
+/// A thread count that the cores cannot use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum ThreadsError {
+    /// More ONNX Runtime threads per operator than cores.
+    #[error(
+        "--ort-threads {threads}: at most {cores}, the cores this process may use (0 chooses); \
+         more threads per operator than cores only slow each frame"
+    )]
+    OrtThreads {
+        /// Threads asked for.
+        threads: usize,
+        /// Cores this process may use.
+        cores: usize,
+    },
+    /// More workers than [`MAX_WORKERS_PER_CORE`] per core.
+    #[error(
+        "--workers {workers}: at most {} ({MAX_WORKERS_PER_CORE} per core, {cores} cores here; 0 \
+         chooses one per core); each worker holds its own sessions and frame buffers",
+        MAX_WORKERS_PER_CORE * cores
+    )]
+    Workers {
+        /// Workers asked for.
+        workers: usize,
+        /// Cores this process may use.
+        cores: usize,
+    },
+}
+
+/// The cores this process may use (its CPU affinity and quota).
+#[must_use]
+pub fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, usize::from)
+}
+
+/// Refuses thread counts that `cores` cannot use: more ONNX Runtime threads per operator than
+/// cores, or more than [`MAX_WORKERS_PER_CORE`] workers per core, only slow every frame, and
+/// large ones exhaust the system's threads (`--ort-threads 50000` stalls every process of the
+/// user, the robot's own included). `workers` is `None` for a single pipeline.
+pub fn check_threads(
+    workers: Option<usize>,
+    ort_threads: usize,
+    cores: usize,
+) -> Result<(), ThreadsError> {
+    if ort_threads > cores {
+        return Err(ThreadsError::OrtThreads {
+            threads: ort_threads,
+            cores,
+        });
+    }
+    if let Some(w) = workers.filter(|&w| w > MAX_WORKERS_PER_CORE * cores) {
+        return Err(ThreadsError::Workers { workers: w, cores });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod thread_tests {
+    use super::*;
+
+    #[test]
+    fn thread_counts_beyond_the_cores_are_refused() {
+        for (workers, ort) in [(None, 0), (None, 2), (Some(8), 2), (Some(1), 1)] {
+            check_threads(workers, ort, 2).unwrap();
+        }
+        let e = check_threads(None, 3, 2).unwrap_err().to_string();
+        assert!(e.contains("--ort-threads 3: at most 2"), "{e}");
+        let e = check_threads(Some(9), 1, 2).unwrap_err().to_string();
+        assert!(e.contains("--workers 9: at most 8"), "{e}");
+        assert!(check_threads(Some(1), 50_000, 16).is_err());
+    }
+}

@@ -13,6 +13,7 @@
 //! ```
 
 pub mod access;
+pub mod config;
 pub mod connections;
 pub mod error;
 pub mod fuzzing;
@@ -196,6 +197,9 @@ pub enum ServeError {
     /// The manifest is missing or malformed.
     #[error(transparent)]
     Manifest(#[from] tre_model::ModelError),
+    /// A setting the service cannot run with ([`ServeConfig::validate`]).
+    #[error(transparent)]
+    Settings(#[from] config::ConfigError),
     /// A worker could not load or warm up the models.
     #[error(transparent)]
     Workers(Arc<workers::WorkerError>),
@@ -289,6 +293,7 @@ pub async fn serve(
 /// Checks the settings, reads the manifest and starts the workers: the service's state, and
 /// the sender that starts its shutdown.
 fn start(cfg: &ServeConfig) -> Result<(Arc<AppState>, watch::Sender<bool>), ServeError> {
+    cfg.validate(tre_model::cores())?;
     check_dsac_hypotheses(cfg.defaults.dsac_hypotheses).map_err(ServeError::Config)?;
     let manifest = Manifest::read(&cfg.models)?;
     let calibration = tre_pipeline::read_calibration(&cfg.models).map_err(ServeError::Config)?;
