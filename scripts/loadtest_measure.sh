@@ -6,15 +6,15 @@
 # (compared), a WebSocket closed loop, the server's RSS before and after, and a CPU log that
 # shows what else ran on the machine.
 #
-#   cargo build --release && docs/loadtest/measure.sh [path/to/tre]
+#   cargo build --release && scripts/loadtest_measure.sh [path/to/tre]
 #
-# Environment: OUT (docs/loadtest/default), SERVE_ARGS (extra `tre serve` options, e.g.
+# Environment: OUT (results/loadtest/default), SERVE_ARGS (extra `tre serve` options, e.g.
 # "--workers 1"), PORT (18080), RATES (2,3,4,5,6,7,8,9,10,12,15), DURATION (20 s per run),
 # WARMUP (2 s), RATE (single-run rate; default: the sweep's last clean rate).
 set -euo pipefail
-cd "$(dirname "$0")/../.."
+cd "$(dirname "$0")/.."
 TRE=${1:-target/release/tre}
-OUT=${OUT:-docs/loadtest/default}
+OUT=${OUT:-results/loadtest/default}
 SERVE_ARGS=${SERVE_ARGS:-}
 PORT=${PORT:-18080}
 RATES=${RATES:-2,3,4,5,6,7,8,9,10,12,15}

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs what tests/demo_page.rs needs on a fresh Debian machine: Debian's Chromium (only if
+# Installs what tests/it/demo_page.rs needs on a fresh Debian machine: Debian's Chromium (only if
 # it is missing) and playwright-core from package-lock.json. Playwright drives that Chromium;
 # it downloads no browser of its own.
 set -euo pipefail

@@ -16,6 +16,7 @@ mod dsac_parity;
 mod geometry;
 mod gravity;
 mod jpeg_decode;
+mod links;
 mod map;
 mod model_manifest;
 mod onnx_parity;

@@ -18,7 +18,7 @@ pub const DEFAULT_MAX_INPUT_PIXELS: usize = 40_000_000;
 /// Largest working size accepted, pixels per side.
 pub const MAX_WORKING_SIDE: usize = 4096;
 
-/// DSAC hypotheses per pixel that the models were trained with (DESIGN.md: K = 12).
+/// DSAC hypotheses per pixel that the models were trained with (docs/design.md: K = 12).
 pub const DEFAULT_DSAC_HYPOTHESES: u32 = 12;
 
 /// Most DSAC hypotheses per pixel accepted.

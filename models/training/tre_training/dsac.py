@@ -3,7 +3,7 @@
 This is the reference for the serving estimator defined once in
 `crates/tre-core/src/geometry/dsac/SAMPLER.md` (the sampler contract; the parity vectors are
 `vectors.json` beside it), with `crates/tre-core/src/geometry/fastmath.rs` and
-`crates/tre-core/src/geometry/hash.rs` (DESIGN.md, "DSAC normals").
+`crates/tre-core/src/geometry/hash.rs` (docs/design.md, "DSAC normals").
 Every float32 step is one numpy float32 operation and every float64 step one float64 operation, in
 the documented order; numpy never fuses a multiply and an add across two operations, so the hash,
 ρ, the sampler's triples and the float32 scores are bit-identical to serving.

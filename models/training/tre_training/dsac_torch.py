@@ -1,4 +1,4 @@
-"""The DSAC sampler of DESIGN.md in PyTorch, batched over pixels, for training.
+"""The DSAC sampler of docs/design.md in PyTorch, batched over pixels, for training.
 
 Same definition as serving (`crates/tre-core/src/geometry/dsac/SAMPLER.md`) and its numpy
 mirror (`dsac.py`): candidates are the 7×7 window, ρ the softmax of the logits over valid
@@ -140,7 +140,7 @@ def sample_triples_fast(rho: Tensor, u: Tensor) -> tuple[Tensor, Tensor]:
 
 @dataclass(frozen=True)
 class DsacSettings:
-    """Sampler and scorer settings (DESIGN.md defaults)."""
+    """Sampler and scorer settings (docs/design.md defaults)."""
 
     hypotheses: int = 12
     inlier_threshold_m: float = 0.01

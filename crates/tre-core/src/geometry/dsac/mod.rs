@@ -1,4 +1,4 @@
-//! DSAC plane hypotheses for initial normals (DESIGN.md, "DSAC normals"): per pixel, K triples of
+//! DSAC plane hypotheses for initial normals (docs/design.md, "DSAC normals"): per pixel, K triples of
 //! 7×7 neighbours drawn from the neighbour net's probabilities ρ, scored by soft inlier counts;
 //! serving keeps the best hypothesis and refits it by least squares on its inliers.
 //!

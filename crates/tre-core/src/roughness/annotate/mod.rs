@@ -1,4 +1,4 @@
-//! Roughness ground truth, annotation spec v1 (DESIGN.md): segments, boundary mask, edge
+//! Roughness ground truth, annotation spec v1 (docs/design.md): segments, boundary mask, edge
 //! weights, the surface term `|n·(p − c)|` (Eq. 1) and the edge transient.
 
 use rayon::prelude::*;
