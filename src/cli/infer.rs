@@ -10,7 +10,8 @@ use image::DynamicImage;
 use super::options::StageArgs;
 use crate::io;
 use crate::pipeline::{
-    Assumption, FrameInput, FrameOutput, Method, Mode, PipelineConfig, SensorMaps, Traversability,
+    Assumption, FrameInput, FrameOutput, Method, Mode, PipelineConfig, PipelineError, SensorMaps,
+    Traversability,
 };
 use crate::roughness::interval::IntervalTable;
 use crate::roughness::noise::{SensorNoise, SensorPreset};
@@ -116,17 +117,18 @@ impl Infer {
             eprintln!("warning: {a}");
         }
         print_summary(&out, &cfg);
-        let table = pipeline.interval_table(cfg.mode);
+        let table = pipeline.interval_table_for(&cfg);
         if let Some(maps) = self.sensor_maps(&out, &frame, &cfg, described, table)? {
             self.write_sensor_maps(&maps, &self.title("three-state", mode))?;
         }
         Ok(())
     }
 
-    /// The uncertainty and three-state maps when a noise model is known: from `--sensor`, else
-    /// the camera's `sensor` (`described`: the camera's sensor, a model or free text), and in
-    /// `rgb` from the mode's calibration `table` alone. Without them, or in a mode without
-    /// sensor depth, a note on stderr; `--sensor` in such a mode is an error.
+    /// The uncertainty and three-state maps by the service's rule
+    /// ([`FrameOutput::sensor_maps`]): the noise model is `--sensor`, else the camera's `sensor`
+    /// (`described`: the camera's sensor, a model or free text); `rgb` reads the mode's
+    /// calibration `table` alone. Where the rule finds no sensor depth or no noise model, a
+    /// note on stderr; `--sensor` in a mode without sensor depth is an error.
     fn sensor_maps(
         &self,
         out: &FrameOutput,
@@ -135,47 +137,46 @@ impl Infer {
         described: Option<io::SensorSpec>,
         table: Option<&IntervalTable>,
     ) -> anyhow::Result<Option<SensorMaps>> {
+        if self.sensor.is_some() && cfg.mode == Mode::Rgb {
+            bail!("--sensor: the rgb mode reads no sensor depth; its intervals come from models/uncertainty.json");
+        }
         let model = self
             .sensor
             .or(described.as_ref().and_then(io::SensorSpec::noise));
-        let staged = cfg.method == crate::pipeline::Method::Pipeline;
-        if let (crate::pipeline::Mode::Rgb, Some(table), true) = (cfg.mode, table, staged) {
-            if self.sensor.is_some() {
-                bail!("--sensor: the rgb mode reads no sensor depth; its intervals come from models/uncertainty.json");
-            }
-            let maps = out.sensor_maps(frame, cfg.mode, None, None, Some(table))?;
-            print_shares("calibrated intervals", &maps);
-            return Ok(Some(maps));
-        }
-        let Some(model) = model else {
-            if let Some(io::SensorSpec::Description(d)) = &described {
-                eprintln!(
-                    "note: the camera's sensor {d:?} names no noise model, so no uncertainty or \
-                     three-state map is written; give --sensor (one of {}) or a,b,c",
-                    SensorPreset::names()
-                );
-            }
-            return Ok(None);
+        let text = match &described {
+            Some(io::SensorSpec::Description(d)) => Some(d.as_str()),
+            _ => None,
         };
-        let depth_mode = cfg.mode != crate::pipeline::Mode::Rgb
-            && cfg.method == crate::pipeline::Method::Pipeline;
-        if !depth_mode && self.sensor.is_none() {
-            eprintln!(
-                "note: no uncertainty or three-state map in {} (no sensor depth)",
-                cfg.label()
-            );
-            return Ok(None);
-        }
-        let table = table.filter(|_| staged);
-        let maps = out
-            .sensor_maps(frame, cfg.mode, Some(&model), None, table)
-            .context("--sensor")?;
-        let how = if table.is_some() {
-            " with calibrated intervals"
-        } else {
-            ""
+        let maps = match out.sensor_maps(frame, cfg.mode, model.as_ref(), text, table) {
+            Ok(maps) => maps,
+            Err(e) if self.sensor.is_some() => return Err(e).context("--sensor"),
+            Err(PipelineError::NoSensorModel { .. }) => {
+                if let Some(d) = text {
+                    eprintln!(
+                        "note: the camera's sensor {d:?} names no noise model, so no uncertainty or \
+                         three-state map is written; give --sensor (one of {}) or a,b,c",
+                        SensorPreset::names()
+                    );
+                }
+                return Ok(None);
+            }
+            Err(PipelineError::NoSensorDepth { .. }) => {
+                if model.is_some() {
+                    eprintln!(
+                        "note: no uncertainty or three-state map in {} (no sensor depth)",
+                        cfg.label()
+                    );
+                }
+                return Ok(None);
+            }
+            Err(e) => return Err(e.into()),
         };
-        print_shares(&format!("sensor {}{how}", model.label()), &maps);
+        let what = match (model.filter(|_| cfg.mode != Mode::Rgb), table) {
+            (Some(m), Some(_)) => format!("sensor {} with calibrated intervals", m.label()),
+            (Some(m), None) => format!("sensor {}", m.label()),
+            (None, _) => "calibrated intervals".to_owned(),
+        };
+        print_shares(&what, &maps);
         Ok(Some(maps))
     }
 

@@ -130,6 +130,16 @@ impl Pipeline {
         self.calibration.as_ref()?.table(mode.as_ref())
     }
 
+    /// The calibrated intervals that apply to what `cfg` runs: its mode's table, none for the
+    /// end-to-end baseline (the tables were fitted on the staged pipeline's readings). The one
+    /// rule of `tre infer` and the service.
+    pub fn interval_table_for(&self, cfg: &PipelineConfig) -> Option<&IntervalTable> {
+        match cfg.method {
+            Method::Pipeline => self.interval_table(cfg.mode),
+            Method::EndToEnd => None,
+        }
+    }
+
     /// The loaded models, if any.
     pub fn models(&self) -> Option<&Models> {
         self.models.as_ref()

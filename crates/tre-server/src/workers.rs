@@ -334,7 +334,7 @@ fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> Jo
         fuse_into_map(req, &frame, &out, job);
     }
     let started = Instant::now();
-    let table = pipeline.interval_table(cfg.mode);
+    let table = pipeline.interval_table_for(&cfg);
     let facts = (cfg.mode, assumptions(req, &frame, cfg.mode));
     let reply = encode_reply(&out, &req.options, facts).and_then(|mut reply| {
         encode_sensor_maps(&out, &frame, (cfg.mode, table), req, &mut reply)?;
