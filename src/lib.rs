@@ -12,10 +12,10 @@
 pub mod cli;
 
 pub use tre_client as client;
-pub use tre_loadtest as loadtest;
 pub use tre_core::{geometry, kinds, map, roughness};
 pub use tre_eval as eval;
 pub use tre_io as io;
+pub use tre_loadtest as loadtest;
 pub use tre_model as model;
 pub use tre_pipeline as pipeline;
 pub use tre_proto as proto;

@@ -170,7 +170,9 @@ pub(super) async fn drive(
     frames: &Frames,
 ) -> Result<Report, LoadError> {
     let tls = match target.tls {
-        true => Some(tre_client::tls::client_config(cfg.ca_cert.as_deref()).map_err(LoadError::Config)?),
+        true => Some(
+            tre_client::tls::client_config(cfg.ca_cert.as_deref()).map_err(LoadError::Config)?,
+        ),
         false => None,
     };
     let mut sockets = Vec::with_capacity(cfg.connections);
