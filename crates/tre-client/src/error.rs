@@ -42,8 +42,8 @@ pub enum ClientError {
     /// The server answered the Hello with an error (e.g. nonsense intrinsics).
     #[error("the server refused the Hello: {code}: {message}")]
     HelloRefused {
-        /// Stable error code (`bad_camera`, `bad_request`, ...).
-        code: String,
+        /// The server's code (`bad_camera`, `bad_request`, ...).
+        code: crate::ErrorKind,
         /// The server's message.
         message: String,
     },

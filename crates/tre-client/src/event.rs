@@ -8,6 +8,7 @@ use image::RgbImage;
 use super::config::Format;
 use tre_core::geometry::Grid;
 use tre_io::CameraFile;
+use tre_proto::ErrorCode;
 
 /// One camera frame to send.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -155,12 +156,12 @@ pub enum Event {
         dropped_total: u64,
     },
     /// The server could not use a message (or the client could not decode its answer:
-    /// code `bad_result`).
+    /// [`ErrorKind::BadResult`]).
     Error {
         /// The frame concerned, if any.
         sequence: Option<u64>,
-        /// Stable code (`bad_image`, `overloaded`, `not_ready`, ...).
-        code: String,
+        /// What kind of error: the server's stable code, or the client's own.
+        code: ErrorKind,
         /// What went wrong.
         message: String,
     },
@@ -202,5 +203,63 @@ impl Event {
             Self::Error { sequence, .. } => *sequence,
             _ => None,
         }
+    }
+}
+
+/// The kind of an [`Event::Error`]: a code the server sent ([`ErrorCode`], shared with the
+/// server through `tre-proto`), one this client does not know (a newer server's), or the
+/// client's own failure to read the server's message.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub enum ErrorKind {
+    /// A code the server sent.
+    Server(ErrorCode),
+    /// A code this client does not know, as the server sent it.
+    Unknown(String),
+    /// A server message this client could not decode.
+    BadMessage,
+    /// A Result whose maps this client could not decode.
+    BadResult,
+}
+
+impl ErrorKind {
+    /// The kind of a code as it came on the wire.
+    #[must_use]
+    pub fn from_wire(code: &str) -> Self {
+        code.parse()
+            .map_or_else(|_| Self::Unknown(code.to_owned()), Self::Server)
+    }
+
+    /// The stable name (`bad_image`, `overloaded`, `bad_result`, ...).
+    #[must_use]
+    pub fn as_str(&self) -> &str {
+        match self {
+            Self::Server(code) => code.as_str(),
+            Self::Unknown(code) => code,
+            Self::BadMessage => "bad_message",
+            Self::BadResult => "bad_result",
+        }
+    }
+}
+
+impl std::fmt::Display for ErrorKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wire_codes_are_the_servers_and_unknown_ones_are_kept() {
+        assert_eq!(
+            ErrorKind::from_wire("overloaded"),
+            ErrorKind::Server(ErrorCode::Overloaded)
+        );
+        let newer = ErrorKind::from_wire("teapot");
+        assert_eq!(newer, ErrorKind::Unknown("teapot".into()));
+        assert_eq!(newer.as_str(), "teapot");
+        assert_eq!(ErrorKind::BadResult.to_string(), "bad_result");
     }
 }

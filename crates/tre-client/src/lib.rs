@@ -46,5 +46,5 @@ pub mod tls;
 
 pub use config::{endpoints, Backoff, ClientConfig, Endpoints, Format, Rate};
 pub use error::ClientError;
-pub use event::{Event, Frame, FrameResult, LostReason, Roughness, ServerInfo};
+pub use event::{ErrorKind, Event, Frame, FrameResult, LostReason, Roughness, ServerInfo};
 pub use session::{unix_us, Events, FrameSender, Session};

@@ -8,7 +8,7 @@ use image::{DynamicImage, ImageFormat};
 use prost::Message;
 
 use super::config::{ClientConfig, Format};
-use super::event::{Event, Frame, FrameResult, Roughness, ServerInfo};
+use super::event::{ErrorKind, Event, Frame, FrameResult, Roughness, ServerInfo};
 use super::session::Stamp;
 use super::ClientError;
 use tre_core::geometry::Grid;
@@ -157,7 +157,7 @@ impl TryFrom<pb::ServerMessage> for Incoming {
             }),
             Some(Msg::Error(e)) => Self::Event(Event::Error {
                 sequence: e.sequence,
-                code: e.code,
+                code: ErrorKind::from_wire(&e.code),
                 message: e.message,
             }),
             Some(Msg::Map(_)) => Self::Ignored,

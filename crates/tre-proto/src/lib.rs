@@ -3,7 +3,10 @@
 //! domain types. The protocol's enums convert to and from the domain choices of
 //! [`tre_core::kinds`] here, one conversion each way, for both ends.
 
+mod codes;
 mod kinds;
+
+pub use codes::ErrorCode;
 
 /// Package `roughness.v1`.
 #[allow(missing_docs, clippy::all, clippy::pedantic)]

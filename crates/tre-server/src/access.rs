@@ -17,8 +17,9 @@ use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 
-use super::error::{ApiError, ErrorCode, Refused};
+use super::error::{ApiError, Refused};
 use super::AppState;
+use tre_proto::ErrorCode;
 
 /// The id of a request, as logged and sent back in `X-Request-Id`.
 #[derive(Debug, Clone)]

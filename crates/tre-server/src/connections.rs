@@ -42,12 +42,13 @@ use hyper_util::service::TowerToHyperService;
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
-use super::error::{ApiError, ErrorCode};
+use super::error::ApiError;
 use super::metrics::Metrics;
 use super::pace::ReadBytes;
 use super::refusals::RefusalLog;
 use super::stall::Stall;
 use super::watched::{Watch, Watched, WriteOp};
+use tre_proto::ErrorCode;
 
 /// What a client may hold without doing anything.
 #[derive(Debug, Clone, Copy)]

@@ -9,84 +9,11 @@ use utoipa::ToSchema;
 use tre_core::geometry::GeometryError;
 use tre_io::{CameraSizeMismatch, DepthError, NpyError, SensorSpecError};
 use tre_pipeline::PipelineError;
+use tre_proto::ErrorCode;
 
-/// Stable error codes, shared by HTTP bodies and stream `Error` messages.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Serialize, ToSchema, strum::IntoStaticStr, strum::EnumIter,
-)]
-#[serde(rename_all = "snake_case")]
-#[strum(serialize_all = "snake_case")]
-pub enum ErrorCode {
-    /// Malformed request: query, multipart, missing part, not a WebSocket upgrade (400).
-    BadRequest,
-    /// No such route (404).
-    NotFound,
-    /// A route that exists, with another method (405).
-    MethodNotAllowed,
-    /// No API key, or not the server's (401): `--api-key`.
-    Unauthorized,
-    /// A browser origin not on `--allow-origin` (403).
-    Forbidden,
-    /// The request's headers or body did not arrive in time (408): `--header-timeout-ms`,
-    /// `--body-timeout-ms`, `--min-body-rate`.
-    RequestTimeout,
-    /// Body or WebSocket message larger than the limit, or an image with too many pixels (413).
-    TooLarge,
-    /// Not a PNG or JPEG (415).
-    UnsupportedMedia,
-    /// A PNG or JPEG that cannot be decoded: truncated, corrupt, zero-size (422).
-    BadImage,
-    /// Depth of another size than the RGB frame, or not 16-bit grey / float .npy (422).
-    BadDepth,
-    /// Camera JSON that does not parse or whose values are nonsense (422).
-    BadCamera,
-    /// Inputs that do not fit the chosen mode (422).
-    BadInput,
-    /// Too many concurrent requests (429).
-    TooManyRequests,
-    /// The work queue is full (503).
-    Overloaded,
-    /// Models still loading or warming up, or shutting down (503).
-    NotReady,
-    /// The request took longer than the timeout (503).
-    Timeout,
-    /// A failure inside the service (500).
-    Internal,
-}
-
-impl ErrorCode {
-    /// The HTTP status of this code.
-    pub fn status(self) -> StatusCode {
-        match self {
-            Self::BadRequest => StatusCode::BAD_REQUEST,
-            Self::NotFound => StatusCode::NOT_FOUND,
-            Self::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
-            Self::Unauthorized => StatusCode::UNAUTHORIZED,
-            Self::Forbidden => StatusCode::FORBIDDEN,
-            Self::RequestTimeout => StatusCode::REQUEST_TIMEOUT,
-            Self::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
-            Self::UnsupportedMedia => StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            Self::BadImage | Self::BadDepth | Self::BadCamera | Self::BadInput => {
-                StatusCode::UNPROCESSABLE_ENTITY
-            }
-            Self::TooManyRequests => StatusCode::TOO_MANY_REQUESTS,
-            Self::Overloaded | Self::NotReady | Self::Timeout => StatusCode::SERVICE_UNAVAILABLE,
-            Self::Internal => StatusCode::INTERNAL_SERVER_ERROR,
-        }
-    }
-
-    /// The code as it appears on the wire (`bad_image`, ...).
-    pub fn as_str(self) -> &'static str {
-        self.into()
-    }
-
-    /// Whether the client may retry later (answered with `Retry-After`).
-    pub fn retryable(self) -> bool {
-        matches!(
-            self,
-            Self::TooManyRequests | Self::Overloaded | Self::NotReady | Self::Timeout
-        )
-    }
+/// The HTTP status of `code` ([`ErrorCode::http_status`]).
+pub fn status(code: ErrorCode) -> StatusCode {
+    StatusCode::from_u16(code.http_status()).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR)
 }
 
 /// An error answered to a client.
@@ -214,7 +141,7 @@ impl IntoResponse for ApiError {
         };
         let json = serde_json::to_vec(&body).unwrap_or_else(|_| b"{}".to_vec());
         let mut resp = (
-            self.code.status(),
+            status(self.code),
             [(header::CONTENT_TYPE, "application/json")],
             json,
         )
@@ -252,7 +179,7 @@ mod tests {
                 serde_json::json!(code.as_str()),
                 "JSON body and wire name"
             );
-            let status = code.status().as_u16();
+            let status = status(code).as_u16();
             assert!((400..600).contains(&status), "{code:?} → {status}");
             assert_eq!(code.retryable(), status == 429 || status == 503);
         }

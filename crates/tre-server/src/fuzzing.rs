@@ -5,12 +5,13 @@
 
 use axum::body::Bytes;
 
-use super::error::{ApiError, ErrorCode};
+use super::error::ApiError;
 use super::http::{check_shapes, parse_body};
 use super::proto::{decode_client, Incoming, StreamSettings};
 use super::request::{decode_depth, decode_frame, decode_image, strict_camera, DecodeLimits};
 use tre_io::npy;
 use tre_pipeline::FrameInput;
+use tre_proto::ErrorCode;
 
 /// The content type the multipart entry point parses its bytes as.
 pub const MULTIPART_TYPE: &str = "multipart/form-data; boundary=tre-fuzz-Boundary";
@@ -23,7 +24,7 @@ pub fn limits() -> DecodeLimits {
 /// A refusal must be a client error with a message, whatever the bytes; `false`.
 fn refused(what: &str, e: &ApiError) -> bool {
     assert!(
-        e.code != ErrorCode::Internal && e.code.status().is_client_error(),
+        e.code != ErrorCode::Internal && (400..500).contains(&e.code.http_status()),
         "{what}: bytes from a client gave {:?}: {}",
         e.code,
         e.message

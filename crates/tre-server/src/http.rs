@@ -10,7 +10,7 @@ use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use http_body_util::BodyExt;
 
-use super::error::{ApiError, ErrorCode};
+use super::error::ApiError;
 use super::metrics::Gauges;
 use super::openapi::{Binary, ErrorResponse, Guarded, JsonObject, RoughnessForm};
 use super::query::RoughnessQuery;
@@ -18,6 +18,7 @@ use super::request::{
     image_header, strict_camera, DecodeLimits, Format, FrameReply, FrameRequest, SCALE_M,
 };
 use super::{AppState, OVERSIZE_READ_FACTOR};
+use tre_proto::ErrorCode;
 
 fn bad(msg: impl Into<String>) -> ApiError {
     ApiError::new(ErrorCode::BadRequest, msg)

@@ -3,7 +3,7 @@
 
 use prost::Message;
 
-use super::error::{ApiError, ErrorCode};
+use super::error::ApiError;
 use super::map::{settings_from_pb, MapSettings};
 use super::request::{FrameOptions, FrameReply, FrameRequest, SCALE_M};
 use tre_core::kinds::StreamFormat;
@@ -12,6 +12,7 @@ use tre_core::roughness::noise::{SensorNoise, SensorPreset};
 use tre_io::{CameraFile, SensorSpec};
 use tre_pipeline::{check_dsac_hypotheses, Traversability};
 use tre_proto::v1 as pb;
+use tre_proto::ErrorCode;
 
 /// A stream's settings from its Hello.
 #[derive(Debug, Clone, Default)]

@@ -11,11 +11,12 @@ use utoipa::openapi::schema::{ObjectBuilder, Schema, Type};
 use utoipa::openapi::RefOr;
 use utoipa::{IntoParams, PartialSchema, ToSchema};
 
-use super::error::{ApiError, ErrorCode};
+use super::error::ApiError;
 use super::request::{check_camera_ranges, DecodeLimits, Extras, Format, FrameOptions, OutputMap};
 use tre_core::kinds::{names, parse_choice, Mode, NormalsMethod};
 use tre_io::CameraFile;
 use tre_pipeline::{check_dsac_hypotheses, Traversability, MAX_DSAC_HYPOTHESES};
+use tre_proto::ErrorCode;
 
 /// Query of `POST /v1/roughness`.
 #[derive(Debug, Default, Deserialize, IntoParams)]

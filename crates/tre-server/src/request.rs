@@ -6,7 +6,7 @@ use std::io::Cursor;
 
 use image::{DynamicImage, ImageFormat, ImageReader};
 
-use super::error::{ApiError, ErrorCode};
+use super::error::ApiError;
 pub use super::options::{Extras, Format, FrameOptions, OutputMap};
 use tre_core::geometry::Grid;
 use tre_core::roughness::interval::IntervalTable;
@@ -15,6 +15,7 @@ use tre_pipeline::{
     Assumption, FrameInput, FrameOutput, Gravity, Mode, NormalsMethod, PipelineConfig,
     PipelineError, DEFAULT_DSAC_HYPOTHESES,
 };
+use tre_proto::ErrorCode;
 
 /// A frame as received: encoded images and an unchecked camera.
 #[derive(Debug, Clone, Default)]

@@ -23,12 +23,13 @@ use tokio::sync::{oneshot, OwnedSemaphorePermit};
 use tokio::time::MissedTickBehavior;
 
 use super::access::RequestId;
-use super::error::{ApiError, ErrorCode};
+use super::error::ApiError;
 use super::map::{MapJob, SessionMap, SharedMap};
 use super::pace::{MessagePace, ReadBytes, PACE_WINDOW};
 use super::proto::{self, Incoming, StreamFrame, StreamSettings};
 use super::workers::JobResult;
 use super::{AppState, OVERSIZE_READ_FACTOR};
+use tre_proto::ErrorCode;
 
 /// Pings per idle timeout: a silent client is found at most a quarter of it late.
 const PINGS_PER_IDLE_TIMEOUT: u32 = 4;

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 use tokio::sync::oneshot;
 
-use super::error::{ApiError, ErrorCode};
+use super::error::ApiError;
 use super::metrics::Metrics;
 use super::request::{
     assumptions, config_for, decode_frame, encode_reply, encode_sensor_maps, DecodeLimits,
@@ -21,6 +21,7 @@ use tre_core::geometry::Grid;
 use tre_core::roughness::interval::Calibration;
 use tre_model::{Models, SessionConfig};
 use tre_pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
+use tre_proto::ErrorCode;
 
 /// How the pool is built.
 #[derive(Debug, Clone)]

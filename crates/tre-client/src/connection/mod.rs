@@ -16,7 +16,7 @@ use tokio::sync::{mpsc, oneshot, watch};
 use tokio_tungstenite::tungstenite::{self, Message};
 
 use super::config::{ClientConfig, Endpoints};
-use super::event::{Event, FrameResult, LostReason, ServerInfo};
+use super::event::{ErrorKind, Event, FrameResult, LostReason, ServerInfo};
 use super::proto::{self, Incoming, WireResult};
 use super::session::Stamp;
 use super::ClientError;
@@ -339,7 +339,7 @@ impl Link {
         let incoming = match proto::decode_server(bytes) {
             Ok(m) => m,
             Err(e) => {
-                let code = "bad_message".to_owned();
+                let code = ErrorKind::BadMessage;
                 let message = e.to_string();
                 return self
                     .emit(Event::Error {
@@ -381,7 +381,7 @@ impl Link {
             Ok(r) => Event::Result(Box::new(r)),
             Err(e) => Event::Error {
                 sequence: Some(sequence),
-                code: "bad_result".into(),
+                code: ErrorKind::BadResult,
                 message: e.to_string(),
             },
         };

@@ -136,7 +136,7 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
                 message,
             } => {
                 self.stats.errors += 1;
-                self.warn_once(Some(sequence), &code, &message);
+                self.warn_once(Some(sequence), code.as_str(), &message);
                 (sequence, format!(",,,error:{code}"))
             }
             Event::Lost { sequence, reason } => {
@@ -190,7 +190,7 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
         match ev {
             Event::Error { code, message, .. } => {
                 self.stats.errors += 1;
-                self.warn_once(None, &code, &message);
+                self.warn_once(None, code.as_str(), &message);
             }
             Event::Disconnected { reason } => (self.notify)(Notice::Disconnected { reason }),
             Event::Reconnected {
