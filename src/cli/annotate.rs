@@ -112,9 +112,9 @@ impl Annotate {
             self.normals.as_ref(),
             self.labels.as_ref(),
         ];
-        let out = super::resolved(&self.out);
+        let out = crate::io::paths::resolved(&self.out);
         for input in inputs.into_iter().flatten() {
-            if super::resolved(input).parent() == Some(out.as_path()) {
+            if crate::io::paths::resolved(input).parent() == Some(out.as_path()) {
                 bail!(
                     "--out {} holds the input {}: write the annotation to a folder of its own",
                     self.out.display(),
@@ -147,7 +147,7 @@ impl Annotate {
 
 /// Prints pixel counts and roughness quantiles.
 fn print_summary(ann: &Annotation) {
-    let r = super::finite_sorted(&ann.roughness_m);
+    let r = crate::roughness::metrics::finite_sorted(&ann.roughness_m);
     let q = |f: f64| {
         r.get(((r.len() as f64 - 1.0) * f).round() as usize)
             .copied()

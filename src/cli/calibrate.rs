@@ -102,7 +102,7 @@ impl Calibrate {
                 super::options::find_models(self.stages.models.as_deref())?.join(CALIBRATION_FILE)
             }
         };
-        super::write_file(&out, &serde_json::to_string_pretty(&cal)?)?;
+        crate::io::paths::write_text(&out, &serde_json::to_string_pretty(&cal)?)?;
         println!("wrote {}", out.display());
         Ok(())
     }

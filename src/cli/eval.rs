@@ -100,7 +100,7 @@ impl Eval {
             // is fine.
             let inputs = synthetic::dataset_inputs(&data);
             let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-            super::refuse_overwriting(&[json], &inputs)?;
+            crate::io::paths::refuse_overwriting(&[json], &inputs)?;
         }
         let dirs = synthetic::frame_dirs(&data, &self.split, self.limit)?;
         let specs = if self.tables {
@@ -149,7 +149,7 @@ impl Eval {
     fn run_real(&self, dirs: &[PathBuf]) -> anyhow::Result<()> {
         if let Some(json) = &self.json {
             let inputs: Vec<&Path> = dirs.iter().map(PathBuf::as_path).collect();
-            super::refuse_overwriting(&[json], &inputs)?;
+            crate::io::paths::refuse_overwriting(&[json], &inputs)?;
         }
         let mut frames =
             real::frames_of(dirs, self.real_splits.as_deref(), &self.split, self.limit)?;
@@ -191,7 +191,7 @@ impl Eval {
         report.mounting_ignored = self.no_mounting;
         println!("{}", real::markdown(&report));
         if let Some(path) = &self.json {
-            super::write_file(path, &serde_json::to_string_pretty(&report)?)?;
+            crate::io::paths::write_text(path, &serde_json::to_string_pretty(&report)?)?;
         }
         Ok(())
     }
@@ -211,6 +211,9 @@ impl Eval {
             frames,
             rows,
         };
-        super::write_file(path, &serde_json::to_string_pretty(&report)?)
+        Ok(crate::io::paths::write_text(
+            path,
+            &serde_json::to_string_pretty(&report)?,
+        )?)
     }
 }

@@ -251,7 +251,7 @@ impl Infer {
         let mut outputs = vec![self.out.clone(), preview_path(&self.out)];
         outputs.extend(sensor_maps.into_iter().flatten());
         let outputs: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
-        super::refuse_overwriting(&outputs, &inputs)
+        Ok(crate::io::paths::refuse_overwriting(&outputs, &inputs)?)
     }
 
     /// The mode asked for, or the one the inputs imply.
@@ -361,7 +361,7 @@ fn preview_path(out: &Path) -> PathBuf {
 
 /// The results, gravity and timings, on stdout.
 fn print_summary(out: &FrameOutput, cfg: &PipelineConfig) {
-    let valid = super::finite_sorted(&out.roughness_m);
+    let valid = crate::roughness::metrics::finite_sorted(&out.roughness_m);
     let median_cm = valid.get(valid.len() / 2).map_or(f64::NAN, |r| 100.0 * r);
     let (w, h) = out.working_size;
     let mode = if cfg.method == Method::EndToEnd {

@@ -246,7 +246,7 @@ impl Loadtest {
             .chain(&self.camera)
             .map(PathBuf::as_path)
             .collect();
-        super::refuse_overwriting(&outputs, &inputs)?;
+        crate::io::paths::refuse_overwriting(&outputs, &inputs)?;
         let cfg = self.config()?;
         let old = self.compare.as_deref().map(read_report).transpose()?;
         let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -291,10 +291,10 @@ impl Loadtest {
     /// Writes the JSON and the plot if asked for.
     fn write(&self, json: &str, plot: impl FnOnce() -> String) -> anyhow::Result<()> {
         if let Some(path) = &self.json {
-            super::write_file(path, json)?;
+            crate::io::paths::write_text(path, json)?;
         }
         if let Some(path) = &self.plot {
-            super::write_file(path, &plot())?;
+            crate::io::paths::write_text(path, &plot())?;
         }
         Ok(())
     }
