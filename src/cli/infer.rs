@@ -5,17 +5,16 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
-use image::DynamicImage;
 
 use super::options::StageArgs;
 use crate::io;
+use crate::io::outputs::{self, MapFile, SensorMapFiles};
 use crate::pipeline::{
     Assumption, FrameInput, FrameOutput, Method, Mode, PipelineConfig, PipelineError, SensorMaps,
     Traversability,
 };
 use crate::roughness::interval::IntervalTable;
 use crate::roughness::noise::{SensorNoise, SensorPreset};
-use crate::roughness::traversal::shares;
 
 /// Output format of the roughness map.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -24,6 +23,16 @@ pub enum Format {
     Png16,
     /// (H, W) float32 .npy in metres, NaN where there is no data.
     Npy,
+}
+
+impl Format {
+    /// The file it writes.
+    fn file(self) -> MapFile {
+        match self {
+            Self::Png16 => MapFile::Png16,
+            Self::Npy => MapFile::Npy,
+        }
+    }
 }
 
 /// Estimate roughness for one frame.
@@ -116,7 +125,7 @@ impl Infer {
         for a in &assumed {
             eprintln!("warning: {a}");
         }
-        print_summary(&out, &cfg);
+        out.summary(&cfg).iter().for_each(|l| println!("{l}"));
         let table = pipeline.interval_table_for(&cfg);
         if let Some(maps) = self.sensor_maps(&out, &frame, &cfg, described, table)? {
             self.write_sensor_maps(&maps, &self.title("three-state", mode))?;
@@ -176,39 +185,24 @@ impl Infer {
             (Some(m), None) => format!("sensor {}", m.label()),
             (None, _) => "calibrated intervals".to_owned(),
         };
-        print_shares(&what, &maps);
+        println!("{}", maps.shares_line(&what));
         Ok(Some(maps))
     }
 
-    /// Writes `<stem>_uncertainty.png|npy`, the interval's ends `<stem>_lo.npy` and
-    /// `<stem>_hi.npy` (`--format npy`, when calibrated), `<stem>_traversal.png` (0 unknown, 1 traversable,
-    /// 2 hazard) and `<stem>_traversal_preview.png`.
+    /// Writes the uncertainty and three-state maps beside the output
+    /// ([`outputs::write_sensor_maps`]).
     fn write_sensor_maps(&self, maps: &SensorMaps, title: &str) -> anyhow::Result<()> {
-        let u = &maps.uncertainty_m;
-        match self.format {
-            Format::Png16 => io::save(
-                &beside(&self.out, "uncertainty", "png"),
-                &DynamicImage::ImageLumaA16(io::roughness_png16(u)),
-            )?,
-            Format::Npy => {
-                io::write_npy_f32(&beside(&self.out, "uncertainty", "npy"), u)?;
-                if let Some((lo, hi)) = &maps.interval_m {
-                    io::write_npy_f32(&beside(&self.out, "lo", "npy"), lo)?;
-                    io::write_npy_f32(&beside(&self.out, "hi", "npy"), hi)?;
-                }
-            }
-        }
-        let grey = io::traversal_gray8(&maps.traversal);
-        io::save(
-            &beside(&self.out, "traversal", "png"),
-            &DynamicImage::ImageLuma8(grey),
-        )?;
-        let preview = io::colormap::traversal_preview(&maps.traversal, title);
-        io::save(
-            &beside(&self.out, "traversal_preview", "png"),
-            &DynamicImage::ImageRgb8(preview),
-        )?;
-        Ok(())
+        let files = SensorMapFiles {
+            uncertainty_m: &maps.uncertainty_m,
+            interval_m: maps.interval_m.as_ref().map(|(lo, hi)| (lo, hi)),
+            traversal: &maps.traversal,
+        };
+        Ok(outputs::write_sensor_maps(
+            &self.out,
+            self.format.file(),
+            &files,
+            title,
+        )?)
     }
 
     /// Refuses, before any work, an output that could not hold the map or would replace an
@@ -218,10 +212,7 @@ impl Infer {
             .out
             .extension()
             .map(|e| e.to_string_lossy().to_ascii_lowercase());
-        let wanted = match self.format {
-            Format::Png16 => "png",
-            Format::Npy => "npy",
-        };
+        let wanted = self.format.file().extension();
         if ext.as_deref() != Some(wanted) {
             bail!(
                 "-o {}: the {} format writes a .{wanted} file; name it so (other image kinds \
@@ -241,15 +232,8 @@ impl Infer {
             .flatten()
             .map(PathBuf::as_path)
             .collect();
-        let sensor_maps = [
-            "uncertainty.png",
-            "uncertainty.npy",
-            "traversal.png",
-            "traversal_preview.png",
-        ]
-        .map(|f| f.split_once('.').map(|(w, e)| beside(&self.out, w, e)));
-        let mut outputs = vec![self.out.clone(), preview_path(&self.out)];
-        outputs.extend(sensor_maps.into_iter().flatten());
+        let mut outputs = vec![self.out.clone(), outputs::preview_path(&self.out)];
+        outputs.extend(outputs::sensor_map_paths(&self.out));
         let outputs: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
         Ok(crate::io::paths::refuse_overwriting(&outputs, &inputs)?)
     }
@@ -323,104 +307,9 @@ impl Infer {
     /// Writes the roughness map in the chosen format and the preview (titled `title`) beside
     /// it.
     fn write(&self, out: &FrameOutput, title: &str) -> anyhow::Result<()> {
-        if let Some(dir) = self.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        }
-        match self.format {
-            Format::Png16 => io::save(
-                &self.out,
-                &DynamicImage::ImageLumaA16(io::roughness_png16(&out.roughness_m)),
-            )?,
-            Format::Npy => io::write_npy_f32(&self.out, &out.roughness_m)
-                .with_context(|| format!("writing {}", self.out.display()))?,
-        }
-        let preview =
-            io::colormap::roughness_preview(&out.roughness_m, self.preview_max_cm / 100.0, title);
-        io::save(&preview_path(&self.out), &DynamicImage::ImageRgb8(preview))?;
-        Ok(())
+        let max_m = self.preview_max_cm / 100.0;
+        let file = self.format.file();
+        outputs::write_roughness(&self.out, file, &out.roughness_m, max_m, title)
+            .with_context(|| format!("writing {}", self.out.display()))
     }
-}
-
-/// `DIR/<stem>_<what>.<ext>` beside `out`.
-fn beside(out: &Path, what: &str, ext: &str) -> PathBuf {
-    let stem = out.file_stem().map_or_else(
-        || "roughness".to_owned(),
-        |s| s.to_string_lossy().into_owned(),
-    );
-    out.with_file_name(format!("{stem}_{what}.{ext}"))
-}
-
-/// `DIR/<stem>_preview.png` beside `out`.
-fn preview_path(out: &Path) -> PathBuf {
-    let stem = out.file_stem().map_or_else(
-        || "roughness".to_owned(),
-        |s| s.to_string_lossy().into_owned(),
-    );
-    out.with_file_name(format!("{stem}_preview.png"))
-}
-
-/// The results, gravity and timings, on stdout.
-fn print_summary(out: &FrameOutput, cfg: &PipelineConfig) {
-    let valid = crate::roughness::metrics::finite_sorted(&out.roughness_m);
-    let median_cm = valid.get(valid.len() / 2).map_or(f64::NAN, |r| 100.0 * r);
-    let (w, h) = out.working_size;
-    let mode = if cfg.method == Method::EndToEnd {
-        "the end-to-end baseline".to_owned()
-    } else {
-        format!("mode {}", cfg.mode)
-    };
-    println!(
-        "{mode} ({}) at {w}×{h}: {} px with roughness, median {median_cm:.3} cm",
-        stage_names(cfg),
-        valid.len()
-    );
-    println!("gravity: {}", out.gravity);
-    let slope_limit = cfg.traversability.max_slope_rad.to_degrees();
-    let rough_limit = 100.0 * cfg.traversability.max_roughness_m;
-    let ok = out.traversable().as_slice().iter().filter(|&&t| t).count();
-    if out.slope_rad().is_none() {
-        println!("binary map: {ok} px with roughness < {rough_limit} cm (no normals, so no slope)");
-    } else if out.gravity.up_in_cam().is_none() {
-        println!("binary map: none traversable: gravity unknown, so no slope < {slope_limit}° can be shown");
-    } else {
-        println!(
-            "binary map: {ok} px with roughness < {rough_limit} cm and slope < {slope_limit}°"
-        );
-    }
-    let stages: Vec<String> = out
-        .timings
-        .iter()
-        .map(|(name, d)| format!("{name} {:.1}", d.as_secs_f64() * 1e3))
-        .collect();
-    println!("ms: {}", stages.join(", "));
-}
-
-/// The stages in words: the pipeline label's abbreviations spelt out.
-fn stage_names(cfg: &PipelineConfig) -> String {
-    cfg.label()
-        .split('+')
-        .map(|p| match p {
-            "DE" => "depth net".to_owned(),
-            "LS" => "least-squares normals".to_owned(),
-            "NR" => "normal refiner".to_owned(),
-            "ESR" => "centroid net".to_owned(),
-            "window" => "window centroids".to_owned(),
-            "edge" => "edge term".to_owned(),
-            "E2E" => "end-to-end net".to_owned(),
-            d if d.starts_with("DSAC") => format!("DSAC normals ({d})"),
-            other => other.to_owned(),
-        })
-        .collect::<Vec<_>>()
-        .join(" + ")
-}
-
-/// Prints the three states' shares of `maps`, naming where they come from.
-fn print_shares(what: &str, maps: &SensorMaps) {
-    let (t, h, u) = shares(&maps.traversal);
-    println!(
-        "{what}: {:.1}% traversable, {:.1}% hazard, {:.1}% unknown",
-        100.0 * t,
-        100.0 * h,
-        100.0 * u
-    );
 }

@@ -12,7 +12,7 @@ use crate::io;
 use crate::model::{cores, ExecutionProvider, SessionConfig};
 use crate::pipeline::{NormalsMethod, DEFAULT_DSAC_HYPOTHESES};
 use crate::server::request::FrameDefaults;
-use crate::server::{serve, ServeConfig};
+use crate::server::{serve_until_signal, ServeConfig};
 
 /// Execution provider of the ONNX Runtime sessions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -216,54 +216,12 @@ impl Serve {
             .enable_all()
             .build()
             .context("starting the async runtime")?;
-        runtime.block_on(async move {
-            let listener = tokio::net::TcpListener::bind(cfg.addr)
-                .await
-                .with_context(|| format!("binding {}", cfg.addr))?;
-            let addr = listener.local_addr()?;
-            println!("listening on http://{addr}");
-            tracing::info!(
-                %addr,
-                workers = cfg.workers,
-                queue = cfg.queue,
-                normals = ?cfg.defaults.normals,
-                dsac_hypotheses = cfg.defaults.dsac_hypotheses,
-                "listening; loading models"
-            );
-            if !addr.ip().is_loopback() && cfg.api_key.is_none() {
-                tracing::warn!(
-                    %addr,
-                    "listening beyond loopback without an API key: anyone who can reach this address may use the service; set --api-key or TRE_API_KEY (see docs/security.md)"
-                );
-            }
-            serve(cfg, listener, shutdown_signal()).await?;
-            tracing::info!("stopped");
-            Ok(())
-        })
-    }
-}
-
-/// Completes on SIGTERM or Ctrl-C.
-async fn shutdown_signal() {
-    let ctrl_c = async {
-        if tokio::signal::ctrl_c().await.is_err() {
-            std::future::pending::<()>().await;
-        }
-    };
-    #[cfg(unix)]
-    let term = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
-            }
-            Err(_) => std::future::pending::<()>().await,
-        }
-    };
-    #[cfg(not(unix))]
-    let term = std::future::pending::<()>();
-    tokio::select! {
-        () = ctrl_c => {},
-        () = term => {},
+        let addr = cfg.addr;
+        runtime
+            .block_on(serve_until_signal(cfg, |a| {
+                println!("listening on http://{a}");
+            }))
+            .with_context(|| format!("serving on {addr}"))
     }
 }
 

@@ -13,6 +13,7 @@ pub mod images;
 pub mod map_files;
 pub mod maps;
 pub mod npy;
+pub mod outputs;
 pub mod paths;
 pub mod sequence;
 pub mod sheet;

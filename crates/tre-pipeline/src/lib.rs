@@ -30,6 +30,7 @@ pub mod normals;
 pub mod resize;
 pub mod run;
 mod spares;
+mod summary;
 pub mod tensors;
 
 pub use calibration::{models_key, read_calibration, stale_calibration};

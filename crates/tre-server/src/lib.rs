@@ -27,6 +27,7 @@ pub mod proto;
 pub mod query;
 pub mod refusals;
 pub mod request;
+mod signal;
 pub mod stall;
 pub mod stream;
 pub mod watched;
@@ -44,6 +45,8 @@ use tokio::sync::{watch, Semaphore};
 use utoipa::OpenApi;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
+
+pub use signal::{serve_until_signal, shutdown_signal};
 
 use metrics::Metrics;
 use refusals::RefusalLog;
