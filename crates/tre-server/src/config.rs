@@ -45,63 +45,9 @@ impl ServeConfig {
     /// shorter than [`MIN_API_KEY_CHARS`], more workers or ONNX Runtime threads than `cores`
     /// can use (see [`check_threads`]).
     pub fn validate(&self, cores: usize) -> Result<(), ConfigError> {
-        let zero = |v: u128, flag, field| {
-            if v == 0 {
-                Err(ConfigError::NotPositive { flag, field })
-            } else {
-                Ok(())
-            }
-        };
-        let size = |v: usize| v as u128;
-        zero(
-            size(self.max_body_bytes),
-            "--max-body-bytes",
-            "max_body_bytes",
-        )?;
-        zero(size(self.max_pixels), "--max-pixels", "max_pixels")?;
-        zero(size(self.max_side), "--max-side", "max_side")?;
-        zero(size(self.max_aspect), "--max-aspect", "max_aspect")?;
-        zero(
-            size(self.max_concurrent),
-            "--max-concurrent",
-            "max_concurrent",
-        )?;
-        zero(
-            self.header_timeout.as_millis(),
-            "--header-timeout-ms",
-            "header_timeout",
-        )?;
-        zero(
-            self.body_timeout.as_millis(),
-            "--body-timeout-ms",
-            "body_timeout",
-        )?;
-        zero(
-            self.request_timeout.as_millis(),
-            "--request-timeout-ms",
-            "request_timeout",
-        )?;
-        zero(
-            size(self.ws_max_message_bytes),
-            "--ws-max-message-bytes",
-            "ws_max_message_bytes",
-        )?;
-        zero(size(self.max_streams), "--max-streams", "max_streams")?;
-        zero(
-            self.ws_idle_timeout.as_millis(),
-            "--ws-idle-timeout-ms",
-            "ws_idle_timeout",
-        )?;
-        zero(
-            self.stall_timeout.as_millis(),
-            "--stall-timeout-ms",
-            "stall_timeout",
-        )?;
-        zero(
-            size(self.max_connections),
-            "--max-connections",
-            "max_connections",
-        )?;
+        if let Some(&(flag, field, _)) = self.positive().iter().find(|(_, _, v)| *v == 0) {
+            return Err(ConfigError::NotPositive { flag, field });
+        }
         if self.workers == 0 {
             return Err(ConfigError::Empty {
                 flag: "--workers",
@@ -124,6 +70,55 @@ impl ServeConfig {
         check_threads(Some(self.workers), self.session.intra_threads, cores)?;
         Ok(())
     }
+
+    /// The limits and timeouts that must be positive: option, field, value (timeouts in
+    /// milliseconds).
+    fn positive(&self) -> [(&'static str, &'static str, u128); 13] {
+        let n = |v: usize| v as u128;
+        [
+            ("--max-body-bytes", "max_body_bytes", n(self.max_body_bytes)),
+            ("--max-pixels", "max_pixels", n(self.max_pixels)),
+            ("--max-side", "max_side", n(self.max_side)),
+            ("--max-aspect", "max_aspect", n(self.max_aspect)),
+            ("--max-concurrent", "max_concurrent", n(self.max_concurrent)),
+            (
+                "--header-timeout-ms",
+                "header_timeout",
+                self.header_timeout.as_millis(),
+            ),
+            (
+                "--body-timeout-ms",
+                "body_timeout",
+                self.body_timeout.as_millis(),
+            ),
+            (
+                "--request-timeout-ms",
+                "request_timeout",
+                self.request_timeout.as_millis(),
+            ),
+            (
+                "--ws-max-message-bytes",
+                "ws_max_message_bytes",
+                n(self.ws_max_message_bytes),
+            ),
+            ("--max-streams", "max_streams", n(self.max_streams)),
+            (
+                "--ws-idle-timeout-ms",
+                "ws_idle_timeout",
+                self.ws_idle_timeout.as_millis(),
+            ),
+            (
+                "--stall-timeout-ms",
+                "stall_timeout",
+                self.stall_timeout.as_millis(),
+            ),
+            (
+                "--max-connections",
+                "max_connections",
+                n(self.max_connections),
+            ),
+        ]
+    }
 }
 
 #[cfg(test)]
@@ -134,7 +129,8 @@ mod tests {
     #[test]
     fn the_defaults_pass_and_each_zero_names_its_option() {
         ServeConfig::default().validate(2).unwrap();
-        let cases: [(fn(&mut ServeConfig), &str); 4] = [
+        type Case = (fn(&mut ServeConfig), &'static str);
+        let cases: [Case; 4] = [
             (|c| c.max_connections = 0, "--max-connections"),
             (|c| c.stall_timeout = Duration::ZERO, "--stall-timeout-ms"),
             (|c| c.max_body_bytes = 0, "--max-body-bytes"),

@@ -221,6 +221,26 @@ impl DepthAccumulator {
     }
 }
 
+/// The finite values of a map, sorted ascending (for quantiles such as a summary's median).
+///
+/// ```
+/// use tre_core::geometry::Grid;
+/// use tre_core::roughness::metrics::finite_sorted;
+/// let g = Grid::from_vec(3, 1, vec![0.3, f64::NAN, 0.1]).unwrap();
+/// assert_eq!(finite_sorted(&g), vec![0.1, 0.3]);
+/// ```
+#[must_use]
+pub fn finite_sorted(map: &Grid<f64>) -> Vec<f64> {
+    let mut v: Vec<f64> = map
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|r| r.is_finite())
+        .collect();
+    v.sort_by(f64::total_cmp);
+    v
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -273,24 +293,4 @@ mod tests {
         let b = Grid::new(3, 2, 0.0);
         assert!(DepthAccumulator::default().add(&a, &b).is_err());
     }
-}
-
-/// The finite values of a map, sorted ascending (for quantiles such as a summary's median).
-///
-/// ```
-/// use tre_core::geometry::Grid;
-/// use tre_core::roughness::metrics::finite_sorted;
-/// let g = Grid::from_vec(3, 1, vec![0.3, f64::NAN, 0.1]).unwrap();
-/// assert_eq!(finite_sorted(&g), vec![0.1, 0.3]);
-/// ```
-#[must_use]
-pub fn finite_sorted(map: &Grid<f64>) -> Vec<f64> {
-    let mut v: Vec<f64> = map
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|r| r.is_finite())
-        .collect();
-    v.sort_by(f64::total_cmp);
-    v
 }
