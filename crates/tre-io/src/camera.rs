@@ -6,7 +6,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use tre_core::geometry::{GeometryError, Intrinsics, Mounting};
-use tre_core::roughness::noise::{SensorNoise, SensorPreset};
+use tre_core::roughness::noise::{CoefficientsError, SensorNoise, SensorPreset};
 
 use super::IoError;
 
@@ -88,6 +88,8 @@ pub struct CameraFile {
 /// assert!(s.noise().is_some());
 /// let e = serde_json::from_str::<SensorSpec>(r#"{"sigma": 3}"#).unwrap_err();
 /// assert!(e.to_string().contains("sigma_mm"), "{e}");
+/// let e = serde_json::from_str::<SensorSpec>(r#"{"sigma_mm": [1, 0, -1]}"#).unwrap_err();
+/// assert!(e.to_string().starts_with("sensor.sigma_mm [1.0, 0.0, -1.0]: σ_z"), "{e}");
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(untagged)]
@@ -149,12 +151,14 @@ pub enum SensorSpecError {
         keys: Option<Vec<String>>,
     },
     /// Coefficients that do not make a noise model (negative σ, not finite, …).
+    // The reason is the message, not a `source`: a report that prints the chain would say it
+    // twice.
     #[error("{reason}")]
     Coefficients {
         /// The coefficients given.
         sigma_mm: [f64; 3],
-        /// The check that failed, naming `sensor.sigma_mm`.
-        reason: String,
+        /// The check that failed; its message names `sensor.sigma_mm`.
+        reason: CoefficientsError,
     },
 }
 

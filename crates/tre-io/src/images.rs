@@ -14,7 +14,7 @@ use super::{IoError, ROUGHNESS_PNG_SCALE_M};
 /// Decodes an image file, naming the file in errors. JPEGs are decoded strictly
 /// ([`decode_jpeg`]).
 pub fn read_image(path: &Path) -> Result<DynamicImage, IoError> {
-    let failed = |reason: String| IoError::Image {
+    let failed = |reason| IoError::Image {
         path: path.to_owned(),
         reason,
     };
@@ -23,9 +23,20 @@ pub fn read_image(path: &Path) -> Result<DynamicImage, IoError> {
         reason,
     })?;
     if image::guess_format(&bytes).ok() == Some(image::ImageFormat::Jpeg) {
-        return decode_jpeg(&bytes).map_err(|e| failed(e.to_string()));
+        return decode_jpeg(&bytes).map_err(|e| failed(ImageProblem::Jpeg(e)));
     }
-    image::load_from_memory(&bytes).map_err(|e| failed(e.to_string()))
+    image::load_from_memory(&bytes).map_err(|e| failed(ImageProblem::Decode(e)))
+}
+
+/// Why a file does not decode as an image ([`IoError::Image`]).
+#[derive(Debug, thiserror::Error)]
+pub enum ImageProblem {
+    /// A JPEG that the strict decoder refused ([`decode_jpeg`]).
+    #[error(transparent)]
+    Jpeg(JpegError),
+    /// Any other file that the `image` crate could not decode.
+    #[error(transparent)]
+    Decode(image::ImageError),
 }
 
 /// Why an image cannot be an RGB frame, if it cannot: 16-bit grey (with or without alpha) is
@@ -184,15 +195,15 @@ pub fn write_mask_png(path: &Path, mask: &Grid<bool>) -> Result<(), IoError> {
 /// Saves an image, choosing the format from the extension.
 /// PNG files use fast compression: frames are written often and read by machines.
 pub fn save(path: &Path, img: &DynamicImage) -> Result<(), IoError> {
-    let err = |e: image::ImageError| IoError::Image {
+    let err = |reason| IoError::Encode {
         path: path.to_owned(),
-        reason: e.to_string(),
+        reason,
     };
     if path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"))
     {
-        let out = BufWriter::new(File::create(path).map_err(|reason| IoError::Read {
+        let out = BufWriter::new(File::create(path).map_err(|reason| IoError::Write {
             path: path.to_owned(),
             reason,
         })?);
@@ -222,4 +233,72 @@ pub fn gray8(map: &Grid<u8>) -> image::GrayImage {
     image::GrayImage::from_fn(map.width() as u32, map.height() as u32, |x, y| {
         image::Luma([map[(x as usize, y as usize)]])
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unreadable_images_say_which_decoder_refused_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let junk = dir.path().join("junk.png");
+        std::fs::write(&junk, b"not an image").unwrap();
+        let e = read_image(&junk).unwrap_err();
+        assert!(
+            matches!(
+                &e,
+                IoError::Image {
+                    reason: ImageProblem::Decode(_),
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert!(
+            e.to_string().contains("junk.png: not a readable image: "),
+            "{e}"
+        );
+        let img = image::RgbImage::from_pixel(16, 16, image::Rgb([10, 20, 30]));
+        let mut jpeg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new(&mut jpeg)
+            .encode_image(&img)
+            .unwrap();
+        let half = dir.path().join("half.jpg");
+        std::fs::write(&half, &jpeg[..jpeg.len() / 2]).unwrap();
+        let e = read_image(&half).unwrap_err();
+        assert!(
+            matches!(
+                &e,
+                IoError::Image {
+                    reason: ImageProblem::Jpeg(_),
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("not a whole, valid JPEG"), "{e}");
+    }
+
+    #[test]
+    fn images_that_cannot_be_written_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = DynamicImage::ImageLuma8(image::GrayImage::new(2, 2));
+        let nowhere = dir.path().join("no/such/dir/out.png");
+        let e = save(&nowhere, &img).unwrap_err();
+        assert!(
+            matches!(&e, IoError::Write { path, .. } if path == &nowhere),
+            "{e:?}"
+        );
+        let unknown = dir.path().join("out.xyz");
+        let e = save(&unknown, &img).unwrap_err();
+        assert!(
+            matches!(&e, IoError::Encode { path, .. } if path == &unknown),
+            "{e:?}"
+        );
+        assert!(
+            e.to_string().contains("out.xyz: cannot write the image: "),
+            "{e}"
+        );
+    }
 }

@@ -34,13 +34,13 @@ pub use depth::{
 };
 pub use images::{
     decode_jpeg, decode_roughness_png16, depth_png16, encode_png, gray8, metres_png16, not_rgb,
-    read_image, roughness_png16, save, traversal_gray8, write_mask_png, JpegError,
+    read_image, roughness_png16, save, traversal_gray8, write_mask_png, ImageProblem, JpegError,
 };
 pub use maps::{
     npy_grid, read_labels, read_normals, read_pose, write_normals_npy, write_npy_f32,
-    write_npy_u32, write_ply,
+    write_npy_u32, write_ply, PoseProblem,
 };
-pub use npy::NpyError;
+pub use npy::{HeaderProblem, NpyError};
 
 /// Roughness on the wire: metres per unit of the 16-bit PNG (0.1 mm).
 pub const ROUGHNESS_PNG_SCALE_M: f64 = 1e-4;
@@ -52,8 +52,9 @@ pub enum IoError {
     #[error(transparent)]
     Os(#[from] std::io::Error),
     /// A file that cannot be opened or read.
-    // The reason is in the message, not a `source`: a report that prints the chain would
-    // say it twice.
+    // Here and below, the reason is in the message, not a `source`: a report that prints the
+    // chain would say it twice. The server answers with the message alone, so it must carry
+    // the reason.
     #[error("{}: {reason}", path.display())]
     Read {
         /// The file.
@@ -70,12 +71,20 @@ pub enum IoError {
         reason: std::io::Error,
     },
     /// A file that cannot be read as the image it should be (unreadable, truncated, …).
-    #[error("{path}: not a readable image: {reason}")]
+    #[error("{}: not a readable image: {reason}", path.display())]
     Image {
         /// The file.
         path: PathBuf,
         /// What the decoder said.
-        reason: String,
+        reason: ImageProblem,
+    },
+    /// An image that cannot be encoded into its file ([`save`]).
+    #[error("{}: cannot write the image: {reason}", path.display())]
+    Encode {
+        /// The file.
+        path: PathBuf,
+        /// What the encoder said.
+        reason: image::ImageError,
     },
     /// A pose file that is not 16 finite numbers.
     #[error("{}: {reason}", path.display())]
@@ -83,7 +92,7 @@ pub enum IoError {
         /// The file.
         path: PathBuf,
         /// What is wrong.
-        reason: String,
+        reason: PoseProblem,
     },
     /// An image of the wrong kind (e.g. an 8-bit colour file given as depth).
     #[error("{}: {expected}, got {got:?}", path.display())]

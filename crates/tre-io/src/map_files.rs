@@ -104,10 +104,7 @@ fn write_layer(dir: &Path, name: &str, grid: &Grid<f32>) -> Result<serde_json::V
     });
     let (w, h) = (png.width() as u32, png.height() as u32);
     let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(w, h, png.into_vec())
-        .ok_or_else(|| IoError::Image {
-            path: dir.join(format!("{name}.png")),
-            reason: "the layer's size does not match its data".into(),
-        })?;
+        .expect("a grid's size matches its data; this is a bug");
     crate::save(
         &dir.join(format!("{name}.png")),
         &DynamicImage::ImageLuma16(img),

@@ -141,7 +141,7 @@ pub fn read_pose(path: &Path) -> Result<[f64; 16], IoError> {
         path: path.to_owned(),
         reason,
     })?;
-    let bad = |reason: String| IoError::Pose {
+    let bad = |reason| IoError::Pose {
         path: path.to_owned(),
         reason,
     };
@@ -149,12 +149,26 @@ pub fn read_pose(path: &Path) -> Result<[f64; 16], IoError> {
         .split_whitespace()
         .map(str::parse)
         .collect::<Result<_, _>>()
-        .map_err(|e| bad(format!("not numbers ({e})")))?;
+        .map_err(|e| bad(PoseProblem::NotNumbers(e)))?;
     if v.iter().any(|x| !x.is_finite()) {
-        return Err(bad("a pose is 16 finite numbers".into()));
+        return Err(bad(PoseProblem::NotFinite));
     }
     v.try_into()
-        .map_err(|v: Vec<f64>| bad(format!("a pose is 16 finite numbers, got {}", v.len())))
+        .map_err(|v: Vec<f64>| bad(PoseProblem::Count(v.len())))
+}
+
+/// Why a pose file is not a pose ([`read_pose`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PoseProblem {
+    /// Text that is not all numbers.
+    #[error("not numbers ({0})")]
+    NotNumbers(std::num::ParseFloatError),
+    /// A number that is NaN or infinite.
+    #[error("a pose is 16 finite numbers")]
+    NotFinite,
+    /// Another count of numbers than 16.
+    #[error("a pose is 16 finite numbers, got {0}")]
+    Count(usize),
 }
 
 #[cfg(test)]
@@ -181,6 +195,57 @@ mod tests {
         );
         let e = e.to_string();
         assert!(e.contains("integer") && e.contains("<f4"), "{e}");
+    }
+
+    #[test]
+    fn pose_errors_say_what_is_wrong() {
+        let dir = tempfile::tempdir().unwrap();
+        let pose = dir.path().join("pose.txt");
+        let read = |text: &str| {
+            std::fs::write(&pose, text).unwrap();
+            read_pose(&pose)
+        };
+        let identity = "1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1";
+        assert_eq!(read(identity).unwrap()[15], 1.0);
+        let e = read("1 0 x").unwrap_err();
+        assert!(
+            matches!(
+                &e,
+                IoError::Pose {
+                    reason: PoseProblem::NotNumbers(_),
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("pose.txt: not numbers ("), "{e}");
+        let e = read(&identity.replace("1 0 0 0 0 1", "NaN 0 0 0 0 1")).unwrap_err();
+        assert!(
+            matches!(
+                &e,
+                IoError::Pose {
+                    reason: PoseProblem::NotFinite,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        let e = read("1 2 3").unwrap_err();
+        assert!(
+            matches!(
+                &e,
+                IoError::Pose {
+                    reason: PoseProblem::Count(3),
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert!(
+            e.to_string()
+                .ends_with("a pose is 16 finite numbers, got 3"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -35,7 +35,7 @@ use tre_core::geometry::GeometryError;
 /// reader stops at 10,000), and parsing costs about 3 µs per byte.
 pub const MAX_HEADER_BYTES: usize = 4096;
 
-/// Longest part of the parser's message kept in [`NpyError::Header`], characters.
+/// Longest part of the parser's message shown in [`NpyError::Header`], characters.
 const MAX_REASON_CHARS: usize = 200;
 
 /// An IEEE half-precision value (for compact `.npy` files).
@@ -81,10 +81,13 @@ pub enum NpyError {
         limit: usize,
     },
     /// The header is not the Python dict literal it should be.
+    // The reason is in the message, not a `source`: a report that prints the chain would say
+    // it twice.
     #[error("unreadable .npy header: {reason}")]
     Header {
-        /// What the parser said (cut to 200 characters).
-        reason: String,
+        /// What is wrong: text that is not UTF-8, or what the parser said (its message cut to
+        /// 200 characters).
+        reason: HeaderProblem,
     },
     /// Values stored in Fortran (column-major) order.
     #[error("Fortran-order arrays are not supported; save with np.ascontiguousarray")]
@@ -145,6 +148,34 @@ pub enum NpyError {
     /// The array does not make a grid (e.g. a dimension of 0).
     #[error(transparent)]
     Grid(#[from] GeometryError),
+}
+
+/// Why a `.npy` header does not read ([`NpyError::Header`]). A parser's message is shown cut
+/// to 200 characters: it may quote the header, which a client wrote.
+#[derive(Debug, thiserror::Error)]
+pub enum HeaderProblem {
+    /// Header bytes that are not UTF-8 text.
+    #[error("the header is not UTF-8 text")]
+    NotText(#[source] std::str::Utf8Error),
+    /// Text that the Python-literal parser refused.
+    #[error("{}", Cut(.0))]
+    Literal(py_literal::ParseError),
+    /// A header that `npyz` refused.
+    #[error("{}", Cut(.0))]
+    Npyz(std::io::Error),
+}
+
+/// A message shown cut to [`MAX_REASON_CHARS`] characters, with `…` where it was cut.
+struct Cut<'a, E>(&'a E);
+
+impl<E: std::fmt::Display> std::fmt::Display for Cut<'_, E> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let text = self.0.to_string();
+        match text.char_indices().nth(MAX_REASON_CHARS) {
+            Some((cut, _)) => write!(f, "{}…", &text[..cut]),
+            None => f.write_str(&text),
+        }
+    }
 }
 
 /// An element type that `.npy` files carry and [`write_npy`] writes.
@@ -236,7 +267,9 @@ pub fn read_npy_within(mut r: impl Read, max_values: usize) -> Result<NpyArray, 
     let mut bytes = Vec::new();
     r.read_to_end(&mut bytes)?;
     let data_start = check_header(&bytes)?;
-    let file = npyz::NpyFile::new(&bytes[..]).map_err(header_error)?;
+    let file = npyz::NpyFile::new(&bytes[..]).map_err(|e| NpyError::Header {
+        reason: HeaderProblem::Npyz(e),
+    })?;
     if file.order() == npyz::Order::Fortran {
         return Err(NpyError::FortranOrder);
     }
@@ -306,12 +339,12 @@ pub fn check_header(bytes: &[u8]) -> Result<usize, NpyError> {
 /// Refuses a header any of whose `shape` entries multiply out beyond `u64`, counting every
 /// prefix product `npyz` forms (dimensions of 0 left out, since the strides skip none).
 fn check_shapes(header: &[u8]) -> Result<(), NpyError> {
-    let text = std::str::from_utf8(header.strip_suffix(b"\n").unwrap_or(header)).map_err(|_| {
-        NpyError::Header {
-            reason: "the header is not UTF-8 text".into(),
-        }
-    })?;
-    let value: Value = text.parse().map_err(header_error)?;
+    let header_error = |reason| NpyError::Header { reason };
+    let text = std::str::from_utf8(header.strip_suffix(b"\n").unwrap_or(header))
+        .map_err(|e| header_error(HeaderProblem::NotText(e)))?;
+    let value: Value = text
+        .parse()
+        .map_err(|e| header_error(HeaderProblem::Literal(e)))?;
     let Value::Dict(entries) = value else {
         return Ok(()); // npyz says what is wrong.
     };
@@ -336,16 +369,6 @@ fn check_shapes(header: &[u8]) -> Result<(), NpyError> {
         }
     }
     Ok(())
-}
-
-/// A parser's complaint as a header error, cut to [`MAX_REASON_CHARS`].
-fn header_error(e: impl std::fmt::Display) -> NpyError {
-    let reason = e.to_string();
-    let reason = match reason.char_indices().nth(MAX_REASON_CHARS) {
-        Some((cut, _)) => format!("{}…", &reason[..cut]),
-        None => reason,
-    };
-    NpyError::Header { reason }
 }
 
 /// The shape as `usize`s.

@@ -28,12 +28,12 @@ use std::fmt::Display;
 use std::path::PathBuf;
 
 pub use locate::{locate_models, FoundModels, ModelSearch, ModelsRule, MODELS_ENV};
-pub use manifest::{Manifest, ModelEntry, TensorSpec};
+pub use manifest::{Manifest, ManifestProblem, ModelEntry, TensorSpec};
 pub use models::{Models, CENTROID_NET, DEPTH_NET, END_TO_END, NEIGHBOUR_NET, NORMAL_REFINER};
 pub use runtime::RuntimeError;
 pub use session::{
-    check_threads, cores, ExecutionProvider, ModelSession, Optimisation, SessionConfig,
-    ThreadsError, MAX_WORKERS_PER_CORE,
+    check_threads, cores, ExecutionProvider, InputProblem, ModelSession, OnnxProblem, Optimisation,
+    SessionConfig, ThreadsError, MAX_WORKERS_PER_CORE,
 };
 
 /// Errors of the model layer; every variant about one model names it.
@@ -58,12 +58,15 @@ pub enum ModelError {
         searched: Vec<(ModelsRule, PathBuf)>,
     },
     /// `manifest.json` is missing, unreadable or malformed.
+    // Here and below, the reason is in the message, not a `source`: a report that prints the
+    // chain would say it twice. The server answers with the message alone, so it must carry
+    // the reason.
     #[error("{}: {reason}", path.display())]
     Manifest {
         /// The manifest file.
         path: PathBuf,
         /// What is wrong.
-        reason: String,
+        reason: ManifestProblem,
     },
     /// The manifest does not list a model the caller needs.
     #[error("model {model}: not listed in the manifest")]
@@ -99,18 +102,18 @@ pub enum ModelError {
         /// The file.
         path: PathBuf,
         /// What is wrong.
-        reason: String,
+        reason: OnnxProblem,
     },
     /// ONNX Runtime could not be found or started.
     #[error(transparent)]
     Runtime(#[from] RuntimeError),
     /// ONNX Runtime failed to build or run a session.
-    #[error("model {model}: ONNX Runtime: {source}")]
+    #[error("model {model}: ONNX Runtime: {reason}")]
     Ort {
         /// The model's name.
         model: String,
         /// What ONNX Runtime said.
-        source: ort::Error,
+        reason: ort::Error,
     },
     /// An input of the wrong number, shape or size for the model.
     #[error("model {model}: input {input}: {reason}")]
@@ -120,7 +123,7 @@ pub enum ModelError {
         /// The input's name (`*` for the input count).
         input: String,
         /// What is wrong.
-        reason: String,
+        reason: InputProblem,
     },
     /// The model returned an output of an unexpected shape.
     #[error("model {model}: output {output} is not of shape {expected:?}")]

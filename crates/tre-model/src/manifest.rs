@@ -108,20 +108,18 @@ impl Manifest {
     /// [`ModelError::Manifest`] when the file cannot be read or parsed, or has another format.
     pub fn read(dir: &Path) -> Result<Self, ModelError> {
         let path = dir.join(MANIFEST_FILE);
-        let fail = |reason: String| ModelError::Manifest {
+        let fail = |reason| ModelError::Manifest {
             path: path.clone(),
             reason,
         };
-        let text = std::fs::read_to_string(&path).map_err(|e| fail(e.to_string()))?;
-        let manifest: Self = serde_json::from_str(&text).map_err(|e| fail(e.to_string()))?;
+        let text = std::fs::read_to_string(&path).map_err(|e| fail(ManifestProblem::Read(e)))?;
+        let manifest: Self =
+            serde_json::from_str(&text).map_err(|e| fail(ManifestProblem::Json(e)))?;
         if manifest.format != MANIFEST_FORMAT {
-            return Err(fail(format!(
-                "format {} is not the supported format {MANIFEST_FORMAT}",
-                manifest.format
-            )));
+            return Err(fail(ManifestProblem::Format(manifest.format)));
         }
         if manifest.stride == 0 || manifest.working_size.contains(&0) {
-            return Err(fail("stride and working size must be positive".into()));
+            return Err(fail(ManifestProblem::ZeroSize));
         }
         Ok(manifest)
     }
@@ -138,6 +136,23 @@ impl Manifest {
                 model: model.to_owned(),
             })
     }
+}
+
+/// Why a models folder's `manifest.json` does not read ([`ModelError::Manifest`]).
+#[derive(Debug, thiserror::Error)]
+pub enum ManifestProblem {
+    /// The file cannot be read.
+    #[error(transparent)]
+    Read(std::io::Error),
+    /// The file is not the manifest's JSON.
+    #[error(transparent)]
+    Json(serde_json::Error),
+    /// Another format than [`MANIFEST_FORMAT`].
+    #[error("format {0} is not the supported format {MANIFEST_FORMAT}")]
+    Format(u32),
+    /// A stride or working size of 0.
+    #[error("stride and working size must be positive")]
+    ZeroSize,
 }
 
 /// Lower-case hex SHA-256 of bytes.
@@ -197,6 +212,50 @@ mod tests {
         let json = serde_json::to_value(&m).expect("serialises");
         let back: Manifest = serde_json::from_value(json).expect("parses back");
         assert_eq!(back, m);
+    }
+
+    #[test]
+    fn bad_manifests_name_the_file_and_what_is_wrong() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join(MANIFEST_FILE);
+        // The reason and the message of reading `text` as the manifest (none: no file).
+        let read = |text: Option<&str>| {
+            if let Some(text) = text {
+                std::fs::write(&path, text).expect("write");
+            }
+            let e = Manifest::read(dir.path()).expect_err("a bad manifest");
+            let message = e.to_string();
+            assert!(message.contains("manifest.json: "), "{message}");
+            let ModelError::Manifest { path: p, reason } = e else {
+                panic!("{e:?}");
+            };
+            assert_eq!(p, path);
+            (reason, message)
+        };
+        let (reason, _) = read(None);
+        assert!(
+            matches!(&reason, ManifestProblem::Read(e) if e.kind() == std::io::ErrorKind::NotFound),
+            "{reason:?}"
+        );
+        let (reason, _) = read(Some("{"));
+        assert!(matches!(reason, ManifestProblem::Json(_)), "{reason:?}");
+        let m = |format: u32, stride: usize| {
+            format!(
+                r#"{{"format": {format}, "stride": {stride}, "working_size": [256, 256], "models": {{}}}}"#
+            )
+        };
+        let (reason, message) = read(Some(&m(2, 32)));
+        assert!(matches!(reason, ManifestProblem::Format(2)), "{reason:?}");
+        assert!(
+            message.ends_with("format 2 is not the supported format 1"),
+            "{message}"
+        );
+        let (reason, message) = read(Some(&m(1, 0)));
+        assert!(matches!(reason, ManifestProblem::ZeroSize), "{reason:?}");
+        assert!(
+            message.ends_with("stride and working size must be positive"),
+            "{message}"
+        );
     }
 
     #[test]

@@ -162,9 +162,9 @@ impl ModelSession {
         consume: impl FnOnce(ArrayView4<'_, f32>) -> R,
     ) -> Result<R, ModelError> {
         let (n, h, w) = self.check_inputs(inputs)?;
-        let ort_err = |source| ModelError::Ort {
+        let ort_err = |reason| ModelError::Ort {
             model: self.name.clone(),
-            source,
+            reason,
         };
         let mut values = Vec::with_capacity(inputs.len());
         for (spec, x) in self.entry.inputs.iter().zip(inputs) {
@@ -201,41 +201,92 @@ impl ModelSession {
         &self,
         inputs: &[ArrayView4<'_, f32>],
     ) -> Result<(usize, usize, usize), ModelError> {
-        let bad = |input: &str, why: String| ModelError::InputShape {
+        let bad = |input: &str, reason| ModelError::InputShape {
             model: self.name.clone(),
             input: input.to_owned(),
-            reason: why,
+            reason,
         };
         if inputs.len() != self.entry.inputs.len() {
-            let why = format!(
-                "{} inputs given, {} expected",
-                inputs.len(),
-                self.entry.inputs.len()
-            );
-            return Err(bad("*", why));
+            let reason = InputProblem::Count {
+                given: inputs.len(),
+                expected: self.entry.inputs.len(),
+            };
+            return Err(bad("*", reason));
         }
         let (n, _, h, w) = inputs.first().map_or((0, 0, 0, 0), ArrayView4::dim);
         if n == 0 || h == 0 || w == 0 || h % self.stride != 0 || w % self.stride != 0 {
-            let why = format!(
-                "N×H×W = {n}×{h}×{w}: all must be positive, H and W multiples of {}",
-                self.stride
-            );
-            return Err(bad(&self.entry.inputs[0].name, why));
+            let reason = InputProblem::Size {
+                n,
+                h,
+                w,
+                stride: self.stride,
+            };
+            return Err(bad(&self.entry.inputs[0].name, reason));
         }
         for (spec, x) in self.entry.inputs.iter().zip(inputs) {
             let (xn, xc, xh, xw) = x.dim();
             let c_ok = spec.channels().is_none_or(|c| c == xc);
             if (xn, xh, xw) != (n, h, w) || !c_ok {
-                let why = format!(
-                    "shape {:?}, expected {n}×{:?}×{h}×{w}",
-                    x.shape(),
-                    spec.channels()
-                );
-                return Err(bad(&spec.name, why));
+                let reason = InputProblem::Shape {
+                    shape: x.shape().to_vec(),
+                    expected: (n, spec.channels(), h, w),
+                };
+                return Err(bad(&spec.name, reason));
             }
         }
         Ok((n, h, w))
     }
+}
+
+/// Why inputs do not fit a model ([`ModelError::InputShape`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum InputProblem {
+    /// Another number of inputs than the model has.
+    #[error("{given} inputs given, {expected} expected")]
+    Count {
+        /// Inputs given.
+        given: usize,
+        /// Inputs the model has.
+        expected: usize,
+    },
+    /// A batch or size of 0, or H or W not a multiple of the stride.
+    #[error("N×H×W = {n}×{h}×{w}: all must be positive, H and W multiples of {stride}")]
+    Size {
+        /// Batch size.
+        n: usize,
+        /// Height.
+        h: usize,
+        /// Width.
+        w: usize,
+        /// The stride H and W must be multiples of.
+        stride: usize,
+    },
+    /// An input of another N, H or W than the first, or of other channels than the manifest's.
+    #[error(
+        "shape {shape:?}, expected {}×{}×{}×{}",
+        expected.0,
+        expected.1.map_or("C".to_owned(), |c| c.to_string()),
+        expected.2,
+        expected.3
+    )]
+    Shape {
+        /// The input's shape.
+        shape: Vec<usize>,
+        /// The N, channels (if the manifest fixes them; else any, shown as `C`), H and W
+        /// expected.
+        expected: (usize, Option<usize>, usize, usize),
+    },
+}
+
+/// Why a model's file cannot be checked ([`ModelError::BadOnnx`]).
+#[derive(Debug, thiserror::Error)]
+pub enum OnnxProblem {
+    /// The file cannot be read.
+    #[error(transparent)]
+    Read(std::io::Error),
+    /// The bytes are not an ONNX model.
+    #[error(transparent)]
+    Parse(onnx::OnnxParseError),
 }
 
 /// The file exists, hashes to the manifest's SHA-256 and imports the manifest's opset.
@@ -246,17 +297,17 @@ fn check_file(model: &str, path: &Path, entry: &ModelEntry) -> Result<(), ModelE
             path: path.to_owned(),
         });
     }
-    let bad_onnx = |reason: String| ModelError::BadOnnx {
+    let bad_onnx = |reason| ModelError::BadOnnx {
         model: model.to_owned(),
         path: path.to_owned(),
         reason,
     };
-    let bytes = std::fs::read(path).map_err(|e| bad_onnx(e.to_string()))?;
+    let bytes = std::fs::read(path).map_err(|e| bad_onnx(OnnxProblem::Read(e)))?;
     let sha = sha256_hex(&bytes);
     if !sha.eq_ignore_ascii_case(entry.sha256.trim()) {
         return Err(ModelError::mismatch(model, "sha256", &entry.sha256, sha));
     }
-    let imports = onnx::opset_imports(&bytes).map_err(|e| bad_onnx(e.to_string()))?;
+    let imports = onnx::opset_imports(&bytes).map_err(|e| bad_onnx(OnnxProblem::Parse(e)))?;
     let found = onnx::default_opset(&imports).map_or_else(|| "none".to_owned(), |v| v.to_string());
     if found != entry.opset.to_string() {
         return Err(ModelError::mismatch(model, "opset", entry.opset, found));
@@ -269,11 +320,11 @@ fn build_session(model: &str, path: &Path, cfg: &SessionConfig) -> Result<Sessio
     let env = runtime::environment()?;
     let ort_err = |e: ort::Error<_>| ModelError::Ort {
         model: model.to_owned(),
-        source: ort::Error::new_with_code(e.code(), e.message()),
+        reason: ort::Error::new_with_code(e.code(), e.message()),
     };
-    let builder = Session::builder(env).map_err(|source| ModelError::Ort {
+    let builder = Session::builder(env).map_err(|reason| ModelError::Ort {
         model: model.to_owned(),
-        source,
+        reason,
     })?;
     let mut builder = builder
         .with_optimization_level(cfg.optimisation.into())
@@ -291,9 +342,9 @@ fn build_session(model: &str, path: &Path, cfg: &SessionConfig) -> Result<Sessio
     }
     builder
         .commit_from_file(path)
-        .map_err(|source| ModelError::Ort {
+        .map_err(|reason| ModelError::Ort {
             model: model.to_owned(),
-            source,
+            reason,
         })
 }
 
@@ -441,5 +492,54 @@ mod thread_tests {
         let e = check_threads(Some(9), 1, 2).unwrap_err().to_string();
         assert!(e.contains("--workers 9: at most 8"), "{e}");
         assert!(check_threads(Some(1), 50_000, 16).is_err());
+    }
+}
+
+#[cfg(test)]
+mod input_tests {
+    use super::*;
+
+    #[test]
+    fn input_problems_read_as_before() {
+        let count = InputProblem::Count {
+            given: 1,
+            expected: 2,
+        };
+        assert_eq!(count.to_string(), "1 inputs given, 2 expected");
+        let size = InputProblem::Size {
+            n: 1,
+            h: 30,
+            w: 64,
+            stride: 32,
+        };
+        assert_eq!(
+            size.to_string(),
+            "N×H×W = 1×30×64: all must be positive, H and W multiples of 32"
+        );
+        let shape = InputProblem::Shape {
+            shape: vec![1, 1, 64, 64],
+            expected: (1, Some(3), 64, 64),
+        };
+        assert_eq!(
+            shape.to_string(),
+            "shape [1, 1, 64, 64], expected 1×3×64×64"
+        );
+        let any_c = InputProblem::Shape {
+            shape: vec![2, 1, 64, 64],
+            expected: (1, None, 64, 64),
+        };
+        assert_eq!(
+            any_c.to_string(),
+            "shape [2, 1, 64, 64], expected 1×C×64×64"
+        );
+        let e = ModelError::InputShape {
+            model: "depth_net".into(),
+            input: "rgb".into(),
+            reason: shape,
+        };
+        assert_eq!(
+            e.to_string(),
+            "model depth_net: input rgb: shape [1, 1, 64, 64], expected 1×3×64×64"
+        );
     }
 }

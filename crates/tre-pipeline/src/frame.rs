@@ -13,7 +13,7 @@ use super::{Mode, PipelineError, Traversability};
 use tre_core::geometry::{Grid, Intrinsics, Mounting, PointMap, Vec3, INVALID_POINT};
 use tre_core::roughness::annotate::{boundary_mask, segment};
 use tre_core::roughness::interval::{self, IntervalTable, SecondAxis};
-use tre_core::roughness::noise::{uncertainty_map, SensorNoise, SensorPreset};
+use tre_core::roughness::noise::{uncertainty_map, SensorNoise};
 use tre_core::roughness::traversal::{ThreeStateRule, Traversal};
 use tre_core::roughness::AnnotateConfig;
 
@@ -288,10 +288,7 @@ impl FrameOutput {
         };
         let Some(sensor) = sensor else {
             return Err(PipelineError::NoSensorModel {
-                presets: SensorPreset::names(),
-                described: described.map_or(String::new(), |d| {
-                    format!(" (the camera's sensor {d:?} names no preset)")
-                }),
+                described: described.map(str::to_owned),
             });
         };
         let (w, h) = depth_m.size();
@@ -478,6 +475,7 @@ impl StageTimings {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use tre_core::roughness::noise::SensorPreset;
 
     /// A 2×2 working-size result for a 4×2 frame: left column rough, bottom-right too steep.
     fn output() -> FrameOutput {

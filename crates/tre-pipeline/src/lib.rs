@@ -33,7 +33,7 @@ mod spares;
 mod summary;
 pub mod tensors;
 
-pub use calibration::{models_key, read_calibration, stale_calibration};
+pub use calibration::{models_key, read_calibration, stale_calibration, CalibrationProblem};
 pub use config::{
     check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod,
     PipelineConfig, Traversability, DEFAULT_DSAC_HYPOTHESES, DEFAULT_MAX_INPUT_PIXELS,
@@ -45,6 +45,7 @@ pub use gravity::{Assumption, Gravity, GravityFigures, GravityUnknown};
 pub use run::{check_input, Pipeline, DEFAULT_WORKING_SIZE};
 
 use tre_core::geometry::GeometryError;
+use tre_core::roughness::noise::SensorPreset;
 use tre_model::ModelError;
 
 /// Errors of the pipeline layer: bad frames, bad settings, and failures of the stages.
@@ -120,21 +121,25 @@ pub enum PipelineError {
     /// Uncertainty or three-state maps asked for without a sensor noise model.
     #[error(
         "the uncertainty and three-state maps need the depth sensor's noise model: name it as \
-         the camera's \"sensor\" (one of {presets}) or give {{\"sigma_mm\": [a, b, c]}}{described}"
+         the camera's \"sensor\" (one of {}) or give {{\"sigma_mm\": [a, b, c]}}{}",
+        SensorPreset::names(),
+        described.as_ref().map_or(String::new(), |d| {
+            format!(" (the camera's sensor {d:?} names no preset)")
+        })
     )]
     NoSensorModel {
-        /// The preset names.
-        presets: String,
-        /// What the camera said instead, if anything, in words.
-        described: String,
+        /// The camera's free-text sensor, which names no preset, if it gave one.
+        described: Option<String>,
     },
     /// A calibration file (`uncertainty.json` beside the models) that does not read.
+    // The reason is in the message, not a `source`: a report that prints the chain would say
+    // it twice.
     #[error("{}: {reason}", path.display())]
     Calibration {
         /// The file.
         path: std::path::PathBuf,
         /// What is wrong.
-        reason: String,
+        reason: CalibrationProblem,
     },
     /// Bad intrinsics or mounting, or geometry inputs that do not fit.
     #[error(transparent)]

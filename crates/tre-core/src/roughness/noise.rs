@@ -112,26 +112,28 @@ pub enum SensorNoise {
 
 impl SensorNoise {
     /// Explicit coefficients `[a, b, c]` (σ_z = a + b·z + c·z² mm), checked: finite, with
-    /// σ_z ≥ 0 for every z ≥ 0 (so `c ≥ 0`, and `b ≥ 0` when `c = 0`). For why not, a message
-    /// naming the field.
+    /// σ_z ≥ 0 for every z ≥ 0 (so `c ≥ 0`, and `b ≥ 0` when `c = 0`). For why not, an error
+    /// whose message names the field.
     ///
     /// ```
-    /// use tre_core::roughness::noise::SensorNoise;
+    /// use tre_core::roughness::noise::{CoefficientsProblem, SensorNoise};
     /// let kinect = SensorNoise::coefficients([1.504, -1.52, 1.9]).unwrap();
     /// assert!((kinect.sigma_z_m(4.0) - 0.025_824).abs() < 1e-9);
-    /// assert!(SensorNoise::coefficients([1.0, 0.0, -1.0]).unwrap_err().contains("sigma_mm"));
+    /// let e = SensorNoise::coefficients([1.0, 0.0, -1.0]).unwrap_err();
+    /// assert_eq!(e.problem, CoefficientsProblem::Negative);
+    /// assert!(e.to_string().contains("sigma_mm"));
     /// ```
-    pub fn coefficients(sigma_mm: [f64; 3]) -> Result<Self, String> {
+    pub fn coefficients(sigma_mm: [f64; 3]) -> Result<Self, CoefficientsError> {
         let [a, b, c] = sigma_mm;
-        let bad = |why: &str| Err(format!("sensor.sigma_mm {sigma_mm:?}: {why}"));
+        let bad = |problem| Err(CoefficientsError { sigma_mm, problem });
         if !sigma_mm.iter().all(|v| v.is_finite()) {
-            return bad("all three coefficients must be finite numbers");
+            return bad(CoefficientsProblem::NotFinite);
         }
         if a < 0.0 || c < 0.0 || (c == 0.0 && b < 0.0) {
-            return bad("σ_z = a + b·z + c·z² mm must stay ≥ 0 for z ≥ 0 (a ≥ 0, c ≥ 0)");
+            return bad(CoefficientsProblem::Negative);
         }
         if c > 0.0 && b < 0.0 && a - b * b / (4.0 * c) < 0.0 {
-            return bad("σ_z = a + b·z + c·z² mm dips below 0 at some z > 0");
+            return bad(CoefficientsProblem::DipsBelowZero);
         }
         Ok(Self::Coefficients { sigma_mm })
     }
@@ -155,6 +157,31 @@ impl SensorNoise {
     }
 }
 
+/// Coefficients `[a, b, c]` that make no noise model ([`SensorNoise::coefficients`]); the
+/// message names the field, `sensor.sigma_mm`.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("sensor.sigma_mm {sigma_mm:?}: {problem}")]
+pub struct CoefficientsError {
+    /// The coefficients given.
+    pub sigma_mm: [f64; 3],
+    /// What is wrong with them.
+    pub problem: CoefficientsProblem,
+}
+
+/// What is wrong with noise coefficients `[a, b, c]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum CoefficientsProblem {
+    /// A coefficient that is NaN or infinite.
+    #[error("all three coefficients must be finite numbers")]
+    NotFinite,
+    /// `a < 0` or `c < 0` (or `b < 0` with `c = 0`): σ_z falls below 0 as z grows.
+    #[error("σ_z = a + b·z + c·z² mm must stay ≥ 0 for z ≥ 0 (a ≥ 0, c ≥ 0)")]
+    Negative,
+    /// A parabola whose minimum, at some z > 0, is below 0.
+    #[error("σ_z = a + b·z + c·z² mm dips below 0 at some z > 0")]
+    DipsBelowZero,
+}
+
 impl FromStr for SensorNoise {
     type Err = String;
 
@@ -163,7 +190,7 @@ impl FromStr for SensorNoise {
         if s.contains(',') {
             let v: Result<Vec<f64>, _> = s.split(',').map(|c| c.trim().parse::<f64>()).collect();
             return match v.as_deref() {
-                Ok(&[a, b, c]) => Self::coefficients([a, b, c]),
+                Ok(&[a, b, c]) => Self::coefficients([a, b, c]).map_err(|e| e.to_string()),
                 _ => Err(format!(
                     "sensor {s:?}: coefficients are three numbers a,b,c (mm)"
                 )),
