@@ -3,6 +3,7 @@
 
 use std::time::Duration;
 
+use super::error::{ConfigProblem, UrlProblem};
 use super::ClientError;
 use tre_core::kinds::{Mode, NormalsMethod, Traversability};
 use tre_core::roughness::noise::SensorNoise;
@@ -180,37 +181,31 @@ pub struct Endpoints {
 impl ClientConfig {
     /// Checks every setting; returns the URLs to use.
     pub fn validate(&self) -> Result<Endpoints, ClientError> {
-        let bad = |field, reason: String| Err(ClientError::BadConfig { field, reason });
+        let bad = |field, reason| Err(ClientError::BadConfig { field, reason });
         if let Rate::Fixed(fps) = self.rate {
             if !(fps.is_finite() && fps > 0.0) {
-                return bad(
-                    "rate",
-                    format!("frames per second must be positive, got {fps}"),
-                );
+                return bad("rate", ConfigProblem::Rate(fps));
             }
         }
         if let Err(reason) = Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
         {
-            return bad("traversability", reason);
+            return bad("traversability", ConfigProblem::Traversability(reason));
         }
         let b = &self.reconnect;
         if b.initial.is_zero() || b.max < b.initial {
             return bad(
                 "reconnect",
-                format!(
-                    "need 0 < initial ≤ max, got {:?} and {:?}",
-                    b.initial, b.max
-                ),
+                ConfigProblem::BackoffRange {
+                    initial: b.initial,
+                    max: b.max,
+                },
             );
         }
         if !(b.factor.is_finite() && b.factor >= 1.0) {
-            return bad("reconnect.factor", format!("must be ≥ 1, got {}", b.factor));
+            return bad("reconnect.factor", ConfigProblem::BackoffFactor(b.factor));
         }
         if b.give_up_after == Some(0) {
-            return bad(
-                "reconnect.give_up_after",
-                "must be ≥ 1 (None: never)".into(),
-            );
+            return bad("reconnect.give_up_after", ConfigProblem::NoAttempts);
         }
         for (field, d) in [
             ("frame_timeout", self.frame_timeout),
@@ -218,22 +213,19 @@ impl ClientConfig {
             ("silence_timeout", self.silence_timeout),
         ] {
             if d.is_zero() {
-                return bad(field, "must be positive".into());
+                return bad(field, ConfigProblem::ZeroDuration);
             }
         }
         if self.max_pending == 0 || self.event_capacity == 0 {
-            return bad("max_pending / event_capacity", "must be ≥ 1".into());
+            return bad("max_pending / event_capacity", ConfigProblem::ZeroCount);
         }
         if let Some(m) = self.preview_max_m.filter(|m| !(m.is_finite() && *m > 0.0)) {
-            return bad("preview_max_m", format!("must be positive, got {m}"));
+            return bad("preview_max_m", ConfigProblem::NotPositive(m));
         }
         if let Some(c) = &self.camera {
-            c.intrinsics()
-                .and_then(|_| c.mounting())
-                .map_err(|e| ClientError::BadConfig {
-                    field: "camera",
-                    reason: e.to_string(),
-                })?;
+            if let Err(e) = c.intrinsics().and_then(|_| c.mounting()) {
+                return bad("camera", ConfigProblem::Camera(e));
+            }
         }
         endpoints(&self.server)
     }
@@ -252,9 +244,9 @@ impl ClientConfig {
 /// assert_eq!(e.readyz, "https://tre.example/readyz");
 /// ```
 pub fn endpoints(server: &str) -> Result<Endpoints, ClientError> {
-    let bad = |reason: &str| ClientError::BadUrl {
+    let bad = |reason| ClientError::BadUrl {
         url: server.to_owned(),
-        reason: reason.to_owned(),
+        reason,
     };
     let s = server.trim();
     let (scheme, rest) = match s.split_once("://") {
@@ -264,14 +256,14 @@ pub fn endpoints(server: &str) -> Result<Endpoints, ClientError> {
     let tls = match scheme.as_str() {
         "ws" | "http" => false,
         "wss" | "https" => true,
-        _ => return Err(bad("the scheme must be ws://, wss://, http:// or https://")),
+        _ => return Err(bad(UrlProblem::Scheme(scheme))),
     };
     if rest.contains(['?', '#', ' ']) {
-        return Err(bad("no query, fragment or spaces expected"));
+        return Err(bad(UrlProblem::QueryOrSpaces));
     }
     let (authority, path) = rest.find('/').map_or((rest, ""), |i| rest.split_at(i));
     if authority.is_empty() || authority.starts_with(':') {
-        return Err(bad("no host"));
+        return Err(bad(UrlProblem::NoHost));
     }
     let path = path.trim_end_matches('/');
     let base = path.strip_suffix("/v1/stream").unwrap_or(path);
@@ -311,12 +303,23 @@ mod tests {
             assert_eq!(e.readyz, "https://h:8443/readyz", "{s}");
             assert!(e.tls);
         }
-        for s in ["ftp://h", "ws://", "ws://h/?x=1", ":80"] {
-            assert!(
-                matches!(endpoints(s), Err(ClientError::BadUrl { .. })),
-                "{s}"
-            );
+        for (s, problem) in [
+            ("FTP://h", UrlProblem::Scheme("ftp".into())),
+            ("ws://", UrlProblem::NoHost),
+            ("ws://h/?x=1", UrlProblem::QueryOrSpaces),
+            (":80", UrlProblem::NoHost),
+        ] {
+            match endpoints(s) {
+                Err(ClientError::BadUrl { url, reason }) => {
+                    assert_eq!((url.as_str(), reason), (s, problem));
+                }
+                other => panic!("{s}: {other:?}"),
+            }
         }
+        assert_eq!(
+            endpoints("ftp://h").unwrap_err().to_string(),
+            "server address \"ftp://h\": the scheme must be ws://, wss://, http:// or https://"
+        );
     }
 
     #[test]

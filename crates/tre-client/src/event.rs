@@ -1,11 +1,15 @@
 //! What goes into a stream session ([`Frame`]) and what comes out of it ([`Event`]), in
 //! domain types: maps as [`Grid`]s in metres, times as [`Duration`]s.
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use image::RgbImage;
+use tokio_tungstenite::tungstenite;
 
 use super::config::Format;
+use super::error::Chain;
+use super::ClientError;
 use tre_core::geometry::Grid;
 use tre_io::CameraFile;
 use tre_proto::ErrorCode;
@@ -144,7 +148,10 @@ pub struct ServerInfo {
 
 /// Something that happened in a session. Every frame sent gets exactly one of `Result`,
 /// `Dropped`, `Error` (with its sequence) or `Lost`.
-#[derive(Debug, Clone, PartialEq)]
+///
+/// Events compare field by field; the errors of `Disconnected` and `GaveUp` are equal when they
+/// are the same error (an event and its clones), as errors have no equality of their own.
+#[derive(Debug, Clone)]
 pub enum Event {
     /// A frame's roughness.
     Result(Box<FrameResult>),
@@ -175,7 +182,7 @@ pub enum Event {
     /// The connection dropped; the session is reconnecting.
     Disconnected {
         /// What ended it.
-        reason: String,
+        reason: DisconnectReason,
     },
     /// A new connection is up and the Hello was accepted again.
     Reconnected {
@@ -189,9 +196,101 @@ pub enum Event {
     /// Reconnecting failed as often as allowed, or a new connection was refused; the session
     /// has ended and this is its last event.
     GaveUp {
-        /// What failed last.
-        reason: String,
+        /// What failed last: [`ClientError::GaveUp`] with the last attempt's error, or the
+        /// refusal that retrying will not fix.
+        reason: Arc<ClientError>,
     },
+}
+
+/// Why a connection dropped ([`Event::Disconnected`]). Reasons compare by case and value; the
+/// socket's errors are equal when they are the same error (a reason and its clones).
+// The cause is in the message, not a `source`: a report that prints the chain would say it
+// twice. The errors are shared (`Arc`) so that the event stays `Clone`.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum DisconnectReason {
+    /// Writing a frame to the socket failed.
+    #[error("sending a frame: {}", Chain(.0))]
+    Send(Arc<tungstenite::Error>),
+    /// Reading from the socket failed.
+    #[error("{}", Chain(.0))]
+    Read(Arc<tungstenite::Error>),
+    /// The server closed the stream, with its close code and reason if it gave them.
+    #[error("the server closed the stream{}", .0.as_ref().map_or_else(String::new, |c| format!(" ({} {})", u16::from(c.code), c.reason)))]
+    ServerClosed(Option<tungstenite::protocol::CloseFrame>),
+    /// Nothing was heard from the server for
+    /// [`ClientConfig::silence_timeout`](super::ClientConfig::silence_timeout).
+    #[error("nothing heard from the server for {} s", .0.as_secs_f64())]
+    Silence(Duration),
+    /// The connection ended without a close.
+    #[error("the connection ended")]
+    Ended,
+}
+
+impl PartialEq for DisconnectReason {
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Self::Send(a), Self::Send(b)) | (Self::Read(a), Self::Read(b)) => Arc::ptr_eq(a, b),
+            (Self::ServerClosed(a), Self::ServerClosed(b)) => a == b,
+            (Self::Silence(a), Self::Silence(b)) => a == b,
+            (Self::Ended, Self::Ended) => true,
+            _ => false,
+        }
+    }
+}
+
+impl PartialEq for Event {
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Self::Result(a), Self::Result(b)) => a == b,
+            (
+                Self::Dropped {
+                    sequence: a,
+                    dropped_total: x,
+                },
+                Self::Dropped {
+                    sequence: b,
+                    dropped_total: y,
+                },
+            ) => (a, x) == (b, y),
+            (
+                Self::Error {
+                    sequence: a,
+                    code: x,
+                    message: m,
+                },
+                Self::Error {
+                    sequence: b,
+                    code: y,
+                    message: n,
+                },
+            ) => (a, x, m) == (b, y, n),
+            (
+                Self::Lost {
+                    sequence: a,
+                    reason: x,
+                },
+                Self::Lost {
+                    sequence: b,
+                    reason: y,
+                },
+            ) => (a, x) == (b, y),
+            (Self::Disconnected { reason: a }, Self::Disconnected { reason: b }) => a == b,
+            (
+                Self::Reconnected {
+                    attempts: a,
+                    downtime: x,
+                    server: m,
+                },
+                Self::Reconnected {
+                    attempts: b,
+                    downtime: y,
+                    server: n,
+                },
+            ) => (a, x, m) == (b, y, n),
+            (Self::GaveUp { reason: a }, Self::GaveUp { reason: b }) => Arc::ptr_eq(a, b),
+            _ => false,
+        }
+    }
 }
 
 impl Event {
@@ -261,5 +360,32 @@ mod tests {
         assert_eq!(newer, ErrorKind::Unknown("teapot".into()));
         assert_eq!(newer.as_str(), "teapot");
         assert_eq!(ErrorKind::BadResult.to_string(), "bad_result");
+    }
+
+    #[test]
+    fn disconnections_say_why() {
+        let silence = DisconnectReason::Silence(Duration::from_millis(1500));
+        assert_eq!(
+            silence.to_string(),
+            "nothing heard from the server for 1.5 s"
+        );
+        let closed = DisconnectReason::ServerClosed(Some(tungstenite::protocol::CloseFrame {
+            code: tungstenite::protocol::frame::coding::CloseCode::Away,
+            reason: "shutting down".into(),
+        }));
+        assert_eq!(
+            closed.to_string(),
+            "the server closed the stream (1001 shutting down)"
+        );
+        assert_eq!(
+            DisconnectReason::ServerClosed(None).to_string(),
+            "the server closed the stream"
+        );
+        let io = std::io::Error::new(std::io::ErrorKind::BrokenPipe, "broken pipe");
+        let sent = DisconnectReason::Send(Arc::new(tungstenite::Error::Io(io)));
+        assert_eq!(sent.to_string(), "sending a frame: IO error: broken pipe");
+        let event = Event::Disconnected { reason: sent };
+        assert_eq!(event.clone(), event);
+        assert_ne!(event, Event::Disconnected { reason: silence });
     }
 }

@@ -6,9 +6,15 @@
 //! folder, or from a video file or camera through `ffmpeg`; [`recorder`] streams a source and
 //! writes every answer to disk (`tre client`).
 //!
+//! Failures are [`ClientError`]s, each with its cause typed (the underlying error, or a case of
+//! a small enum such as [`UrlProblem`] or [`ResultProblem`]) and told in its message, so that
+//! one line says it all; [`ClientError::is_retryable`] tells a failure worth another attempt
+//! from one that will not change. A dropped connection is an [`Event::Disconnected`] with its
+//! [`DisconnectReason`]; a session that ends for good says why with [`Event::GaveUp`].
+//!
 //! ```no_run
 //! # async fn demo() -> Result<(), tre_client::ClientError> {
-//! use tre_client::{ClientConfig, Event, Frame, Rate, Session};
+//! use tre_client::{ClientConfig, ClientError, Event, Frame, Rate, Session};
 //! let cfg = ClientConfig {
 //!     server: "ws://10.0.0.2:8080/v1/stream".into(),
 //!     rate: Rate::Fixed(10.0),
@@ -27,6 +33,15 @@
 //!     match event {
 //!         Event::Result(r) => println!("frame {}: {} ms", r.sequence, r.latency.as_millis()),
 //!         Event::Dropped { sequence, .. } => println!("frame {sequence}: skipped by the server"),
+//!         Event::Disconnected { reason } => eprintln!("disconnected ({reason}); reconnecting"),
+//!         Event::GaveUp { reason } => {
+//!             // The session has ended: reconnecting failed as often as allowed, or the server
+//!             // refused it for good.
+//!             eprintln!("gave up: {reason}");
+//!             if let ClientError::GaveUp { last, .. } = &*reason {
+//!                 eprintln!("worth retrying later: {}", last.is_retryable());
+//!             }
+//!         }
 //!         other => println!("{other:?}"),
 //!     }
 //! }
@@ -45,6 +60,11 @@ pub mod source;
 pub mod tls;
 
 pub use config::{endpoints, Backoff, ClientConfig, Endpoints, Format, Rate};
-pub use error::ClientError;
-pub use event::{ErrorKind, Event, Frame, FrameResult, LostReason, Roughness, ServerInfo};
+pub use error::{
+    ClientError, ConfigProblem, ConnectProblem, MapProblem, ProtocolProblem, RejectProblem,
+    ResultProblem, ServerSaid, UpgradeAnswer, UrlProblem,
+};
+pub use event::{
+    DisconnectReason, ErrorKind, Event, Frame, FrameResult, LostReason, Roughness, ServerInfo,
+};
 pub use session::{unix_us, Events, FrameSender, Session};

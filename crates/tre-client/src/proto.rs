@@ -8,6 +8,7 @@ use image::{DynamicImage, ImageFormat};
 use prost::Message;
 
 use super::config::{ClientConfig, Format};
+use super::error::{MapProblem, ProtocolProblem, ResultProblem};
 use super::event::{ErrorKind, Event, Frame, FrameResult, Roughness, ServerInfo};
 use super::session::Stamp;
 use super::ClientError;
@@ -71,32 +72,44 @@ impl From<&ClientConfig> for pb::Hello {
     }
 }
 
-/// The three-state map from its bytes (0 unknown, 1 traversable, 2 hazard; none: `None`).
-fn decode_traversal(
+/// A byte map (`traversable`, `traversal`) as a grid of `cell`s of its bytes; none: `None`.
+fn decode_bytes<T>(
+    map: &'static str,
     bytes: &[u8],
     (w, h): (usize, usize),
-) -> Result<Option<Grid<Traversal>>, String> {
+    cell: impl Fn(u8) -> Result<T, ResultProblem>,
+) -> Result<Option<Grid<T>>, ResultProblem> {
     if bytes.is_empty() {
         return Ok(None);
     }
     if bytes.len() != w * h {
-        return Err(format!(
-            "traversal: {} bytes for {w}×{h} pixels",
-            bytes.len()
-        ));
+        return Err(ResultProblem::ByteCount {
+            map,
+            bytes: bytes.len(),
+            width: w,
+            height: h,
+        });
     }
-    let states = bytes
-        .iter()
-        .map(|&b| match b {
-            0 => Ok(Traversal::Unknown),
-            1 => Ok(Traversal::Traversable),
-            2 => Ok(Traversal::Hazard),
-            other => Err(format!("traversal: byte {other} is not 0, 1 or 2")),
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    Grid::from_vec(w, h, states)
+    let cells = bytes.iter().map(|&b| cell(b)).collect::<Result<_, _>>()?;
+    Grid::from_vec(w, h, cells)
         .map(Some)
-        .map_err(|e| format!("traversal: {e}"))
+        .map_err(|e| ResultProblem::Map {
+            map,
+            reason: MapProblem::Grid(e),
+        })
+}
+
+/// The three-state map from its bytes (0 unknown, 1 traversable, 2 hazard; none: `None`).
+fn decode_traversal(
+    bytes: &[u8],
+    size: (usize, usize),
+) -> Result<Option<Grid<Traversal>>, ResultProblem> {
+    decode_bytes("traversal", bytes, size, |b| match b {
+        0 => Ok(Traversal::Unknown),
+        1 => Ok(Traversal::Traversable),
+        2 => Ok(Traversal::Hazard),
+        other => Err(ResultProblem::TraversalByte(other)),
+    })
 }
 
 /// The encoded Hello for `cfg`.
@@ -140,6 +153,19 @@ pub(crate) enum Incoming {
     Ignored,
 }
 
+impl Incoming {
+    /// The message's name, as a protocol error tells it.
+    pub(crate) fn name(&self) -> &'static str {
+        match self {
+            Self::Ready(_) => "Ready",
+            Self::Result(_) => "Result",
+            Self::Event(Event::Dropped { .. }) => "Dropped",
+            Self::Event(_) => "Error",
+            Self::Ignored => "Map",
+        }
+    }
+}
+
 impl TryFrom<pb::ServerMessage> for Incoming {
     type Error = ClientError;
 
@@ -161,7 +187,7 @@ impl TryFrom<pb::ServerMessage> for Incoming {
                 message: e.message,
             }),
             Some(Msg::Map(_)) => Self::Ignored,
-            None => return Err(ClientError::Protocol("empty ServerMessage".into())),
+            None => return Err(ClientError::Protocol(ProtocolProblem::Empty)),
         })
     }
 }
@@ -169,7 +195,7 @@ impl TryFrom<pb::ServerMessage> for Incoming {
 /// Decodes one binary WebSocket message from the server.
 pub(crate) fn decode_server(bytes: &[u8]) -> Result<Incoming, ClientError> {
     let msg = pb::ServerMessage::decode(bytes)
-        .map_err(|e| ClientError::Protocol(format!("not a roughness.v1.ServerMessage: {e}")))?;
+        .map_err(|e| ClientError::Protocol(ProtocolProblem::Decode(e)))?;
     Incoming::try_from(msg)
 }
 
@@ -180,34 +206,34 @@ impl TryFrom<(WireResult, Stamp)> for FrameResult {
     /// to the end of the decoding.
     fn try_from((WireResult(r), sent): (WireResult, Stamp)) -> Result<Self, ClientError> {
         let sequence = r.sequence;
-        let bad = |reason: String| ClientError::BadResult { sequence, reason };
+        let bad = |reason| ClientError::BadResult { sequence, reason };
+        let in_map = |map| move |reason| bad(ResultProblem::Map { map, reason });
         let (w, h) = (r.width as usize, r.height as usize);
         if w == 0 || h == 0 {
-            return Err(bad(format!("width × height is {w}×{h}")));
+            return Err(bad(ResultProblem::ZeroSize {
+                width: w,
+                height: h,
+            }));
         }
         let format = pb::Format::try_from(r.format)
             .map(Format::from)
-            .map_err(|_| bad(format!("format: unknown value {}", r.format)))?;
-        let roughness = decode_map(&r.roughness, format, r.scale_m, (w, h)).map_err(bad)?;
-        let traversable = match r.traversable.len() {
-            0 => None,
-            n if n == w * h => Some(
-                Grid::from_vec(w, h, r.traversable.iter().map(|&t| t != 0).collect())
-                    .map_err(|e| bad(format!("traversable: {e}")))?,
-            ),
-            n => return Err(bad(format!("traversable: {n} bytes for {w}×{h} pixels"))),
-        };
+            .map_err(|_| bad(ResultProblem::UnknownFormat(r.format)))?;
+        let roughness =
+            decode_map(&r.roughness, format, r.scale_m, (w, h)).map_err(in_map("roughness"))?;
+        let traversable =
+            decode_bytes("traversable", &r.traversable, (w, h), |t| Ok(t != 0)).map_err(bad)?;
         let traversal = decode_traversal(&r.traversal, (w, h)).map_err(bad)?;
         let uncertainty_m = match r.uncertainty.len() {
             0 => None,
             _ => match decode_map(&r.uncertainty, Format::F32, r.scale_m, (w, h)) {
                 Ok(Roughness::Metres(m)) => Some(m),
                 Ok(Roughness::Colour(_)) => None,
-                Err(e) => return Err(bad(format!("uncertainty: {e}"))),
+                Err(e) => return Err(in_map("uncertainty")(e)),
             },
         };
-        let ms = |field: &str, ms: f64| {
-            Duration::try_from_secs_f64(ms / 1e3).map_err(|_| bad(format!("{field}: {ms} ms")))
+        let ms = |field, ms: f64| {
+            Duration::try_from_secs_f64(ms / 1e3)
+                .map_err(|_| bad(ResultProblem::Duration { field, ms }))
         };
         let timings = r
             .timings
@@ -240,32 +266,32 @@ impl TryFrom<(WireResult, Stamp)> for FrameResult {
     }
 }
 
-/// Decodes the map of a Result and checks its size.
+/// Decodes a map of a Result and checks its size.
 fn decode_map(
     bytes: &[u8],
     format: Format,
     scale_m: f64,
     (w, h): (usize, usize),
-) -> Result<Roughness, String> {
+) -> Result<Roughness, MapProblem> {
     let png = || {
         image::load_from_memory_with_format(bytes, ImageFormat::Png)
-            .map_err(|e| format!("roughness: not a readable PNG: {e}"))
+            .map_err(|e| MapProblem::Png(Box::new(e)))
     };
     let check = |(iw, ih): (u32, u32)| {
         if (iw as usize, ih as usize) == (w, h) {
             Ok(())
         } else {
-            Err(format!("roughness: a {iw}×{ih} image for a {w}×{h} frame"))
+            Err(MapProblem::SizeMismatch {
+                image: (iw, ih),
+                frame: (w, h),
+            })
         }
     };
     match format {
         Format::Png16 => {
             let img = png()?;
             if !matches!(img, DynamicImage::ImageLumaA16(_)) {
-                return Err(format!(
-                    "roughness: expected 16-bit grey + alpha, got {:?}",
-                    img.color()
-                ));
+                return Err(MapProblem::NotGreyAlpha16(img.color()));
             }
             check((img.width(), img.height()))?;
             let mut m = io::decode_roughness_png16(&img);
@@ -282,10 +308,11 @@ fn decode_map(
         }
         Format::F32 => {
             if bytes.len() != 4 * w * h {
-                return Err(format!(
-                    "roughness: {} bytes of float32 for {w}×{h} pixels",
-                    bytes.len()
-                ));
+                return Err(MapProblem::Float32Bytes {
+                    bytes: bytes.len(),
+                    width: w,
+                    height: h,
+                });
             }
             let data = bytes
                 .chunks_exact(4)
@@ -293,7 +320,7 @@ fn decode_map(
                 .collect();
             Grid::from_vec(w, h, data)
                 .map(Roughness::Metres)
-                .map_err(|e| e.to_string())
+                .map_err(MapProblem::Grid)
         }
     }
 }
@@ -347,15 +374,31 @@ mod tests {
         let e = FrameResult::try_from((wire(pb::Format::F32, vec![0; 8], (3, 2)), Stamp::now()))
             .unwrap_err();
         assert!(
-            matches!(&e, ClientError::BadResult { sequence: 7, reason } if reason.contains("3×2")),
+            matches!(&e, ClientError::BadResult { sequence: 7, reason } if reason.to_string().contains("3×2")),
             "{e}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "result for frame 7: roughness: 8 bytes of float32 for 3×2 pixels"
         );
         let e = FrameResult::try_from((
             wire(pb::Format::Png16, b"not a png".to_vec(), (3, 2)),
             Stamp::now(),
         ))
         .unwrap_err();
-        assert!(matches!(e, ClientError::BadResult { sequence: 7, .. }));
+        assert!(
+            matches!(
+                &e,
+                ClientError::BadResult {
+                    sequence: 7,
+                    reason: ResultProblem::Map {
+                        map: "roughness",
+                        reason: MapProblem::Png(_)
+                    }
+                }
+            ),
+            "{e}"
+        );
     }
 
     #[test]

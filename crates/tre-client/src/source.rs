@@ -6,9 +6,9 @@
 //! re-encoded on the robot.
 
 use std::ffi::OsStr;
-use std::io::{BufReader, Read};
+use std::io::{self, BufReader, Read};
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdout, Command, Stdio};
+use std::process::{Child, ChildStdout, Command, ExitStatus, Stdio};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::JoinHandle;
 
@@ -31,6 +31,83 @@ pub enum SourceSpec {
     /// A V4L2 camera (`/dev/videoN`) read by `ffmpeg`; the newest frame wins (frames the
     /// client has no time for are skipped), named `<device>_<index>`.
     Device(PathBuf),
+}
+
+/// What is wrong with a frame source's file or folder ([`ClientError::Source`]).
+// The cause is in the message, not a `source`: a report that prints the chain would say it
+// twice.
+#[derive(Debug, thiserror::Error)]
+pub enum SourceProblem {
+    /// It cannot be listed or read.
+    #[error("{0}")]
+    Io(io::Error),
+    /// A folder without frames.
+    #[error("no .png, .jpg or .jpeg files")]
+    NoImages,
+    /// A frame without its depth file.
+    #[error("no depth for frame {stem}: expected {stem}.png or {stem}.npy")]
+    NoDepth {
+        /// The frame's file stem.
+        stem: String,
+    },
+    /// A video path that is not a file.
+    #[error("no such video file")]
+    NoVideo,
+}
+
+/// What went wrong with `ffmpeg` ([`ClientError::Ffmpeg`]).
+// The cause is in the message, not a `source` (as [`SourceProblem`]).
+#[derive(Debug, thiserror::Error)]
+pub enum FfmpegProblem {
+    /// The process cannot be started.
+    #[error("cannot start ffmpeg: {0}")]
+    Start(io::Error),
+    /// The process came without one of its pipes (`stdout`, `stderr`).
+    #[error("no {0} pipe")]
+    NoPipe(&'static str),
+    /// A thread reading its pipes cannot be started.
+    #[error("cannot start a thread ({name}): {reason}")]
+    Thread {
+        /// The thread.
+        name: &'static str,
+        /// Why.
+        reason: io::Error,
+    },
+    /// It ended cleanly without a frame.
+    #[error("no frames decoded")]
+    NoFrames,
+    /// It failed; the end of what it wrote on stderr says why.
+    #[error("{status}: {}", .stderr_tail.trim())]
+    Exited {
+        /// Its exit status.
+        status: ExitStatus,
+        /// The last few kilobytes of its stderr.
+        stderr_tail: String,
+    },
+    /// Its exit status cannot be had.
+    #[error("waiting for it: {0}")]
+    Wait(io::Error),
+    /// Its output is not a stream of PNG images.
+    #[error("{0}")]
+    Stream(PngStreamError),
+}
+
+/// Why a stream of concatenated PNGs cannot be split ([`read_png`]).
+// The cause is in the message, not a `source` (as [`SourceProblem`]).
+#[derive(Debug, thiserror::Error)]
+pub enum PngStreamError {
+    /// Bytes that do not start with the PNG signature.
+    #[error("the stream is not a sequence of PNG images")]
+    NotPng,
+    /// The stream ended part way through an image.
+    #[error("the stream ended inside a PNG")]
+    Truncated,
+    /// An image larger than the limit (256 MiB).
+    #[error("a PNG larger than {MAX_PNG_BYTES} bytes")]
+    TooLarge,
+    /// Reading the stream failed.
+    #[error("{0}")]
+    Read(io::Error),
 }
 
 /// One frame from a source.
@@ -89,7 +166,7 @@ impl FolderSource {
         let mut images = list_images(frames)?;
         images.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
         if images.is_empty() {
-            return Err(source_err(frames, "no .png, .jpg or .jpeg files"));
+            return Err(source_err(frames, SourceProblem::NoImages));
         }
         let files = images
             .into_iter()
@@ -109,7 +186,7 @@ impl Iterator for FolderSource {
 
     fn next(&mut self) -> Option<Self::Item> {
         let (image, depth) = self.files.next()?;
-        let read = |p: &Path| std::fs::read(p).map_err(|e| source_err(p, e));
+        let read = |p: &Path| std::fs::read(p).map_err(|e| source_err(p, SourceProblem::Io(e)));
         Some((|| {
             Ok(SourceFrame {
                 name: stem(&image),
@@ -120,10 +197,10 @@ impl Iterator for FolderSource {
     }
 }
 
-fn source_err(path: &Path, reason: impl std::fmt::Display) -> ClientError {
+fn source_err(path: &Path, reason: SourceProblem) -> ClientError {
     ClientError::Source {
         path: path.to_owned(),
-        reason: reason.to_string(),
+        reason,
     }
 }
 
@@ -134,10 +211,11 @@ fn stem(path: &Path) -> String {
 
 /// The image files (by extension) directly in `dir`.
 fn list_images(dir: &Path) -> Result<Vec<PathBuf>, ClientError> {
-    let entries = std::fs::read_dir(dir).map_err(|e| source_err(dir, e))?;
+    let io_err = |e| source_err(dir, SourceProblem::Io(e));
+    let entries = std::fs::read_dir(dir).map_err(io_err)?;
     let mut out = Vec::new();
     for entry in entries {
-        let path = entry.map_err(|e| source_err(dir, e))?.path();
+        let path = entry.map_err(io_err)?.path();
         let ext = path.extension().and_then(OsStr::to_str).unwrap_or("");
         if path.is_file()
             && ["png", "jpg", "jpeg"]
@@ -157,12 +235,7 @@ fn depth_for(image: &Path, dir: &Path) -> Result<PathBuf, ClientError> {
         .iter()
         .map(|ext| dir.join(format!("{s}.{ext}")))
         .find(|p| p.is_file())
-        .ok_or_else(|| {
-            source_err(
-                dir,
-                format!("no depth for frame {s}: expected {s}.png or {s}.npy"),
-            )
-        })
+        .ok_or_else(|| source_err(dir, SourceProblem::NoDepth { stem: s.clone() }))
 }
 
 /// Frames decoded by an `ffmpeg` child process, read as a stream of PNGs from its stdout.
@@ -189,7 +262,7 @@ impl FfmpegSource {
     pub fn video(path: &Path) -> Result<Self, ClientError> {
         let input = path.display().to_string();
         if !path.is_file() {
-            return Err(source_err(path, "no such video file"));
+            return Err(source_err(path, SourceProblem::NoVideo));
         }
         Self::spawn(&input, stem(path), &[], path.as_os_str(), false)
     }
@@ -234,21 +307,15 @@ impl FfmpegSource {
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
-            .map_err(|e| ClientError::Ffmpeg {
-                input: input.to_owned(),
-                reason: format!("cannot start ffmpeg: {e}"),
-            })?;
-        let io_err = |what: &str| ClientError::Ffmpeg {
-            input: input.to_owned(),
-            reason: format!("no {what} pipe"),
-        };
-        let stdout = BufReader::new(child.stdout.take().ok_or_else(|| io_err("stdout"))?);
-        let stderr = child.stderr.take().ok_or_else(|| io_err("stderr"))?;
-        let stderr = spawn_named("tre-ffmpeg-stderr", move || tail(stderr, 4096))?;
+            .map_err(|e| failed(input, FfmpegProblem::Start(e)))?;
+        let no_pipe = |which| failed(input, FfmpegProblem::NoPipe(which));
+        let stdout = BufReader::new(child.stdout.take().ok_or_else(|| no_pipe("stdout"))?);
+        let stderr = child.stderr.take().ok_or_else(|| no_pipe("stderr"))?;
+        let stderr = spawn_named(input, "tre-ffmpeg-stderr", move || tail(stderr, 4096))?;
         let frames = if live {
             let slot = Arc::new(LatestSlot::default());
             let writer = slot.clone();
-            let reader = spawn_named("tre-ffmpeg-frames", move || writer.fill(stdout))?;
+            let reader = spawn_named(input, "tre-ffmpeg-frames", move || writer.fill(stdout))?;
             FfmpegFrames::Latest(slot, Some(reader))
         } else {
             FfmpegFrames::InOrder(stdout)
@@ -265,7 +332,7 @@ impl FfmpegSource {
     }
 
     /// The next PNG, `Ok(None)` at the end of the stream.
-    fn next_png(&mut self) -> Result<Option<Vec<u8>>, String> {
+    fn next_png(&mut self) -> Result<Option<Vec<u8>>, PngStreamError> {
         match &mut self.frames {
             FfmpegFrames::InOrder(r) => read_png(r),
             FfmpegFrames::Latest(slot, _) => slot.take(),
@@ -280,18 +347,16 @@ impl FfmpegSource {
             .take()
             .and_then(|h| h.join().ok())
             .unwrap_or_default();
-        let failed = |reason: String| {
-            Some(Err(ClientError::Ffmpeg {
-                input: self.input.clone(),
-                reason,
-            }))
+        let reason = match status {
+            Ok(s) if s.success() && self.index > 0 => return None,
+            Ok(s) if s.success() => FfmpegProblem::NoFrames,
+            Ok(status) => FfmpegProblem::Exited {
+                status,
+                stderr_tail: stderr,
+            },
+            Err(e) => FfmpegProblem::Wait(e),
         };
-        match status {
-            Ok(s) if s.success() && self.index > 0 => None,
-            Ok(s) if s.success() => failed("no frames decoded".into()),
-            Ok(s) => failed(format!("{s}: {}", stderr.trim())),
-            Err(e) => failed(e.to_string()),
-        }
+        Some(Err(failed(&self.input, reason)))
     }
 }
 
@@ -315,14 +380,11 @@ impl Iterator for FfmpegSource {
                 self.done = true;
                 self.finish()
             }
-            Err(reason) => {
+            Err(e) => {
                 self.done = true;
                 let _ = self.child.kill();
                 let _ = self.child.wait();
-                Some(Err(ClientError::Ffmpeg {
-                    input: self.input.clone(),
-                    reason,
-                }))
+                Some(Err(failed(&self.input, FfmpegProblem::Stream(e))))
             }
         }
     }
@@ -343,18 +405,24 @@ impl Drop for FfmpegSource {
     }
 }
 
-/// Starts a named thread.
+/// The error of `ffmpeg` on `input`.
+fn failed(input: &str, reason: FfmpegProblem) -> ClientError {
+    ClientError::Ffmpeg {
+        input: input.to_owned(),
+        reason,
+    }
+}
+
+/// Starts a named thread for `ffmpeg` on `input`.
 fn spawn_named<T: Send + 'static>(
-    name: &str,
+    input: &str,
+    name: &'static str,
     f: impl FnOnce() -> T + Send + 'static,
 ) -> Result<JoinHandle<T>, ClientError> {
     std::thread::Builder::new()
         .name(name.to_owned())
         .spawn(f)
-        .map_err(|e| ClientError::Ffmpeg {
-            input: name.to_owned(),
-            reason: format!("cannot start a thread: {e}"),
-        })
+        .map_err(|reason| failed(input, FfmpegProblem::Thread { name, reason }))
 }
 
 /// The last `max` bytes of what `r` gives until its end, as text.
@@ -384,8 +452,9 @@ struct LatestSlot {
 #[derive(Debug, Default)]
 struct SlotState {
     frame: Option<Vec<u8>>,
-    /// Set at the end of the stream: `Ok` for a clean end.
-    end: Option<Result<(), String>>,
+    /// Set at the end of the stream: `Ok` for a clean end. An error is handed out once, then
+    /// reads as a clean end.
+    end: Option<Result<(), PngStreamError>>,
     closed: bool,
 }
 
@@ -413,14 +482,14 @@ impl LatestSlot {
     }
 
     /// The newest frame, waiting for one; `Ok(None)` at the end.
-    fn take(&self) -> Result<Option<Vec<u8>>, String> {
+    fn take(&self) -> Result<Option<Vec<u8>>, PngStreamError> {
         let mut s = self.state.lock().unwrap_or_else(PoisonError::into_inner);
         loop {
             if let Some(f) = s.frame.take() {
                 return Ok(Some(f));
             }
-            if let Some(end) = &s.end {
-                return end.clone().map(|()| None);
+            if let Some(end) = s.end.as_mut() {
+                return std::mem::replace(end, Ok(())).map(|()| None);
             }
             s = self.changed.wait(s).unwrap_or_else(PoisonError::into_inner);
         }
@@ -441,30 +510,30 @@ const MAX_PNG_BYTES: usize = 256 << 20;
 
 /// Reads one PNG from a stream of concatenated PNGs (`ffmpeg -f image2pipe -vcodec png`):
 /// the signature, then chunks up to `IEND`. `Ok(None)` at a clean end of the stream.
-pub fn read_png(r: &mut impl Read) -> Result<Option<Vec<u8>>, String> {
+pub fn read_png(r: &mut impl Read) -> Result<Option<Vec<u8>>, PngStreamError> {
     let mut sig = [0u8; 8];
     let n = read_full(r, &mut sig)?;
     if n == 0 {
         return Ok(None);
     }
     if n < sig.len() || sig != PNG_SIGNATURE {
-        return Err("the stream is not a sequence of PNG images".into());
+        return Err(PngStreamError::NotPng);
     }
     let mut out = sig.to_vec();
     loop {
         let mut head = [0u8; 8];
         if read_full(r, &mut head)? < head.len() {
-            return Err("the stream ended inside a PNG".into());
+            return Err(PngStreamError::Truncated);
         }
         let len = u32::from_be_bytes([head[0], head[1], head[2], head[3]]) as usize;
         let start = out.len() + head.len();
         if start + len + 4 > MAX_PNG_BYTES {
-            return Err(format!("a PNG larger than {MAX_PNG_BYTES} bytes"));
+            return Err(PngStreamError::TooLarge);
         }
         out.extend_from_slice(&head);
         out.resize(start + len + 4, 0);
         if read_full(r, &mut out[start..])? < len + 4 {
-            return Err("the stream ended inside a PNG".into());
+            return Err(PngStreamError::Truncated);
         }
         if &head[4..] == b"IEND" {
             return Ok(Some(out));
@@ -473,14 +542,14 @@ pub fn read_png(r: &mut impl Read) -> Result<Option<Vec<u8>>, String> {
 }
 
 /// Fills `buf` unless the stream ends first; returns the bytes read.
-fn read_full(r: &mut impl Read, buf: &mut [u8]) -> Result<usize, String> {
+fn read_full(r: &mut impl Read, buf: &mut [u8]) -> Result<usize, PngStreamError> {
     let mut n = 0;
     while n < buf.len() {
         match r.read(&mut buf[n..]) {
             Ok(0) => break,
             Ok(k) => n += k,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e.to_string()),
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(PngStreamError::Read(e)),
         }
     }
     Ok(n)
@@ -524,9 +593,12 @@ mod tests {
         assert_eq!(read_png(&mut r).unwrap(), Some(b.clone()));
         assert_eq!(read_png(&mut r).unwrap(), None);
         let mut cut = &b[..b.len() - 3];
-        assert!(read_png(&mut cut).unwrap_err().contains("ended inside"));
+        assert!(read_png(&mut cut)
+            .unwrap_err()
+            .to_string()
+            .contains("ended inside"));
         let mut junk = &b"GIF89a not a png"[..];
-        assert!(read_png(&mut junk).is_err());
+        assert!(matches!(read_png(&mut junk), Err(PngStreamError::NotPng)));
     }
 
     #[test]
@@ -587,6 +659,21 @@ mod tests {
             assert_eq!(
                 find_executable("ffmpeg", Some(dir.path().as_os_str())),
                 Some(exe)
+            );
+        }
+        #[cfg(unix)]
+        {
+            use std::os::unix::process::ExitStatusExt;
+            let e = failed(
+                "run.mp4",
+                FfmpegProblem::Exited {
+                    status: ExitStatus::from_raw(1 << 8),
+                    stderr_tail: "run.mp4: Invalid data found\n".into(),
+                },
+            );
+            assert_eq!(
+                e.to_string(),
+                "ffmpeg on run.mp4: exit status: 1: run.mp4: Invalid data found"
             );
         }
         let msg = ClientError::FfmpegMissing {

@@ -45,8 +45,8 @@ pub(super) async fn drive(
         .tcp_nodelay(true)
         .resolve(&target.host, target.addr);
     if target.tls {
-        let tls =
-            tre_client::tls::client_config(cfg.ca_cert.as_deref()).map_err(LoadError::Config)?;
+        let tls = tre_client::tls::client_config(cfg.ca_cert.as_deref())
+            .map_err(|e| LoadError::Config(e.to_string()))?;
         builder = builder.use_preconfigured_tls(rustls::ClientConfig::clone(&tls));
     }
     let client = builder.build()?;

@@ -171,7 +171,8 @@ pub(super) async fn drive(
 ) -> Result<Report, LoadError> {
     let tls = match target.tls {
         true => Some(
-            tre_client::tls::client_config(cfg.ca_cert.as_deref()).map_err(LoadError::Config)?,
+            tre_client::tls::client_config(cfg.ca_cert.as_deref())
+                .map_err(|e| LoadError::Config(e.to_string()))?,
         ),
         false => None,
     };

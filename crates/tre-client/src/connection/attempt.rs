@@ -10,6 +10,9 @@ use futures_util::{SinkExt, StreamExt};
 use tokio_tungstenite::tungstenite::{self, Message};
 
 use super::{Shared, Ws};
+use crate::error::{
+    ConfigProblem, ConnectProblem, ProtocolProblem, RejectProblem, ServerSaid, UpgradeAnswer,
+};
 use crate::event::{Event, ServerInfo};
 use crate::proto::{self, Incoming};
 use crate::ClientError;
@@ -39,9 +42,9 @@ pub(super) async fn attempt(shared: Arc<Shared>) -> Result<(Ws, ServerInfo), Cli
     let (mut ws, _) = within(limit, "the WebSocket handshake", handshake)
         .await?
         .map_err(|e| handshake_error(url, e))?;
-    let connect = |e: tungstenite::Error| ClientError::Connect {
+    let connect = |e| ClientError::Connect {
         url: url.to_owned(),
-        reason: e.to_string(),
+        reason: ConnectProblem::WebSocket(e),
     };
     ws.send(Message::Binary(shared.hello.clone().into()))
         .await
@@ -66,10 +69,10 @@ async fn within<T>(
 
 /// The `Authorization: Bearer KEY` value of `key`, marked sensitive.
 pub(super) fn bearer(key: &str) -> Result<reqwest::header::HeaderValue, ClientError> {
-    let mut v = reqwest::header::HeaderValue::from_str(&format!("Bearer {key}")).map_err(|_| {
+    let mut v = reqwest::header::HeaderValue::from_str(&format!("Bearer {key}")).map_err(|e| {
         ClientError::BadConfig {
             field: "api_key",
-            reason: "not a valid header value".into(),
+            reason: ConfigProblem::HeaderValue(e),
         }
     })?;
     v.set_sensitive(true);
@@ -84,36 +87,21 @@ async fn check_ready(http: &reqwest::Client, url: &str) -> Result<(), ClientErro
         .await
         .map_err(|e| ClientError::Connect {
             url: url.to_owned(),
-            reason: error_chain(&e),
+            reason: ConnectProblem::Http(e),
         })?;
     match resp.status().as_u16() {
         200 | 404 => Ok(()),
-        status => {
+        _ => {
+            let status = resp.status();
+            // The server's own code and message say why (models loading, the queue full,
+            // `--max-connections` reached).
             let body = resp.bytes().await.unwrap_or_default();
             Err(ClientError::NotReady {
                 url: url.to_owned(),
-                status: with_server_error(format!("HTTP {status}"), &body),
+                status,
+                server: ServerSaid::from_body(&body),
             })
         }
-    }
-}
-
-/// `what`, followed by the server's own `code: message` when `body` is its JSON error (why a
-/// 503 came: models loading, the queue full, `--max-connections` reached).
-fn with_server_error(what: String, body: &[u8]) -> String {
-    let error = serde_json::from_slice::<serde_json::Value>(body)
-        .ok()
-        .and_then(|v| {
-            let e = v.get("error")?;
-            Some(format!(
-                "{}: {}",
-                e.get("code")?.as_str()?,
-                e.get("message")?.as_str()?
-            ))
-        });
-    match error {
-        Some(e) => format!("{what}, {e}"),
-        None => what,
     }
 }
 
@@ -122,7 +110,7 @@ async fn await_ready(ws: &mut Ws, url: &str) -> Result<ServerInfo, ClientError> 
     while let Some(msg) = ws.next().await {
         let msg = msg.map_err(|e| ClientError::Connect {
             url: url.to_owned(),
-            reason: e.to_string(),
+            reason: ConnectProblem::WebSocket(e),
         })?;
         match msg {
             Message::Binary(b) => {
@@ -131,9 +119,9 @@ async fn await_ready(ws: &mut Ws, url: &str) -> Result<ServerInfo, ClientError> 
                     Incoming::Event(Event::Error { code, message, .. }) => {
                         Err(ClientError::HelloRefused { code, message })
                     }
-                    other => Err(ClientError::Protocol(format!(
-                        "expected Ready after the Hello, got {other:?}"
-                    ))),
+                    other => Err(ClientError::Protocol(ProtocolProblem::ExpectedReady {
+                        got: other.name(),
+                    })),
                 };
             }
             Message::Close(_) => break,
@@ -142,48 +130,39 @@ async fn await_ready(ws: &mut Ws, url: &str) -> Result<ServerInfo, ClientError> 
     }
     Err(ClientError::Connect {
         url: url.to_owned(),
-        reason: "the connection closed before Ready".into(),
+        reason: ConnectProblem::ClosedBeforeReady,
     })
 }
 
 /// Handshake failures: HTTP 4xx (but 408 and 429) and bad URLs will not fix themselves.
 fn handshake_error(url: &str, e: tungstenite::Error) -> ClientError {
-    let rejected = |reason: String| ClientError::Rejected {
-        url: url.to_owned(),
-        reason,
-    };
-    match &e {
+    let url = url.to_owned();
+    match e {
         tungstenite::Error::Http(resp) => {
             let body = resp.body().as_deref().unwrap_or_default();
-            let reason = with_server_error(
-                format!("HTTP {} on the WebSocket upgrade", resp.status()),
-                body,
-            );
-            if resp.status().is_client_error() && ![408, 429].contains(&resp.status().as_u16()) {
-                rejected(reason)
+            let answer = UpgradeAnswer {
+                status: resp.status(),
+                server: ServerSaid::from_body(body),
+            };
+            if answer.status.is_client_error() && ![408, 429].contains(&answer.status.as_u16()) {
+                ClientError::Rejected {
+                    url,
+                    reason: RejectProblem::Upgrade(answer),
+                }
             } else {
                 ClientError::Connect {
-                    url: url.to_owned(),
-                    reason,
+                    url,
+                    reason: ConnectProblem::Upgrade(answer),
                 }
             }
         }
-        tungstenite::Error::Url(_) => rejected(e.to_string()),
-        _ => ClientError::Connect {
-            url: url.to_owned(),
-            reason: error_chain(&e),
+        tungstenite::Error::Url(e) => ClientError::Rejected {
+            url,
+            reason: RejectProblem::Url(e),
+        },
+        e => ClientError::Connect {
+            url,
+            reason: ConnectProblem::WebSocket(e),
         },
     }
-}
-
-/// An error and its sources on one line.
-fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut source = e.source();
-    while let Some(c) = source {
-        s.push_str(": ");
-        s.push_str(&c.to_string());
-        source = c.source();
-    }
-    s
 }

@@ -16,7 +16,8 @@ use tokio::sync::{mpsc, oneshot, watch};
 use tokio_tungstenite::tungstenite::{self, Message};
 
 use super::config::{ClientConfig, Endpoints};
-use super::event::{ErrorKind, Event, FrameResult, LostReason, ServerInfo};
+use super::error::ConfigProblem;
+use super::event::{DisconnectReason, ErrorKind, Event, FrameResult, LostReason, ServerInfo};
 use super::proto::{self, Incoming, WireResult};
 use super::session::Stamp;
 use super::ClientError;
@@ -65,7 +66,7 @@ enum Ended {
     /// The sender is gone and every frame has its answer.
     Finished,
     /// The connection dropped.
-    Dropped(String),
+    Dropped(DisconnectReason),
 }
 
 /// The state of the connection task.
@@ -88,16 +89,17 @@ impl Link {
         events: mpsc::Sender<Event>,
         state: watch::Sender<LinkState>,
     ) -> Result<Self, ClientError> {
-        let tls =
-            match endpoints.tls {
-                true => Some(super::tls::client_config(cfg.ca_cert.as_deref()).map_err(
-                    |reason| ClientError::BadConfig {
+        let tls = match endpoints.tls {
+            true => Some(
+                super::tls::client_config(cfg.ca_cert.as_deref()).map_err(|e| {
+                    ClientError::BadConfig {
                         field: "ca_cert",
-                        reason,
-                    },
-                )?),
-                false => None,
-            };
+                        reason: ConfigProblem::Tls(Box::new(e)),
+                    }
+                })?,
+            ),
+            false => None,
+        };
         let http = if cfg.wait_ready {
             // No idle connection is kept between checks: it would hold one of the server's
             // `--max-connections` places for the whole session, and on a server at its limit
@@ -115,7 +117,7 @@ impl Link {
             }
             let client = builder.build().map_err(|e| ClientError::BadConfig {
                 field: "wait_ready",
-                reason: format!("cannot make an HTTP client: {e}"),
+                reason: ConfigProblem::HttpClient(e),
             })?;
             Some(client)
         } else {
@@ -185,7 +187,7 @@ impl Link {
                 Err(e) => {
                     tracing::error!(error = %e, "stream session ended");
                     self.emit(Event::GaveUp {
-                        reason: e.to_string(),
+                        reason: Arc::new(e),
                     })
                     .await;
                     break;
@@ -209,7 +211,7 @@ impl Link {
                     if backoff.exhausted(failed) {
                         return Err(ClientError::GaveUp {
                             attempts: failed,
-                            last: e.to_string(),
+                            last: Box::new(e),
                         });
                     }
                     let wait = backoff.delay(failed);
@@ -273,7 +275,7 @@ impl Link {
                     writing = None;
                     sink = Some(idle);
                     if let Err(e) = written {
-                        return Ended::Dropped(format!("sending a frame: {e}"));
+                        return Ended::Dropped(DisconnectReason::Send(Arc::new(e)));
                     }
                 }
                 f = self.frames.recv(), if self.frames_open && writing.is_none() => match f {
@@ -285,7 +287,7 @@ impl Link {
                 },
                 () = sleep_until(expiry), if expiry.is_some() => self.expire().await,
                 () = sleep_until(Some(last_heard + silence)) => {
-                    return Ended::Dropped(format!("nothing heard from the server for {} s", silence.as_secs_f64()));
+                    return Ended::Dropped(DisconnectReason::Silence(silence));
                 }
             }
         }
@@ -296,14 +298,11 @@ impl Link {
         match m {
             Some(Ok(Message::Binary(b))) => self.on_message(&b).await,
             Some(Ok(Message::Close(c))) => {
-                let why = c.map_or_else(String::new, |c| {
-                    format!(" ({} {})", u16::from(c.code), c.reason)
-                });
-                return Some(Ended::Dropped(format!("the server closed the stream{why}")));
+                return Some(Ended::Dropped(DisconnectReason::ServerClosed(c)));
             }
             Some(Ok(_)) => {}
-            Some(Err(e)) => return Some(Ended::Dropped(e.to_string())),
-            None => return Some(Ended::Dropped("the connection ended".into())),
+            Some(Err(e)) => return Some(Ended::Dropped(DisconnectReason::Read(Arc::new(e)))),
+            None => return Some(Ended::Dropped(DisconnectReason::Ended)),
         }
         None
     }

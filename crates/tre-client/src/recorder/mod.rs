@@ -43,12 +43,13 @@ use std::fmt;
 use std::future::Future;
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
+use std::sync::Arc;
 use std::time::Duration;
 
 use tokio::sync::mpsc;
 
 use super::source::{FrameSource, SourceSpec};
-use super::{ClientConfig, ClientError, Session};
+use super::{ClientConfig, ClientError, DisconnectReason, Session};
 use send::{send_frames, start_reader};
 use sink::Sink;
 use stats::Stats;
@@ -87,7 +88,8 @@ impl Default for RecorderConfig {
 }
 
 /// What a recording tells the person running it; each displays as the line `tre client` prints.
-#[derive(Debug, Clone, PartialEq)]
+/// Notices compare as [`Event`](crate::Event)s do: a `GaveUp` equals its clones.
+#[derive(Debug, Clone)]
 pub enum Notice {
     /// The session is up.
     Connected {
@@ -103,7 +105,7 @@ pub enum Notice {
     /// The connection dropped; the session is reconnecting.
     Disconnected {
         /// What ended it.
-        reason: String,
+        reason: DisconnectReason,
     },
     /// A new connection is up.
     Reconnected {
@@ -115,7 +117,7 @@ pub enum Notice {
     /// Reconnecting failed for good; the recording ends.
     GaveUp {
         /// What failed last.
-        reason: String,
+        reason: Arc<ClientError>,
     },
     /// The recording's final counts.
     Finished(Progress),
@@ -137,6 +139,55 @@ pub enum Notice {
         /// Frames answered (each with its maps).
         maps: u64,
     },
+}
+
+impl PartialEq for Notice {
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (
+                Self::Connected {
+                    server: a,
+                    models: x,
+                },
+                Self::Connected {
+                    server: b,
+                    models: y,
+                },
+            ) => (a, x) == (b, y),
+            (Self::Progress(a), Self::Progress(b)) | (Self::Finished(a), Self::Finished(b)) => {
+                a == b
+            }
+            (Self::Stopping, Self::Stopping) => true,
+            (Self::Disconnected { reason: a }, Self::Disconnected { reason: b }) => a == b,
+            (
+                Self::Reconnected {
+                    attempts: a,
+                    downtime: x,
+                },
+                Self::Reconnected {
+                    attempts: b,
+                    downtime: y,
+                },
+            ) => (a, x) == (b, y),
+            (Self::GaveUp { reason: a }, Self::GaveUp { reason: b }) => Arc::ptr_eq(a, b),
+            (
+                Self::Answering {
+                    mode: a,
+                    assumed: x,
+                    gravity: m,
+                },
+                Self::Answering {
+                    mode: b,
+                    assumed: y,
+                    gravity: n,
+                },
+            ) => (a, x, m) == (b, y, n),
+            (Self::Written { out: a, maps: x }, Self::Written { out: b, maps: y }) => {
+                (a, x) == (b, y)
+            }
+            _ => false,
+        }
+    }
 }
 
 impl fmt::Display for Notice {
@@ -187,6 +238,9 @@ impl fmt::Display for Notice {
 }
 
 /// Why a recording failed.
+// A cause is either a `source` left out of the message (`Connect`, `Io`, `Spawn`), or in the
+// message and not a `source` (`Sending`, `EndedEarly`): never both, so a report that prints the
+// chain says each once.
 #[derive(Debug, thiserror::Error)]
 pub enum RecordError {
     /// The source cannot be opened or read, or the session failed.
@@ -229,12 +283,12 @@ pub enum RecordError {
     Writer(&'static str),
     /// The task sending frames failed.
     #[error("the sending task failed: {0}")]
-    Sending(String),
+    Sending(tokio::task::JoinError),
     /// The session gave up reconnecting.
     #[error("the stream ended early: {reason}")]
     EndedEarly {
         /// What failed last.
-        reason: String,
+        reason: Arc<ClientError>,
     },
     /// Frames went out but no result came back.
     #[error(
@@ -318,7 +372,7 @@ fn verdict(
         Ok(Ok(()) | Err(ClientError::Closed)) => {}
         Ok(Err(e)) => return Err(e.into()),
         Err(e) if e.is_cancelled() => {}
-        Err(e) => return Err(RecordError::Sending(e.to_string())),
+        Err(e) => return Err(RecordError::Sending(e)),
     }
     if let Some(reason) = &stats.gave_up {
         return Err(RecordError::EndedEarly {
@@ -363,6 +417,19 @@ mod tests {
             maps: 4,
         };
         assert_eq!(written.to_string(), "maps of 4 frames and frames.csv in o");
+        let gave_up = Notice::GaveUp {
+            reason: Arc::new(ClientError::Closed),
+        };
+        assert_eq!(gave_up.to_string(), "gave up: the stream session has ended");
+        assert_eq!(gave_up.clone(), gave_up);
+        let dropped = Notice::Disconnected {
+            reason: DisconnectReason::Ended,
+        };
+        assert_eq!(
+            dropped.to_string(),
+            "disconnected: the connection ended; reconnecting"
+        );
+        assert_ne!(dropped, Notice::Stopping);
         let none = Notice::Written {
             out: "o".into(),
             maps: 0,
@@ -395,8 +462,14 @@ mod tests {
         );
         stats.results = 1;
         assert!(verdict(&stats, Ok(Err(ClientError::Closed)), "h:1").is_ok());
-        stats.gave_up = Some("refused".into());
+        stats.gave_up = Some(Arc::new(ClientError::HelloRefused {
+            code: crate::ErrorKind::Server(tre_proto::ErrorCode::BadCamera),
+            message: "refused".into(),
+        }));
         let e = verdict(&stats, Ok(Ok(())), "h:1").unwrap_err();
-        assert_eq!(e.to_string(), "the stream ended early: refused");
+        assert_eq!(
+            e.to_string(),
+            "the stream ended early: the server refused the Hello: bad_camera: refused"
+        );
     }
 }

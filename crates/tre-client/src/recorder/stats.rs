@@ -66,7 +66,7 @@ pub(super) struct Stats {
     latency_us: Histogram<u64>,
     last: (Instant, u64),
     /// Why the session gave up, if it did.
-    pub gave_up: Option<String>,
+    pub gave_up: Option<std::sync::Arc<crate::ClientError>>,
 }
 
 impl Stats {
