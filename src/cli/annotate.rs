@@ -139,7 +139,7 @@ impl Annotate {
         io::write_npy_u32(&p("segments.npy"), &ann.segments)?;
         let title = format!("roughness, annotation spec v1: {}", file_name(&self.depth));
         let preview =
-            io::colormap::roughness_preview(&ann.roughness_m, self.preview_max_cm / 100.0, &title);
+            io::previews::roughness_preview(&ann.roughness_m, self.preview_max_cm / 100.0, &title);
         io::save(&p("preview.png"), &image::DynamicImage::ImageRgb8(preview))?;
         Ok(())
     }

@@ -49,6 +49,7 @@
 //! # }
 //! ```
 
+mod clock;
 mod config;
 mod connection;
 mod error;
@@ -59,6 +60,7 @@ mod session;
 pub mod source;
 pub mod tls;
 
+pub use clock::unix_us;
 pub use config::{endpoints, Backoff, ClientConfig, Endpoints, Format, Rate};
 pub use error::{
     ClientError, ConfigProblem, ConnectProblem, MapProblem, ProtocolProblem, RejectProblem,
@@ -67,4 +69,4 @@ pub use error::{
 pub use event::{
     DisconnectReason, ErrorKind, Event, Frame, FrameResult, LostReason, Roughness, ServerInfo,
 };
-pub use session::{unix_us, Events, FrameSender, Session};
+pub use session::{Events, FrameSender, Session};

@@ -7,10 +7,10 @@ use std::time::Duration;
 use image::{DynamicImage, ImageFormat};
 use prost::Message;
 
+use super::clock::Stamp;
 use super::config::{ClientConfig, Format};
 use super::error::{MapProblem, ProtocolProblem, ResultProblem};
 use super::event::{ErrorKind, Event, Frame, FrameResult, Roughness, ServerInfo};
-use super::session::Stamp;
 use super::ClientError;
 use tre_core::geometry::Grid;
 use tre_core::roughness::noise::SensorNoise;

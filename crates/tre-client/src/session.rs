@@ -3,11 +3,12 @@
 
 use std::pin::Pin;
 use std::task::{Context, Poll};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 use tokio::sync::{mpsc, oneshot, watch};
 use tokio::time::{Interval, MissedTickBehavior};
 
+use super::clock::Stamp;
 use super::config::{ClientConfig, Rate};
 use super::connection::{Link, LinkState, Outgoing};
 use super::event::{Event, Frame, ServerInfo};
@@ -195,29 +196,4 @@ impl futures_util::Stream for Events {
     fn poll_next(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Event>> {
         self.rx.poll_recv(cx)
     }
-}
-
-/// One moment on both clocks: the monotonic one for durations, the wall clock for logs.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Stamp {
-    /// Monotonic.
-    pub at: Instant,
-    /// Wall clock, microseconds since the Unix epoch.
-    pub unix_us: i64,
-}
-
-impl Stamp {
-    /// Now.
-    pub fn now() -> Self {
-        Self {
-            at: Instant::now(),
-            unix_us: unix_us(SystemTime::now()),
-        }
-    }
-}
-
-/// Microseconds since the Unix epoch.
-pub fn unix_us(t: SystemTime) -> i64 {
-    t.duration_since(UNIX_EPOCH)
-        .map_or(0, |d| i64::try_from(d.as_micros()).unwrap_or(i64::MAX))
 }

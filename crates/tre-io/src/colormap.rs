@@ -1,5 +1,5 @@
-//! Colour-mapped roughness previews for people: the Turbo colour map and a legend strip with
-//! the scale written on it (a built-in 3×5 pixel font, so no font files are needed).
+//! Colour maps for people: Turbo for roughness and depth, a colour per label, the three
+//! states' colours. The titled previews built from them are in [`crate::previews`].
 
 use image::{Rgb, RgbImage};
 
@@ -44,36 +44,6 @@ pub fn turbo(t: f64) -> [u8; 3] {
 
 /// Colour of pixels without data.
 const NO_DATA: [u8; 3] = [40, 40, 40];
-
-/// Renders roughness (metres, NaN: none) for people: a title strip (`title`, e.g. the mode
-/// and the frame), the map in Turbo over `[0, max_m]` (the sheets' colours: no data grey),
-/// and the colour bar with ticks in centimetres below.
-pub fn roughness_preview(roughness_m: &Grid<f64>, max_m: f64, title: &str) -> RgbImage {
-    let max_cm = 100.0 * max_m;
-    let ticks: Vec<f64> = (0..=4).map(|i| max_cm * f64::from(i) / 4.0).collect();
-    let map = crate::sheet::roughness_panel(roughness_m, max_m);
-    let legend = crate::sheet::colour_bar_legend(map.width(), max_m, &ticks);
-    titled(title, &map, &legend)
-}
-
-/// `image` under a title strip and over `legend`, on the sheets' background.
-fn titled(title: &str, image: &RgbImage, legend: &RgbImage) -> RgbImage {
-    use crate::sheet::{draw_text, text_size, BACKGROUND, INK};
-    const SCALE: u32 = 2;
-    const PAD: u32 = 8;
-    let (tw, th) = text_size(title, SCALE);
-    let width = image.width().max(legend.width()).max(tw + 2 * PAD);
-    let title_h = th + 2 * PAD;
-    let height = title_h + image.height() + legend.height();
-    let mut out = RgbImage::from_pixel(width, height, BACKGROUND);
-    draw_text(&mut out, PAD, PAD, title, SCALE, INK);
-    let x = (width - image.width()) / 2;
-    image::imageops::replace(&mut out, image, i64::from(x), i64::from(title_h));
-    let lx = (width - legend.width()) / 2;
-    let ly = title_h + image.height();
-    image::imageops::replace(&mut out, legend, i64::from(lx), i64::from(ly));
-    out
-}
 
 /// Turbo colours of a float map over `[lo, hi]` (non-finite: no-data grey).
 pub fn colourise(map: &Grid<f64>, lo: f64, hi: f64) -> RgbImage {
@@ -129,22 +99,4 @@ pub fn traversal_rgb(t: tre_core::roughness::traversal::Traversal) -> [u8; 3] {
         Traversal::Hazard => [214, 39, 40],
         Traversal::Unknown => [150, 130, 190],
     }
-}
-
-/// Colour preview of a three-state map ([`traversal_rgb`]) for people: `title` above, the
-/// legend (traversable, hazard, unknown) below.
-pub fn traversal_preview(
-    map: &Grid<tre_core::roughness::traversal::Traversal>,
-    title: &str,
-) -> RgbImage {
-    use tre_core::roughness::traversal::Traversal;
-    let image = RgbImage::from_fn(map.width() as u32, map.height() as u32, |x, y| {
-        image::Rgb(traversal_rgb(map[(x as usize, y as usize)]))
-    });
-    let legend = crate::sheet::categorical_legend(&[
-        ("traversable", Rgb(traversal_rgb(Traversal::Traversable))),
-        ("hazard", Rgb(traversal_rgb(Traversal::Hazard))),
-        ("unknown", Rgb(traversal_rgb(Traversal::Unknown))),
-    ]);
-    titled(title, &image, &legend)
 }

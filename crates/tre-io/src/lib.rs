@@ -15,6 +15,7 @@ pub mod maps;
 pub mod npy;
 pub mod outputs;
 pub mod paths;
+pub mod previews;
 pub mod sequence;
 pub mod sheet;
 pub mod units;

@@ -74,7 +74,7 @@ pub fn write_roughness(
         })?;
     }
     write_map(out, file, roughness_m)?;
-    let preview = crate::colormap::roughness_preview(roughness_m, preview_max_m, title);
+    let preview = crate::previews::roughness_preview(roughness_m, preview_max_m, title);
     crate::save(&preview_path(out), &DynamicImage::ImageRgb8(preview))
 }
 
@@ -109,7 +109,7 @@ pub fn write_sensor_maps(
         &beside(out, "traversal", "png"),
         &DynamicImage::ImageLuma8(grey),
     )?;
-    let preview = crate::colormap::traversal_preview(maps.traversal, title);
+    let preview = crate::previews::traversal_preview(maps.traversal, title);
     crate::save(
         &beside(out, "traversal_preview", "png"),
         &DynamicImage::ImageRgb8(preview),

@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::noise;
-use super::terrain::{
+use super::surface::{
     boulder, joint_distance, paver, paver_joint_distance, plank_m, tile_size_m, Category, Region,
 };
 use tre_core::geometry::Vec3;

@@ -334,7 +334,8 @@ fn dda_step(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::terrain::{Category, Terrain};
+    use crate::surface::Category;
+    use crate::terrain::Terrain;
 
     #[test]
     fn rays_hit_the_bilinear_surface_exactly() {

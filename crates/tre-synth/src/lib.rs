@@ -12,6 +12,7 @@ pub mod noise;
 pub mod objects;
 pub mod render;
 pub mod sensor;
+pub mod surface;
 pub mod terrain;
 
 pub use appearance::{Conditions, Lighting, Weather};
@@ -20,4 +21,5 @@ pub use dataset::{generate, SynthConfig};
 pub use heightgrid::HeightGrid;
 pub use render::{render, RenderedFrame, Scene, View};
 pub use sensor::{simulate, SensorInput, SensorModel};
-pub use terrain::{Category, Terrain};
+pub use surface::Category;
+pub use terrain::Terrain;

@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::terrain::{surface_height, Category, Region};
+use super::surface::{surface_height, Category, Region};
 use tre_core::geometry::Vec3;
 
 /// The footprint of an object on the ground plane (metres, world x and y).

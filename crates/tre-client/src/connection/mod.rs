@@ -15,11 +15,11 @@ use futures_util::{SinkExt, StreamExt};
 use tokio::sync::{mpsc, oneshot, watch};
 use tokio_tungstenite::tungstenite::{self, Message};
 
+use super::clock::Stamp;
 use super::config::{ClientConfig, Endpoints};
 use super::error::ConfigProblem;
 use super::event::{DisconnectReason, ErrorKind, Event, FrameResult, LostReason, ServerInfo};
 use super::proto::{self, Incoming, WireResult};
-use super::session::Stamp;
 use super::ClientError;
 use attempt::{attempt, bearer};
 

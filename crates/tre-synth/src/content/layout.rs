@@ -2,7 +2,8 @@
 //! robot's, and objects placed in it clear of the robot and of each other.
 
 use crate::objects::{Object, Profile, Shape};
-use crate::terrain::{Category, Region, Rng, Terrain};
+use crate::surface::{Category, Region};
+use crate::terrain::{Rng, Terrain};
 use tre_core::geometry::hash::splitmix64;
 
 /// Distance kept free around the robot (its own footprint), metres.

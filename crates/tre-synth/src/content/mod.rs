@@ -12,7 +12,8 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
-use super::terrain::{Category, Terrain};
+use super::surface::Category;
+use super::terrain::Terrain;
 use tre_core::geometry::hash::splitmix64;
 
 pub use room::indoor;

@@ -5,7 +5,8 @@ use std::f64::consts::{FRAC_PI_2, PI};
 
 use super::layout::{Layout, FAR_M};
 use crate::objects::{Profile, Shape};
-use crate::terrain::{Category, Rng, Terrain};
+use crate::surface::Category;
+use crate::terrain::{Rng, Terrain};
 use tre_core::geometry::hash::splitmix64;
 
 /// The room: back wall `depth` ahead (thickness, height), a doorway in it, a side wall.

@@ -4,7 +4,8 @@ use std::f64::consts::FRAC_PI_2;
 
 use super::layout::{Layout, FAR_M, ROBOT_CLEAR_M};
 use crate::objects::{Profile, Shape};
-use crate::terrain::{Category, Terrain};
+use crate::surface::Category;
+use crate::terrain::Terrain;
 use tre_core::geometry::hash::splitmix64;
 
 /// The street edge: curb line `curb_b` ahead, the robot on the sidewalk or on the road.

@@ -10,7 +10,7 @@ use crate::appearance::{Conditions, Lighting, Weather};
 use crate::content::Content;
 use crate::imaging::Imaging;
 use crate::sensor::SensorModel;
-use crate::terrain::Category;
+use crate::surface::Category;
 use tre_core::roughness::noise::SensorPreset;
 use tre_io::IoError;
 
