@@ -1,6 +1,6 @@
 //! Terrain roughness estimation (TRENet): geometry, roughness annotation, models and service.
 //!
-//! This crate is the `tre` command line ([`cli`]) and a facade over the workspace's layers, each
+//! This crate is a facade over the workspace's layers (the `tre` command line is its binary), each
 //! a crate of its own so that the compiler enforces the dependency rule. Layers depend downward
 //! only: [`geometry`], [`roughness`] and [`kinds`] (the domain choices; `tre-core`) are pure and
 //! synchronous; [`io`] (`tre-io`) reads and writes the on-disk formats; [`synth`] (`tre-synth`)
@@ -9,8 +9,6 @@
 //! serves it over HTTP and a WebSocket stream whose messages are [`proto`] (`tre-proto`);
 //! [`client`] (`tre-client`) is the robot's end of that stream and [`loadtest`]
 //! (`tre-loadtest`) measures a running service; [`eval`] (`tre-eval`) scores the modes on real and synthetic frames.
-pub mod cli;
-
 pub use tre_client as client;
 pub use tre_core::{geometry, kinds, map, roughness};
 pub use tre_eval as eval;

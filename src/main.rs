@@ -1,7 +1,12 @@
 //! `tre`: parses arguments, sets up tracing and dispatches to a subcommand in `tre::cli`.
 
+mod cli;
+
+// The layers, as the subcommands name them (`crate::io`, `crate::pipeline`, ...).
+use tre::{client, geometry, io, loadtest, map, model, pipeline, roughness, server, synth};
+
 use clap::Parser;
-use tre::cli::Cli;
+use cli::Cli;
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();

@@ -12,7 +12,7 @@ use crate::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation};
 
 /// Annotate a depth frame with roughness.
 #[derive(Debug, Args)]
-pub struct Annotate {
+pub(crate) struct Annotate {
     /// Depth: 16-bit grey PNG (see --depth-scale) or float .npy in metres; 0 = no data.
     #[arg(long)]
     pub depth: PathBuf,
@@ -48,7 +48,7 @@ pub struct Annotate {
 
 impl Annotate {
     /// Reads the inputs, annotates and writes every output.
-    pub fn run(self) -> anyhow::Result<()> {
+    pub(crate) fn run(self) -> anyhow::Result<()> {
         self.check_outputs()?;
         let cfg = self.config()?;
         let (cam, k) = io::read_camera(&self.camera)?;

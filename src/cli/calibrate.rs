@@ -21,7 +21,7 @@ use crate::roughness::noise::SensorNoise;
 
 /// Fit every mode's 90% roughness intervals on real frames.
 #[derive(Debug, Args)]
-pub struct Calibrate {
+pub(crate) struct Calibrate {
     /// Folders of real RGB-D frames (as `tre eval --real` reads them); give it once per
     /// folder.
     #[arg(long, required = true)]
@@ -53,7 +53,7 @@ fn parse_sensor(s: &str) -> Result<SensorNoise, String> {
 
 impl Calibrate {
     /// Runs the command.
-    pub fn run(self) -> anyhow::Result<()> {
+    pub(crate) fn run(self) -> anyhow::Result<()> {
         if self.split == "test" {
             anyhow::bail!(
                 "--split test: the intervals are judged on the test frames; fit them on val"

@@ -18,7 +18,7 @@ use crate::roughness::noise::SensorNoise;
 
 /// Stream frames to `tre serve` and write the roughness maps it sends back.
 #[derive(Debug, Args)]
-pub struct Client {
+pub(crate) struct Client {
     /// Server: ws://host:port/v1/stream, ws://host:port, http://host:port or host:port;
     /// wss:// or https:// for TLS (a TLS-terminating proxy in front of the service).
     #[arg(long, env = "TRE_SERVER")]
@@ -118,7 +118,7 @@ pub struct Client {
 }
 impl Client {
     /// The checked run configuration.
-    pub fn config(&self) -> anyhow::Result<RecorderConfig> {
+    pub(crate) fn config(&self) -> anyhow::Result<RecorderConfig> {
         let source = match (&self.frames, &self.video, &self.device) {
             (Some(frames), None, None) => SourceSpec::Folder {
                 frames: frames.clone(),
@@ -171,14 +171,14 @@ impl Client {
     }
 
     /// Streams the frames, writes the maps and the CSV, prints the summaries.
-    pub fn run(self) -> anyhow::Result<()> {
+    pub(crate) fn run(self) -> anyhow::Result<()> {
         run(self.config()?)
     }
 }
 
 /// Records `cfg` on its own async runtime, printing the recorder's notices on stderr; Ctrl-C
 /// stops the sending. An error if no result came back.
-pub fn run(cfg: RecorderConfig) -> anyhow::Result<()> {
+pub(crate) fn run(cfg: RecorderConfig) -> anyhow::Result<()> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .thread_name("tre-client")

@@ -16,7 +16,7 @@ use crate::roughness::noise::SensorNoise;
 
 /// Score a method on a synthetic dataset's split, or every mode on real RGB-D frames.
 #[derive(Debug, Args)]
-pub struct Eval {
+pub(crate) struct Eval {
     /// Dataset folder written by `tre synth` (holds dataset.json).
     #[arg(long, required_unless_present = "real")]
     pub data: Option<PathBuf>,
@@ -90,7 +90,7 @@ fn parse_sensor(s: &str) -> Result<SensorNoise, String> {
 impl Eval {
     /// Scores every frame of the split and prints the metrics (and the tables), or runs the
     /// real-frame benchmark.
-    pub fn run(self) -> anyhow::Result<()> {
+    pub(crate) fn run(self) -> anyhow::Result<()> {
         if !self.real.is_empty() {
             return self.run_real(&self.real);
         }

@@ -18,7 +18,7 @@ use crate::roughness::noise::{SensorNoise, SensorPreset};
 
 /// Output format of the roughness map.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Format {
+pub(crate) enum Format {
     /// 16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data.
     Png16,
     /// (H, W) float32 .npy in metres, NaN where there is no data.
@@ -37,7 +37,7 @@ impl Format {
 
 /// Estimate roughness for one frame.
 #[derive(Debug, Args)]
-pub struct Infer {
+pub(crate) struct Infer {
     /// RGB frame (PNG or JPEG); not needed in geometric mode.
     pub frame: Option<PathBuf>,
     /// Registered depth of the same size: 16-bit grey PNG (see --depth-scale) or float .npy in
@@ -91,7 +91,7 @@ pub(super) fn parse_sensor(s: &str) -> Result<SensorNoise, String> {
 
 impl Infer {
     /// Reads the frame, runs the pipeline and writes the roughness map and its preview.
-    pub fn run(self) -> anyhow::Result<()> {
+    pub(crate) fn run(self) -> anyhow::Result<()> {
         self.check_outputs()?;
         if self.stages.method == Method::EndToEnd && self.depth.is_some() {
             bail!(

@@ -15,7 +15,7 @@ use crate::loadtest::{
 
 /// Interface to load.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ProtocolArg {
+pub(crate) enum ProtocolArg {
     /// `POST /v1/roughness`, one frame per request.
     Http,
     /// `GET /v1/stream` (WebSocket, protobuf frames).
@@ -30,7 +30,7 @@ pub enum ProtocolArg {
 /// Safety: only loopback addresses are loaded unless you give the address yourself in `--url`;
 /// a host name that resolves to a non-loopback address is refused unless `--allow-remote`.
 #[derive(Debug, Args)]
-pub struct Loadtest {
+pub(crate) struct Loadtest {
     /// Base URL of the service. Only loopback unless you write the address here yourself; host
     /// names must resolve to loopback unless --allow-remote.
     #[arg(
@@ -177,7 +177,7 @@ impl Loadtest {
     }
 
     /// The checked configuration.
-    pub fn config(&self) -> anyhow::Result<LoadConfig> {
+    pub(crate) fn config(&self) -> anyhow::Result<LoadConfig> {
         let frames = if let Some(dir) = &self.frames {
             FrameSource::Dir(dir.clone())
         } else if !self.frame.is_empty() {
@@ -231,7 +231,7 @@ impl Loadtest {
     }
 
     /// Runs the load, prints the report and writes the files asked for.
-    pub fn run(self) -> anyhow::Result<()> {
+    pub(crate) fn run(self) -> anyhow::Result<()> {
         let outputs: Vec<&Path> = [&self.json, &self.plot]
             .into_iter()
             .flatten()

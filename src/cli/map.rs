@@ -18,7 +18,7 @@ use crate::roughness::noise::SensorNoise;
 
 /// Fuse a sequence of depth frames into a gravity-aligned roughness grid map.
 #[derive(Debug, Args)]
-pub struct Map {
+pub(crate) struct Map {
     /// Sequence folder: `depth/*.png` (16-bit, the camera's depth_scale) or `depth/*.npy`,
     /// optional `poses/<stem>.txt` (4×4 camera-to-world, row by row) and `gravity.json`
     /// (`{"gravity": [x, y, z]}`, the world's down direction), and `intrinsics.json`.
@@ -61,7 +61,7 @@ pub struct Map {
 
 impl Map {
     /// Fuses the sequence and writes the layers.
-    pub fn run(self) -> anyhow::Result<()> {
+    pub(crate) fn run(self) -> anyhow::Result<()> {
         let cam_path = self
             .camera
             .clone()

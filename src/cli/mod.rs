@@ -1,22 +1,22 @@
 //! Command-line subcommands, one file each; `main.rs` only parses and dispatches.
 
-pub mod annotate;
-pub mod calibrate;
-pub mod client;
-pub mod eval;
-pub mod infer;
-pub mod loadtest;
-pub mod map;
-pub mod options;
-pub mod serve;
-pub mod synth;
+pub(crate) mod annotate;
+pub(crate) mod calibrate;
+pub(crate) mod client;
+pub(crate) mod eval;
+pub(crate) mod infer;
+pub(crate) mod loadtest;
+pub(crate) mod map;
+pub(crate) mod options;
+pub(crate) mod serve;
+pub(crate) mod synth;
 
 use clap::{Parser, Subcommand};
 
 /// Terrain roughness estimation for robots (TRENet).
 #[derive(Debug, Parser)]
 #[command(name = "tre", version, about)]
-pub struct Cli {
+pub(crate) struct Cli {
     /// Log filter (tracing's env-filter syntax), e.g. `info` or `tre=debug`.
     #[arg(long, env = "TRE_LOG", default_value = "info,ort=warn", global = true)]
     pub log: String,
@@ -30,7 +30,7 @@ pub struct Cli {
 
 /// The subcommands.
 #[derive(Debug, Subcommand)]
-pub enum Command {
+pub(crate) enum Command {
     /// Annotate a depth frame with ground-truth roughness (annotation spec v1).
     Annotate(annotate::Annotate),
     /// Generate a synthetic terrain dataset with exact ground truth.
@@ -65,7 +65,7 @@ pub enum Command {
 
 impl Command {
     /// Runs the chosen subcommand.
-    pub fn run(self) -> anyhow::Result<()> {
+    pub(crate) fn run(self) -> anyhow::Result<()> {
         match self {
             Command::Annotate(cmd) => cmd.run(),
             Command::Synth(cmd) => cmd.run(),

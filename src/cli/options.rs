@@ -16,7 +16,7 @@ use crate::pipeline::{
 
 /// On or off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Switch {
+pub(crate) enum Switch {
     /// Enabled.
     On,
     /// Disabled.
@@ -25,13 +25,13 @@ pub enum Switch {
 
 /// Parser of `--dsac-hypotheses` (`infer`, `eval`, `serve`, `client`): 1 to
 /// [`MAX_DSAC_HYPOTHESES`].
-pub fn dsac_hypotheses_arg() -> clap::builder::RangedI64ValueParser<u32> {
+pub(crate) fn dsac_hypotheses_arg() -> clap::builder::RangedI64ValueParser<u32> {
     clap::value_parser!(u32).range(1..=i64::from(MAX_DSAC_HYPOTHESES))
 }
 
 /// The models folder for the `--models` value (see [`locate_models`]), logged with the rule
 /// that found it; shared by every subcommand that loads models.
-pub fn find_models(flag: Option<&Path>) -> anyhow::Result<PathBuf> {
+pub(crate) fn find_models(flag: Option<&Path>) -> anyhow::Result<PathBuf> {
     let found = locate_models(flag)?;
     tracing::info!(path = %found.dir.display(), "models folder found by {}", found.rule);
     Ok(found.dir)
@@ -39,7 +39,7 @@ pub fn find_models(flag: Option<&Path>) -> anyhow::Result<PathBuf> {
 
 /// The pipeline's switches and models, shared by `infer` and `eval`.
 #[derive(Debug, Clone, Args)]
-pub struct StageArgs {
+pub(crate) struct StageArgs {
     /// Staged pipeline or end-to-end baseline.
     #[arg(long, value_enum, default_value = "pipeline")]
     pub method: Method,
@@ -74,7 +74,7 @@ pub struct StageArgs {
 
 impl StageArgs {
     /// The pipeline configuration for `mode`.
-    pub fn config(&self, mode: Mode) -> PipelineConfig {
+    pub(crate) fn config(&self, mode: Mode) -> PipelineConfig {
         PipelineConfig {
             mode,
             method: self.method,
@@ -89,7 +89,7 @@ impl StageArgs {
     }
 
     /// A pipeline with the models loaded when any of `configs` runs a network.
-    pub fn pipeline(&self, configs: &[PipelineConfig]) -> anyhow::Result<Pipeline> {
+    pub(crate) fn pipeline(&self, configs: &[PipelineConfig]) -> anyhow::Result<Pipeline> {
         if configs.iter().all(|c| c.networks().is_empty()) {
             // The geometric mode needs no models, but reads their calibrated intervals when
             // a models folder is found.

@@ -16,7 +16,7 @@ use crate::server::{serve_until_signal, ServeConfig};
 
 /// Execution provider of the ONNX Runtime sessions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ProviderArg {
+pub(crate) enum ProviderArg {
     /// ONNX Runtime's CPU kernels.
     Cpu,
     /// NVIDIA CUDA (needs a build with `--features cuda` and a GPU build of ONNX Runtime).
@@ -27,7 +27,7 @@ pub enum ProviderArg {
 
 /// Serve roughness over HTTP (`POST /v1/roughness`) and WebSocket (`GET /v1/stream`).
 #[derive(Debug, Args)]
-pub struct Serve {
+pub(crate) struct Serve {
     /// Address to listen on (port 0: any free port; the address is printed on stdout). The
     /// default is loopback only; to serve a network, give its address (and an --api-key).
     #[arg(long, env = "TRE_ADDR", default_value = "127.0.0.1:8080")]
@@ -137,7 +137,7 @@ pub struct Serve {
 
 impl Serve {
     /// The checked service configuration.
-    pub fn config(&self) -> anyhow::Result<ServeConfig> {
+    pub(crate) fn config(&self) -> anyhow::Result<ServeConfig> {
         let (workers, ort_threads) = self.threads();
         let cfg = ServeConfig {
             addr: self.addr,
@@ -209,7 +209,7 @@ impl Serve {
     }
 
     /// Binds, prints `listening on http://ADDR` on stdout, and serves until SIGTERM or Ctrl-C.
-    pub fn run(self) -> anyhow::Result<()> {
+    pub(crate) fn run(self) -> anyhow::Result<()> {
         let cfg = self.config()?;
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .thread_name("tre-http")

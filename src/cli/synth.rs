@@ -11,7 +11,7 @@ use crate::synth::{generate, Content, SynthConfig};
 
 /// Generate a synthetic terrain dataset.
 #[derive(Debug, Args)]
-pub struct Synth {
+pub(crate) struct Synth {
     /// Output folder (created if missing).
     #[arg(long)]
     pub out: PathBuf,
@@ -74,7 +74,7 @@ pub struct Synth {
 
 impl Synth {
     /// Generates the dataset and prints its size and speed.
-    pub fn run(self) -> anyhow::Result<()> {
+    pub(crate) fn run(self) -> anyhow::Result<()> {
         let cfg = SynthConfig {
             out: self.out,
             scenes: self.scenes,

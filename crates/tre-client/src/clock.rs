@@ -14,7 +14,7 @@ pub(crate) struct Stamp {
 
 impl Stamp {
     /// Now.
-    pub fn now() -> Self {
+    pub(crate) fn now() -> Self {
         Self {
             at: Instant::now(),
             unix_us: unix_us(SystemTime::now()),

@@ -172,7 +172,7 @@ const ROUGHNESS_HEADER: &str = "x-roughness-scale-m";
 /// header) ok, any other 2xx an error `not a roughness map` (a server that is not `tre serve`
 /// must not pass for a fast one), 429/503 refused (by the body's error code), else an error
 /// named `http STATUS CODE`.
-pub fn classify(status: u16, is_map: bool, body: &[u8]) -> Outcome {
+pub(crate) fn classify(status: u16, is_map: bool, body: &[u8]) -> Outcome {
     let code = || error_code(body).unwrap_or_else(|| "-".into());
     match status {
         200..=299 if is_map => Outcome::Ok,

@@ -28,7 +28,7 @@ pub(crate) struct Plan {
 
 impl Plan {
     /// The plan of `cfg` starting now.
-    pub fn new(cfg: &LoadConfig) -> Self {
+    pub(crate) fn new(cfg: &LoadConfig) -> Self {
         let t0 = Instant::now() + LEAD;
         let measure_from = t0 + cfg.warmup;
         Self {
@@ -41,13 +41,13 @@ impl Plan {
     }
 
     /// Intended send time of request `i` at `rate_per_s`.
-    pub fn intended(&self, i: u64, rate_per_s: f64) -> Instant {
+    pub(crate) fn intended(&self, i: u64, rate_per_s: f64) -> Instant {
         self.t0 + Duration::from_secs_f64(i as f64 / rate_per_s)
     }
 
     /// Whether a request intended at `t` is part of the run: `None` once the run is over, else
     /// whether it is measured (`false`: warm-up).
-    pub fn admit(&self, t: Instant) -> Option<bool> {
+    pub(crate) fn admit(&self, t: Instant) -> Option<bool> {
         if self.end.is_some_and(|end| t >= end) {
             return None;
         }
@@ -64,7 +64,7 @@ impl Plan {
 
     /// Start of the measured window, seconds since the Unix epoch (to line runs up with other
     /// records of the machine).
-    pub fn window_start_unix_s(&self) -> f64 {
+    pub(crate) fn window_start_unix_s(&self) -> f64 {
         let now = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0.0, |d| d.as_secs_f64());
@@ -74,7 +74,7 @@ impl Plan {
     }
 
     /// Measured requests admitted.
-    pub fn measured(&self) -> u64 {
+    pub(crate) fn measured(&self) -> u64 {
         self.measured.load(Ordering::Relaxed)
     }
 }

@@ -35,7 +35,7 @@ type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
 
 /// A server message, as far as the load test cares.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Answer {
+pub(crate) enum Answer {
     /// The Hello was accepted.
     Ready,
     /// A result for frame `sequence`.
@@ -53,7 +53,7 @@ pub enum Answer {
 
 impl Answer {
     /// Decodes a `ServerMessage`.
-    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
+    pub(crate) fn decode(bytes: &[u8]) -> Result<Self, String> {
         use pb::server_message::Msg;
         let msg = pb::ServerMessage::decode(bytes).map_err(|e| e.to_string())?;
         match msg.msg {
@@ -71,7 +71,7 @@ impl Answer {
     }
 
     /// The frame this answer is for, and what became of it.
-    pub fn outcome(&self) -> Option<(u64, Outcome)> {
+    pub(crate) fn outcome(&self) -> Option<(u64, Outcome)> {
         match self {
             Self::Ready => None,
             Self::Result(seq) => Some((*seq, Outcome::Ok)),

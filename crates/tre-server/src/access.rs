@@ -23,7 +23,7 @@ use tre_proto::ErrorCode;
 
 /// The id of a request, as logged and sent back in `X-Request-Id`.
 #[derive(Debug, Clone)]
-pub struct RequestId(pub String);
+pub(crate) struct RequestId(pub String);
 
 /// Routes that answer without a key or an origin check: probes of orchestrators.
 const OPEN_PATHS: [&str; 2] = ["/healthz", "/readyz"];
@@ -35,7 +35,11 @@ const EXPOSED: &str = "server-timing, x-roughness-scale-m, x-image-width, x-imag
 static NEXT_ID: AtomicU64 = AtomicU64::new(1);
 
 /// The layer's function, for `axum::middleware::from_fn_with_state`.
-pub async fn guard(State(app): State<Arc<AppState>>, mut req: Request, next: Next) -> Response {
+pub(crate) async fn guard(
+    State(app): State<Arc<AppState>>,
+    mut req: Request,
+    next: Next,
+) -> Response {
     let id = request_id(req.headers());
     let path = req.uri().path().to_owned();
     let origin = req

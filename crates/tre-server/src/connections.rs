@@ -52,7 +52,7 @@ use tre_proto::ErrorCode;
 
 /// What a client may hold without doing anything.
 #[derive(Debug, Clone, Copy)]
-pub struct ConnectionLimits {
+pub(crate) struct ConnectionLimits {
     /// Request headers must arrive within this (an idle kept-alive connection is closed then).
     pub header_read: Duration,
     /// A write without progress for this long fails, which ends the connection.
@@ -97,7 +97,7 @@ fn refuse_router(limits: ConnectionLimits) -> Router {
 
 /// Serves `app` on `listener` until `signal` completes, then stops accepting and waits for the
 /// connections to finish their requests in flight and close.
-pub async fn serve_connections(
+pub(crate) async fn serve_connections(
     mut listener: TcpListener,
     app: Router,
     limits: ConnectionLimits,

@@ -12,7 +12,7 @@ use tre_pipeline::PipelineError;
 use tre_proto::ErrorCode;
 
 /// The HTTP status of `code` ([`ErrorCode::http_status`]).
-pub fn status(code: ErrorCode) -> StatusCode {
+pub(crate) fn status(code: ErrorCode) -> StatusCode {
     StatusCode::from_u16(code.http_status()).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR)
 }
 
@@ -28,7 +28,7 @@ pub struct ApiError {
 
 /// Longest message an error carries, characters: messages quote what the client sent (a
 /// query, a field name), and a client must not be able to make the server echo megabytes.
-pub const MAX_MESSAGE_CHARS: usize = 400;
+pub(crate) const MAX_MESSAGE_CHARS: usize = 400;
 
 impl ApiError {
     /// An error with `code` and `message`, cut to [`MAX_MESSAGE_CHARS`].
@@ -45,7 +45,7 @@ impl ApiError {
 /// What a refused request was refused for, left in its response's extensions so that the
 /// request-id layer logs it ([`super::access`]).
 #[derive(Debug, Clone)]
-pub struct Refused(pub ApiError);
+pub(crate) struct Refused(pub ApiError);
 
 impl From<PipelineError> for ApiError {
     fn from(e: PipelineError) -> Self {
@@ -113,7 +113,7 @@ impl From<SensorSpecError> for ApiError {
 }
 
 /// Seconds a refused client should wait before retrying.
-pub const RETRY_AFTER_S: u32 = 1;
+pub(crate) const RETRY_AFTER_S: u32 = 1;
 
 /// An error answer over HTTP: `{"error": {"code", "message"}}`.
 #[derive(Serialize, ToSchema)]

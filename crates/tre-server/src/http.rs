@@ -68,7 +68,7 @@ fn bad(msg: impl Into<String>) -> ApiError {
         (status = 500, response = ErrorResponse),
     ),
 )]
-pub async fn roughness(State(app): State<Arc<AppState>>, req: Request) -> Response {
+pub(crate) async fn roughness(State(app): State<Arc<AppState>>, req: Request) -> Response {
     let start = Instant::now();
     match roughness_inner(&app, req).await {
         Ok(reply) => {
@@ -190,7 +190,7 @@ async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiErro
 
 /// The frame a body of `content_type` carries: a bare image, or multipart with `rgb`, `depth`,
 /// `camera` (the camera checked with [`strict_camera`]). The images are not decoded here.
-pub async fn parse_body(
+pub(crate) async fn parse_body(
     content_type: &str,
     bytes: Bytes,
     limits: DecodeLimits,
@@ -280,7 +280,7 @@ async fn read_within(mut body: Body, limit: usize, mut pace: BodyPace) -> Result
 
 /// Window over which a body's rate is averaged (`--min-body-rate`); the first one is the grace
 /// a client has before its rate counts.
-pub const BODY_RATE_WINDOW: std::time::Duration = std::time::Duration::from_secs(5);
+pub(crate) const BODY_RATE_WINDOW: std::time::Duration = std::time::Duration::from_secs(5);
 
 /// The pace a body must keep: on average at least `--min-body-rate` bytes a second over each
 /// [`BODY_RATE_WINDOW`] from the headers on (a tumbling window: a body sent quickly and then
@@ -378,7 +378,7 @@ fn set_once<T>(
 }
 
 /// `Server-Timing` value: one entry per stage, milliseconds.
-pub fn server_timing(reply: &FrameReply) -> String {
+pub(crate) fn server_timing(reply: &FrameReply) -> String {
     reply
         .timings
         .iter()
@@ -473,13 +473,16 @@ fn reply_response(reply: FrameReply) -> Response {
 }
 
 /// Any other path: a JSON 404.
-pub async fn not_found(uri: axum::http::Uri) -> Response {
+pub(crate) async fn not_found(uri: axum::http::Uri) -> Response {
     let why = format!("no route {}; see /openapi.json", uri.path());
     ApiError::new(ErrorCode::NotFound, why).into_response()
 }
 
 /// A known path with another method: a JSON 405.
-pub async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) -> Response {
+pub(crate) async fn method_not_allowed(
+    method: axum::http::Method,
+    uri: axum::http::Uri,
+) -> Response {
     let why = format!(
         "{method} is not allowed on {}; see /openapi.json",
         uri.path()
@@ -501,7 +504,7 @@ pub async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri
         (status = 404, response = ErrorResponse),
     ),
 )]
-pub async fn stream_map(
+pub(crate) async fn stream_map(
     State(app): State<Arc<AppState>>,
     axum::extract::Path(id): axum::extract::Path<String>,
 ) -> Response {
@@ -543,7 +546,7 @@ pub async fn stream_map(
         (status = 503, response = ErrorResponse),
     ),
 )]
-pub async fn healthz() -> impl IntoResponse {
+pub(crate) async fn healthz() -> impl IntoResponse {
     (
         StatusCode::OK,
         [(header::CONTENT_TYPE, "application/json")],
@@ -561,7 +564,7 @@ pub async fn healthz() -> impl IntoResponse {
         (status = 503, response = ErrorResponse),
     ),
 )]
-pub async fn readyz(State(app): State<Arc<AppState>>) -> Response {
+pub(crate) async fn readyz(State(app): State<Arc<AppState>>) -> Response {
     if app.workers.ready() {
         (
             StatusCode::OK,
@@ -588,7 +591,7 @@ pub async fn readyz(State(app): State<Arc<AppState>>) -> Response {
         Guarded,
     ),
 )]
-pub async fn metrics(State(app): State<Arc<AppState>>) -> impl IntoResponse {
+pub(crate) async fn metrics(State(app): State<Arc<AppState>>) -> impl IntoResponse {
     let text = app.metrics.render(Gauges {
         queue_depth: app.workers.queue_depth(),
         queue_capacity: app.workers.capacity(),
@@ -608,7 +611,7 @@ pub async fn metrics(State(app): State<Arc<AppState>>) -> impl IntoResponse {
         Guarded,
     ),
 )]
-pub async fn models(State(app): State<Arc<AppState>>) -> impl IntoResponse {
+pub(crate) async fn models(State(app): State<Arc<AppState>>) -> impl IntoResponse {
     (
         [(header::CONTENT_TYPE, "application/json")],
         app.manifest_json.clone(),
@@ -625,7 +628,7 @@ pub async fn models(State(app): State<Arc<AppState>>) -> impl IntoResponse {
         Guarded,
     ),
 )]
-pub async fn openapi() -> impl IntoResponse {
+pub(crate) async fn openapi() -> impl IntoResponse {
     (
         [(header::CONTENT_TYPE, "application/json")],
         super::openapi::document_json(),
@@ -633,7 +636,7 @@ pub async fn openapi() -> impl IntoResponse {
 }
 
 /// The demo page.
-pub const DEMO_PAGE: &str = include_str!("demo/index.html");
+pub(crate) const DEMO_PAGE: &str = include_str!("demo/index.html");
 
 /// `GET /`: the demo page.
 #[utoipa::path(
@@ -645,7 +648,7 @@ pub const DEMO_PAGE: &str = include_str!("demo/index.html");
         Guarded,
     ),
 )]
-pub async fn demo() -> impl IntoResponse {
+pub(crate) async fn demo() -> impl IntoResponse {
     (
         [(header::CONTENT_TYPE, "text/html; charset=utf-8")],
         DEMO_PAGE,

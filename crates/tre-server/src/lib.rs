@@ -12,26 +12,27 @@
 //! # }
 //! ```
 
-pub mod access;
-pub mod config;
-pub mod connections;
-pub mod error;
+mod access;
+mod config;
+mod connections;
+mod error;
+#[cfg(any(test, feature = "fuzzing"))]
 pub mod fuzzing;
-pub mod http;
-pub mod map;
-pub mod metrics;
-pub mod openapi;
+mod http;
+mod map;
+mod metrics;
+mod openapi;
 pub mod options;
-pub mod pace;
-pub mod proto;
-pub mod query;
-pub mod refusals;
+mod pace;
+mod proto;
+mod query;
+mod refusals;
 pub mod request;
 mod signal;
-pub mod stall;
-pub mod stream;
-pub mod watched;
-pub mod workers;
+mod stall;
+mod stream;
+mod watched;
+mod workers;
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -46,6 +47,7 @@ use utoipa::OpenApi;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
+pub use config::{ConfigError, MIN_API_KEY_CHARS};
 pub use signal::{serve_until_signal, shutdown_signal};
 
 use metrics::Metrics;
@@ -154,7 +156,7 @@ impl Default for ServeConfig {
 
 /// Shared state of the handlers.
 #[derive(Debug)]
-pub struct AppState {
+pub(crate) struct AppState {
     /// The settings.
     pub cfg: ServeConfig,
     /// The inference workers.
@@ -213,7 +215,7 @@ pub enum ServeError {
 
 /// Every route: each handler with the method and path of its `#[utoipa::path]`. The router
 /// ([`router`]) and the OpenAPI document ([`openapi::document`]) are both made from this list.
-pub fn routes() -> OpenApiRouter<Arc<AppState>> {
+pub(crate) fn routes() -> OpenApiRouter<Arc<AppState>> {
     OpenApiRouter::with_openapi(openapi::ApiDoc::openapi())
         .routes(routes!(http::demo))
         .routes(routes!(http::healthz))
@@ -227,7 +229,7 @@ pub fn routes() -> OpenApiRouter<Arc<AppState>> {
 }
 
 /// The routes over `state`.
-pub fn router(state: Arc<AppState>) -> Router {
+pub(crate) fn router(state: Arc<AppState>) -> Router {
     let (routes, _) = routes().split_for_parts();
     routes
         .fallback(http::not_found)

@@ -38,25 +38,25 @@ pub struct SessionMap {
 }
 
 /// A shared handle on a stream's map.
-pub type SharedMap = Arc<Mutex<SessionMap>>;
+pub(crate) type SharedMap = Arc<Mutex<SessionMap>>;
 
 /// The maps of the open streams, by stream id (entries of closed streams are dropped when
 /// looked up or when a stream opens).
 #[derive(Debug, Default)]
-pub struct MapRegistry {
+pub(crate) struct MapRegistry {
     maps: Mutex<HashMap<String, Weak<Mutex<SessionMap>>>>,
 }
 
 impl MapRegistry {
     /// Registers the map of stream `id`.
-    pub fn insert(&self, id: &str, map: &SharedMap) {
+    pub(crate) fn insert(&self, id: &str, map: &SharedMap) {
         let mut maps = self.maps.lock().unwrap_or_else(PoisonError::into_inner);
         maps.retain(|_, m| m.strong_count() > 0);
         maps.insert(id.to_owned(), Arc::downgrade(map));
     }
 
     /// The map of stream `id`, while the stream is open.
-    pub fn get(&self, id: &str) -> Option<SharedMap> {
+    pub(crate) fn get(&self, id: &str) -> Option<SharedMap> {
         let maps = self.maps.lock().unwrap_or_else(PoisonError::into_inner);
         maps.get(id).and_then(Weak::upgrade)
     }
@@ -196,7 +196,7 @@ impl SessionMap {
 
 /// The map settings of a Hello's `map`, checked: a cell of 1 mm to 1 m, 1 to 1,000 cells a
 /// side, a finite non-negative rate, gravity of 3 finite values if given.
-pub fn settings_from_pb(m: &pb::MapSettings) -> Result<MapSettings, String> {
+pub(crate) fn settings_from_pb(m: &pb::MapSettings) -> Result<MapSettings, String> {
     let cell_m = if m.cell_m == 0.0 { 0.04 } else { m.cell_m };
     let side = if m.side == 0 { 200 } else { m.side as usize };
     if !(cell_m.is_finite() && (0.001..=1.0).contains(&cell_m)) {

@@ -53,7 +53,7 @@ type Latencies<L> = Family<L, Histogram, fn() -> Histogram>;
 
 /// Every metric of the service, and the registry that writes them.
 #[derive(Debug)]
-pub struct Metrics {
+pub(crate) struct Metrics {
     registry: Registry,
     ready: Gauge,
     workers: Gauge,
@@ -95,7 +95,7 @@ impl Default for Metrics {
 
 /// Gauges read at scrape time.
 #[derive(Debug, Clone, Copy)]
-pub struct Gauges {
+pub(crate) struct Gauges {
     /// Jobs waiting for a worker.
     pub queue_depth: usize,
     /// Queue capacity.
@@ -187,7 +187,12 @@ impl Metrics {
 
     /// Counts one request to `endpoint` (`roughness`, `stream`) with `outcome` (`ok` or an
     /// error code) and, when it ran, its total latency.
-    pub fn request(&self, endpoint: &'static str, outcome: &'static str, took: Option<Duration>) {
+    pub(crate) fn request(
+        &self,
+        endpoint: &'static str,
+        outcome: &'static str,
+        took: Option<Duration>,
+    ) {
         self.requests
             .get_or_create(&RequestLabels { endpoint, outcome })
             .inc();
@@ -199,7 +204,7 @@ impl Metrics {
     }
 
     /// Records the stage timings of one frame, and its wait in the queue.
-    pub fn frame(&self, timings: &StageTimings, queued: Duration) {
+    pub(crate) fn frame(&self, timings: &StageTimings, queued: Duration) {
         for (stage, took) in timings.iter() {
             self.stage_seconds
                 .get_or_create(&StageLabels { stage })
@@ -209,17 +214,17 @@ impl Metrics {
     }
 
     /// Records the size of one batch run by a worker.
-    pub fn batch(&self, size: usize) {
+    pub(crate) fn batch(&self, size: usize) {
         self.batch_size.observe(size as f64);
     }
 
     /// Counts a stream frame dropped because a newer one arrived.
-    pub fn dropped(&self) {
+    pub(crate) fn dropped(&self) {
         self.frames_dropped.inc();
     }
 
     /// A stream opened (`+1`) or closed (`-1`).
-    pub fn stream_open(&self, open: bool) {
+    pub(crate) fn stream_open(&self, open: bool) {
         if open {
             self.streams_open.inc();
         } else {
@@ -228,7 +233,7 @@ impl Metrics {
     }
 
     /// An HTTP connection taken (`+1`) or closed (`-1`) within `--max-connections`.
-    pub fn connection_open(&self, open: bool) {
+    pub(crate) fn connection_open(&self, open: bool) {
         if open {
             self.connections_open.inc();
         } else {
@@ -237,12 +242,12 @@ impl Metrics {
     }
 
     /// Counts a connection refused for `--max-connections`.
-    pub fn connection_refused(&self) {
+    pub(crate) fn connection_refused(&self) {
         self.connections_refused.inc();
     }
 
     /// The exposition text, with the gauges read at scrape time set from `g`.
-    pub fn render(&self, g: Gauges) -> String {
+    pub(crate) fn render(&self, g: Gauges) -> String {
         let count = |n: usize| i64::try_from(n).unwrap_or(i64::MAX);
         self.ready.set(i64::from(g.ready));
         self.workers.set(count(g.workers));

@@ -34,10 +34,10 @@ use super::error::Body;
     ),
     components(responses(ErrorResponse), schemas(Body))
 )]
-pub struct ApiDoc;
+pub(crate) struct ApiDoc;
 
 /// The bytes of a file (an image, a `.npy`, a multipart body).
-pub struct Binary;
+pub(crate) struct Binary;
 
 impl PartialSchema for Binary {
     fn schema() -> RefOr<Schema> {
@@ -51,7 +51,7 @@ impl PartialSchema for Binary {
 impl ToSchema for Binary {}
 
 /// A JSON object of no fixed shape (the manifest, a probe's status).
-pub struct JsonObject;
+pub(crate) struct JsonObject;
 
 impl PartialSchema for JsonObject {
     fn schema() -> RefOr<Schema> {
@@ -64,7 +64,7 @@ impl ToSchema for JsonObject {}
 /// The parts of a multipart frame: rgb, depth or both, and the camera (each part once).
 #[derive(ToSchema)]
 #[allow(dead_code)] // Describes the body, never built: `http::read_multipart` reads the parts.
-pub struct RoughnessForm {
+pub(crate) struct RoughnessForm {
     /// PNG or JPEG frame.
     #[schema(value_type = String, format = Binary, required = false)]
     rgb: Vec<u8>,
@@ -81,7 +81,7 @@ pub struct RoughnessForm {
 }
 
 /// Every error answer: the `Error` body, with `Retry-After` on 429 and 503.
-pub struct ErrorResponse;
+pub(crate) struct ErrorResponse;
 
 impl<'r> ToResponse<'r> for ErrorResponse {
     fn response() -> (&'r str, RefOr<Response>) {
@@ -104,7 +104,7 @@ impl<'r> ToResponse<'r> for ErrorResponse {
 /// The refusals every path but the probes may answer, each an [`ErrorResponse`]: 401 without
 /// the API key, 403 for a browser origin not allowed, 503 when the service cannot take the
 /// request (not ready, shutting down or overloaded).
-pub struct Guarded;
+pub(crate) struct Guarded;
 
 impl IntoResponses for Guarded {
     fn responses() -> BTreeMap<String, RefOr<Response>> {
@@ -116,7 +116,7 @@ impl IntoResponses for Guarded {
 }
 
 /// The service's OpenAPI 3.0 document.
-pub fn document() -> Value {
+pub(crate) fn document() -> Value {
     let (_, api) = super::routes().split_for_parts();
     let mut doc = serde_json::to_value(&api).expect("an OpenApi serialises to JSON; this is a bug");
     as_openapi_3_0(&mut doc);
@@ -124,7 +124,7 @@ pub fn document() -> Value {
 }
 
 /// [`document`] as served: pretty JSON with a final newline, made once.
-pub fn document_json() -> &'static str {
+pub(crate) fn document_json() -> &'static str {
     static DOCUMENT: LazyLock<String> = LazyLock::new(|| {
         let doc = serde_json::to_string_pretty(&document())
             .expect("a JSON value serialises; this is a bug");
@@ -136,7 +136,7 @@ pub fn document_json() -> &'static str {
 /// Rewrites an OpenAPI 3.1 document as 3.0: the version, a numeric `exclusiveMinimum` or
 /// `exclusiveMaximum` as the bound with a `true` flag, and a type list with `null` as the type
 /// with `nullable`.
-pub fn as_openapi_3_0(doc: &mut Value) {
+pub(crate) fn as_openapi_3_0(doc: &mut Value) {
     doc["openapi"] = "3.0.3".into();
     if let Some(license) = doc
         .pointer_mut("/info/license")

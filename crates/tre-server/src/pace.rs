@@ -14,22 +14,22 @@ use tokio::time::Instant;
 
 /// Window over which a message's rate is averaged: the HTTP bodies' window
 /// ([`super::http::BODY_RATE_WINDOW`]).
-pub const PACE_WINDOW: Duration = super::http::BODY_RATE_WINDOW;
+pub(crate) const PACE_WINDOW: Duration = super::http::BODY_RATE_WINDOW;
 
 /// Bytes a connection has read so far, counted where the socket is read; a request extension of
 /// every request the accept loop serves.
 #[derive(Debug, Clone, Default)]
-pub struct ReadBytes(Arc<AtomicU64>);
+pub(crate) struct ReadBytes(Arc<AtomicU64>);
 
 impl ReadBytes {
     /// Counts `n` more bytes read.
-    pub fn add(&self, n: usize) {
+    pub(crate) fn add(&self, n: usize) {
         self.0
             .fetch_add(u64::try_from(n).unwrap_or(u64::MAX), Ordering::Relaxed);
     }
 
     /// Bytes read so far.
-    pub fn get(&self) -> u64 {
+    pub(crate) fn get(&self) -> u64 {
         self.0.load(Ordering::Relaxed)
     }
 }
@@ -37,13 +37,13 @@ impl ReadBytes {
 /// Bytes a control frame (ping, pong) takes on the wire from a client: two header bytes, the
 /// four-byte mask every client frame carries, and its payload (at most 125 bytes, so no
 /// extended length). An unmasked client frame is a protocol error that ends the stream.
-pub fn client_control_frame_bytes(payload: usize) -> u64 {
+pub(crate) fn client_control_frame_bytes(payload: usize) -> u64 {
     u64::try_from(payload).unwrap_or(u64::MAX).saturating_add(6)
 }
 
 /// A stream's message pace, judged at the end of each [`PACE_WINDOW`].
 #[derive(Debug)]
-pub struct MessagePace {
+pub(crate) struct MessagePace {
     read: ReadBytes,
     /// Bytes a second; 0: no pace.
     min_bytes_per_s: u64,
@@ -64,7 +64,7 @@ pub struct MessagePace {
 
 /// What a window showed of a message too slow.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TooSlow {
+pub(crate) struct TooSlow {
     /// Its bytes over the window.
     pub bytes: u64,
     /// The window's length, seconds.
@@ -88,7 +88,7 @@ impl std::fmt::Display for TooSlow {
 impl MessagePace {
     /// The pace of a stream whose connection reads through `read`, from `now`;
     /// `min_bytes_per_s` 0: none.
-    pub fn new(read: ReadBytes, min_bytes_per_s: u64, now: Instant) -> Self {
+    pub(crate) fn new(read: ReadBytes, min_bytes_per_s: u64, now: Instant) -> Self {
         let count = read.get();
         Self {
             read,
@@ -103,33 +103,33 @@ impl MessagePace {
     }
 
     /// Whether a pace is kept at all.
-    pub fn enabled(&self) -> bool {
+    pub(crate) fn enabled(&self) -> bool {
         self.min_bytes_per_s > 0
     }
 
     /// A data message (binary or text, or a close) came whole: every byte read so far is
     /// accounted for (bytes read ahead of the next message count as that message's).
-    pub fn data_message(&mut self) {
+    pub(crate) fn data_message(&mut self) {
         self.accounted = self.read.get();
         self.message_in_window = true;
     }
 
     /// A control frame with `payload` bytes came whole.
-    pub fn control_frame(&mut self, payload: usize) {
+    pub(crate) fn control_frame(&mut self, payload: usize) {
         let bytes = client_control_frame_bytes(payload);
         self.accounted = self.accounted.saturating_add(bytes);
         self.window_control = self.window_control.saturating_add(bytes);
     }
 
     /// Bytes read that no whole message accounts for: a message on its way.
-    pub fn pending(&self) -> u64 {
+    pub(crate) fn pending(&self) -> u64 {
         self.read.get().saturating_sub(self.accounted)
     }
 
     /// The end of a window at `now`: `Err` when a message was on its way the whole window (from
     /// before it began, with none completed in it, still pending at its end) and fewer than the
     /// minimum of bytes came; then the next window starts.
-    pub fn end_window(&mut self, now: Instant) -> Result<(), TooSlow> {
+    pub(crate) fn end_window(&mut self, now: Instant) -> Result<(), TooSlow> {
         let total = self.read.get();
         let pending = self.pending() > 0;
         let slow = TooSlow {

@@ -16,7 +16,7 @@ use tre_proto::ErrorCode;
 
 /// A stream's settings from its Hello.
 #[derive(Debug, Clone, Default)]
-pub struct StreamSettings {
+pub(crate) struct StreamSettings {
     /// Camera of every frame that does not bring its own.
     pub camera: Option<CameraFile>,
     /// Options of every frame.
@@ -27,7 +27,7 @@ pub struct StreamSettings {
 
 /// A frame from the stream, with the fields echoed in its answer.
 #[derive(Debug, Clone)]
-pub struct StreamFrame {
+pub(crate) struct StreamFrame {
     /// The client's sequence number.
     pub sequence: u64,
     /// The client's timestamp, echoed.
@@ -44,7 +44,7 @@ pub struct StreamFrame {
 
 impl StreamFrame {
     /// The request to run, given the stream's settings.
-    pub fn into_request(self, settings: &StreamSettings) -> FrameRequest {
+    pub(crate) fn into_request(self, settings: &StreamSettings) -> FrameRequest {
         FrameRequest {
             rgb: (!self.image.is_empty()).then_some(self.image),
             depth: (!self.depth.is_empty()).then_some(self.depth),
@@ -57,7 +57,7 @@ impl StreamFrame {
 
 /// What a client message turns into.
 #[derive(Debug)]
-pub enum Incoming {
+pub(crate) enum Incoming {
     /// New settings.
     Hello(StreamSettings),
     /// A frame.
@@ -235,7 +235,7 @@ impl TryFrom<pb::Frame> for StreamFrame {
 
 /// Decodes one binary WebSocket message from a client. The error carries the frame's sequence
 /// number when the message was a frame.
-pub fn decode_client(bytes: &[u8]) -> Result<Incoming, (Option<u64>, ApiError)> {
+pub(crate) fn decode_client(bytes: &[u8]) -> Result<Incoming, (Option<u64>, ApiError)> {
     let msg = pb::ClientMessage::decode(bytes).map_err(|e| {
         (
             None,
@@ -262,7 +262,7 @@ pub fn decode_client(bytes: &[u8]) -> Result<Incoming, (Option<u64>, ApiError)> 
 /// The sequence number of a frame message, read without decoding the rest (for a message too
 /// large to decode, so that its error can still name the frame); `None` when `bytes` does not
 /// hold a frame. Decoding stays with [`decode_client`].
-pub fn peek_frame_sequence(mut bytes: &[u8]) -> Option<u64> {
+pub(crate) fn peek_frame_sequence(mut bytes: &[u8]) -> Option<u64> {
     use prost::encoding::{decode_key, decode_varint, WireType};
     /// Skips one field's value of `wire` type.
     fn skip(buf: &mut &[u8], wire: WireType) -> Option<()> {
@@ -301,7 +301,7 @@ fn encode(msg: pb::server_message::Msg) -> Vec<u8> {
 }
 
 /// The Ready message.
-pub fn ready(max_message_bytes: usize, models: Vec<String>, stream_id: &str) -> Vec<u8> {
+pub(crate) fn ready(max_message_bytes: usize, models: Vec<String>, stream_id: &str) -> Vec<u8> {
     encode(pb::server_message::Msg::Ready(pb::Ready {
         max_message_bytes: max_message_bytes as u64,
         models,
@@ -310,12 +310,12 @@ pub fn ready(max_message_bytes: usize, models: Vec<String>, stream_id: &str) -> 
 }
 
 /// A MapUpdate message.
-pub fn map_update(update: pb::MapUpdate) -> Vec<u8> {
+pub(crate) fn map_update(update: pb::MapUpdate) -> Vec<u8> {
     encode(pb::server_message::Msg::Map(update))
 }
 
 /// An Error message.
-pub fn error(sequence: Option<u64>, e: &ApiError) -> Vec<u8> {
+pub(crate) fn error(sequence: Option<u64>, e: &ApiError) -> Vec<u8> {
     encode(pb::server_message::Msg::Error(pb::Error {
         sequence,
         code: e.code.as_str().to_owned(),
@@ -324,7 +324,7 @@ pub fn error(sequence: Option<u64>, e: &ApiError) -> Vec<u8> {
 }
 
 /// A Dropped message.
-pub fn dropped(sequence: u64, dropped_total: u64) -> Vec<u8> {
+pub(crate) fn dropped(sequence: u64, dropped_total: u64) -> Vec<u8> {
     encode(pb::server_message::Msg::Dropped(pb::Dropped {
         sequence,
         dropped_total,
@@ -332,7 +332,7 @@ pub fn dropped(sequence: u64, dropped_total: u64) -> Vec<u8> {
 }
 
 /// A Result message for `frame`'s answer.
-pub fn result(
+pub(crate) fn result(
     sequence: u64,
     timestamp_us: i64,
     reply: FrameReply,

@@ -22,7 +22,7 @@ use tre_proto::ErrorCode;
 #[derive(Debug, Default, Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
-pub struct RoughnessQuery {
+pub(crate) struct RoughnessQuery {
     /// png16: 16-bit grey+alpha PNG, X-Roughness-Scale-M metres per unit, alpha 0 = no data;
     /// color (or colour): 8-bit turbo preview; npy: (H, W) float32 metres, NaN = no data.
     #[param(value_type = Option<FormatParam>, inline)]
@@ -88,7 +88,7 @@ pub struct RoughnessQuery {
 macro_rules! choice_param {
     ($(#[$doc:meta])* $param:ident, $choice:ty) => {
         $(#[$doc])*
-        pub struct $param;
+        pub(crate) struct $param;
 
         impl PartialSchema for $param {
             fn schema() -> RefOr<Schema> {
@@ -118,7 +118,7 @@ fn choice_schema<E: IntoEnumIterator + EnumMessage>() -> ObjectBuilder {
 }
 
 /// The schema of `format`: a choice of [`Format`], defaulting to its default.
-pub struct FormatParam;
+pub(crate) struct FormatParam;
 
 impl PartialSchema for FormatParam {
     fn schema() -> RefOr<Schema> {
@@ -132,7 +132,7 @@ impl PartialSchema for FormatParam {
 impl ToSchema for FormatParam {}
 
 /// The schema of `dsac_hypotheses`: 1 to [`MAX_DSAC_HYPOTHESES`].
-pub struct DsacHypothesesParam;
+pub(crate) struct DsacHypothesesParam;
 
 impl PartialSchema for DsacHypothesesParam {
     fn schema() -> RefOr<Schema> {
@@ -163,7 +163,7 @@ where
 
 impl RoughnessQuery {
     /// The options, checked.
-    pub fn options(&self) -> Result<FrameOptions, ApiError> {
+    pub(crate) fn options(&self) -> Result<FrameOptions, ApiError> {
         let format = choice::<Format>("format", self.format.as_deref())?.unwrap_or_default();
         let mode = choice::<Mode>("mode", self.mode.as_deref())?;
         let normals = choice::<NormalsMethod>("normals", self.normals.as_deref())?;
@@ -216,7 +216,7 @@ impl RoughnessQuery {
     }
 
     /// Camera from the query (all four intrinsics, or none of them).
-    pub fn camera(&self, limits: DecodeLimits) -> Result<Option<CameraFile>, ApiError> {
+    pub(crate) fn camera(&self, limits: DecodeLimits) -> Result<Option<CameraFile>, ApiError> {
         let k = [self.fx, self.fy, self.cx, self.cy];
         let any = k.iter().any(Option::is_some)
             || self.pitch_deg.is_some()

@@ -8,15 +8,15 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 /// Length of a rate-limiting window.
-pub const WINDOW: Duration = Duration::from_secs(10);
+pub(crate) const WINDOW: Duration = Duration::from_secs(10);
 /// Refusal lines written per window; the rest are summarised.
-pub const LINES_PER_WINDOW: u32 = 20;
+pub(crate) const LINES_PER_WINDOW: u32 = 20;
 /// Longest reason written, characters.
 const MAX_REASON_CHARS: usize = 300;
 
 /// Rate-limited refusal log, shared by the HTTP handlers, the accept loop and the streams.
 #[derive(Debug)]
-pub struct RefusalLog {
+pub(crate) struct RefusalLog {
     state: Mutex<Window>,
 }
 
@@ -42,7 +42,13 @@ impl Default for RefusalLog {
 impl RefusalLog {
     /// Records one refusal: `what` (route or `connection`/`stream`), its request id, its code
     /// (`too_large`, `ws_1009`, ...) and the reason. Returns whether a line was written.
-    pub fn refused(&self, what: &str, request_id: &str, code: &'static str, reason: &str) -> bool {
+    pub(crate) fn refused(
+        &self,
+        what: &str,
+        request_id: &str,
+        code: &'static str,
+        reason: &str,
+    ) -> bool {
         let now = Instant::now();
         let write = {
             let Ok(mut w) = self.state.lock() else {
@@ -68,7 +74,7 @@ impl RefusalLog {
 
     /// Writes the summary of a window that has ended, if anything was left out of it; called
     /// every [`WINDOW`] by the server, so a flood that stops is still summarised.
-    pub fn flush(&self) {
+    pub(crate) fn flush(&self) {
         if let Ok(mut w) = self.state.lock() {
             if w.started.elapsed() >= WINDOW {
                 w.summarise(Instant::now());
@@ -102,7 +108,7 @@ impl Window {
 }
 
 /// `text` cut to at most `max` characters, with `…` where it was cut.
-pub fn cap(text: &str, max: usize) -> std::borrow::Cow<'_, str> {
+pub(crate) fn cap(text: &str, max: usize) -> std::borrow::Cow<'_, str> {
     match text.char_indices().nth(max) {
         None => text.into(),
         Some((at, _)) => format!("{}…", &text[..at]).into(),

@@ -17,11 +17,11 @@ use super::watched::{Watch, Watched, WriteOp};
 
 /// An IO whose writes (and flushes and shutdowns) fail with [`io::ErrorKind::TimedOut`] once
 /// one has been pending for the limit without any progress in between; reads pass through.
-pub type StallGuard<T> = Watched<T, Stall>;
+pub(crate) type StallGuard<T> = Watched<T, Stall>;
 
 /// The watch of a [`StallGuard`]: the limit, and the deadline of a pending write.
 #[derive(Debug)]
-pub struct Stall {
+pub(crate) struct Stall {
     limit: Duration,
     /// Started when a write is first found pending; cleared by any progress.
     deadline: Option<Pin<Box<Sleep>>>,
@@ -29,7 +29,7 @@ pub struct Stall {
 
 impl Stall {
     /// Guards `io` with `limit`.
-    pub fn guard<T>(io: T, limit: Duration) -> StallGuard<T> {
+    pub(crate) fn guard<T>(io: T, limit: Duration) -> StallGuard<T> {
         Watched::new(
             io,
             Self {

@@ -52,7 +52,7 @@ const CLOSE_WAIT: Duration = Duration::from_secs(2);
         (status = 503, response = super::openapi::ErrorResponse),
     ),
 )]
-pub async fn stream(
+pub(crate) async fn stream(
     State(app): State<Arc<AppState>>,
     id: Option<Extension<RequestId>>,
     read: Option<Extension<ReadBytes>>,

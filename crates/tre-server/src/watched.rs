@@ -10,7 +10,7 @@ use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 
 /// Which write-side call a result came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum WriteOp {
+pub(crate) enum WriteOp {
     /// `poll_write` or `poll_write_vectored`.
     Write,
     /// `poll_flush`.
@@ -20,7 +20,7 @@ pub enum WriteOp {
 }
 
 /// What a [`Watched`] IO tells its watcher.
-pub trait Watch {
+pub(crate) trait Watch {
     /// `n` (> 0) bytes were read; by default nothing is noted.
     fn read(&mut self, n: usize) {
         let _ = n;
@@ -38,14 +38,14 @@ pub trait Watch {
 
 /// `io` with every read and write shown to `watch`.
 #[derive(Debug)]
-pub struct Watched<T, W> {
+pub(crate) struct Watched<T, W> {
     io: T,
     watch: W,
 }
 
 impl<T, W> Watched<T, W> {
     /// Watches `io` with `watch`.
-    pub fn new(io: T, watch: W) -> Self {
+    pub(crate) fn new(io: T, watch: W) -> Self {
         Self { io, watch }
     }
 }

@@ -25,7 +25,7 @@ use tre_proto::ErrorCode;
 
 /// How the pool is built.
 #[derive(Debug, Clone)]
-pub struct PoolConfig {
+pub(crate) struct PoolConfig {
     /// Worker threads.
     pub workers: usize,
     /// Jobs that may wait for a worker; more are refused at once.
@@ -43,7 +43,7 @@ pub struct PoolConfig {
 }
 
 /// A frame's answer, or why there is none.
-pub type JobResult = Result<FrameReply, ApiError>;
+pub(crate) type JobResult = Result<FrameReply, ApiError>;
 
 /// One frame to run, with where to send the answer.
 struct Job {
@@ -100,7 +100,7 @@ impl Startup {
 
 /// The worker pool.
 #[derive(Debug)]
-pub struct Workers {
+pub(crate) struct Workers {
     tx: Mutex<Option<Sender<Job>>>,
     rx_probe: Receiver<Job>,
     capacity: usize,
@@ -112,7 +112,7 @@ pub struct Workers {
 impl Workers {
     /// Starts `cfg.workers` named threads; each loads the models and warms them up, then
     /// serves jobs. Use [`Workers::ready`] and [`Workers::failure`] to follow the start.
-    pub fn start(cfg: &PoolConfig, metrics: Arc<Metrics>) -> std::io::Result<Self> {
+    pub(crate) fn start(cfg: &PoolConfig, metrics: Arc<Metrics>) -> std::io::Result<Self> {
         let (tx, rx) = bounded::<Job>(cfg.queue);
         let startup = Arc::new(Startup::default());
         let mut handles = Vec::with_capacity(cfg.workers);
@@ -135,13 +135,13 @@ impl Workers {
     }
 
     /// Whether every worker has loaded and warmed up its models.
-    pub fn ready(&self) -> bool {
+    pub(crate) fn ready(&self) -> bool {
         self.startup.warm.load(Ordering::Acquire) == self.count
             && !self.startup.stopped.load(Ordering::Acquire)
     }
 
     /// Why a worker could not start, if one could not.
-    pub fn failure(&self) -> Option<Arc<WorkerError>> {
+    pub(crate) fn failure(&self) -> Option<Arc<WorkerError>> {
         self.startup
             .failed
             .lock()
@@ -150,24 +150,24 @@ impl Workers {
     }
 
     /// Jobs waiting for a worker.
-    pub fn queue_depth(&self) -> usize {
+    pub(crate) fn queue_depth(&self) -> usize {
         self.rx_probe.len()
     }
 
     /// Capacity of the queue.
-    pub fn capacity(&self) -> usize {
+    pub(crate) fn capacity(&self) -> usize {
         self.capacity
     }
 
     /// Worker threads.
-    pub fn count(&self) -> usize {
+    pub(crate) fn count(&self) -> usize {
         self.count
     }
 
     /// Enqueues a frame. Refused at once when the queue is full (`overloaded`), before the
     /// workers are warm or after shutdown began (`not_ready`). The receiver yields the answer
     /// and the time the job waited in the queue; dropping it cancels a job not yet started.
-    pub fn submit(
+    pub(crate) fn submit(
         &self,
         request: FrameRequest,
     ) -> Result<oneshot::Receiver<(JobResult, Duration)>, ApiError> {
@@ -246,7 +246,7 @@ impl Workers {
     }
 
     /// Stops taking jobs, lets the workers finish the queued ones, and joins them.
-    pub fn shutdown(&self) {
+    pub(crate) fn shutdown(&self) {
         self.startup.stopped.store(true, Ordering::Release);
         drop(
             self.tx

@@ -33,7 +33,7 @@ pub(super) struct Sink<'n, N> {
 
 impl<'n, N: FnMut(Notice)> Sink<'n, N> {
     /// A sink writing into `out` through `jobs`, telling `notify`.
-    pub fn new(out: &Path, jobs: mpsc::Sender<Job>, notify: &'n mut N) -> Self {
+    pub(super) fn new(out: &Path, jobs: mpsc::Sender<Job>, notify: &'n mut N) -> Self {
         Self {
             log: SentLog::default(),
             sent: Arc::new(AtomicU64::new(0)),
@@ -74,7 +74,7 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
 
     /// Handles events until the session ends; `stop` aborts the sending (the frames in flight
     /// still get their answers).
-    pub async fn drain(
+    pub(super) async fn drain(
         &mut self,
         events: &mut Events,
         sending: &tokio::task::JoinHandle<Result<(), ClientError>>,
@@ -105,7 +105,7 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
 
     /// Ends the sink (the writer thread finishes once its last job is done); returns the
     /// counts and the frames sent.
-    pub fn close(self) -> (Stats, Arc<AtomicU64>) {
+    pub(super) fn close(self) -> (Stats, Arc<AtomicU64>) {
         (self.stats, self.sent)
     }
 

@@ -71,7 +71,7 @@ pub(super) struct Stats {
 
 impl Stats {
     /// Nothing counted yet; the clock starts now.
-    pub fn new() -> Self {
+    pub(super) fn new() -> Self {
         let now = Instant::now();
         Self {
             start: now,
@@ -87,7 +87,7 @@ impl Stats {
     }
 
     /// Counts a result and its latency.
-    pub fn result(&mut self, r: &FrameResult) {
+    pub(super) fn result(&mut self, r: &FrameResult) {
         self.results += 1;
         let us = u64::try_from(r.latency.as_micros()).unwrap_or(u64::MAX);
         self.latency_us.saturating_record(us.max(1));
@@ -95,7 +95,7 @@ impl Stats {
 
     /// The counts now with `sent` frames sent: a progress line (`live`: fps since the previous
     /// one) or the final counts (fps over the recording).
-    pub fn progress(&mut self, sent: u64, live: bool) -> Progress {
+    pub(super) fn progress(&mut self, sent: u64, live: bool) -> Progress {
         let now = Instant::now();
         let (since, count) = if live { self.last } else { (self.start, 0) };
         let secs = now.duration_since(since).as_secs_f64().max(1e-9);

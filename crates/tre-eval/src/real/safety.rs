@@ -8,7 +8,7 @@ use super::*;
 use tre_core::roughness::hazard::rate;
 
 /// Floor coverage counts flat pixels nearer than this, metres.
-pub const FLOOR_RANGE_M: f64 = 3.0;
+pub(super) const FLOOR_RANGE_M: f64 = 3.0;
 
 /// One set's safety figures.
 #[derive(Debug, Clone, Copy, Default, Serialize)]

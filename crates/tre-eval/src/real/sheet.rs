@@ -64,7 +64,7 @@ pub fn sheet_panels(
 }
 
 /// Colours of the three states on the contact sheets.
-pub const STATE_COLOURS: [(&str, Rgb<u8>); 3] = [
+pub(super) const STATE_COLOURS: [(&str, Rgb<u8>); 3] = [
     ("traversable", Rgb([60, 170, 90])),
     ("hazard", Rgb([210, 40, 40])),
     ("unknown (noise or no data)", Rgb([150, 150, 220])),

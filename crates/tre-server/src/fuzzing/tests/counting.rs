@@ -64,7 +64,7 @@ static ALLOCATOR: Counting = Counting;
 
 /// Runs `f` and returns the most bytes this thread held at once during it, above what it
 /// held before.
-pub fn peak_during(f: impl FnOnce()) -> usize {
+pub(super) fn peak_during(f: impl FnOnce()) -> usize {
     let base = LIVE.with(Cell::get);
     PEAK.with(|p| p.set(base));
     f();
