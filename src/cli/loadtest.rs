@@ -9,9 +9,8 @@ use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 
 use crate::io;
-use crate::loadtest::{
-    report, run, svg, sweep, Ask, FrameSource, Load, LoadConfig, Protocol, Report, SweepReport,
-};
+use crate::loadtest::report::{self, SweepReport};
+use crate::loadtest::{run, svg, sweep, Ask, FrameSource, Load, LoadConfig, Protocol, Report};
 
 /// Interface to load.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

@@ -1,17 +1,19 @@
 //! On-disk formats: depth PNG (16-bit, configurable scale) and `.npy`, camera JSON, label maps,
 //! and the annotator's outputs (16-bit roughness PNG with mask, float `.npy`, previews).
 //!
-//! One module per concern, everything re-exported here: [`camera`] (camera JSON), [`depth`]
-//! (depth maps and their check), [`images`] (decoding and the PNG encodings), [`maps`]
-//! (labels, normals, `.npy` and PLY output), [`npy`] (the `.npy` format), [`colormap`] and
-//! [`sheet`] (pictures for people).
+//! The everyday readers and writers are here at the root (camera JSON, depth maps and their
+//! check, image decoding and the PNG encodings, labels, normals, `.npy` and PLY output, poses).
+//! Each other concern is a module of its own, named by its path: [`npy`] (the `.npy` format),
+//! [`colormap`], [`previews`] and [`sheet`] (pictures for people), [`outputs`] (a frame's result
+//! files), [`paths`], [`sequence`] (recorded sequence folders), [`map_files`] (the grid map's
+//! files) and [`units`].
 
-pub mod camera;
+mod camera;
 pub mod colormap;
-pub mod depth;
-pub mod images;
+mod depth;
+mod images;
 pub mod map_files;
-pub mod maps;
+mod maps;
 pub mod npy;
 pub mod outputs;
 pub mod paths;
@@ -23,6 +25,7 @@ pub mod units;
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
+use npy::NpyError;
 use tre_core::geometry::GeometryError;
 
 pub use camera::{
@@ -41,7 +44,6 @@ pub use maps::{
     npy_grid, read_labels, read_normals, read_pose, write_normals_npy, write_npy_f32,
     write_npy_u32, write_ply, PoseProblem,
 };
-pub use npy::{HeaderProblem, NpyError};
 
 /// Roughness on the wire: metres per unit of the 16-bit PNG (0.1 mm).
 pub const ROUGHNESS_PNG_SCALE_M: f64 = 1e-4;

@@ -235,7 +235,7 @@ fn read_depth_files(paths: &[PathBuf]) -> Result<Vec<Vec<u8>>, LoadError> {
 }
 
 /// `image/png` or `image/jpeg` from the magic bytes.
-pub fn content_type(bytes: &[u8]) -> Option<&'static str> {
+pub(crate) fn content_type(bytes: &[u8]) -> Option<&'static str> {
     if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
         Some("image/png")
     } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
@@ -246,7 +246,7 @@ pub fn content_type(bytes: &[u8]) -> Option<&'static str> {
 }
 
 /// View 4 (straight ahead) of scene 0 of seed 7, rendered at `size` and encoded as PNG.
-pub fn synthetic_png(size: (usize, usize)) -> Result<Vec<u8>, LoadError> {
+pub(crate) fn synthetic_png(size: (usize, usize)) -> Result<Vec<u8>, LoadError> {
     let bad = |why: String| LoadError::Config(format!("synthetic frame: {why}"));
     if size.0 == 0 || size.1 == 0 || size.0 * size.1 > 16_000_000 {
         return Err(bad(format!("size {}×{} out of range", size.0, size.1)));

@@ -22,22 +22,22 @@
 //! # }
 //! ```
 
-pub mod frames;
+mod frames;
 mod http;
 mod plan;
 pub mod report;
-pub mod stats;
+mod stats;
 pub mod svg;
-pub mod target;
+mod target;
 mod ws;
 
 use std::path::PathBuf;
 use std::time::Duration;
 
+use report::SweepReport;
 use serde::{Deserialize, Serialize};
 
 pub use frames::{FrameSource, Frames};
-pub use report::{Knee, SweepReport};
 pub use stats::{Percentiles, Report};
 pub use target::Target;
 

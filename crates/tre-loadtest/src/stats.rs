@@ -23,7 +23,7 @@ const SPECTRUM_MAX_NINES: f64 = 4.0;
 
 /// What became of one request.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Outcome {
+pub(crate) enum Outcome {
     /// A result (HTTP 200, stream `Result`).
     Ok,
     /// Refused for overload (HTTP 429 or 503, a stream `Error` with a retryable code), with the
@@ -105,7 +105,7 @@ impl Percentiles {
 }
 
 /// `[percentile, ms]` points from 0% to 99.99% on a "nines" scale, then the maximum at 100%.
-pub fn spectrum(h: &Histogram<u64>) -> Vec<[f64; 2]> {
+pub(crate) fn spectrum(h: &Histogram<u64>) -> Vec<[f64; 2]> {
     if h.is_empty() {
         return Vec::new();
     }
@@ -122,13 +122,13 @@ pub fn spectrum(h: &Histogram<u64>) -> Vec<[f64; 2]> {
 }
 
 /// A new histogram of microseconds, 3 significant digits.
-pub fn histogram() -> Histogram<u64> {
+pub(crate) fn histogram() -> Histogram<u64> {
     Histogram::new_with_bounds(1, MAX_US, 3)
         .expect("bounds 1..1 h with 3 digits are valid; this is a bug")
 }
 
 /// Records `d` in `h` (microseconds, at least 1, at most one hour).
-pub fn record(h: &mut Histogram<u64>, d: Duration) {
+pub(crate) fn record(h: &mut Histogram<u64>, d: Duration) {
     let us = u64::try_from(d.as_micros())
         .unwrap_or(MAX_US)
         .clamp(1, MAX_US);
@@ -151,14 +151,14 @@ struct Tally {
 
 /// Collects the outcomes of a run's measured window (requests intended before its start are
 /// warm-up and left out).
-pub struct Recorder {
+pub(crate) struct Recorder {
     measure_from: Instant,
     tally: Mutex<Tally>,
 }
 
 impl Recorder {
     /// A recorder whose measured window starts at `measure_from`.
-    pub fn new(measure_from: Instant) -> Self {
+    pub(crate) fn new(measure_from: Instant) -> Self {
         Self {
             measure_from,
             tally: Mutex::new(Tally {
@@ -176,14 +176,9 @@ impl Recorder {
         }
     }
 
-    /// Start of the measured window.
-    pub fn measure_from(&self) -> Instant {
-        self.measure_from
-    }
-
     /// Records a request intended at `intended` that ended with `outcome` at `done`
     /// (latency `done − intended`); warm-up requests are ignored.
-    pub fn record(&self, intended: Instant, done: Instant, outcome: Outcome) {
+    pub(crate) fn record(&self, intended: Instant, done: Instant, outcome: Outcome) {
         if intended < self.measure_from {
             return;
         }
@@ -222,7 +217,7 @@ impl Recorder {
     }
 
     /// End of the last measured answer.
-    pub fn last_done(&self) -> Option<Instant> {
+    pub(crate) fn last_done(&self) -> Option<Instant> {
         self.tally
             .lock()
             .unwrap_or_else(|p| p.into_inner())
@@ -230,7 +225,7 @@ impl Recorder {
     }
 
     /// The report over a measured window of `window_s` seconds.
-    pub fn report(&self, meta: RunInfo, window_s: f64) -> Report {
+    pub(crate) fn report(&self, meta: RunInfo, window_s: f64) -> Report {
         let t = self.tally.lock().unwrap_or_else(|p| p.into_inner());
         let refused = t.refused.len();
         let errors: u64 = t.errors_by_kind.values().sum();
@@ -379,7 +374,7 @@ impl Report {
 }
 
 /// A rate without needless decimals (`10`, `12.5`).
-pub fn fmt_rate(r: f64) -> String {
+pub(crate) fn fmt_rate(r: f64) -> String {
     if (r - r.round()).abs() < 1e-9 {
         format!("{}", r.round())
     } else {

@@ -26,7 +26,7 @@ pub struct Target {
 
 /// What the host part of a URL is.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum HostKind {
+pub(crate) enum HostKind {
     /// An IP address written out: the user chose it, loopback or not.
     Ip(IpAddr),
     /// A name to resolve: allowed only if every address is loopback, or with `allow_remote`.
@@ -35,7 +35,7 @@ pub enum HostKind {
 
 /// Splits `url` into its host, port, base path and whether it is over TLS; `http://`, `ws://`,
 /// `https://` and `wss://` are accepted.
-pub fn parse(url: &str) -> Result<(HostKind, u16, String, bool), LoadError> {
+pub(crate) fn parse(url: &str) -> Result<(HostKind, u16, String, bool), LoadError> {
     let bad = |why: &str| LoadError::Url {
         url: url.into(),
         why: why.into(),
@@ -63,13 +63,13 @@ pub fn parse(url: &str) -> Result<(HostKind, u16, String, bool), LoadError> {
 }
 
 /// Whether every address in `addrs` is loopback.
-pub fn all_loopback(addrs: &[SocketAddr]) -> bool {
+pub(crate) fn all_loopback(addrs: &[SocketAddr]) -> bool {
     !addrs.is_empty() && addrs.iter().all(|a| a.ip().is_loopback())
 }
 
 /// The safety rule for a host name: every address it resolves to must be loopback, unless
 /// `allow_remote`.
-pub fn check_resolved(
+pub(crate) fn check_resolved(
     host: &str,
     addrs: &[SocketAddr],
     allow_remote: bool,

@@ -17,20 +17,20 @@
 //! # }
 //! ```
 
-pub mod locate;
-pub mod manifest;
-pub mod models;
+mod locate;
+mod manifest;
+mod models;
 pub mod onnx;
 pub mod runtime;
-pub mod session;
+mod session;
 
 use std::fmt::Display;
 use std::path::PathBuf;
 
 pub use locate::{locate_models, FoundModels, ModelSearch, ModelsRule, MODELS_ENV};
-pub use manifest::{Manifest, ManifestProblem, ModelEntry, TensorSpec};
+pub use manifest::{Dim, Manifest, ManifestProblem, ModelEntry, TensorSpec};
 pub use models::{Models, CENTROID_NET, DEPTH_NET, END_TO_END, NEIGHBOUR_NET, NORMAL_REFINER};
-pub use runtime::RuntimeError;
+use runtime::RuntimeError;
 pub use session::{
     check_threads, cores, ExecutionProvider, InputProblem, ModelSession, OnnxProblem, Optimisation,
     SessionConfig, ThreadsError, MAX_WORKERS_PER_CORE,

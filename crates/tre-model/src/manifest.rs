@@ -2,7 +2,6 @@
 //! shapes, normalisation) and where it came from (training data, commit, metrics).
 
 use std::collections::BTreeMap;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -11,10 +10,10 @@ use sha2::{Digest, Sha256};
 use super::ModelError;
 
 /// The manifest format this code reads.
-pub const MANIFEST_FORMAT: u32 = 1;
+pub(crate) const MANIFEST_FORMAT: u32 = 1;
 
 /// The manifest file name inside a models folder.
-pub const MANIFEST_FILE: &str = "manifest.json";
+pub(crate) const MANIFEST_FILE: &str = "manifest.json";
 
 /// The whole manifest.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -160,7 +159,7 @@ pub enum ManifestProblem {
 /// ```
 /// assert!(tre_model::manifest::sha256_hex(b"").starts_with("e3b0c442"));
 /// ```
-pub fn sha256_hex(bytes: &[u8]) -> String {
+pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
     hex(&Sha256::digest(bytes))
 }
 
@@ -169,12 +168,15 @@ fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// Lower-case hex SHA-256 of a file, read in blocks.
+/// Lower-case hex SHA-256 of a file, read in blocks (the tests' reference for the manifest's
+/// digests).
 ///
 /// # Errors
 ///
 /// The OS error when the file cannot be read.
-pub fn sha256_file(path: &Path) -> std::io::Result<String> {
+#[cfg(test)]
+pub(crate) fn sha256_file(path: &Path) -> std::io::Result<String> {
+    use std::io::Read;
     let mut file = std::fs::File::open(path)?;
     let mut hasher = Sha256::new();
     let mut block = vec![0u8; 1 << 16];

@@ -35,7 +35,7 @@ pub fn prior_depth(k: &Intrinsics, mounting: &Mounting, width: usize, height: us
 }
 
 /// [`prior_depth`] into a caller's buffer (its size is the image size), rows in parallel.
-pub fn prior_depth_into(k: &Intrinsics, mounting: &Mounting, out: &mut Grid<f64>) {
+pub(crate) fn prior_depth_into(k: &Intrinsics, mounting: &Mounting, out: &mut Grid<f64>) {
     let width = out.width().max(1);
     let (sin, cos) = mounting.pitch_rad.sin_cos();
     out.as_mut_slice()

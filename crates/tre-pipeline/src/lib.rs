@@ -20,15 +20,15 @@
 //! # }
 //! ```
 
-pub mod calibration;
+mod calibration;
 pub mod centroid;
-pub mod config;
-pub mod depth;
-pub mod frame;
-pub mod gravity;
+mod config;
+mod depth;
+mod frame;
+mod gravity;
 pub mod normals;
 pub mod resize;
-pub mod run;
+mod run;
 mod spares;
 mod summary;
 pub mod tensors;

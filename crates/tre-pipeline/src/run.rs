@@ -59,7 +59,7 @@ const DEFAULT_STRIDE: usize = 16;
 /// assert_eq!(fit_aspect((256, 256), (512, 512), 16), (256, 256));
 /// assert_eq!(fit_aspect((256, 256), (4000, 1), 16), (256, 16));
 /// ```
-pub fn fit_aspect(
+pub(crate) fn fit_aspect(
     working: (usize, usize),
     (w0, h0): (usize, usize),
     stride: usize,

@@ -7,7 +7,8 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use tre_core::geometry::GeometryError;
-use tre_io::{CameraSizeMismatch, DepthError, NpyError, SensorSpecError};
+use tre_io::npy::NpyError;
+use tre_io::{CameraSizeMismatch, DepthError, SensorSpecError};
 use tre_pipeline::PipelineError;
 use tre_proto::ErrorCode;
 

@@ -136,7 +136,7 @@ impl Conditions {
 }
 
 /// The material colour (linear RGB) of `region` at world point `p` with upward normal `n`.
-pub fn albedo(region: &Region, p: &Vec3, n: &Vec3, weather: Weather) -> [f64; 3] {
+pub(crate) fn albedo(region: &Region, p: &Vec3, n: &Vec3, weather: Weather) -> [f64; 3] {
     let base = material(region, p);
     match weather {
         Weather::Rain => [base[0] * 0.5, base[1] * 0.52, base[2] * 0.58],
@@ -328,7 +328,7 @@ fn street_material(category: Category, s: u64, p: &Vec3) -> [f64; 3] {
 
 /// Linear RGB radiance of a surface point: Lambert from each light (times its visibility) plus
 /// hemispherical sky light, a wet sheen in rain, and haze by distance.
-pub struct ShadeInput<'a> {
+pub(crate) struct ShadeInput<'a> {
     /// Surface colour.
     pub albedo: [f64; 3],
     /// Unit upward normal (world).
@@ -348,7 +348,7 @@ pub struct ShadeInput<'a> {
 }
 
 /// Shades one surface point.
-pub fn shade(i: &ShadeInput<'_>) -> [f64; 3] {
+pub(crate) fn shade(i: &ShadeInput<'_>) -> [f64; 3] {
     let sky = i.conditions.sky();
     let hemi = 0.55 + 0.45 * i.normal.z;
     let mut light = [sky[0] * hemi, sky[1] * hemi, sky[2] * hemi];
@@ -379,7 +379,7 @@ pub fn shade(i: &ShadeInput<'_>) -> [f64; 3] {
 }
 
 /// Radiance of the sky seen along unit direction `d` (world).
-pub fn sky_radiance(d: &Vec3, conditions: &Conditions) -> [f64; 3] {
+pub(crate) fn sky_radiance(d: &Vec3, conditions: &Conditions) -> [f64; 3] {
     let up = d.z.max(0.0);
     let sky = conditions.sky();
     let horizon = [sky[0] * 1.6 + 0.1, sky[1] * 1.5 + 0.1, sky[2] * 1.3 + 0.1];
@@ -395,7 +395,7 @@ pub fn sky_radiance(d: &Vec3, conditions: &Conditions) -> [f64; 3] {
 }
 
 /// Linear radiance to 8-bit sRGB (with exposure 1).
-pub fn to_srgb8(c: [f64; 3]) -> [u8; 3] {
+pub(crate) fn to_srgb8(c: [f64; 3]) -> [u8; 3] {
     c.map(|v| {
         let v = v.clamp(0.0, 1.0);
         let s = if v <= 0.003_130_8 {

@@ -3,17 +3,17 @@
 //! four lightings and five weathers, with exact depth, normals and labels and roughness from the
 //! annotator (spec v1).
 
-pub mod appearance;
+mod appearance;
 pub mod content;
 pub mod dataset;
-pub mod heightgrid;
+mod heightgrid;
 pub mod imaging;
 pub mod noise;
 pub mod objects;
-pub mod render;
+mod render;
 pub mod sensor;
 pub mod surface;
-pub mod terrain;
+mod terrain;
 
 pub use appearance::{Conditions, Lighting, Weather};
 pub use content::Content;

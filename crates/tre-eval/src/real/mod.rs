@@ -37,7 +37,7 @@ use tre_io::sheet::{
     categorical_legend, colour_bar_legend, contact_sheet, roughness_panel, stack, Panel,
 };
 use tre_io::{self as io, CameraFile};
-use tre_pipeline::frame::SensorMaps;
+use tre_pipeline::SensorMaps;
 use tre_pipeline::{FrameInput, GeometricMethod, Mode, Pipeline, PipelineConfig};
 
 /// One real frame on disk.
