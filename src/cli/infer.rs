@@ -102,7 +102,7 @@ impl Infer {
         let mode = self.mode()?;
         let traversability =
             Traversability::from_cm_deg(Some(self.max_roughness_cm), Some(self.max_slope_deg))
-                .map_err(|e| anyhow::anyhow!("--{}", e.replace('_', "-")))?;
+                .map_err(|e| anyhow::anyhow!("--{}", e.to_string().replace('_', "-")))?;
         let cfg = PipelineConfig {
             traversability,
             ..self.stages.config(mode)

@@ -179,7 +179,7 @@ pub enum ConfigProblem {
     Rate(f64),
     /// Traversability thresholds out of range, in the words of `tre-core`'s check.
     #[error("{0}")]
-    Traversability(String),
+    Traversability(tre_core::kinds::TraversabilityError),
     /// A back-off whose first wait is zero or longer than its longest.
     #[error("need 0 < initial ≤ max, got {initial:?} and {max:?}")]
     BackoffRange {

@@ -263,19 +263,31 @@ impl Traversability {
     pub fn from_cm_deg(
         max_roughness_cm: Option<f64>,
         max_slope_deg: Option<f64>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, TraversabilityError> {
         let default = Self::default();
         if let Some(cm) = max_roughness_cm.filter(|cm| !(cm.is_finite() && *cm > 0.0)) {
-            return Err(format!("max_roughness_cm: must be positive, got {cm}"));
+            return Err(TraversabilityError::Roughness(cm));
         }
         if let Some(deg) = max_slope_deg.filter(|d| !(0.0..=90.0).contains(d)) {
-            return Err(format!("max_slope_deg: must be 0 to 90, got {deg}"));
+            return Err(TraversabilityError::Slope(deg));
         }
         Ok(Self {
             max_roughness_m: max_roughness_cm.map_or(default.max_roughness_m, |cm| cm / 100.0),
             max_slope_rad: max_slope_deg.map_or(default.max_slope_rad, f64::to_radians),
         })
     }
+}
+
+/// Limits of [`Traversability::from_cm_deg`] out of their range; the message starts with the
+/// setting's name (`max_roughness_cm`, `max_slope_deg`), as every interface spells it.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum TraversabilityError {
+    /// A largest roughness that is not a positive number of centimetres.
+    #[error("max_roughness_cm: must be positive, got {0}")]
+    Roughness(f64),
+    /// A steepest slope outside 0 to 90 degrees.
+    #[error("max_slope_deg: must be 0 to 90, got {0}")]
+    Slope(f64),
 }
 
 #[cfg(test)]

@@ -185,7 +185,7 @@ impl RoughnessQuery {
             extras: self.extras()?,
             traversable_bytes: false,
             traversability: Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
-                .map_err(bad)?,
+                .map_err(|e| bad(e.to_string()))?,
             sensor: self
                 .sensor
                 .as_deref()

@@ -82,9 +82,20 @@ pub enum MapError {
     /// No point of the frame fell in the map.
     #[error("the frame has no valid point within range of the map; skipped")]
     NothingSeen,
-    /// A bad configuration.
-    #[error("map configuration: {0}")]
-    Config(String),
+    /// A gravity direction of zero length (or not finite).
+    #[error("map configuration: gravity {0:?} has no direction")]
+    NoGravityDirection([f64; 3]),
+    /// A cell size that is not positive, or a side outside 1 to 8192 cells.
+    #[error(
+        "map configuration: cell {cell_m} m and side {side} cells: the cell must be positive and \
+         the side 1 to 8192"
+    )]
+    BadGrid {
+        /// Cell side, metres.
+        cell_m: f64,
+        /// Cells per side.
+        side: usize,
+    },
     /// No gravity was given or stated and the first frame shows no ground to level by.
     #[error("no gravity given, no pitch stated, and no ground in the first frame")]
     NoGround,
@@ -119,7 +130,7 @@ impl MapFrame {
     pub fn from_gravity(down: &Vec3) -> Result<Self, MapError> {
         let up = -down
             .try_normalize(1e-9)
-            .ok_or_else(|| MapError::Config(format!("gravity {down:?} has no direction")))?;
+            .ok_or(MapError::NoGravityDirection([down.x, down.y, down.z]))?;
         let rot = nalgebra::Rotation3::rotation_between(&up, &Vector3::z()).unwrap_or_else(|| {
             nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
         });
@@ -375,10 +386,10 @@ impl GridMap {
     /// An empty map centred on the map-frame point `(x, y)`.
     pub fn new(cfg: MapConfig, frame: MapFrame, centre: (f64, f64)) -> Result<Self, MapError> {
         if !(cfg.cell_m.is_finite() && cfg.cell_m > 0.0) || cfg.side == 0 || cfg.side > 8192 {
-            return Err(MapError::Config(format!(
-                "cell {} m and side {} cells: the cell must be positive and the side 1 to 8192",
-                cfg.cell_m, cfg.side
-            )));
+            return Err(MapError::BadGrid {
+                cell_m: cfg.cell_m,
+                side: cfg.side,
+            });
         }
         let n = cfg.side * cfg.side;
         let mut map = Self {
