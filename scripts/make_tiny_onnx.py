@@ -5,9 +5,9 @@
 
 y = relu(conv3x3(x, W, padding=1) + b), x and y float32 [N, 1, H, W] with N, H, W dynamic,
 opset 17. The weights are fixed, non-symmetric and of both signs so that a transposed or
-flipped kernel, a missing bias or a missing ReLU all change the output; tests/it/ort_runtime.rs
-holds the same numbers. The output file is committed, so only regenerating it needs the
-`onnx` package (`pip install onnx`).
+flipped kernel, a missing bias or a missing ReLU all change the output;
+crates/tre-model/tests/model/ort_runtime.rs holds the same numbers. The output file is
+committed, so only regenerating it needs the `onnx` package (`pip install onnx`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import onnx
 from onnx import TensorProto, helper
 
 # Row-major 3x3 kernel (cross-correlation, as ONNX Conv defines it) and bias.
-# Keep in step with WEIGHTS and BIAS in tests/it/ort_runtime.rs.
+# Keep in step with WEIGHTS and BIAS in crates/tre-model/tests/model/ort_runtime.rs.
 WEIGHTS = [0.5, -1.0, 0.25, 1.5, 2.0, -0.75, -0.5, 0.125, 1.0]
 BIAS = -0.1
 OPSET = 17
@@ -49,7 +49,10 @@ def build_model() -> onnx.ModelProto:
         opset_imports=[helper.make_opsetid("", OPSET)],
         ir_version=IR_VERSION,
     )
-    model.doc_string = "3x3 conv (padding 1) + bias + relu; fixture for tests/it/ort_runtime.rs"
+    model.doc_string = (
+        "3x3 conv (padding 1) + bias + relu;"
+        " fixture for crates/tre-model/tests/model/ort_runtime.rs"
+    )
     onnx.checker.check_model(model, full_check=True)
     return model
 

@@ -2,8 +2,10 @@
 //! each kind of bad input.
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
+
+use crate::common::real;
 
 fn tre(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_tre"))
@@ -14,12 +16,6 @@ fn tre(args: &[&str]) -> Output {
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn real(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/real-rgbd")
-        .join(rel)
 }
 
 fn s(p: &Path) -> &str {
@@ -56,6 +52,7 @@ fn expect_annotate_error(depth: &Path, camera: &Path, out: &Path, needle: &str) 
 
 #[test]
 fn annotates_a_real_frame_with_every_output() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let dir = tempfile::tempdir().unwrap();
     let out = tre(&[
         "annotate",
@@ -95,6 +92,7 @@ fn annotates_a_real_frame_with_every_output() {
 
 #[test]
 fn bad_inputs_give_clear_errors() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let cam = real("slambook2_ch7/intrinsics.json");

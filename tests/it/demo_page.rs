@@ -54,6 +54,7 @@ fn demo_page_renders_roughness_streams_and_shows_errors() {
         println!("skipped: demo page browser test: {why} (run tests/browser/setup.sh)");
         return;
     }
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&[]);
     let out = Command::new("node")
         .arg(root().join("tests/browser/demo.mjs"))

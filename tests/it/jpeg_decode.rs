@@ -27,6 +27,7 @@ fn fixtures() -> Vec<PathBuf> {
 
 #[test]
 fn valid_jpegs_decode_to_the_same_pixels_as_image_does() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let files = fixtures();
     assert_eq!(files.len(), 10);
     for path in files {
@@ -47,6 +48,7 @@ fn valid_jpegs_decode_to_the_same_pixels_as_image_does() {
 
 #[test]
 fn truncated_jpegs_are_errors() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     for path in fixtures() {
         if path.ends_with("trailing_bytes.jpg") {
             continue;

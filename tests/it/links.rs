@@ -8,7 +8,9 @@ use std::path::{Component, Path, PathBuf};
 use std::process::Command;
 
 /// A cited path is checked when it starts with one of these: the repository's top-level folders,
-/// and `../shared/` (the shared data beside a clone; checked only where it is there). `data/` and
+/// and `../shared/` (the shared data beside a clone: checked where it is there, in the folder
+/// `common::shared_root` names; where it is not, the test says so and leaves those paths
+/// unchecked, unless `TRE_REQUIRE_SHARED=1`). `data/` and
 /// `out/` are not among them: they hold what `tre synth` and the examples write, git-ignored, so a
 /// clone has neither.
 const ROOTS: &[&str] = &[
@@ -315,27 +317,28 @@ fn bases(root: &Path, file: &Path) -> Vec<PathBuf> {
 }
 
 /// Whether a cited repository path resolves from `file`: an allowed non-file, something under
-/// `../shared/` where that is missing, the folder before a glob or placeholder, or the path itself.
-fn path_resolves(root: &Path, file: &Path, cited: &str) -> bool {
+/// `../shared/` where that is missing (`shared` is `None`), the folder before a glob or
+/// placeholder, or the path itself.
+fn path_resolves(root: &Path, shared: Option<&Path>, file: &Path, cited: &str) -> bool {
     let path = without_line(cited);
     if NOT_FILES.iter().any(|(p, _)| *p == path) {
-        return true;
-    }
-    if path.starts_with("../shared/") && !root.join("../shared").is_dir() {
         return true;
     }
     let checked = match path.find(['*', '{', '<', '…']) {
         Some(at) => &path[..path[..at].rfind('/').map_or(0, |s| s + 1)],
         None => path,
     };
+    if let Some(rest) = checked.strip_prefix("../shared/") {
+        return shared.is_none_or(|dir| dir.join(rest).exists());
+    }
     bases(root, file)
         .iter()
         .any(|base| base.join(checked).exists())
 }
 
 /// Whether a Markdown link target in `file` resolves: external and in-page links always do;
-/// one into `../shared/` only counts where that folder is there.
-fn link_resolves(root: &Path, file: &Path, target: &str) -> bool {
+/// one into `../shared/` only counts where that folder is there (`shared`).
+fn link_resolves(root: &Path, shared: Option<&Path>, file: &Path, target: &str) -> bool {
     let external = ["http://", "https://", "mailto:", "#"];
     if target.is_empty() || external.iter().any(|e| target.starts_with(e)) {
         return true;
@@ -343,8 +346,8 @@ fn link_resolves(root: &Path, file: &Path, target: &str) -> bool {
     let local = target.split(['#', '?']).next().unwrap_or("");
     let dir = file.parent().unwrap_or(Path::new(""));
     let resolved = normalise(&dir.join(local));
-    if resolved.starts_with("../shared") && !root.join("../shared").is_dir() {
-        return true;
+    if let Ok(rest) = resolved.strip_prefix("../shared") {
+        return shared.is_none_or(|dir| dir.join(rest).exists());
     }
     root.join(resolved).exists()
 }
@@ -356,6 +359,7 @@ fn link_resolves(root: &Path, file: &Path, target: &str) -> bool {
 #[test]
 fn every_link_and_cited_path_resolves() {
     let root = root();
+    let shared = crate::common::shared_data("");
     let mut broken = Vec::new();
     let mut checked = 0;
     for file in repository_files(&root) {
@@ -365,9 +369,9 @@ fn every_link_and_cited_path_resolves() {
         for c in citations(&file, &text) {
             checked += 1;
             let ok = if c.link {
-                link_resolves(&root, &file, &c.target)
+                link_resolves(&root, shared.as_deref(), &file, &c.target)
             } else {
-                path_resolves(&root, &file, &c.target)
+                path_resolves(&root, shared.as_deref(), &file, &c.target)
             };
             if !ok {
                 broken.push(format!("{}:{}: {}", file.display(), c.line, c.target));

@@ -14,7 +14,7 @@ use tre::pipeline::{
 };
 use tre::synth::SynthConfig;
 
-use crate::common::synth_config;
+use crate::common::{real, synth_config};
 
 type TestResult = Result<(), Box<dyn Error>>;
 
@@ -59,14 +59,6 @@ fn read_synth(dir: &Path) -> Result<FrameInput, Box<dyn Error>> {
         intrinsics: Some(k),
         mounting: cam.mounting()?,
     })
-}
-
-fn real(rel: &str) -> PathBuf {
-    Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/real-rgbd"
-    ))
-    .join(rel)
 }
 
 /// A real Kinect frame: RGB, registered depth and intrinsics (slambook2 ch5, frame 1).
@@ -187,6 +179,7 @@ fn geometric_surface_only_is_ls_normals_and_window_centroids_at_the_frame_size()
 
 #[test]
 fn geometric_mode_is_the_annotator_on_every_shared_real_frame() -> TestResult {
+    crate::common::skip_unless_shared!("data/real-rgbd", Ok(()));
     // The spec (`tre annotate` without labels) and the geometric mode at the frame's own size
     // must agree bit for bit: one implementation serves both.
     let frames = tre::eval::real::find_frames(&real(""), None)?;
@@ -244,6 +237,7 @@ fn geometric_mode_is_the_annotator_on_every_shared_real_frame() -> TestResult {
 
 #[test]
 fn every_mode_runs_on_a_real_frame() -> TestResult {
+    crate::common::skip_unless_shared!("data/real-rgbd", Ok(()));
     let frame = real_frame()?;
     let mut pipeline = Pipeline::new(Some(models()?));
     for mode in [Mode::Rgb, Mode::Rgbd, Mode::Geometric] {

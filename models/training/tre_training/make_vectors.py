@@ -1,4 +1,5 @@
-"""Writes the DSAC test vectors that `tests/it/dsac_parity.rs` checks serving against.
+"""Writes the DSAC test vectors that serving is checked against
+(`crates/tre-core/tests/core/dsac_parity.rs`).
 
     python -m tre_training.make_vectors [--out PATH] [--check]
 
@@ -412,7 +413,8 @@ def vectors() -> dict[str, Any]:
     return {
         "about": (
             "DSAC parity vectors written by models/training (python -m tre_training.make_vectors);"
-            " checked by tests/it/dsac_parity.rs. Floats are decimal strings that round-trip"
+            " checked by crates/tre-core/tests/core/dsac_parity.rs. Floats are decimal strings"
+            " that round-trip"
             " exactly (float64: Python repr; float32: shortest float32 repr); u64 values are"
             " decimal strings. Frames: points[y][x] (NaN: invalid), logits[k] row-major H×W,"
             " pixels in row-major order (null: invalid point), pixel index i = y·W + x."

@@ -96,6 +96,7 @@ fn eval_tables_print_every_table_and_write_json() {
 
 #[test]
 fn eval_real_scores_every_mode_on_one_frame_and_writes_json_and_a_sheet() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let dir = tempfile::tempdir().unwrap();
     let (json, sheets) = (dir.path().join("real.json"), dir.path().join("sheets"));
     let o = tre(&[
@@ -223,10 +224,13 @@ fn assert_modes_compare(rows: &[serde_json::Value]) {
 
 #[test]
 fn eval_real_pools_folders_and_scores_only_the_split_asked_for() {
+    let Some(kitchen) = shared_data("data/real-rgbd")
+        .and_then(|_| shared_data("data/real-rgbd-2/sevenscenes_redkitchen"))
+    else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("split.json");
-    let kitchen = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/real-rgbd-2/sevenscenes_redkitchen");
     let o = tre(&[
         "eval",
         "--real",
@@ -282,9 +286,12 @@ fn eval_real_pools_folders_and_scores_only_the_split_asked_for() {
 
 #[test]
 fn unsplit_sequences_and_calibrating_on_the_test_split_are_refused() {
+    let Some(kitchen) = shared_data("data/real-rgbd")
+        .and_then(|_| shared_data("data/real-rgbd-2/sevenscenes_redkitchen"))
+    else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
-    let kitchen = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/real-rgbd-2/sevenscenes_redkitchen");
     // A sequence the splits file does not name is refused, not scored silently.
     let other = dir.path().join("elsewhere");
     std::fs::create_dir(&other).unwrap();

@@ -5,6 +5,7 @@ use super::*;
 
 #[test]
 fn infer_writes_roughness_and_a_preview_in_every_mode() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let dir = tempfile::tempdir().unwrap();
     let rgb = real("slambook2_ch5/color/1.png");
     let depth = real("slambook2_ch5/depth/1.png");
@@ -53,6 +54,7 @@ fn infer_writes_roughness_and_a_preview_in_every_mode() {
 
 #[test]
 fn infer_takes_the_traversability_thresholds() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("geo.npy");
     let depth = real("slambook2_ch5/depth/1.png");
@@ -104,6 +106,7 @@ fn infer_takes_the_traversability_thresholds() {
 
 #[test]
 fn infer_refuses_bad_input_clearly() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.png");
     let rgb = real("slambook2_ch5/color/1.png");
@@ -308,6 +311,7 @@ impl Inputs {
 /// it) are refused before any work, each with a message that names the problem.
 #[test]
 fn outputs_never_replace_inputs_and_implausible_inputs_are_refused() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let inputs = Inputs::new();
     let original = std::fs::read(&inputs.frame).unwrap();
     for (args, needle) in inputs.infer_cases().into_iter().chain(inputs.other_cases()) {

@@ -4,6 +4,8 @@
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use std::path::{Path, PathBuf};
+
+use crate::common::{real, shared_data};
 use std::process::{Command, Output};
 
 mod eval;
@@ -33,14 +35,6 @@ fn fails_saying(args: &[&str], needle: &str) {
         err.contains(needle),
         "{args:?}: expected {needle:?} in {err}"
     );
-}
-
-fn real(rel: &str) -> PathBuf {
-    Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/real-rgbd"
-    ))
-    .join(rel)
 }
 
 fn s(p: &Path) -> &str {

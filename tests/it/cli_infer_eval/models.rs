@@ -69,6 +69,7 @@ fn infer_finds_the_models_from_outside_the_checkout_and_says_where() {
 
 #[test]
 fn infer_without_models_lists_every_place_looked_at_in_order() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let exe_dir = Path::new(env!("CARGO_BIN_EXE_tre")).parent().unwrap();
     let beside = exe_dir.join("models");
     let share = exe_dir.join("../share/tre/models");

@@ -7,6 +7,7 @@ use tre::client::FrameResult;
 
 #[test]
 fn every_frame_comes_back_equal_to_tre_infer_and_the_cli_writes_them() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let _serial = SERIAL
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);

@@ -5,6 +5,7 @@ use super::*;
 
 #[test]
 fn a_session_reconnects_to_a_restarted_server_and_carries_on() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let _serial = SERIAL
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -201,6 +202,7 @@ fn a_hung_server_is_reported_on_time_and_the_session_recovers() {
 /// the server closed the idle connection (`--request-timeout-ms`, 60 s here).
 #[test]
 fn a_server_at_its_connection_limit_is_named_and_the_client_connects_once_a_place_frees() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     use std::io::Read;
     let _serial = SERIAL
         .lock()

@@ -65,6 +65,7 @@ fn tls_proxy(rt: &tokio::runtime::Runtime, upstream: SocketAddr) -> (SocketAddr,
 /// certificate is refused and the error says so.
 #[test]
 fn the_client_and_the_load_tester_speak_tls_to_a_proxy_with_a_private_ca() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let _serial = SERIAL
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);

@@ -118,13 +118,65 @@ pub fn get(addr: SocketAddr, path: &str) -> (u16, Vec<u8>) {
     (status, body)
 }
 
-/// A file of the real RGB-D frames in `../shared/data/real-rgbd`.
+/// The shared data beside the repository: `$TRE_SHARED_DIR` where that is set, else
+/// `<repository>/../shared` (CI has it there; a clone of the repository alone does not).
+pub fn shared_root() -> PathBuf {
+    match std::env::var_os("TRE_SHARED_DIR") {
+        Some(dir) if !dir.is_empty() => PathBuf::from(dir),
+        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared"),
+    }
+}
+
+/// `rel` (a folder such as `data/real-rgbd`) under the shared data, where it is there. Where it
+/// is not, the calling test is to return early: this prints one line saying so to stderr (past
+/// the harness's capture, so that a skip is never silent) and gives `None`, unless
+/// `TRE_REQUIRE_SHARED=1` (as in CI), which makes the missing folder a failure.
+pub fn shared_data(rel: &str) -> Option<PathBuf> {
+    let path = shared_root().join(rel);
+    if path.is_dir() {
+        return Some(path);
+    }
+    let needs = Path::new("../shared").join(rel);
+    if std::env::var("TRE_REQUIRE_SHARED").is_ok_and(|v| v == "1") {
+        panic!(
+            "TRE_REQUIRE_SHARED=1: {} is required beside the repository, and {} is missing",
+            needs.display(),
+            path.display()
+        );
+    }
+    let test = std::thread::current().name().unwrap_or("a test").to_owned();
+    let line = format!(
+        "skipped {test}: needs {} beside the repository ({} is missing)\n",
+        needs.display(),
+        path.display()
+    );
+    let _ = std::io::stderr().write_all(line.as_bytes());
+    None
+}
+
+/// Returns from the calling test unless the shared folder `rel` is there ([`shared_data`],
+/// which says so on stderr, or fails under `TRE_REQUIRE_SHARED=1`); `return VALUE` in a test
+/// that returns one: `skip_unless_shared!("data/real-rgbd", Ok(()))`.
+#[allow(unused_macros)] // Not every binary that includes this file skips.
+macro_rules! skip_unless_shared {
+    ($rel:expr) => {
+        if $crate::common::shared_data($rel).is_none() {
+            return;
+        }
+    };
+    ($rel:expr, $value:expr) => {
+        if $crate::common::shared_data($rel).is_none() {
+            return $value;
+        }
+    };
+}
+#[allow(unused_imports)] // Not every binary that includes this file skips.
+pub(crate) use skip_unless_shared;
+
+/// A file of the real RGB-D frames in `../shared/data/real-rgbd`. A test that reads them
+/// returns early unless they are there: [`skip_unless_shared`].
 pub fn real(rel: &str) -> PathBuf {
-    Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/real-rgbd"
-    ))
-    .join(rel)
+    shared_root().join("data/real-rgbd").join(rel)
 }
 
 /// Runs `tre infer` with `args` writing a 16-bit PNG, and returns its raw grey+alpha values.

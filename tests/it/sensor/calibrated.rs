@@ -49,6 +49,7 @@ fn config(mode: Mode) -> PipelineConfig {
 
 #[test]
 fn the_spec_through_its_intervals_keeps_hazards_off_and_the_near_floor_on() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let mut p = pipeline();
     let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
     let table = p.interval_table(Mode::Geometric).cloned().unwrap();
@@ -97,6 +98,7 @@ fn the_spec_through_its_intervals_keeps_hazards_off_and_the_near_floor_on() {
 
 #[test]
 fn the_learned_modes_state_intervals_that_hold_the_spec_on_a_real_frame() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let mut p = pipeline();
     let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
     let (input, spec) = input("slambook2_ch7", "1.png", "1_depth.png");
@@ -134,6 +136,7 @@ fn the_learned_modes_state_intervals_that_hold_the_spec_on_a_real_frame() {
 
 #[test]
 fn tre_infer_writes_the_rgb_modes_maps_from_its_intervals() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.png");
     let rgb = common::real("slambook2_ch7/1.png");

@@ -51,6 +51,7 @@ fn traversal_values(png: &[u8]) -> [usize; 3] {
 
 #[test]
 fn tre_infer_writes_the_uncertainty_and_three_state_maps_with_a_sensor() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let (depth, camera) = tum();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.png");
@@ -128,6 +129,7 @@ fn parts(content_type: &str, body: &[u8]) -> Vec<(String, Vec<u8>)> {
 
 #[test]
 fn http_and_stream_answer_the_sensor_maps() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = common::Server::start(&["--workers", "1"]);
     let (depth, camera) = tum();
     let depth = std::fs::read(depth).unwrap();

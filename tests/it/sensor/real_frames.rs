@@ -98,6 +98,7 @@ fn count_real_frame(f: &RealFrame, counts: &mut RealCounts) {
 
 #[test]
 fn real_kinect_frames_near_floor_traversable_far_rough_unknown_drops_hazard() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let frames = real_frames();
     let mut counts = RealCounts::default();
     eprintln!("frame | traversable % | hazard % | unknown % | far (≥ 4 m) rough px: unknown %");

@@ -5,6 +5,7 @@ use super::*;
 
 #[test]
 fn answers_equal_tre_infer_in_rgb_and_rgbd() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1"]);
     rt().block_on(async {
         let rgb_path = real("slambook2_ch7/1.png");
@@ -95,6 +96,7 @@ fn assert_map_headers(h: &reqwest::header::HeaderMap) {
 
 #[test]
 fn serve_dsac_hypotheses_sets_the_frames_default_and_is_checked() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1", "--dsac-hypotheses", "4"]);
     let rgb_path = real("slambook2_ch7/1.png");
     let frame = std::fs::read(&rgb_path).unwrap();
@@ -257,6 +259,7 @@ fn operational_endpoints() {
 /// reject).
 #[test]
 fn the_openapi_document_matches_what_the_server_takes() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1"]);
     let (s, body) = get(server.addr, "/openapi.json");
     assert_eq!(s, 200);

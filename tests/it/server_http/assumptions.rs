@@ -52,6 +52,7 @@ fn form(rgb: &[u8], depth: Option<&[u8]>, camera: Option<&str>) -> Form {
 
 #[test]
 fn answers_name_their_mode_gravity_and_assumptions() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1"]);
     let url = format!("{}/v1/roughness", server.url());
     let rgb = std::fs::read(real("slambook2_ch7/1.png")).unwrap();

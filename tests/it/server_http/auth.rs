@@ -7,6 +7,7 @@ use super::*;
 /// on `--allow-origin`, whose preflights are answered and answers carry their allow-origin.
 #[test]
 fn the_api_key_and_the_origin_allow_list_guard_every_route() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let key = "0123456789abcdef0123";
     let ops = "https://ops.example";
     let server = Server::start(&["--workers", "1", "--api-key", key, "--allow-origin", ops]);

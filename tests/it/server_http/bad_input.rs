@@ -16,6 +16,7 @@ fn overflowing_npy() -> Vec<u8> {
 
 #[test]
 fn bad_input_is_a_clear_error_and_the_server_keeps_serving() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let mut server = Server::start(&[
         "--workers",
         "1",
@@ -311,6 +312,7 @@ fn clients_vanish_mid_request(addr: std::net::SocketAddr) {
 /// one with notes (`licence`) is read as `tre infer` reads it.
 #[test]
 fn long_thin_images_and_implausible_cameras_are_refused_at_once() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1"]);
     let url = format!("{}/v1/roughness?mode=rgb", server.url());
     rt().block_on(async {

@@ -5,6 +5,7 @@ use super::*;
 
 #[test]
 fn overload_is_refused_at_once_and_accepted_work_finishes() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1", "--queue", "1"]);
     let url = format!("{}/v1/roughness", server.url());
     let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
@@ -100,6 +101,7 @@ fn assert_refused_at_once(server: &Server, outcomes: &[Outcome]) {
 
 #[test]
 fn sigterm_finishes_in_flight_work_then_exits() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1"]);
     let url = format!("{}/v1/roughness", server.url());
     let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
@@ -127,6 +129,7 @@ fn sigterm_finishes_in_flight_work_then_exits() {
 
 #[test]
 fn clients_that_left_give_their_queue_slots_to_new_frames() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     // One worker, a queue of one, and a short timeout: a frame that outlives its client's
     // timeout must not keep the only slot from the next client while the worker is busy.
     let server = Server::start(&[
@@ -189,6 +192,7 @@ fn clients_that_left_give_their_queue_slots_to_new_frames() {
 /// unanswered, and once the holders leave the server takes connections again.
 #[test]
 fn connections_over_the_limit_are_answered_503_at_once() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1", "--max-connections", "2"]);
     // Two kept-alive connections that have been served hold both places. (A connection the
     // server is still closing, such as the start-up probe's, may hold one for a moment: a

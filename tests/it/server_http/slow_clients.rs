@@ -6,6 +6,7 @@ use super::*;
 
 #[test]
 fn a_client_that_sends_a_whole_oversize_body_first_still_reads_the_413() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     // Like Python's http.client: write the whole request, then read the answer. 30 MB against
     // an 8 MB limit is more than loopback's socket buffers hold, so the server must read the
     // rest of the body rather than close on it.
@@ -33,6 +34,7 @@ fn a_client_that_sends_a_whole_oversize_body_first_still_reads_the_413() {
 /// hears 408 `request_timeout` at `--body-timeout-ms`.
 #[test]
 fn a_client_that_stalls_mid_upload_holds_no_place_and_hears_408() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     use std::io::Read;
     let server = Server::start(&[
         "--workers",
@@ -67,6 +69,7 @@ fn a_client_that_stalls_mid_upload_holds_no_place_and_hears_408() {
 /// uploads end with 408 (at the end of the first `--min-body-rate` window, 5 s).
 #[test]
 fn eighty_trickling_uploads_do_not_starve_a_ready_request() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1", "--body-timeout-ms", "6000"]);
     let head = "POST /v1/roughness HTTP/1.1\r\nHost: x\r\nContent-Type: image/png\r\nContent-Length: 100000\r\n\r\n";
     let mut trickles: Vec<TcpStream> = (0..80)
@@ -246,6 +249,7 @@ async fn read_answer(
 /// but steadily still gets all of it.
 #[test]
 fn a_client_that_stops_reading_its_answer_loses_the_connection_and_a_slow_one_does_not() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1", "--stall-timeout-ms", "1500"]);
     let frame = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
     rt().block_on(async {
@@ -305,6 +309,7 @@ fn closed_within(mut tcp: TcpStream, bytes: &[u8], within: std::time::Duration) 
 /// kept-alive connections alike.
 #[test]
 fn request_headers_have_a_deadline_and_idle_connections_are_closed() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     use std::io::Read;
     let server = Server::start(&["--workers", "1", "--header-timeout-ms", "1500"]);
     let within = std::time::Duration::from_secs(8);

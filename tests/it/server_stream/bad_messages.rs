@@ -4,6 +4,7 @@ use super::*;
 
 #[test]
 fn bad_messages_are_errors_and_the_stream_goes_on() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let mut server = Server::start(&["--workers", "1", "--ws-max-message-bytes", "1000000"]);
     let small = common::pattern_png(64, 48);
     rt().block_on(async {

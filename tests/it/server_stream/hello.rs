@@ -5,6 +5,7 @@ use super::*;
 
 #[test]
 fn the_hello_sets_the_traversability_thresholds() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1"]);
     let image = std::fs::read(real("slambook2_ch7/2.png")).unwrap();
     rt().block_on(async {
@@ -109,6 +110,7 @@ async fn traversable_and_valid(
 
 #[test]
 fn the_hello_chooses_dsac_hypotheses_and_a_bad_number_is_an_error() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1"]);
     let path = real("slambook2_ch7/2.png");
     let four = infer_png16(&[
@@ -157,6 +159,7 @@ fn the_hello_chooses_dsac_hypotheses_and_a_bad_number_is_an_error() {
 
 #[test]
 fn stream_results_equal_tre_infer() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1"]);
     let path = real("slambook2_ch7/2.png");
     let reference = infer_png16(&[path.to_str().unwrap(), "--mode", "rgb"]);
@@ -185,6 +188,7 @@ fn stream_results_equal_tre_infer() {
 
 #[test]
 fn latest_frame_wins_and_drops_are_reported() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1"]);
     let image = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
     rt().block_on(async {

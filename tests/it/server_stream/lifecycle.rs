@@ -5,6 +5,7 @@ use super::*;
 
 #[test]
 fn shutdown_closes_streams_cleanly() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&["--workers", "1"]);
     let image = std::fs::read(real("slambook2_ch7/1.png")).unwrap();
     let rt = rt();
@@ -51,6 +52,7 @@ fn shutdown_closes_streams_cleanly() {
 /// off mid-answer.
 #[test]
 fn shutdown_ends_a_stream_with_a_close_after_answering_what_it_read() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let small = {
         let img = image::open(real("slambook2_ch7/1.png"))
             .unwrap()

@@ -49,6 +49,7 @@ fn streams_over_the_limit_are_refused_at_once() {
 /// its stream, which frees the place.
 #[test]
 fn a_client_that_stops_reading_is_dropped_after_the_stall_timeout() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&[
         "--workers",
         "1",

@@ -4,13 +4,12 @@
 
 use super::*;
 
-/// A kitchen sequence file.
+/// The kitchen sequence, `../shared/data/real-rgbd-2/sevenscenes_redkitchen`.
+const KITCHEN: &str = "data/real-rgbd-2/sevenscenes_redkitchen";
+
+/// A kitchen sequence file (the test reading it checks first that [`KITCHEN`] is there).
 fn kitchen(rel: &str) -> std::path::PathBuf {
-    std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/real-rgbd-2/sevenscenes_redkitchen"
-    ))
-    .join(rel)
+    common::shared_root().join(KITCHEN).join(rel)
 }
 
 /// The 16 numbers of a pose file.
@@ -74,6 +73,7 @@ fn map_hello(gravity: Vec<f64>) -> Vec<u8> {
 
 #[test]
 fn a_stream_keeps_a_map_of_its_posed_frames_and_serves_it_over_http() {
+    common::skip_unless_shared!(KITCHEN);
     let server = Server::start(&["--workers", "1"]);
     let g: serde_json::Value =
         serde_json::from_slice(&std::fs::read(kitchen("gravity.json")).unwrap()).unwrap();

@@ -86,6 +86,7 @@ fn synthetic_bins(model: &SensorModel) -> ([Vec<f64>; 3], RenderedFrame, Grid<f6
 
 #[test]
 fn kinect_floor_roughness_median_within_30_percent_of_real_floor() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
     let real = real_floor();
     let kinect = SensorModel::preset(SensorPreset::KinectV1);
     let (syn, frame, sensor, rough) = synthetic_bins(&kinect);

@@ -4,12 +4,12 @@
 use std::error::Error;
 use std::path::{Path, PathBuf};
 
-use tre::model::{Manifest, ModelError, Models, SessionConfig};
+use tre_model::{Manifest, ModelError, Models, SessionConfig};
 
 type TestResult = Result<(), Box<dyn Error>>;
 
 fn models_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("models")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models")
 }
 
 fn cfg() -> SessionConfig {
@@ -93,7 +93,7 @@ fn a_wrong_opset_is_refused() -> TestResult {
 fn a_wrong_channel_count_is_refused() -> TestResult {
     let dir = edited_copy(|m| {
         if let Some(e) = m.models.get_mut("neighbour_net") {
-            e.outputs[0].shape[1] = tre::model::manifest::Dim::Fixed(48);
+            e.outputs[0].shape[1] = tre_model::Dim::Fixed(48);
         }
     })?;
     expect_mismatch(dir.path(), "neighbour_net", "outputs[0].channels");

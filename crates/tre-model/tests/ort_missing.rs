@@ -2,12 +2,13 @@
 //! path. Environment variables are process-wide, so these checks run in one test, in a test
 //! binary of their own.
 //!
-//! Separate from `tests/it` because it changes process-wide state: it sets `ORT_DYLIB_PATH` to
-//! bad paths (another test's model load would read them), and it needs a process whose ONNX
-//! Runtime environment was never created (`runtime::environment()` keeps the first one made, so
-//! after any other test that loads a model it could no longer fail).
+//! Separate from the crate's other tests (`tests/model/`) because it changes process-wide
+//! state: it sets `ORT_DYLIB_PATH` to bad paths (another test's model load would read them), and
+//! it needs a process whose ONNX Runtime environment was never created
+//! (`runtime::environment()` keeps the first one made, so after any other test that loads a
+//! model it could no longer fail).
 
-use tre::model::runtime::{self, RuntimeError};
+use tre_model::runtime::{self, RuntimeError};
 
 #[test]
 fn bad_ort_dylib_path_is_named_in_the_error() -> Result<(), Box<dyn std::error::Error>> {

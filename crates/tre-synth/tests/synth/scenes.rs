@@ -10,9 +10,9 @@ fn same_seed_same_bytes() {
         tempfile::tempdir().unwrap(),
         tempfile::tempdir().unwrap(),
     );
-    tre::synth::generate(&small_config(a.path(), 5)).unwrap();
-    tre::synth::generate(&small_config(b.path(), 5)).unwrap();
-    tre::synth::generate(&small_config(c.path(), 6)).unwrap();
+    tre_synth::generate(&small_config(a.path(), 5)).unwrap();
+    tre_synth::generate(&small_config(b.path(), 5)).unwrap();
+    tre_synth::generate(&small_config(c.path(), 6)).unwrap();
     let (fa, fb, fc) = (files(a.path()), files(b.path()), files(c.path()));
     assert_eq!(
         fa.len(),
@@ -40,13 +40,13 @@ fn depth_and_normals_agree_with_the_rendered_surface() {
         size: (160, 160),
         ..SynthConfig::default()
     };
-    let views = tre::synth::dataset::scene_views(&cfg, 3);
-    let scene = tre::synth::dataset::build_scene(&cfg, 3, &views);
+    let views = tre_synth::dataset::scene_views(&cfg, 3);
+    let scene = tre_synth::dataset::build_scene(&cfg, 3, &views);
     let (mut checked, mut worst_png_mm) = (0, 0.0f64);
     for view in [&views[0], &views[4], &views[8]] {
         let f = render(&scene, view, &clear_noon());
         let rot = view.world_from_cam();
-        let png = tre::io::depth_png16(&f.depth_m);
+        let png = tre_io::depth_png16(&f.depth_m);
         for v in 0..view.height {
             for u in 0..view.width {
                 let d = f.depth_m[(u, v)];
@@ -117,14 +117,14 @@ fn a_rolled_camera_sees_the_ground_where_its_recorded_pose_puts_it() {
 
 #[test]
 fn random_optics_draw_every_frame_within_the_documented_ranges() {
-    use tre::synth::dataset::OPTICS;
+    use tre_synth::dataset::OPTICS;
     let dir = tempfile::tempdir().unwrap();
     let cfg = SynthConfig {
         ply: false,
         random_optics: true,
         ..synth_config(dir.path(), 2, 11, (96, 72), 9)
     };
-    tre::synth::generate(&cfg).unwrap();
+    tre_synth::generate(&cfg).unwrap();
     let within = |(lo, hi): (f64, f64), v: f64| v >= lo - 1e-9 && v <= hi + 1e-9;
     let (mut shapes, mut pitches, mut rolls) = (Vec::new(), Vec::new(), Vec::new());
     for s in 0..2 {
@@ -246,8 +246,8 @@ fn image_effects_change_only_the_image_and_are_recorded() {
         ply: false,
         ..small_config(out, 8)
     };
-    tre::synth::generate(&cfg(a.path(), vec![])).unwrap();
-    tre::synth::generate(&cfg(b.path(), ImageEffect::ALL.to_vec())).unwrap();
+    tre_synth::generate(&cfg(a.path(), vec![])).unwrap();
+    tre_synth::generate(&cfg(b.path(), ImageEffect::ALL.to_vec())).unwrap();
     let (fa, fb) = (files(a.path()), files(b.path()));
     let mut rgb_differs = 0;
     for ((na, ba), (_, bb)) in fa.iter().zip(&fb) {

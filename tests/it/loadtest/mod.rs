@@ -1,158 +1,33 @@
 //! `tre loadtest` against fake services (a raw TCP server with a fixed service time and one long
 //! stall; scripted answers) and against the real `tre serve`: coordinated-omission correction,
 //! outcome classification, client saturation, JSON round trip and compare, the CLI's files, and
-//! overload answered fast by the real service.
-//!
-//! Separate from `tests/it` because its tests measure time in milliseconds (a closed loop's p99
-//! under 100 ms, refusals under 50 ms at p99, a 6-request window under 0.5 s) and so must run
-//! with nothing else loading the machine: they hold a lock that keeps them one at a time here,
-//! but in the shared binary the harness would run them beside the other modules' tests (the
-//! 1000-frame stream, the synthetic renders), which load every core. Cargo runs test binaries
-//! one after another, so this one runs alone.
+//! overload refused before any work by the real service. Nothing here bounds a latency from
+//! above: what a test asserts of time holds however loaded the machine is (each assertion says
+//! why). The wall-clock bounds themselves (a closed loop's p99 under 100 ms, refusals under
+//! 50 ms at p99, a 6-request window under 0.5 s, the knee at a 50 ms objective) are measured by
+//! `cargo bench --bench loadtest` (`benches/loadtest.rs`), on a quiet machine.
 
-#[path = "it/common/mod.rs"]
-mod common;
+use crate::common;
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::net::{SocketAddr, TcpListener};
 use std::process::Command;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::{Duration, Instant};
+use std::sync::{Mutex, MutexGuard};
+use std::time::Duration;
 
 use tre::loadtest::{
     report, run_on, FrameSource, Frames, Load, LoadConfig, Protocol, Report, Target,
 };
 
-/// The tests here measure time: one at a time, so that they do not load each other.
+pub mod fake;
+
+use fake::{block_on, frames, ok, Fake};
+
+/// One at a time: each test keeps a one-at-a-time fake service (or the real one) busy, and the
+/// closed and open loops of one test are compared with each other.
 fn serial() -> MutexGuard<'static, ()> {
     static LOCK: Mutex<()> = Mutex::new(());
     LOCK.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-fn block_on<F: std::future::Future>(f: F) -> F::Output {
-    tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("runtime")
-        .block_on(f)
-}
-
-/// A tiny one-at-a-time HTTP service: each request holds the service for `service`, except the
-/// first one handled `stall_after` after the first request, which holds it for `stall`.
-/// `answer(n)` gives the status and body of request `n`.
-struct Fake {
-    service: Duration,
-    stall: Option<(Duration, Duration)>,
-    answer: fn(u64) -> (u16, &'static str),
-}
-
-struct FakeState {
-    first: Option<Instant>,
-    stalled: bool,
-    n: u64,
-}
-
-impl Fake {
-    /// A service that answers `answer(n)` to request `n` after `ms` milliseconds, never stalling.
-    fn steady(ms: u64, answer: fn(u64) -> (u16, &'static str)) -> SocketAddr {
-        Fake {
-            service: Duration::from_millis(ms),
-            stall: None,
-            answer,
-        }
-        .start()
-    }
-
-    fn start(self) -> SocketAddr {
-        let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
-        let addr = listener.local_addr().expect("addr");
-        let fake = Arc::new(self);
-        let state = Arc::new(Mutex::new(FakeState {
-            first: None,
-            stalled: false,
-            n: 0,
-        }));
-        std::thread::Builder::new()
-            .name("fake-accept".into())
-            .spawn(move || {
-                for conn in listener.incoming().flatten() {
-                    let (fake, state) = (fake.clone(), state.clone());
-                    let _ = std::thread::Builder::new()
-                        .name("fake-conn".into())
-                        .spawn(move || fake.serve(conn, &state));
-                }
-            })
-            .expect("thread");
-        addr
-    }
-
-    /// Serves the keep-alive requests of one connection.
-    fn serve(&self, conn: TcpStream, state: &Mutex<FakeState>) {
-        let mut reader = BufReader::new(conn.try_clone().expect("clone"));
-        let mut conn = conn;
-        loop {
-            let mut length = 0usize;
-            let mut line = String::new();
-            let mut first_line = true;
-            loop {
-                line.clear();
-                match reader.read_line(&mut line) {
-                    Ok(0) | Err(_) => return,
-                    Ok(_) => {}
-                }
-                if line == "\r\n" && !first_line {
-                    break;
-                }
-                first_line = false;
-                let lower = line.to_ascii_lowercase();
-                if let Some(v) = lower.strip_prefix("content-length:") {
-                    length = v.trim().parse().expect("length");
-                }
-            }
-            let mut body = vec![0; length];
-            if reader.read_exact(&mut body).is_err() {
-                return;
-            }
-            let n = {
-                let mut s = state.lock().expect("state");
-                let first = *s.first.get_or_insert_with(Instant::now);
-                let hold = match self.stall {
-                    Some((after, stall)) if !s.stalled && first.elapsed() >= after => {
-                        s.stalled = true;
-                        stall
-                    }
-                    _ => self.service,
-                };
-                std::thread::sleep(hold);
-                s.n += 1;
-                s.n - 1
-            };
-            let (status, text) = (self.answer)(n);
-            // Answers as `tre serve` does: its maps carry the scale header.
-            let map = if status == 200 {
-                "X-Roughness-Scale-M: 0.0001\r\n"
-            } else {
-                ""
-            };
-            let resp = format!(
-                "HTTP/1.1 {status} X\r\nContent-Type: application/json\r\n{map}Content-Length: {}\r\n\r\n{text}",
-                text.len()
-            );
-            if conn.write_all(resp.as_bytes()).is_err() {
-                return;
-            }
-        }
-    }
-}
-
-fn ok(_: u64) -> (u16, &'static str) {
-    (200, "ok")
-}
-
-fn frames() -> Frames {
-    Frames::from_bytes(vec![b"\x89PNG\r\n\x1a\nnot really".to_vec()], "fake PNG")
 }
 
 /// Runs the load `c` against `addr` with the fake frames.
@@ -193,6 +68,10 @@ fn open_loop_latency_includes_the_queueing_behind_a_stall_closed_loop_hides_it()
     println!("closed loop:\n{}", report::text(&naive));
     assert_eq!((open.errors, open.client_saturated), (0, 0));
     assert!(open.ok >= 190, "{} results", open.ok);
+    // The bounds below hold on a loaded machine as on a quiet one: the lower ones come from the
+    // fake's stall, which load can only lengthen, and the upper one on the closed loop sits at
+    // half the stall, 50 times its 5 ms service. (Its p99 on a quiet machine, about 5 ms, is
+    // measured against 100 ms by `cargo bench --bench loadtest`.)
     // About 50 of the 200 requests were due during the 500 ms stall: each waited for it.
     assert!(
         open.latency_ms.p99_ms > 300.0,
@@ -204,14 +83,15 @@ fn open_loop_latency_includes_the_queueing_behind_a_stall_closed_loop_hides_it()
         "open p90 {}",
         open.latency_ms.p90_ms
     );
-    // The closed loop sent nothing while it waited: one slow sample among hundreds.
+    // The closed loop sent nothing while it waited: one slow sample among hundreds, so the
+    // stall shows in its maximum but not in its p99.
     assert!(
         naive.latency_ms.max_ms > 400.0,
         "closed max {}",
         naive.latency_ms.max_ms
     );
     assert!(
-        naive.latency_ms.p99_ms < 100.0,
+        naive.latency_ms.p99_ms < 250.0,
         "closed p99 {}",
         naive.latency_ms.p99_ms
     );
@@ -267,9 +147,10 @@ fn a_closed_loop_without_warm_up_sends_exactly_its_requests_and_measures_them_al
     // Each connection's first request once went before the window opened: 8 were sent, the
     // report counted 6, and its window included the 2 unmeasured ones' time.
     assert_eq!(SEEN.load(Ordering::SeqCst), 6, "requests the service saw");
-    // One at a time at 20 ms each: 6 take at least 120 ms, and the window is not much longer.
+    // One at a time at 20 ms each: 6 take at least 120 ms however fast the machine. (That the
+    // window is not much longer, under 0.5 s, is a wall-clock bound: `benches/loadtest.rs`.)
     assert!(
-        (0.12..0.5).contains(&r.window_s),
+        r.window_s >= 0.12,
         "window {} s for 6 requests of 20 ms",
         r.window_s
     );
@@ -348,7 +229,10 @@ fn a_sweep_finds_the_knee_where_p99_leaves_the_objective() {
         ..cfg(Load::Closed)
     };
     let mut seen = 0;
-    let sw = block_on(tre::loadtest::sweep(&c, &[300.0, 20.0], 50.0, |_| {
+    // An objective of 250 ms, 25 times the service time: 20/s meets it and 300/s (a queue
+    // growing to over a second) breaches it however loaded the machine. The bench
+    // (`benches/loadtest.rs`) runs the same sweep against 50 ms.
+    let sw = block_on(tre::loadtest::sweep(&c, &[300.0, 20.0], 250.0, |_| {
         seen += 1
     }))
     .expect("sweep runs");
@@ -468,8 +352,10 @@ fn the_real_service_refuses_excess_load_fast_and_streams_a_result_for_every_fram
         "{:?}",
         r.refused_by_code
     );
+    // Refusals come back before results: they do no inference, so a loaded machine slows the
+    // results at least as much. (Their bound in milliseconds, 50 ms at p99, is measured by
+    // `cargo bench --bench loadtest`.)
     let refusal_p99 = r.refusal_latency_ms.p99_ms;
-    assert!(refusal_p99 < 50.0, "refusals take {refusal_p99} ms at p99");
     assert!(
         refusal_p99 < r.latency_ms.p50_ms,
         "refusals ({refusal_p99} ms) should come back well before results ({} ms)",

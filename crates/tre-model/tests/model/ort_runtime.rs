@@ -1,4 +1,4 @@
-//! ONNX Runtime end to end: load the runtime through `tre::model::runtime`, run a tiny conv
+//! ONNX Runtime end to end: load the runtime through `tre_model::runtime`, run a tiny conv
 //! model (`tests/fixtures/tiny_conv.onnx`, from `scripts/make_tiny_onnx.py`) and compare it with
 //! the same convolution computed here.
 
@@ -8,7 +8,7 @@ use std::path::Path;
 use ndarray::Array4;
 use ort::session::Session;
 use ort::value::TensorRef;
-use tre::model::runtime;
+use tre_model::runtime;
 
 /// Kernel and bias of the fixture, row-major; the same numbers as in `make_tiny_onnx.py`.
 const WEIGHTS: [[f32; 3]; 3] = [[0.5, -1.0, 0.25], [1.5, 2.0, -0.75], [-0.5, 0.125, 1.0]];
@@ -44,7 +44,7 @@ fn reference(x: &Array4<f32>) -> Array4<f32> {
 }
 
 fn session() -> Result<Session, Box<dyn Error>> {
-    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tiny_conv.onnx");
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/fixtures/tiny_conv.onnx");
     let env = runtime::environment()?;
     Ok(Session::builder(env)?
         .with_intra_threads(1)?

@@ -4,8 +4,8 @@
 use super::*;
 use sha2::{Digest, Sha256};
 use std::collections::BTreeSet;
-use tre::synth::content::{indoor, urban, Content};
-use tre::synth::objects::{Object, Profile, Shape};
+use tre_synth::content::{indoor, urban, Content};
+use tre_synth::objects::{Object, Profile, Shape};
 
 fn object(category: Category, shape: Shape, profile: Profile) -> Object {
     Object {
@@ -141,7 +141,7 @@ fn natural_output_is_unchanged() {
     // but the JSON ones (images, depth, labels, normals, ground truth, PLY, contact sheet).
     let dir = tempfile::tempdir().unwrap();
     let cfg = synth_config(dir.path(), 2, 5, (160, 120), 3);
-    tre::synth::generate(&cfg).unwrap();
+    tre_synth::generate(&cfg).unwrap();
     assert_eq!(
         digest_without_json(dir.path()),
         (
@@ -165,8 +165,8 @@ fn indoor_urban_and_mixed_same_seed_same_bytes() {
             ply: false,
             ..small_config(out, 21)
         };
-        tre::synth::generate(&cfg(a.path())).unwrap();
-        tre::synth::generate(&cfg(b.path())).unwrap();
+        tre_synth::generate(&cfg(a.path())).unwrap();
+        tre_synth::generate(&cfg(b.path())).unwrap();
         let (fa, fb) = (files(a.path()), files(b.path()));
         assert_eq!(fa.len(), 2 + 2 * 3 * 9, "{content}");
         for ((na, ba), (nb, bb)) in fa.iter().zip(&fb) {
@@ -192,10 +192,10 @@ fn labels_seen(content: Content, seed: u64) -> BTreeSet<u8> {
         content,
         ..SynthConfig::default()
     };
-    let m = tre::synth::generate(&cfg).unwrap();
+    let m = tre_synth::generate(&cfg).unwrap();
     let mut seen = BTreeSet::new();
     for f in &m.scenes[0].frames {
-        let labels = tre::io::read_labels(&dir.path().join(&f.dir).join("labels.png")).unwrap();
+        let labels = tre_io::read_labels(&dir.path().join(&f.dir).join("labels.png")).unwrap();
         seen.extend(labels.as_slice().iter().map(|&l| l as u8));
     }
     seen
@@ -377,15 +377,15 @@ fn an_interrupted_run_resumes_keeping_complete_frames() {
         resume,
         ..small_config(out, 12)
     };
-    tre::synth::generate(&cfg(a.path(), false)).unwrap();
-    tre::synth::generate(&cfg(b.path(), false)).unwrap();
+    tre_synth::generate(&cfg(a.path(), false)).unwrap();
+    tre_synth::generate(&cfg(b.path(), false)).unwrap();
     // Interrupt b: no manifest or contact sheet yet, the run's settings recorded, one frame
     // half written, one not started, and a kept frame marked to show it is not rewritten.
     let root = b.path();
     std::fs::remove_file(root.join("dataset.json")).unwrap();
     std::fs::remove_file(root.join("contact_sheet.png")).unwrap();
     let settings = serde_json::to_string_pretty(&cfg(root, false)).unwrap();
-    std::fs::write(root.join(tre::synth::dataset::RUN_FILE), settings).unwrap();
+    std::fs::write(root.join(tre_synth::dataset::RUN_FILE), settings).unwrap();
     std::fs::rename(
         root.join("scene_00001/view_1"),
         root.join("scene_00001/view_1.partial"),
@@ -400,9 +400,9 @@ fn an_interrupted_run_resumes_keeping_complete_frames() {
         seed: 13,
         ..cfg(root, true)
     };
-    let e = tre::synth::generate(&other).unwrap_err().to_string();
+    let e = tre_synth::generate(&other).unwrap_err().to_string();
     assert!(e.contains("other settings"), "{e}");
-    tre::synth::generate(&cfg(root, true)).unwrap();
+    tre_synth::generate(&cfg(root, true)).unwrap();
     assert_eq!(std::fs::read(&marked).unwrap(), b"kept");
     std::fs::copy(a.path().join("scene_00000/view_1/rgb.png"), &marked).unwrap();
     let (fa, fb) = (files(a.path()), files(root));
@@ -417,19 +417,20 @@ fn an_interrupted_run_resumes_keeping_complete_frames() {
         assert!(ba == bb, "{na} differs after resuming");
     }
     // A finished dataset resumes to itself.
-    tre::synth::generate(&cfg(root, true)).unwrap();
+    tre_synth::generate(&cfg(root, true)).unwrap();
     assert_eq!(files(root).len(), fa.len());
 }
 
-/// Set `TRE_SYNTH_CONTENT_SHEET=docs/synth-content-sheet.png` to redraw the contact sheet of
-/// docs/synth.md: two indoor and two urban frames (RGB, labels, spec roughness 0–5 cm).
+/// Set `TRE_SYNTH_CONTENT_SHEET=docs/synth-content-sheet.png` (relative to the repository's
+/// root) to redraw the contact sheet of docs/synth.md: two indoor and two urban frames (RGB,
+/// labels, spec roughness 0–5 cm).
 #[test]
 fn content_contact_sheet() {
-    use tre::io::sheet::{
+    use tre_io::sheet::{
         categorical_legend, colour_bar_legend, contact_sheet, fit_within, roughness_panel, stack,
         Panel,
     };
-    use tre::synth::dataset::{build_scene, scene_views, view_conditions};
+    use tre_synth::dataset::{build_scene, scene_views, view_conditions};
     let Ok(out) = std::env::var("TRE_SYNTH_CONTENT_SHEET") else {
         return;
     };
@@ -455,14 +456,14 @@ fn content_contact_sheet() {
         panels.push(Panel::new(title, fit(f.rgb.clone())));
         panels.push(Panel::new(
             "labels",
-            fit(tre::io::colormap::labels(&f.labels)),
+            fit(tre_io::colormap::labels(&f.labels)),
         ));
         panels.push(Panel::new(
             "spec roughness",
             fit(roughness_panel(&ann.roughness_m, 0.05)),
         ));
     }
-    let palette = tre::io::colormap::labels(&Grid::from_fn(21, 1, |u, _| u as u32));
+    let palette = tre_io::colormap::labels(&Grid::from_fn(21, 1, |u, _| u as u32));
     let entries: Vec<(&str, image::Rgb<u8>)> = (Category::INDOOR.iter())
         .chain(&Category::URBAN)
         .chain([&Category::Pavement])
@@ -474,5 +475,9 @@ fn content_contact_sheet() {
         categorical_legend(&entries[8..]),
     ]);
     let sheet = contact_sheet(&panels, 3, Some(&legend));
-    tre::io::save(Path::new(&out), &image::DynamicImage::ImageRgb8(sheet)).unwrap();
+    // Tests run in this crate's folder; the path is the repository root's.
+    let out = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(out);
+    tre_io::save(&out, &image::DynamicImage::ImageRgb8(sheet)).unwrap();
 }

@@ -4,9 +4,9 @@
 use approx::assert_relative_eq;
 use nalgebra::{Rotation3, Vector3};
 use proptest::prelude::*;
-use tre::geometry::dsac::{self, DsacConfig, CANDIDATES};
-use tre::geometry::raycast::{render_depth, MarchConfig};
-use tre::geometry::{ls_normals, Grid, Intrinsics, Mounting, Neighbourhood, Vec3};
+use tre_core::geometry::dsac::{self, DsacConfig, CANDIDATES};
+use tre_core::geometry::raycast::{render_depth, MarchConfig};
+use tre_core::geometry::{ls_normals, Grid, Intrinsics, Mounting, Neighbourhood, Vec3};
 
 fn camera(w: usize, h: usize) -> Intrinsics {
     Intrinsics::from_hfov(w, h, 70.0).unwrap()
@@ -49,13 +49,13 @@ proptest! {
     #[test]
     fn plane_fit_is_rotation_invariant(rx in -3.0..3.0f64, ry in -3.0..3.0f64, rz in -3.0..3.0f64) {
         let rot = Rotation3::from_euler_angles(rx, ry, rz);
-        let mut m = tre::geometry::Moments::default();
+        let mut m = tre_core::geometry::Moments::default();
         let pts: Vec<Vec3> = (0..20).map(|i| {
             let (a, b) = ((i % 5) as f64 * 0.01, (i / 5) as f64 * 0.013);
             rot * Vector3::new(a, b, 0.001 * ((i * 7) % 3) as f64)
         }).collect();
         for p in &pts { m.add(p); }
-        let mut m0 = tre::geometry::Moments::default();
+        let mut m0 = tre_core::geometry::Moments::default();
         for p in &pts { m0.add(&(rot.inverse() * p)); }
         let n = m.fit(&Vec3::zeros()).unwrap().normal;
         let n0 = m0.fit(&Vec3::zeros()).unwrap().normal;
@@ -89,7 +89,7 @@ fn invalid_pixels_stay_invalid() {
     let valid: Vec<bool> = pts
         .as_slice()
         .iter()
-        .map(tre::geometry::is_valid_point)
+        .map(tre_core::geometry::is_valid_point)
         .collect();
     assert_eq!(
         valid,
@@ -115,9 +115,9 @@ fn ls_normals_of_tilted_planes_within_a_tenth_of_a_degree() {
         let normals = ls_normals(&pts, k.fx_px, &Neighbourhood::default());
         let (mut checked, mut valid) = (0, 0);
         for (p, m) in pts.as_slice().iter().zip(normals.as_slice()) {
-            valid += usize::from(tre::geometry::is_valid_point(p));
+            valid += usize::from(tre_core::geometry::is_valid_point(p));
             // Pixels whose neighbourhood holds fewer than 3 points have no normal.
-            if tre::geometry::is_valid_point(m) || m.x.is_finite() {
+            if tre_core::geometry::is_valid_point(m) || m.x.is_finite() {
                 // Oriented towards the camera: n·p < 0.
                 assert!(m.dot(p) < 0.0);
                 assert!(angle_deg(m, &n) < 0.1, "plane {i}: {m:?} vs {n:?}");
@@ -156,7 +156,7 @@ fn ls_normals_of_a_sphere_within_a_tenth_of_a_degree() {
     for (p, m) in pts.as_slice().iter().zip(normals.as_slice()) {
         let truth = (p - centre).normalize();
         // Away from the silhouette, where the neighbourhood is a full cap.
-        if tre::geometry::is_valid_point(p)
+        if tre_core::geometry::is_valid_point(p)
             && truth.dot(&(-p.normalize())) > std::f64::consts::FRAC_1_SQRT_2
         {
             assert!(angle_deg(m, &truth) < 0.1, "{m:?} vs {truth:?}");
@@ -183,7 +183,7 @@ fn gravity_frame_puts_rendered_ground_at_zero() {
     for p in pts
         .as_slice()
         .iter()
-        .filter(|p| tre::geometry::is_valid_point(p))
+        .filter(|p| tre_core::geometry::is_valid_point(p))
     {
         assert!(m.gravity_from_cam_point(p).z.abs() < 1e-9);
         n += 1;
@@ -195,7 +195,7 @@ fn gravity_frame_puts_rendered_ground_at_zero() {
 }
 
 /// A small tilted-plane point map with a few off-plane outliers.
-fn plane_with_outliers(w: usize, h: usize) -> (tre::geometry::PointMap, Vec3) {
+fn plane_with_outliers(w: usize, h: usize) -> (tre_core::geometry::PointMap, Vec3) {
     let k = camera(w, h);
     let n = Vector3::new(0.2, -0.9, -0.4).normalize();
     let depth = plane_depth(&k, (w, h), &n, -1.0);
@@ -241,7 +241,7 @@ fn dsac_with_probability_on_coplanar_neighbours_returns_that_plane() {
     )
     .unwrap();
     for (i, (p, m)) in pts.as_slice().iter().zip(normals.as_slice()).enumerate() {
-        if i % 5 != 0 && tre::geometry::is_valid_point(p) {
+        if i % 5 != 0 && tre_core::geometry::is_valid_point(p) {
             assert!(angle_deg(m, &n) < 1e-4, "pixel {i}: {m:?}");
             assert!(m.dot(p) < 0.0);
         }

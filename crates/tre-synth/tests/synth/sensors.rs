@@ -2,8 +2,8 @@
 
 use super::*;
 use image::RgbImage;
-use tre::geometry::hash::uniform;
-use tre::synth::sensor::{simulate, SensorInput, SensorModel};
+use tre_core::geometry::hash::uniform;
+use tre_synth::sensor::{simulate, SensorInput, SensorModel};
 
 /// A textured grey image (values 60–200, per-pixel hash).
 fn textured(w: usize, h: usize) -> RgbImage {
@@ -190,8 +190,8 @@ fn same_seed_same_depth_and_the_exact_frame_is_untouched() {
         ply: false,
         ..small_config(out, 3)
     };
-    tre::synth::generate(&cfg(a.path(), SensorPreset::Exact)).unwrap();
-    tre::synth::generate(&cfg(b.path(), SensorPreset::KinectV1)).unwrap();
+    tre_synth::generate(&cfg(a.path(), SensorPreset::Exact)).unwrap();
+    tre_synth::generate(&cfg(b.path(), SensorPreset::KinectV1)).unwrap();
     let (fa, fb) = (files(a.path()), files(b.path()));
     let mut sensor_differs = 0;
     for ((na, ba), (nb, bb)) in fa.iter().zip(&fb) {

@@ -4,10 +4,10 @@
 use std::sync::OnceLock;
 
 use serde_json::Value;
-use tre::geometry::dsac::{self, DsacConfig, CANDIDATES};
-use tre::geometry::fastmath;
-use tre::geometry::hash::{splitmix64, uniform};
-use tre::geometry::{is_valid_point, Grid, Plane, PointMap, Vec3, INVALID_POINT};
+use tre_core::geometry::dsac::{self, DsacConfig, CANDIDATES};
+use tre_core::geometry::fastmath;
+use tre_core::geometry::hash::{splitmix64, uniform};
+use tre_core::geometry::{is_valid_point, Grid, Plane, PointMap, Vec3, INVALID_POINT};
 
 /// Largest per-coordinate difference allowed between serving's final normals and the
 /// reference's. Everything before the refit is bit-identical (checked below) and so are the
@@ -26,7 +26,7 @@ fn vectors() -> &'static Value {
     VECTORS.get_or_init(|| {
         let path = concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/crates/tre-core/src/geometry/dsac/vectors.json"
+            "/src/geometry/dsac/vectors.json"
         );
         serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
     })
