@@ -9,7 +9,7 @@ use clap::Args;
 
 use super::infer::parse_sensor;
 use super::options::StageArgs;
-use crate::io::map_files::{write_map, MapRun};
+use crate::io::map_files::{write_map, MapRun, MapSummary};
 use crate::io::sequence::{read_gravity, sequence_frames, FrameSelection, SequenceFrame};
 use crate::io::{self, CameraFile};
 use crate::map::{GridMap, MapConfig, MapFrame, MapLimits, Pose};
@@ -68,42 +68,22 @@ impl Map {
             .unwrap_or_else(|| self.sequence.join("intrinsics.json"));
         let (cam, k) = io::read_camera(&cam_path)?;
         let (sensor, scale) = self.sensor_and_scale(&cam)?;
-        let select = FrameSelection {
-            stride: self.stride,
-            limit: self.limit,
-            reverse: self.reverse,
-        };
-        let mut frames = sequence_frames(&self.sequence, select)?;
-        if !frames.iter().all(|f| f.pose.is_some()) {
-            eprintln!("warning: no poses/ for every frame: one frame makes a robot-centred map");
-            frames.truncate(1);
-        }
+        let frames = self.frames()?;
         let gravity = read_gravity(&self.sequence)?;
         let up_in_cam = cam.mounting()?.map(|m| m.up_in_cam());
-        let cfg = MapConfig {
-            cell_m: self.cell_cm / 100.0,
-            side: (self.size_m / (self.cell_cm / 100.0)).round() as usize,
-            max_range_m: self.max_range_m,
-            ..MapConfig::default()
-        };
+        let cfg = self.map_config();
         let pcfg = self.stages.config(self.mode);
         let mut pipeline = self.stages.pipeline(&[pcfg])?;
         let mut map: Option<GridMap> = None;
         let mut run = MapRun::default();
         for (i, f) in frames.iter().enumerate() {
             let depth_m = io::read_depth(&f.depth, scale)?;
-            let pose = match f.pose.as_deref().map(io::read_pose) {
-                None => Pose::identity(),
-                Some(read) => match read
-                    .map_err(anyhow::Error::from)
-                    .and_then(|v| Pose::from_row_major(&v).map_err(anyhow::Error::from))
-                {
-                    Ok(pose) => pose,
-                    Err(e) => {
-                        run.skipped.push(format!("{}: {e:#}", f.stem));
-                        continue;
-                    }
-                },
+            let pose = match frame_pose(f) {
+                Ok(pose) => pose,
+                Err(e) => {
+                    run.skipped.push(format!("{}: {e:#}", f.stem));
+                    continue;
+                }
             };
             let points = k.back_project_map(&depth_m);
             let m = match &mut map {
@@ -130,25 +110,37 @@ impl Map {
         let map = map.context("no frame could start the map")?;
         let layers = map.layers(&MapLimits::default());
         let s = write_map(&self.out, &map, &layers, &run)?;
-        let cfg = map.config();
-        println!(
-            "{} frames fused, {} skipped; {} cells seen: {:.1}% traversable, {:.1}% hazard, \
-             {:.1}% unknown; fusion {:.1} ms a frame (median); map {} cells of {} cm, {:.1} MiB",
-            run.fused,
-            run.skipped.len(),
-            s.seen,
-            100.0 * s.traversable,
-            100.0 * s.hazard,
-            100.0 * s.unknown,
-            s.fuse_ms_median,
-            cfg.side * cfg.side,
-            100.0 * cfg.cell_m,
-            map.memory_bytes() as f64 / f64::from(1 << 20)
-        );
+        print_summary(&map, &run, &s);
         for s in &run.skipped {
             eprintln!("skipped {s}");
         }
         Ok(())
+    }
+
+    /// The sequence's frames (stride, limit and order applied); without a pose for every
+    /// frame, the first alone (a robot-centred map), with a warning.
+    fn frames(&self) -> anyhow::Result<Vec<SequenceFrame>> {
+        let select = FrameSelection {
+            stride: self.stride,
+            limit: self.limit,
+            reverse: self.reverse,
+        };
+        let mut frames = sequence_frames(&self.sequence, select)?;
+        if !frames.iter().all(|f| f.pose.is_some()) {
+            eprintln!("warning: no poses/ for every frame: one frame makes a robot-centred map");
+            frames.truncate(1);
+        }
+        Ok(frames)
+    }
+
+    /// The grid's settings from the options.
+    fn map_config(&self) -> MapConfig {
+        MapConfig {
+            cell_m: self.cell_cm / 100.0,
+            side: (self.size_m / (self.cell_cm / 100.0)).round() as usize,
+            max_range_m: self.max_range_m,
+            ..MapConfig::default()
+        }
     }
 
     /// The noise model (`--sensor`, else the camera's) and the depth scale (the camera's): the
@@ -184,5 +176,32 @@ impl Map {
             intrinsics: Some(k),
             mounting: None,
         })
+    }
+}
+
+/// The run's summary line on stdout.
+fn print_summary(map: &GridMap, run: &MapRun, s: &MapSummary) {
+    let cfg = map.config();
+    println!(
+        "{} frames fused, {} skipped; {} cells seen: {:.1}% traversable, {:.1}% hazard, \
+         {:.1}% unknown; fusion {:.1} ms a frame (median); map {} cells of {} cm, {:.1} MiB",
+        run.fused,
+        run.skipped.len(),
+        s.seen,
+        100.0 * s.traversable,
+        100.0 * s.hazard,
+        100.0 * s.unknown,
+        s.fuse_ms_median,
+        cfg.side * cfg.side,
+        100.0 * cfg.cell_m,
+        map.memory_bytes() as f64 / f64::from(1 << 20)
+    );
+}
+
+/// A frame's pose: its pose file read and checked rigid, the identity without one.
+fn frame_pose(f: &SequenceFrame) -> anyhow::Result<Pose> {
+    match f.pose.as_deref() {
+        None => Ok(Pose::identity()),
+        Some(path) => Ok(Pose::from_row_major(&io::read_pose(path)?)?),
     }
 }

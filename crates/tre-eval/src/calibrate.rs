@@ -176,7 +176,7 @@ fn samples_of(
     Ok(v)
 }
 
-/// Each mode's table at its held-out level (see [`held_out_level`]), with a line per mode
+/// Each mode's table at its held-out level (the narrowest level whose held-out coverage reaches 90%), with a line per mode
 /// saying what it took.
 #[must_use]
 pub fn fit_tables(samples: &Samples) -> (BTreeMap<String, IntervalTable>, Vec<String>) {

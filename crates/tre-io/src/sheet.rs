@@ -1,6 +1,6 @@
 //! Contact sheets for people: titled panels in a grid, roughness maps in one shared Turbo scale,
-//! a colour-bar or categorical legend ([`legend`]'s), and the 5×8 bitmap font that writes
-//! their text ([`font`]'s).
+//! a colour-bar or categorical legend (`legend.rs`), and the 5×8 bitmap font that writes
+//! their text (`font.rs`).
 //!
 //! A benchmark writes one sheet per frame ("RGB | spec | rgb | rgbd | geometric"): every
 //! roughness panel is drawn by [`roughness_panel`] with the same `max_m`, so equal colours mean

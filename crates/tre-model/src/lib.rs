@@ -28,7 +28,7 @@ use std::fmt::Display;
 use std::path::PathBuf;
 
 pub use locate::{locate_models, FoundModels, ModelSearch, ModelsRule, MODELS_ENV};
-pub use manifest::{Dim, Manifest, ManifestProblem, ModelEntry, TensorSpec};
+pub use manifest::{Dim, Manifest, ManifestProblem, ModelEntry, TensorSpec, MANIFEST_FORMAT};
 pub use models::{Models, CENTROID_NET, DEPTH_NET, END_TO_END, NEIGHBOUR_NET, NORMAL_REFINER};
 use runtime::RuntimeError;
 pub use session::{

@@ -10,7 +10,7 @@ use sha2::{Digest, Sha256};
 use super::ModelError;
 
 /// The manifest format this code reads.
-pub(crate) const MANIFEST_FORMAT: u32 = 1;
+pub const MANIFEST_FORMAT: u32 = 1;
 
 /// The manifest file name inside a models folder.
 pub(crate) const MANIFEST_FILE: &str = "manifest.json";

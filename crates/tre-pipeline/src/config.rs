@@ -69,7 +69,7 @@ pub struct PipelineConfig {
     pub dsac_hypotheses: u32,
     /// Size the stages run at, `(width, height)`. `None`: when any network runs, the longer
     /// side of the frame takes the manifest's working size (256 without models) and the other
-    /// keeps the aspect ratio ([`fit_aspect`](super::run::fit_aspect)); in geometric mode, the
+    /// keeps the aspect ratio (`fit_aspect` in `run.rs`); in geometric mode, the
     /// input's own size.
     /// With networks, both sides must be multiples of the manifest's stride.
     pub working_size: Option<(usize, usize)>,

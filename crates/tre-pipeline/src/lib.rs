@@ -1,7 +1,7 @@
 //! One frame through all stages of the paper's Fig. 5: resize to the working size, depth
-//! ([`depth`]), back-projection, normals ([`normals`]: LS or DSAC, optional refiner),
+//! (`depth.rs`), back-projection, normals ([`normals`]: LS or DSAC, optional refiner),
 //! centroids and Eq. 1 ([`centroid`]), then slope, traversability and the maps back at the
-//! frame's size ([`run`]). The learned stages run through [`tre_model::Models`]; everything
+//! frame's size (`run.rs`). The learned stages run through [`tre_model::Models`]; everything
 //! else is the native geometry of [`tre_core::geometry`].
 //!
 //! ```no_run

@@ -1,6 +1,6 @@
-//! The inference service: axum's routing over hyper's HTTP/1 on tokio ([`connections`]) for HTTP
-//! and the WebSocket stream, with the pipeline on named worker threads ([`workers`]) fed by a
-//! bounded queue. One mapping turns every error into a status and a code ([`error`]); limits
+//! The inference service: axum's routing over hyper's HTTP/1 on tokio (`connections.rs`) for HTTP
+//! and the WebSocket stream, with the pipeline on named worker threads (`workers.rs`) fed by a
+//! bounded queue. One mapping turns every error into a status and a code (`error.rs`); limits
 //! answer overload at once (429/503 with `Retry-After`) instead of queueing without bound.
 //!
 //! ```no_run
@@ -90,7 +90,7 @@ pub struct ServeConfig {
     /// Time a client has to send a request's body once its headers have arrived (408).
     pub body_timeout: Duration,
     /// Least average rate of a request's body, bytes a second over each
-    /// [`http::BODY_RATE_WINDOW`] (408 below it); 0: none.
+    /// `BODY_RATE_WINDOW` (`http.rs`) (408 below it); 0: none.
     pub min_body_rate: u64,
     /// Bearer key wanted on every route but `/healthz` and `/readyz`; `None`: no key.
     pub api_key: Option<String>,
@@ -108,10 +108,10 @@ pub struct ServeConfig {
     /// A stream whose client sends nothing (no message, no pong) for this long is closed.
     pub ws_idle_timeout: Duration,
     /// A connection (HTTP or stream) whose client takes nothing of an answer for this long is
-    /// closed: [`stall`].
+    /// closed (`stall.rs`).
     pub stall_timeout: Duration,
     /// HTTP connections open at once (a stream until its upgrade); more are answered 503 and
-    /// closed: [`connections`].
+    /// closed (`connections.rs`).
     pub max_connections: usize,
     /// Time in-flight work may take to finish after SIGTERM.
     pub shutdown_grace: Duration,

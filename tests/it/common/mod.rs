@@ -9,7 +9,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// A `tre serve` child process on 127.0.0.1, killed when dropped.
-pub struct Server {
+pub(crate) struct Server {
     child: Child,
     /// Its address.
     pub addr: SocketAddr,
@@ -18,7 +18,7 @@ pub struct Server {
 impl Server {
     /// Starts `tre serve` with `args` (plus loopback address, committed models, one ORT
     /// thread) and waits until `/readyz` answers 200.
-    pub fn start(args: &[&str]) -> Self {
+    pub(crate) fn start(args: &[&str]) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_tre"))
             .current_dir(env!("CARGO_MANIFEST_DIR"))
             .args(["serve", "--addr", "127.0.0.1:0", "--ort-threads", "1"])
@@ -51,29 +51,29 @@ impl Server {
     }
 
     /// `http://ADDR`.
-    pub fn url(&self) -> String {
+    pub(crate) fn url(&self) -> String {
         format!("http://{}", self.addr)
     }
 
     /// The process id.
-    pub fn pid(&self) -> u32 {
+    pub(crate) fn pid(&self) -> u32 {
         self.child.id()
     }
 
     /// Whether the process is still running.
-    pub fn alive(&mut self) -> bool {
+    pub(crate) fn alive(&mut self) -> bool {
         self.child.try_wait().unwrap().is_none()
     }
 
     /// Resident set size, KiB, from /proc.
-    pub fn rss_kib(&self) -> u64 {
+    pub(crate) fn rss_kib(&self) -> u64 {
         let status = std::fs::read_to_string(format!("/proc/{}/status", self.pid())).unwrap();
         let line = status.lines().find(|l| l.starts_with("VmRSS:")).unwrap();
         line.split_whitespace().nth(1).unwrap().parse().unwrap()
     }
 
     /// Sends SIGTERM and waits for the exit status.
-    pub fn terminate(mut self) -> std::process::ExitStatus {
+    pub(crate) fn terminate(mut self) -> std::process::ExitStatus {
         Command::new("kill")
             .args(["-TERM", &self.pid().to_string()])
             .status()
@@ -94,7 +94,7 @@ impl Drop for Server {
 }
 
 /// A plain HTTP/1.1 GET: status and body.
-pub fn get(addr: SocketAddr, path: &str) -> (u16, Vec<u8>) {
+pub(crate) fn get(addr: SocketAddr, path: &str) -> (u16, Vec<u8>) {
     let Ok(mut s) = TcpStream::connect(addr) else {
         return (0, Vec::new());
     };
@@ -120,7 +120,7 @@ pub fn get(addr: SocketAddr, path: &str) -> (u16, Vec<u8>) {
 
 /// The shared data beside the repository: `$TRE_SHARED_DIR` where that is set, else
 /// `<repository>/../shared` (CI has it there; a clone of the repository alone does not).
-pub fn shared_root() -> PathBuf {
+pub(crate) fn shared_root() -> PathBuf {
     match std::env::var_os("TRE_SHARED_DIR") {
         Some(dir) if !dir.is_empty() => PathBuf::from(dir),
         _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared"),
@@ -131,7 +131,7 @@ pub fn shared_root() -> PathBuf {
 /// is not, the calling test is to return early: this prints one line saying so to stderr (past
 /// the harness's capture, so that a skip is never silent) and gives `None`, unless
 /// `TRE_REQUIRE_SHARED=1` (as in CI), which makes the missing folder a failure.
-pub fn shared_data(rel: &str) -> Option<PathBuf> {
+pub(crate) fn shared_data(rel: &str) -> Option<PathBuf> {
     let path = shared_root().join(rel);
     if path.is_dir() {
         return Some(path);
@@ -175,12 +175,12 @@ pub(crate) use skip_unless_shared;
 
 /// A file of the real RGB-D frames in `../shared/data/real-rgbd`. A test that reads them
 /// returns early unless they are there: [`skip_unless_shared`].
-pub fn real(rel: &str) -> PathBuf {
+pub(crate) fn real(rel: &str) -> PathBuf {
     shared_root().join("data/real-rgbd").join(rel)
 }
 
 /// Runs `tre infer` with `args` writing a 16-bit PNG, and returns its raw grey+alpha values.
-pub fn infer_png16(args: &[&str]) -> (u32, u32, Vec<u16>) {
+pub(crate) fn infer_png16(args: &[&str]) -> (u32, u32, Vec<u16>) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r.png");
     let o = Command::new(env!("CARGO_BIN_EXE_tre"))
@@ -200,7 +200,7 @@ pub fn infer_png16(args: &[&str]) -> (u32, u32, Vec<u16>) {
 }
 
 /// Width, height and raw grey+alpha values of a 16-bit grey+alpha PNG.
-pub fn png16_values(bytes: &[u8]) -> (u32, u32, Vec<u16>) {
+pub(crate) fn png16_values(bytes: &[u8]) -> (u32, u32, Vec<u16>) {
     let img = image::load_from_memory(bytes).unwrap();
     assert_eq!(
         img.color(),
@@ -213,7 +213,7 @@ pub fn png16_values(bytes: &[u8]) -> (u32, u32, Vec<u16>) {
 
 /// A PNG of the given size with a hand-written IHDR (for sizes no encoder writes: 0×0, or a
 /// huge declared size with almost no data).
-pub fn png_with_header(width: u32, height: u32) -> Vec<u8> {
+pub(crate) fn png_with_header(width: u32, height: u32) -> Vec<u8> {
     let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
     let mut ihdr = Vec::new();
     ihdr.extend_from_slice(&width.to_be_bytes());
@@ -255,7 +255,7 @@ fn crc32(bytes: &[u8]) -> u32 {
 }
 
 /// An RGB PNG of `w`×`h`, a deterministic pattern.
-pub fn pattern_png(w: u32, h: u32) -> Vec<u8> {
+pub(crate) fn pattern_png(w: u32, h: u32) -> Vec<u8> {
     let img = image::RgbImage::from_fn(w, h, |x, y| {
         image::Rgb([
             (x * 7 % 256) as u8,
@@ -272,7 +272,7 @@ pub fn pattern_png(w: u32, h: u32) -> Vec<u8> {
 
 /// `std::thread::spawn` with a name, so that a panic or a hang says which helper thread it was
 /// (unnamed threads are disallowed by the workspace's lints).
-pub fn spawn_named<T, F>(name: &str, f: F) -> std::thread::JoinHandle<T>
+pub(crate) fn spawn_named<T, F>(name: &str, f: F) -> std::thread::JoinHandle<T>
 where
     F: FnOnce() -> T + Send + 'static,
     T: Send + 'static,
@@ -285,7 +285,7 @@ where
 
 /// A synthetic-dataset configuration writing to `out`: `scenes` scenes of `views` views each at
 /// `size` (width, height), drawn from `seed`; every other setting is the default.
-pub fn synth_config(
+pub(crate) fn synth_config(
     out: &Path,
     scenes: u32,
     seed: u64,
@@ -304,7 +304,7 @@ pub fn synth_config(
 
 /// One of the real frames, as `tests/fixtures/real_floor.json` lists it.
 #[derive(serde::Deserialize)]
-pub struct RealFrame {
+pub(crate) struct RealFrame {
     /// Its folder under the real frames ([`real`]).
     pub dir: String,
     /// Its depth image, relative to `dir`.
@@ -315,7 +315,7 @@ pub struct RealFrame {
 
 impl RealFrame {
     /// Its depth (metres) and the intrinsics of its depth image.
-    pub fn depth(&self) -> (tre::geometry::Grid<f64>, tre::geometry::Intrinsics) {
+    pub(crate) fn depth(&self) -> (tre::geometry::Grid<f64>, tre::geometry::Intrinsics) {
         let dir = real(&self.dir);
         let (cam, k) = tre::io::read_camera(&dir.join("intrinsics.json")).unwrap();
         let depth = tre::io::read_depth(&dir.join(&self.depth), cam.depth_scale.unwrap()).unwrap();
@@ -324,7 +324,7 @@ impl RealFrame {
 }
 
 /// The real frames of `tests/fixtures/real_floor.json`.
-pub fn real_frames() -> Vec<RealFrame> {
+pub(crate) fn real_frames() -> Vec<RealFrame> {
     #[derive(serde::Deserialize)]
     struct Fixture {
         frames: Vec<RealFrame>,
@@ -335,7 +335,7 @@ pub fn real_frames() -> Vec<RealFrame> {
 }
 
 /// The spec (annotation spec v1, default settings) on a depth map alone.
-pub fn spec(
+pub(crate) fn spec(
     depth: &tre::geometry::Grid<f64>,
     k: &tre::geometry::Intrinsics,
 ) -> tre::roughness::Annotation {

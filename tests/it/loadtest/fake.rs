@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use tre::loadtest::Frames;
 
 /// Runs `f` on a two-thread runtime.
-pub fn block_on<F: std::future::Future>(f: F) -> F::Output {
+pub(crate) fn block_on<F: std::future::Future>(f: F) -> F::Output {
     tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -22,7 +22,7 @@ pub fn block_on<F: std::future::Future>(f: F) -> F::Output {
 /// A tiny one-at-a-time HTTP service: each request holds the service for `service`, except the
 /// first one handled `stall_after` after the first request, which holds it for `stall`.
 /// `answer(n)` gives the status and body of request `n`.
-pub struct Fake {
+pub(crate) struct Fake {
     /// How long each request holds the service.
     pub service: Duration,
     /// `(stall_after, stall)`: one request held longer, or none.
@@ -39,7 +39,7 @@ struct FakeState {
 
 impl Fake {
     /// A service that answers `answer(n)` to request `n` after `ms` milliseconds, never stalling.
-    pub fn steady(ms: u64, answer: fn(u64) -> (u16, &'static str)) -> SocketAddr {
+    pub(crate) fn steady(ms: u64, answer: fn(u64) -> (u16, &'static str)) -> SocketAddr {
         Fake {
             service: Duration::from_millis(ms),
             stall: None,
@@ -49,7 +49,7 @@ impl Fake {
     }
 
     /// Listens on a loopback port, serving each connection on a thread of its own.
-    pub fn start(self) -> SocketAddr {
+    pub(crate) fn start(self) -> SocketAddr {
         let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
         let addr = listener.local_addr().expect("addr");
         let fake = Arc::new(self);
@@ -132,11 +132,11 @@ impl Fake {
 }
 
 /// 200 "ok" to every request.
-pub fn ok(_: u64) -> (u16, &'static str) {
+pub(crate) fn ok(_: u64) -> (u16, &'static str) {
     (200, "ok")
 }
 
 /// One fake frame (the fakes do not read it).
-pub fn frames() -> Frames {
+pub(crate) fn frames() -> Frames {
     Frames::from_bytes(vec![b"\x89PNG\r\n\x1a\nnot really".to_vec()], "fake PNG")
 }

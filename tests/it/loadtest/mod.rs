@@ -19,7 +19,7 @@ use tre::loadtest::{
     report, run_on, FrameSource, Frames, Load, LoadConfig, Protocol, Report, Target,
 };
 
-pub mod fake;
+pub(crate) mod fake;
 
 use fake::{block_on, frames, ok, Fake};
 

@@ -249,25 +249,30 @@ fn connections_over_the_limit_are_answered_503_at_once() {
         );
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
-    // The poll's own connection may still be closing on the server's side when the metrics
-    // are read: read them again until only the metrics request's connection is open (5 s).
-    let start = std::time::Instant::now();
-    let metrics = loop {
-        let (status, body) = get(server.addr, "/metrics");
-        let metrics = String::from_utf8(body).unwrap();
-        if status != 200 {
-            early += 1;
-        } else if metrics.contains("tre_connections_open 1\n")
-            || start.elapsed() > std::time::Duration::from_secs(5)
-        {
-            break metrics;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(50));
-    };
+    let metrics = settled_metrics(server.addr, &mut early);
     let refused_total = format!("tre_connections_refused_total {}\n", 4 + early);
     assert!(metrics.contains(&refused_total), "{metrics}");
     assert!(metrics.contains("tre_connections_open 1\n"), "{metrics}");
     rt().block_on(still_serves(&server));
+}
+
+/// The metrics once the connection of a poll before them has left: it may still be closing on
+/// the server's side when they are read, so they are read again until only the metrics
+/// request's own connection is open (5 s at most); each refused read adds one to `early`.
+fn settled_metrics(addr: std::net::SocketAddr, early: &mut usize) -> String {
+    let start = std::time::Instant::now();
+    loop {
+        let (status, body) = get(addr, "/metrics");
+        let metrics = String::from_utf8(body).unwrap();
+        if status != 200 {
+            *early += 1;
+        } else if metrics.contains("tre_connections_open 1\n")
+            || start.elapsed() > std::time::Duration::from_secs(5)
+        {
+            return metrics;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
 }
 
 /// Two kept-alive connections to `addr` that have been served; each refused first (a place

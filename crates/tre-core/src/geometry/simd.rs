@@ -9,7 +9,7 @@
 //!
 //! Only code inlined into a kernel gets the AVX2 version: a function or closure the kernel
 //! calls is compiled once, for baseline x86-64. So everything a kernel runs per pixel is
-//! `#[inline(always)]`, and its per-lane arrays are built with [`from_fn`] or plain loops, never
+//! `#[inline(always)]`, and its per-lane arrays are built with `from_fn` or plain loops, never
 //! `std::array::from_fn` or an array's `map` with a large closure (those run the closure in a
 //! library function that is called, not inlined). Check with `objdump -d` on the `..._avx_...`
 //! symbols: no calls to `{{closure}}`s or kernel functions should remain (`docs/benchmarks.md`,

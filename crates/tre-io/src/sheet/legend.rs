@@ -23,7 +23,7 @@ fn short_number(v: f64) -> String {
 /// tick and a label at each of `ticks_cm` (centimetres; ones outside the scale are left out,
 /// and a label that would overlap the previous one is skipped), "cm", and a grey swatch
 /// saying "no data". The bar's first column is the colour of 0 and its last that of `max_m`,
-/// exactly as [`roughness_panel`] draws them.
+/// exactly as [`roughness_panel`](super::roughness_panel) draws them.
 pub fn colour_bar_legend(width: u32, max_m: f64, ticks_cm: &[f64]) -> RgbImage {
     let (width, bar_x0, bar_x1) = bar_layout(width);
     let (unit_w, text_h) = text_size("cm", TEXT_SCALE);
@@ -111,7 +111,7 @@ pub fn categorical_legend(entries: &[(&str, Rgb<u8>)]) -> RgbImage {
 }
 
 /// `strips` one above the other, each centred, on the background: e.g. a colour bar and a
-/// categorical legend as the one legend of a [`contact_sheet`].
+/// categorical legend as the one legend of a [`contact_sheet`](super::contact_sheet).
 pub fn stack(strips: &[RgbImage]) -> RgbImage {
     let width = strips.iter().map(RgbImage::width).max().unwrap_or(0);
     let height = strips.iter().map(RgbImage::height).sum();
