@@ -154,11 +154,7 @@ pub enum ManifestProblem {
     ZeroSize,
 }
 
-/// Lower-case hex SHA-256 of bytes.
-///
-/// ```
-/// assert!(tre_model::manifest::sha256_hex(b"").starts_with("e3b0c442"));
-/// ```
+/// Lower-case hex SHA-256 of bytes (of the empty input: `e3b0c442…`, checked in the tests).
 pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
     hex(&Sha256::digest(bytes))
 }
@@ -192,6 +188,11 @@ pub(crate) fn sha256_file(path: &Path) -> std::io::Result<String> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn the_digest_of_nothing_is_sha256s() {
+        assert!(super::sha256_hex(b"").starts_with("e3b0c442"));
+    }
+
     use super::*;
 
     fn models_dir() -> PathBuf {

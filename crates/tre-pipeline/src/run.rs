@@ -50,15 +50,7 @@ const DEFAULT_STRIDE: usize = 16;
 
 /// The working size for a `(w0, h0)` frame: the longer side takes the manifest's size for it,
 /// the shorter side keeps the frame's aspect ratio, rounded to a multiple of `stride` (at least
-/// one stride), so the nets never see a stretched image.
-///
-/// ```
-/// # use tre_pipeline::run::fit_aspect;
-/// assert_eq!(fit_aspect((256, 256), (640, 480), 16), (256, 192));
-/// assert_eq!(fit_aspect((256, 256), (375, 1242), 16), (80, 256));
-/// assert_eq!(fit_aspect((256, 256), (512, 512), 16), (256, 256));
-/// assert_eq!(fit_aspect((256, 256), (4000, 1), 16), (256, 16));
-/// ```
+/// one stride), so the nets never see a stretched image (examples in the tests at the end of this file).
 pub(crate) fn fit_aspect(
     working: (usize, usize),
     (w0, h0): (usize, usize),
@@ -593,4 +585,17 @@ pub fn check_input(
         });
     }
     Ok(size)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fit_aspect;
+
+    #[test]
+    fn the_working_size_keeps_the_aspect_in_whole_strides() {
+        assert_eq!(fit_aspect((256, 256), (640, 480), 16), (256, 192));
+        assert_eq!(fit_aspect((256, 256), (375, 1242), 16), (80, 256));
+        assert_eq!(fit_aspect((256, 256), (512, 512), 16), (256, 256));
+        assert_eq!(fit_aspect((256, 256), (4000, 1), 16), (256, 16));
+    }
 }

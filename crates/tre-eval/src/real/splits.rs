@@ -78,7 +78,7 @@ mod tests {
 
     #[test]
     fn the_committed_splits_keep_test_frames_apart() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/real_splits.json");
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/real_splits.json");
         let s = Splits::read(&path).expect("reads");
         assert_eq!(
             s.split_of("slambook2_ch7", 1).expect("listed"),
