@@ -17,8 +17,8 @@ mod fake;
 
 use std::time::Duration;
 
-use fake::{block_on, frames, ok, Fake};
-use tre::loadtest::{report, run_on, FrameSource, Frames, Load, LoadConfig, Target};
+use fake::{block_on, cfg, frames, ok, over_one_worker, Fake};
+use tre::loadtest::{report, run_on, Load, LoadConfig, Target};
 
 /// One measure against its bound.
 struct Measure {
@@ -32,16 +32,6 @@ struct Measure {
 impl Measure {
     fn over(&self) -> bool {
         self.bound.is_some_and(|b| !(self.value < b))
-    }
-}
-
-/// The load of the fake-service tests: `load` for 2 s, 10 s timeout.
-fn cfg(load: Load) -> LoadConfig {
-    LoadConfig {
-        load,
-        duration: Some(Duration::from_secs(2)),
-        timeout: Duration::from_secs(10),
-        ..LoadConfig::default()
     }
 }
 
@@ -116,16 +106,7 @@ fn sweep(out: &mut Vec<Measure>) {
 /// The real service, one worker and a queue of 1, at 40/s for 3 s: refusals against results.
 fn refusals(out: &mut Vec<Measure>) {
     let server = common::Server::start(&["--workers", "1", "--queue", "1"]);
-    let frames = Frames::load(&FrameSource::default()).expect("synthetic frame");
-    let target = block_on(Target::resolve(&server.url(), false)).expect("loopback target");
-    let http = LoadConfig {
-        load: Load::Open { rate_per_s: 40.0 },
-        duration: Some(Duration::from_secs(3)),
-        warmup: Duration::from_millis(500),
-        timeout: Duration::from_secs(30),
-        ..LoadConfig::default()
-    };
-    let r = block_on(run_on(&http, &target, &frames)).expect("runs");
+    let r = over_one_worker(&server.url());
     println!("{}", report::text(&r));
     out.push(Measure {
         what: "tre serve, 1 worker, queue 1, 40/s: refusals' p99",

@@ -45,10 +45,7 @@ pub fn write_map(
     layers: &Layers,
     run: &MapRun,
 ) -> Result<MapSummary, IoError> {
-    std::fs::create_dir_all(dir).map_err(|reason| IoError::Write {
-        path: dir.to_owned(),
-        reason,
-    })?;
+    crate::paths::create_dir(dir)?;
     let mut meta = serde_json::Map::new();
     for (name, grid) in LAYER_NAMES.iter().zip(layers.all()) {
         meta.insert((*name).to_owned(), write_layer(dir, name, grid)?);
@@ -76,9 +73,8 @@ pub fn write_map(
         "memory_bytes": map.memory_bytes(),
         "fuse_ms_median": fuse_ms_median,
     });
-    let path = dir.join("map.json");
     let text = serde_json::to_string_pretty(&geometry).unwrap_or_default();
-    std::fs::write(&path, text).map_err(|reason| IoError::Write { path, reason })?;
+    crate::paths::write_text(&dir.join("map.json"), &text)?;
     Ok(MapSummary {
         seen,
         traversable,

@@ -67,12 +67,7 @@ pub fn write_roughness(
     preview_max_m: f64,
     title: &str,
 ) -> Result<(), IoError> {
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|reason| IoError::Write {
-            path: dir.to_owned(),
-            reason,
-        })?;
-    }
+    crate::paths::create_parent(out)?;
     write_map(out, file, roughness_m)?;
     let preview = crate::previews::roughness_preview(roughness_m, preview_max_m, title);
     crate::save(&preview_path(out), &DynamicImage::ImageRgb8(preview))

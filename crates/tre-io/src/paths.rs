@@ -19,14 +19,25 @@ pub struct WouldOverwrite {
     pub input: PathBuf,
 }
 
+/// Creates the folder `dir` and its parents if missing.
+pub fn create_dir(dir: &Path) -> Result<(), IoError> {
+    std::fs::create_dir_all(dir).map_err(|reason| IoError::Write {
+        path: dir.to_owned(),
+        reason,
+    })
+}
+
+/// Creates the folder `path` goes in, if it names one and it is missing.
+pub fn create_parent(path: &Path) -> Result<(), IoError> {
+    match path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        Some(dir) => create_dir(dir),
+        None => Ok(()),
+    }
+}
+
 /// Writes `text` to `path`, creating its folder if missing.
 pub fn write_text(path: &Path, text: &str) -> Result<(), IoError> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|reason| IoError::Write {
-            path: dir.to_owned(),
-            reason,
-        })?;
-    }
+    create_parent(path)?;
     std::fs::write(path, text).map_err(|reason| IoError::Write {
         path: path.to_owned(),
         reason,

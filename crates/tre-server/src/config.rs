@@ -48,17 +48,13 @@ impl ServeConfig {
         if let Some(&(flag, field, _)) = self.positive().iter().find(|(_, _, v)| *v == 0) {
             return Err(ConfigError::NotPositive { flag, field });
         }
-        if self.workers == 0 {
-            return Err(ConfigError::Empty {
-                flag: "--workers",
-                field: "workers",
-            });
-        }
-        if self.queue == 0 {
-            return Err(ConfigError::Empty {
-                flag: "--queue",
-                field: "queue",
-            });
+        for (flag, field, n) in [
+            ("--workers", "workers", self.workers),
+            ("--queue", "queue", self.queue),
+        ] {
+            if n == 0 {
+                return Err(ConfigError::Empty { flag, field });
+            }
         }
         if let Some(key) = self
             .api_key

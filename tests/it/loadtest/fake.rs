@@ -1,5 +1,6 @@
-//! A fake one-at-a-time HTTP service for the load tester, shared by the load-test tests
-//! (`tests/it/loadtest/`) and the load-test bench (`benches/loadtest.rs`).
+//! A fake one-at-a-time HTTP service for the load tester, and the loads run against it and
+//! against the real service, shared by the load-test tests (`tests/it/loadtest/`) and the
+//! load-test bench (`benches/loadtest.rs`).
 #![allow(dead_code)] // Not every user uses every helper.
 
 use std::io::{BufRead, BufReader, Read, Write};
@@ -7,7 +8,7 @@ use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use tre::loadtest::Frames;
+use tre::loadtest::{run_on, FrameSource, Frames, Load, LoadConfig, Report, Target};
 
 /// Runs `f` on a two-thread runtime.
 pub(crate) fn block_on<F: std::future::Future>(f: F) -> F::Output {
@@ -139,4 +140,29 @@ pub(crate) fn ok(_: u64) -> (u16, &'static str) {
 /// One fake frame (the fakes do not read it).
 pub(crate) fn frames() -> Frames {
     Frames::from_bytes(vec![b"\x89PNG\r\n\x1a\nnot really".to_vec()], "fake PNG")
+}
+
+/// The load of the fake-service runs: `load` for 2 s, 10 s timeout.
+pub(crate) fn cfg(load: Load) -> LoadConfig {
+    LoadConfig {
+        load,
+        duration: Some(Duration::from_secs(2)),
+        timeout: Duration::from_secs(10),
+        ..LoadConfig::default()
+    }
+}
+
+/// 40 requests a second for 3 s (after 0.5 s of warm-up) over HTTP with the synthetic frame
+/// against the service at `url`; started with one worker and a queue of 1, it must refuse most.
+pub(crate) fn over_one_worker(url: &str) -> Report {
+    let frames = Frames::load(&FrameSource::default()).expect("synthetic frame");
+    let target = block_on(Target::resolve(url, false)).expect("loopback target");
+    let http = LoadConfig {
+        load: Load::Open { rate_per_s: 40.0 },
+        duration: Some(Duration::from_secs(3)),
+        warmup: Duration::from_millis(500),
+        timeout: Duration::from_secs(30),
+        ..LoadConfig::default()
+    };
+    block_on(run_on(&http, &target, &frames)).expect("http load runs")
 }

@@ -21,7 +21,7 @@ use tre::loadtest::{
 
 pub(crate) mod fake;
 
-use fake::{block_on, frames, ok, Fake};
+use fake::{block_on, cfg, frames, ok, over_one_worker, Fake};
 
 /// One at a time: each test keeps a one-at-a-time fake service (or the real one) busy, and the
 /// closed and open loops of one test are compared with each other.
@@ -33,15 +33,6 @@ fn serial() -> MutexGuard<'static, ()> {
 /// Runs the load `c` against `addr` with the fake frames.
 fn run(c: &LoadConfig, addr: SocketAddr) -> Report {
     block_on(run_on(c, &Target::at(addr), &frames())).expect("runs")
-}
-
-fn cfg(load: Load) -> LoadConfig {
-    LoadConfig {
-        load,
-        duration: Some(Duration::from_secs(2)),
-        timeout: Duration::from_secs(10),
-        ..LoadConfig::default()
-    }
 }
 
 #[test]
@@ -326,16 +317,7 @@ fn the_cli_writes_json_and_svg_and_compares_with_an_earlier_run() {
 fn the_real_service_refuses_excess_load_fast_and_streams_a_result_for_every_frame() {
     let _serial = serial();
     let server = common::Server::start(&["--workers", "1", "--queue", "1"]);
-    let frames = Frames::load(&FrameSource::default()).expect("synthetic frame");
-    let target = block_on(Target::resolve(&server.url(), false)).expect("loopback target");
-    let http = LoadConfig {
-        load: Load::Open { rate_per_s: 40.0 },
-        duration: Some(Duration::from_secs(3)),
-        warmup: Duration::from_millis(500),
-        timeout: Duration::from_secs(30),
-        ..LoadConfig::default()
-    };
-    let r = block_on(run_on(&http, &target, &frames)).expect("http load runs");
+    let r = over_one_worker(&server.url());
     println!("{}", report::text(&r));
     assert!(r.ok > 0, "some requests succeed");
     assert!(r.refused > r.ok, "most of 40/s is beyond one worker: {r:?}");
@@ -361,6 +343,8 @@ fn the_real_service_refuses_excess_load_fast_and_streams_a_result_for_every_fram
         "refusals ({refusal_p99} ms) should come back well before results ({} ms)",
         r.latency_ms.p50_ms
     );
+    let frames = Frames::load(&FrameSource::default()).expect("synthetic frame");
+    let target = block_on(Target::resolve(&server.url(), false)).expect("loopback target");
     let ws = LoadConfig {
         protocol: Protocol::Ws,
         load: Load::Closed,
