@@ -17,5 +17,8 @@ pub use tre_loadtest as loadtest;
 pub use tre_model as model;
 pub use tre_pipeline as pipeline;
 pub use tre_proto as proto;
+/// The ROS 2 node and its MCAP recordings (`tre-ros2`; cargo feature `ros2`, on by default).
+#[cfg(feature = "ros2")]
+pub use tre_ros2 as ros2;
 pub use tre_server as server;
 pub use tre_synth as synth;

@@ -8,6 +8,8 @@ pub(crate) mod infer;
 pub(crate) mod loadtest;
 pub(crate) mod map;
 pub(crate) mod options;
+#[cfg(feature = "ros2")]
+pub(crate) mod ros2;
 pub(crate) mod serve;
 pub(crate) mod synth;
 
@@ -61,6 +63,12 @@ pub(crate) enum Command {
     /// address yourself in `--url`; a host name that resolves to a non-loopback address is
     /// refused unless `--allow-remote` is given.
     Loadtest(loadtest::Loadtest),
+    /// Run the ROS 2 node: subscribes to a depth (and colour) image, its camera_info and
+    /// optionally a pose; publishes roughness, uncertainty and three-state images with the
+    /// input's header, and the fused map as grid_map_msgs/GridMap and nav_msgs/OccupancyGrid
+    /// (docs/ros2.md). Needs no ROS installation.
+    #[cfg(feature = "ros2")]
+    Ros2(ros2::Ros2),
 }
 
 impl Command {
@@ -76,6 +84,8 @@ impl Command {
             Command::Serve(cmd) => cmd.run(),
             Command::Client(cmd) => cmd.run(),
             Command::Loadtest(cmd) => cmd.run(),
+            #[cfg(feature = "ros2")]
+            Command::Ros2(cmd) => cmd.run(),
         }
     }
 }

@@ -21,6 +21,8 @@ mod loadtest;
 mod map;
 mod pipeline;
 mod readme;
+#[cfg(feature = "ros2")]
+mod ros2;
 mod sensor;
 mod server_http;
 mod server_stream;

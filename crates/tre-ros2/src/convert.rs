@@ -1,0 +1,383 @@
+//! Topic messages to the pipeline's inputs, and its outputs to messages: depth per REP 118,
+//! colour, the intrinsics of `CameraInfo`, poses; roughness and uncertainty as `32FC1`, the
+//! three-state map as `mono8`, the fused map as `grid_map_msgs/GridMap` and
+//! `nav_msgs/OccupancyGrid`.
+
+use image::RgbImage;
+use nalgebra::{Matrix3, Quaternion as NaQuaternion, UnitQuaternion};
+use tre_core::geometry::{Grid, Intrinsics, Vec3};
+use tre_core::map::{GridMap as Map, Layers, Pose as MapPose, LAYER_NAMES};
+use tre_core::roughness::traversal::Traversal;
+
+use crate::error::InputError;
+use crate::msgs::{
+    CameraInfo, Float32MultiArray, GridMap, GridMapInfo, Header, Image, MapMetaData,
+    MultiArrayDimension, MultiArrayLayout, OccupancyGrid, Point, Pose, Quaternion,
+};
+
+/// Bytes per row an image of `width` pixels of `bytes_per_pixel` needs, checked against the
+/// message's `step`, `height` and data length.
+fn checked_rows(img: &Image, bytes_per_pixel: usize) -> Result<usize, InputError> {
+    let (w, h) = (img.width as usize, img.height as usize);
+    let step = img.step as usize;
+    if w == 0 || h == 0 {
+        return Err(InputError::Empty);
+    }
+    if step < w * bytes_per_pixel || img.data.len() < step * h {
+        return Err(InputError::ShortData {
+            step: img.step,
+            width: img.width,
+            height: img.height,
+            bytes: img.data.len(),
+        });
+    }
+    Ok(step)
+}
+
+/// Depth in metres from a `16UC1` (millimetres, 0 = no data) or `32FC1` (metres, NaN or 0 = no
+/// data) image, either byte order. The conversion of `16UC1` is the one of a 16-bit PNG at
+/// 1000 units per metre (`tre infer --depth`), so both give the same bits.
+pub fn depth_m(img: &Image) -> Result<Grid<f64>, InputError> {
+    let (w, h) = (img.width as usize, img.height as usize);
+    let big = img.is_bigendian != 0;
+    let data: Vec<f64> = match img.encoding.as_str() {
+        "16UC1" | "mono16" => {
+            let step = checked_rows(img, 2)?;
+            let mut out = Vec::with_capacity(w * h);
+            for row in img.data.chunks_exact(step).take(h) {
+                out.extend(row[..2 * w].chunks_exact(2).map(|b| {
+                    let v = if big {
+                        u16::from_be_bytes([b[0], b[1]])
+                    } else {
+                        u16::from_le_bytes([b[0], b[1]])
+                    };
+                    f64::from(v) / 1000.0
+                }));
+            }
+            out
+        }
+        "32FC1" => {
+            let step = checked_rows(img, 4)?;
+            let mut out = Vec::with_capacity(w * h);
+            for row in img.data.chunks_exact(step).take(h) {
+                out.extend(row[..4 * w].chunks_exact(4).map(|b| {
+                    let b = [b[0], b[1], b[2], b[3]];
+                    let v = if big {
+                        f32::from_be_bytes(b)
+                    } else {
+                        f32::from_le_bytes(b)
+                    };
+                    f64::from(v)
+                }));
+            }
+            out
+        }
+        other => {
+            return Err(InputError::Encoding {
+                topic: "depth",
+                encoding: other.to_owned(),
+                expected: "16UC1 (millimetres) or 32FC1 (metres)",
+            })
+        }
+    };
+    let depth = Grid::from_vec(w, h, data).expect("sizes checked above");
+    tre_io::check_depth(&depth).map_err(InputError::Depth)?;
+    Ok(depth)
+}
+
+/// 8-bit RGB from an `rgb8` or `bgr8` image.
+pub fn rgb(img: &Image) -> Result<RgbImage, InputError> {
+    let swap = match img.encoding.as_str() {
+        "rgb8" => false,
+        "bgr8" => true,
+        other => {
+            return Err(InputError::Encoding {
+                topic: "colour",
+                encoding: other.to_owned(),
+                expected: "rgb8 or bgr8",
+            })
+        }
+    };
+    let step = checked_rows(img, 3)?;
+    let (w, h) = (img.width as usize, img.height as usize);
+    let mut raw = Vec::with_capacity(3 * w * h);
+    for row in img.data.chunks_exact(step).take(h) {
+        for p in row[..3 * w].chunks_exact(3) {
+            if swap {
+                raw.extend([p[2], p[1], p[0]]);
+            } else {
+                raw.extend([p[0], p[1], p[2]]);
+            }
+        }
+    }
+    Ok(RgbImage::from_raw(img.width, img.height, raw).expect("sizes checked above"))
+}
+
+/// The pinhole of a `CameraInfo` (its `k`), checked against the image it comes with.
+pub fn intrinsics(info: &CameraInfo, image: &Image) -> Result<Intrinsics, InputError> {
+    if (info.width, info.height) != (image.width, image.height) {
+        return Err(InputError::SizeMismatch {
+            info: (info.width, info.height),
+            image: (image.width, image.height),
+        });
+    }
+    let k = &info.k;
+    let intr = Intrinsics::new(k[0], k[4], k[2], k[5]).map_err(InputError::Intrinsics)?;
+    intr.check_for(image.width as usize, image.height as usize)
+        .map_err(InputError::Intrinsics)?;
+    Ok(intr)
+}
+
+/// A `geometry_msgs/Pose` as the map's camera-to-world pose, after `camera_in_body` (the
+/// camera's optical frame in the frame the pose places; identity when the pose is the camera's).
+pub fn map_pose(pose: &Pose, camera_in_body: &MapPose) -> Result<MapPose, InputError> {
+    let q = &pose.orientation;
+    let norm = (q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w).sqrt();
+    if !(norm.is_finite() && (norm - 1.0).abs() < 1e-3) {
+        return Err(InputError::Pose { norm });
+    }
+    let rot: Matrix3<f64> = *UnitQuaternion::from_quaternion(NaQuaternion::new(q.w, q.x, q.y, q.z))
+        .to_rotation_matrix()
+        .matrix();
+    let p = &pose.position;
+    let t = Vec3::new(p.x, p.y, p.z);
+    if !t.iter().all(|v| v.is_finite()) {
+        return Err(InputError::Pose { norm });
+    }
+    Ok(MapPose {
+        rotation: rot * camera_in_body.rotation,
+        translation: rot * camera_in_body.translation + t,
+    })
+}
+
+/// A `32FC1` image (little-endian) of `values` in metres, NaN where there is none.
+pub fn float_image(header: &Header, values: &Grid<f64>) -> Image {
+    let (w, h) = values.size();
+    let mut data = Vec::with_capacity(4 * w * h);
+    for v in values.as_slice() {
+        data.extend((*v as f32).to_le_bytes());
+    }
+    Image {
+        header: header.clone(),
+        height: h as u32,
+        width: w as u32,
+        encoding: "32FC1".into(),
+        is_bigendian: 0,
+        step: 4 * w as u32,
+        data,
+    }
+}
+
+/// A `mono8` image of the three-state map: 0 unknown, 1 traversable, 2 hazard (the service's
+/// 8-bit values).
+pub fn traversal_image(header: &Header, t: &Grid<Traversal>) -> Image {
+    let (w, h) = t.size();
+    Image {
+        header: header.clone(),
+        height: h as u32,
+        width: w as u32,
+        encoding: "mono8".into(),
+        is_bigendian: 0,
+        step: w as u32,
+        data: t.as_slice().iter().map(|&v| v as u8).collect(),
+    }
+}
+
+/// The window's lower-left corner and side in the map frame, metres.
+fn window(map: &Map) -> ((f64, f64), f64) {
+    let cfg = map.config();
+    let (ox, oy) = map.origin();
+    let corner = (ox as f64 * cfg.cell_m, oy as f64 * cfg.cell_m);
+    (corner, cfg.side as f64 * cfg.cell_m)
+}
+
+/// The map as grid_map publishes it: every layer of [`LAYER_NAMES`], column-major with the
+/// dimension labels grid_map checks (`column_index`, then `row_index`), cell (0, 0) at the
+/// window's largest x and y, no circular-buffer offset; `info.pose` the window's centre.
+pub fn grid_map(header: &Header, map: &Map, layers: &Layers) -> GridMap {
+    let side = map.config().side;
+    let ((x0, y0), len) = window(map);
+    let data = layers
+        .all()
+        .iter()
+        .map(|layer| {
+            // Layers: row-major, column = +x from the smallest x, row 0 at the largest y.
+            // grid_map: (r, c) with r along -x from the largest x, c along -y from the largest
+            // y, stored column-major (index c * side + r).
+            let src = layer.as_slice();
+            let mut out = Vec::with_capacity(side * side);
+            for c in 0..side {
+                let row = &src[c * side..(c + 1) * side];
+                out.extend(row.iter().rev());
+            }
+            Float32MultiArray {
+                layout: MultiArrayLayout {
+                    dim: vec![
+                        MultiArrayDimension {
+                            label: "column_index".into(),
+                            size: side as u32,
+                            stride: (side * side) as u32,
+                        },
+                        MultiArrayDimension {
+                            label: "row_index".into(),
+                            size: side as u32,
+                            stride: side as u32,
+                        },
+                    ],
+                    data_offset: 0,
+                },
+                data: out,
+            }
+        })
+        .collect();
+    GridMap {
+        header: header.clone(),
+        info: GridMapInfo {
+            resolution: map.config().cell_m,
+            length_x: len,
+            length_y: len,
+            pose: Pose {
+                position: Point {
+                    x: x0 + len / 2.0,
+                    y: y0 + len / 2.0,
+                    z: 0.0,
+                },
+                orientation: Quaternion::default(),
+            },
+        },
+        layers: LAYER_NAMES.iter().map(|s| (*s).to_owned()).collect(),
+        basic_layers: vec!["elevation".into()],
+        data,
+        outer_start_index: 0,
+        inner_start_index: 0,
+    }
+}
+
+/// The map's three-state layer as an occupancy grid for Nav2: unknown −1, traversable 0,
+/// hazard 100; row-major from the window's lower-left corner, x along a row.
+pub fn occupancy(header: &Header, map: &Map, layers: &Layers) -> OccupancyGrid {
+    let side = map.config().side;
+    let ((x0, y0), _) = window(map);
+    let src = layers.traversal.as_slice();
+    let mut data = Vec::with_capacity(side * side);
+    for iy in 0..side {
+        let row = &src[(side - 1 - iy) * side..(side - iy) * side];
+        data.extend(row.iter().map(|&v| match v as u8 {
+            1 => 0i8,
+            2 => 100,
+            _ => -1,
+        }));
+    }
+    OccupancyGrid {
+        header: header.clone(),
+        info: MapMetaData {
+            map_load_time: header.stamp,
+            resolution: map.config().cell_m as f32,
+            width: side as u32,
+            height: side as u32,
+            origin: Pose {
+                position: Point {
+                    x: x0,
+                    y: y0,
+                    z: 0.0,
+                },
+                orientation: Quaternion::default(),
+            },
+        },
+        data,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn depth_image(encoding: &str, w: u32, h: u32, bytes_per: u32, data: Vec<u8>) -> Image {
+        Image {
+            encoding: encoding.into(),
+            width: w,
+            height: h,
+            step: w * bytes_per,
+            data,
+            ..Image::default()
+        }
+    }
+
+    #[test]
+    fn millimetres_and_metres_give_the_same_depth() {
+        let mm: Vec<u16> = vec![1500, 0, 2250, 1000];
+        let le: Vec<u8> = mm.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let be: Vec<u8> = mm.iter().flat_map(|v| v.to_be_bytes()).collect();
+        let a = depth_m(&depth_image("16UC1", 2, 2, 2, le)).unwrap();
+        let mut big = depth_image("16UC1", 2, 2, 2, be);
+        big.is_bigendian = 1;
+        let b = depth_m(&big).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a.as_slice(), &[1.5, 0.0, 2.25, 1.0]);
+        let m: Vec<u8> = [1.5f32, f32::NAN, 2.25, 1.0]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let c = depth_m(&depth_image("32FC1", 2, 2, 4, m)).unwrap();
+        assert_eq!(c.as_slice()[0], 1.5);
+        assert!(c.as_slice()[1].is_nan());
+    }
+
+    #[test]
+    fn bad_images_are_refused_with_the_reason() {
+        let e = depth_m(&depth_image("8UC3", 2, 2, 3, vec![0; 12])).unwrap_err();
+        assert!(e.to_string().contains("8UC3"), "{e}");
+        let e = depth_m(&depth_image("16UC1", 4, 4, 2, vec![0; 10])).unwrap_err();
+        assert!(matches!(e, InputError::ShortData { .. }), "{e}");
+        let e = depth_m(&depth_image("16UC1", 2, 2, 2, vec![0; 8])).unwrap_err();
+        assert!(e.to_string().contains("no valid pixel"), "{e}");
+        let info = CameraInfo {
+            width: 640,
+            height: 480,
+            k: [500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0],
+            ..CameraInfo::default()
+        };
+        let img = depth_image("16UC1", 320, 240, 2, vec![0; 320 * 240 * 2]);
+        let e = intrinsics(&info, &img).unwrap_err();
+        assert!(e.to_string().contains("640×480"), "{e}");
+    }
+
+    #[test]
+    fn bgr_is_swapped_to_rgb() {
+        let img = depth_image("bgr8", 1, 1, 3, vec![1, 2, 3]);
+        assert_eq!(rgb(&img).unwrap().into_raw(), vec![3, 2, 1]);
+    }
+
+    #[test]
+    fn a_pose_places_the_camera_after_its_mounting() {
+        let quarter = std::f64::consts::FRAC_1_SQRT_2;
+        let pose = Pose {
+            position: Point {
+                x: 1.0,
+                y: 2.0,
+                z: 0.5,
+            },
+            // 90° about z.
+            orientation: Quaternion {
+                x: 0.0,
+                y: 0.0,
+                z: quarter,
+                w: quarter,
+            },
+        };
+        let mount = MapPose {
+            rotation: Matrix3::identity(),
+            translation: Vec3::new(0.2, 0.0, 0.0),
+        };
+        let p = map_pose(&pose, &mount).unwrap();
+        assert!((p.translation - Vec3::new(1.0, 2.2, 0.5)).norm() < 1e-12);
+        let bad = Pose {
+            orientation: Quaternion {
+                w: 2.0,
+                ..Quaternion::default()
+            },
+            ..pose
+        };
+        assert!(map_pose(&bad, &mount).is_err());
+    }
+}

@@ -1,0 +1,29 @@
+//! The ROS 2 node of tre and its MCAP recordings (docs/ros2.md).
+//!
+//! The node speaks DDS through `ros2-client` (pure Rust, over RustDDS): no ROS installation is
+//! needed to build or run it. It subscribes to a depth image (`16UC1` millimetres or `32FC1`
+//! metres, REP 118), a colour image in the rgb and rgbd modes, their `CameraInfo` and
+//! optionally a pose (`nav_msgs/Odometry` or `geometry_msgs/PoseStamped`); it publishes, with
+//! the input's header, roughness and uncertainty (`32FC1`, metres) and the three-state map
+//! (`mono8`), and with a pose the fused map as `grid_map_msgs/GridMap` and
+//! `nav_msgs/OccupancyGrid` (transient-local, for Nav2's static layer).
+//!
+//! - [`msgs`]: the message types, their CDR and their definitions;
+//! - [`convert`]: messages to the pipeline's inputs and its outputs to messages;
+//! - [`Processor`]: one frame through the pipeline and the map, without DDS;
+//! - [`start`]: the node; [`Recorder`]: MCAP files.
+
+pub mod convert;
+mod error;
+mod limiter;
+pub mod msgs;
+mod node;
+mod process;
+mod record;
+
+pub use error::{ConfigProblem, InputError, Ros2Error};
+pub use node::{start, NodeConfig, NodeStats, PoseSource, Reliability, RunningNode};
+pub use process::{FrameMsgs, MapSettings, Outputs, Processor};
+pub use record::Recorder;
+/// The ROS 2 distribution the node was built for (cargo feature `jazzy` or `humble`).
+pub use ros2_client::COMPILED_ROS_DISTRO;

@@ -1,0 +1,746 @@
+//! The ROS 2 node: subscriptions, the latest-frame slot, the worker that runs the pipeline and
+//! the map, and the publishers (docs/ros2.md).
+//!
+//! Two threads. The DDS thread runs ros2-client's spinner and the subscriptions: a depth (or
+//! colour) frame goes into a one-frame slot, replacing a frame still waiting there (counted as
+//! dropped), so a slow pipeline never queues stale frames; camera_info and poses are kept
+//! (the latest camera_info, the last 256 poses). The worker thread takes the slot, finds the
+//! pose nearest the frame's stamp, runs the [`Processor`], and publishes every output with
+//! the input's header (the map with the map frame's id), then records it when asked.
+
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use futures::{FutureExt, StreamExt};
+use ros2_client::qos::{Durability, History, Reliability as DdsReliability, WhenFull};
+use ros2_client::{
+    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
+    QosProfile, Subscription,
+};
+use tre_core::map::Pose as MapPose;
+use tre_pipeline::Mode;
+
+use crate::convert;
+use crate::error::Ros2Error;
+use crate::limiter::Limiter;
+use crate::msgs::{
+    CameraInfo, GridMap, Image, OccupancyGrid, Odometry, PoseStamped, RosMessage, Time,
+};
+use crate::process::{FrameMsgs, Outputs, Processor};
+use crate::record::Recorder;
+
+/// Reliability of the input subscriptions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Reliability {
+    /// Best effort (ROS's sensor-data profile): matches every publisher, drops rather than
+    /// resends.
+    #[default]
+    BestEffort,
+    /// Reliable: matches reliable publishers only.
+    Reliable,
+}
+
+/// Where the camera's pose comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PoseSource {
+    /// `nav_msgs/Odometry` on this topic.
+    Odometry(String),
+    /// `geometry_msgs/PoseStamped` on this topic.
+    PoseStamped(String),
+}
+
+/// Topics, QoS and frame ids of the node.
+#[derive(Debug, Clone)]
+pub struct NodeConfig {
+    /// DDS domain (`ROS_DOMAIN_ID`).
+    pub domain_id: u16,
+    /// Node name (`/namespace/name`).
+    pub node_name: String,
+    /// Depth image topic (16UC1 millimetres or 32FC1 metres).
+    pub depth_topic: String,
+    /// Colour image topic (rgb8, bgr8), read in the rgb and rgbd modes.
+    pub colour_topic: String,
+    /// camera_info topic of the image the mode reads (depth, else colour).
+    pub info_topic: String,
+    /// The pose source for the map; none: no map.
+    pub pose: Option<PoseSource>,
+    /// The camera's optical frame in the frame the pose places (identity: the pose is the
+    /// camera's).
+    pub camera_in_body: MapPose,
+    /// Largest gap between a frame's stamp and its pose's.
+    pub pose_tolerance: Duration,
+    /// Prefix of the output topics: `{prefix}/roughness`, `/uncertainty`, `/traversal`,
+    /// `/grid_map`, `/occupancy`.
+    pub output_prefix: String,
+    /// Reliability of the input subscriptions.
+    pub input_reliability: Reliability,
+    /// Log a kind of bad input at most this often.
+    pub log_every: Duration,
+    /// Record inputs and outputs to this MCAP file.
+    pub record: Option<PathBuf>,
+}
+
+impl Default for NodeConfig {
+    fn default() -> Self {
+        Self {
+            domain_id: 0,
+            node_name: "/tre".into(),
+            depth_topic: "/camera/depth/image_rect_raw".into(),
+            colour_topic: "/camera/color/image_raw".into(),
+            info_topic: "/camera/depth/camera_info".into(),
+            pose: None,
+            camera_in_body: MapPose::identity(),
+            pose_tolerance: Duration::from_millis(50),
+            output_prefix: "/tre".into(),
+            input_reliability: Reliability::BestEffort,
+            log_every: Duration::from_secs(10),
+            record: None,
+        }
+    }
+}
+
+/// What the node has done so far.
+#[derive(Debug, Default)]
+pub struct NodeStats {
+    /// Frames received (depth, or colour in rgb mode).
+    pub received: AtomicU64,
+    /// Frames replaced in the slot before the worker took them, or older than the last one.
+    pub dropped: AtomicU64,
+    /// Frames skipped for bad input.
+    pub skipped: AtomicU64,
+    /// Frames processed and published.
+    pub published: AtomicU64,
+    /// Frames fused into the map.
+    pub fused: AtomicU64,
+}
+
+/// A running node; [`RunningNode::stop`] stops it and finishes the recording.
+#[derive(Debug)]
+pub struct RunningNode {
+    shared: Arc<Shared>,
+    stop_dds: Option<futures::channel::oneshot::Sender<()>>,
+    dds: Option<JoinHandle<Result<(), Ros2Error>>>,
+    worker: Option<JoinHandle<Result<Option<PathBuf>, Ros2Error>>>,
+}
+
+#[derive(Debug, Default)]
+struct Inbox {
+    frame: Option<FrameMsgs>,
+    /// Unmatched depth and colour frames of the rgbd mode (a few of each).
+    depth: VecDeque<Image>,
+    colour: VecDeque<Image>,
+    info: Option<CameraInfo>,
+    poses: VecDeque<(i64, MapPose)>,
+    /// Inputs to record, in arrival order: (topic, message bytes as CDR of its type).
+    record: Vec<Recorded>,
+    stop: bool,
+}
+
+#[derive(Debug)]
+enum Recorded {
+    Image(String, Box<Image>, u64),
+    Info(String, Box<CameraInfo>, u64),
+    Odometry(String, Box<Odometry>, u64),
+    PoseStamped(String, Box<PoseStamped>, u64),
+}
+
+#[derive(Debug, Default)]
+struct Shared {
+    inbox: Mutex<Inbox>,
+    ready: Condvar,
+    stats: NodeStats,
+    recording: AtomicBool,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, Inbox> {
+        self.inbox.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+fn now_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+fn dds<E: std::fmt::Debug>(what: &'static str) -> impl Fn(E) -> Ros2Error {
+    move |e| Ros2Error::Dds {
+        what,
+        message: format!("{e:?}"),
+    }
+}
+
+fn name(full: &str) -> Result<Name, Ros2Error> {
+    Name::parse(full).map_err(|e| Ros2Error::Name {
+        name: full.to_owned(),
+        message: format!("{e:?}"),
+    })
+}
+
+fn qos(r: Reliability) -> QosProfile {
+    let q = QosProfile::subscription_default().history(History::KeepLast { depth: 2 });
+    match r {
+        Reliability::BestEffort => q,
+        Reliability::Reliable => q.reliability(DdsReliability::Reliable {
+            when_full: WhenFull::DEFAULT,
+        }),
+    }
+}
+
+/// Outputs: reliable, keep the last one; the occupancy grid also transient-local, as Nav2's
+/// static layer subscribes.
+fn output_qos(latched: bool) -> QosProfile {
+    let q = QosProfile::publisher_default()
+        .reliability(DdsReliability::Reliable {
+            when_full: WhenFull::Wait(Duration::from_millis(20)),
+        })
+        .history(History::KeepLast { depth: 1 });
+    if latched {
+        q.durability(Durability::TransientLocal)
+    } else {
+        q
+    }
+}
+
+/// The node's subscriptions: the mode's images, their camera_info, the pose source.
+struct Subscriptions {
+    depth: Option<Subscription<Image>>,
+    colour: Option<Subscription<Image>>,
+    info: Subscription<CameraInfo>,
+    odom: Option<Subscription<Odometry>>,
+    pose: Option<Subscription<PoseStamped>>,
+}
+
+fn subscribe<M: RosMessage + 'static>(
+    node: &mut Node,
+    topic: &str,
+    q: &QosProfile,
+) -> Result<Subscription<M>, Ros2Error> {
+    let t = node
+        .create_topic(&name(topic)?, MessageTypeName::new(M::PACKAGE, M::NAME), q)
+        .map_err(dds("topic"))?;
+    node.create_subscription::<M>(&t, Some(q.clone()))
+        .map_err(dds("subscription"))
+}
+
+impl Subscriptions {
+    fn new(node: &mut Node, c: &NodeConfig, mode: Mode) -> Result<Self, Ros2Error> {
+        let q = qos(c.input_reliability);
+        let (depth, colour) = match mode {
+            Mode::Geometric => (Some(subscribe(node, &c.depth_topic, &q)?), None),
+            Mode::Rgb => (None, Some(subscribe(node, &c.colour_topic, &q)?)),
+            Mode::Rgbd => (
+                Some(subscribe(node, &c.depth_topic, &q)?),
+                Some(subscribe(node, &c.colour_topic, &q)?),
+            ),
+        };
+        let (odom, pose) = match &c.pose {
+            Some(PoseSource::Odometry(t)) => (Some(subscribe(node, t, &q)?), None),
+            Some(PoseSource::PoseStamped(t)) => (None, Some(subscribe(node, t, &q)?)),
+            None => (None, None),
+        };
+        Ok(Self {
+            depth,
+            colour,
+            info: subscribe(node, &c.info_topic, &q)?,
+            odom,
+            pose,
+        })
+    }
+
+    /// Receives until every stream ends (they do not: the caller stops it).
+    async fn receive(&self, sh: &Shared, c: &NodeConfig, mode: Mode) {
+        let info = self.info.async_stream().for_each(|m| async {
+            if let Ok((info, _)) = m {
+                let mut inbox = sh.lock();
+                if sh.recording.load(Ordering::Relaxed) {
+                    let r = Recorded::Info(c.info_topic.clone(), Box::new(info.clone()), now_ns());
+                    inbox.record.push(r);
+                }
+                inbox.info = Some(info);
+            }
+        });
+        let odom = async {
+            if let Some(s) = &self.odom {
+                s.async_stream()
+                    .for_each(|m| async {
+                        if let Ok((o, _)) = m {
+                            on_pose(sh, c, &o.header.stamp, &o.pose.pose);
+                            if sh.recording.load(Ordering::Relaxed) {
+                                let r = Recorded::Odometry(pose_topic(c), Box::new(o), now_ns());
+                                sh.lock().record.push(r);
+                            }
+                        }
+                    })
+                    .await;
+            }
+        };
+        let pose = async {
+            if let Some(s) = &self.pose {
+                s.async_stream()
+                    .for_each(|m| async {
+                        if let Ok((p, _)) = m {
+                            on_pose(sh, c, &p.header.stamp, &p.pose);
+                            if sh.recording.load(Ordering::Relaxed) {
+                                let r = Recorded::PoseStamped(pose_topic(c), Box::new(p), now_ns());
+                                sh.lock().record.push(r);
+                            }
+                        }
+                    })
+                    .await;
+            }
+        };
+        futures::join!(
+            receive_images(self.depth.as_ref(), sh, c, mode, true),
+            receive_images(self.colour.as_ref(), sh, c, mode, false),
+            info,
+            odom,
+            pose
+        );
+    }
+}
+
+async fn receive_images(
+    sub: Option<&Subscription<Image>>,
+    sh: &Shared,
+    c: &NodeConfig,
+    mode: Mode,
+    is_depth: bool,
+) {
+    if let Some(s) = sub {
+        s.async_stream()
+            .for_each(|m| async {
+                if let Ok((img, _)) = m {
+                    on_image(sh, c, mode, img, is_depth);
+                }
+            })
+            .await;
+    }
+}
+
+fn thread_error(e: std::io::Error) -> Ros2Error {
+    Ros2Error::Dds {
+        what: "thread",
+        message: e.to_string(),
+    }
+}
+
+/// Starts the node: joins the domain, subscribes and publishes, and returns at once; frames
+/// are processed on a thread of its own until [`RunningNode::stop`].
+pub fn start(config: NodeConfig, processor: Processor) -> Result<RunningNode, Ros2Error> {
+    let context = Context::with_options(ContextOptions::new().domain_id(config.domain_id))
+        .map_err(dds("DDS participant"))?;
+    let (ns, base) = match config.node_name.rsplit_once('/') {
+        Some((ns, base)) => (if ns.is_empty() { "/" } else { ns }, base),
+        None => ("/", config.node_name.as_str()),
+    };
+    let node_name = NodeName::new(ns, base).map_err(|e| Ros2Error::Name {
+        name: config.node_name.clone(),
+        message: format!("{e:?}"),
+    })?;
+    let mut node = context
+        .new_node(node_name, NodeOptions::new().enable_rosout(false))
+        .map_err(dds("node"))?;
+    let mode = processor.config().mode;
+    let subs = Subscriptions::new(&mut node, &config, mode)?;
+    let publishers = Publishers::new(&mut node, &config)?;
+    let recorder = config.record.as_deref().map(Recorder::create).transpose()?;
+    let shared = Arc::new(Shared::default());
+    shared
+        .recording
+        .store(recorder.is_some(), Ordering::Relaxed);
+    let (stop_tx, stop_rx) = futures::channel::oneshot::channel::<()>();
+    let spinner = node.spinner().map_err(dds("spinner"))?;
+    let dds_shared = Arc::clone(&shared);
+    let topics = config.clone();
+    let dds = std::thread::Builder::new()
+        .name("tre-ros2-dds".into())
+        .spawn(move || {
+            let _alive = (context, node); // the participant and node live while the thread runs
+            let spin = spinner.spin().map(|r| {
+                if let Err(e) = r {
+                    tracing::error!("ROS 2 spinner stopped: {e:?}");
+                }
+            });
+            futures::executor::block_on(async {
+                futures::select! {
+                    () = subs.receive(&dds_shared, &topics, mode).fuse() => {},
+                    () = spin.fuse() => {},
+                    _ = stop_rx.fuse() => {},
+                }
+            });
+            Ok(())
+        })
+        .map_err(thread_error)?;
+    let worker_shared = Arc::clone(&shared);
+    let worker = std::thread::Builder::new()
+        .name("tre-ros2-worker".into())
+        .spawn(move || work(&worker_shared, &config, processor, &publishers, recorder))
+        .map_err(thread_error)?;
+    Ok(RunningNode {
+        shared,
+        stop_dds: Some(stop_tx),
+        dds: Some(dds),
+        worker: Some(worker),
+    })
+}
+
+fn pose_topic(c: &NodeConfig) -> String {
+    match &c.pose {
+        Some(PoseSource::Odometry(t) | PoseSource::PoseStamped(t)) => t.clone(),
+        None => String::new(),
+    }
+}
+
+fn on_pose(sh: &Shared, c: &NodeConfig, stamp: &Time, pose: &crate::msgs::Pose) {
+    match convert::map_pose(pose, &c.camera_in_body) {
+        Ok(p) => {
+            let mut inbox = sh.lock();
+            inbox.poses.push_back((stamp.nanos(), p));
+            while inbox.poses.len() > 256 {
+                inbox.poses.pop_front();
+            }
+            drop(inbox);
+            sh.ready.notify_all();
+        }
+        Err(e) => tracing::warn!("pose skipped: {e}"),
+    }
+}
+
+/// A depth or colour frame arrives: it becomes the waiting frame (with its partner in rgbd).
+fn on_image(sh: &Shared, c: &NodeConfig, mode: Mode, img: Image, is_depth: bool) {
+    let mut inbox = sh.lock();
+    if sh.recording.load(Ordering::Relaxed) {
+        let topic = if is_depth {
+            &c.depth_topic
+        } else {
+            &c.colour_topic
+        };
+        inbox.record.push(Recorded::Image(
+            topic.clone(),
+            Box::new(img.clone()),
+            now_ns(),
+        ));
+    }
+    let frame = match mode {
+        Mode::Geometric => Some(FrameMsgs {
+            depth: Some(img),
+            colour: None,
+            info: None,
+            pose: None,
+        }),
+        Mode::Rgb => Some(FrameMsgs {
+            depth: None,
+            colour: Some(img),
+            info: None,
+            pose: None,
+        }),
+        Mode::Rgbd => {
+            let stamp = img.header.stamp;
+            let inbox = &mut *inbox;
+            let (mine, other) = if is_depth {
+                (&mut inbox.depth, &mut inbox.colour)
+            } else {
+                (&mut inbox.colour, &mut inbox.depth)
+            };
+            if let Some(i) = other.iter().position(|o| o.header.stamp == stamp) {
+                let partner = other.remove(i).expect("index found above");
+                other.retain(|o| o.header.stamp > stamp);
+                mine.retain(|o| o.header.stamp > stamp);
+                let (depth, colour) = if is_depth {
+                    (img, partner)
+                } else {
+                    (partner, img)
+                };
+                Some(FrameMsgs {
+                    depth: Some(depth),
+                    colour: Some(colour),
+                    info: None,
+                    pose: None,
+                })
+            } else {
+                mine.push_back(img);
+                while mine.len() > 4 {
+                    mine.pop_front();
+                }
+                None
+            }
+        }
+    };
+    if let Some(f) = frame {
+        sh.stats.received.fetch_add(1, Ordering::Relaxed);
+        if inbox.frame.replace(f).is_some() {
+            sh.stats.dropped.fetch_add(1, Ordering::Relaxed);
+        }
+        drop(inbox);
+        sh.ready.notify_all();
+    }
+}
+
+struct Publishers {
+    prefix: String,
+    roughness: Publisher<Image>,
+    uncertainty: Publisher<Image>,
+    traversal: Publisher<Image>,
+    grid: Publisher<GridMap>,
+    occupancy: Publisher<OccupancyGrid>,
+}
+
+impl Publishers {
+    fn new(node: &mut Node, c: &NodeConfig) -> Result<Self, Ros2Error> {
+        let prefix = c.output_prefix.trim_end_matches('/').to_owned();
+        fn make<M: RosMessage + 'static>(
+            node: &mut Node,
+            topic: &str,
+            latched: bool,
+        ) -> Result<Publisher<M>, Ros2Error> {
+            let q = output_qos(latched);
+            let t = node
+                .create_topic(&name(topic)?, MessageTypeName::new(M::PACKAGE, M::NAME), &q)
+                .map_err(dds("topic"))?;
+            node.create_publisher::<M>(&t, Some(q))
+                .map_err(dds("publisher"))
+        }
+        Ok(Self {
+            roughness: make(node, &format!("{prefix}/roughness"), false)?,
+            uncertainty: make(node, &format!("{prefix}/uncertainty"), false)?,
+            traversal: make(node, &format!("{prefix}/traversal"), false)?,
+            grid: make(node, &format!("{prefix}/grid_map"), false)?,
+            occupancy: make(node, &format!("{prefix}/occupancy"), true)?,
+            prefix,
+        })
+    }
+
+    fn publish(&self, o: &Outputs) {
+        let log = |what: &str, r: Result<(), String>| {
+            if let Err(e) = r {
+                tracing::warn!("publishing {what}: {e}");
+            }
+        };
+        log(
+            "roughness",
+            self.roughness
+                .publish(o.roughness.clone())
+                .map_err(|e| format!("{e:?}")),
+        );
+        if let Some(u) = &o.uncertainty {
+            log(
+                "uncertainty",
+                self.uncertainty
+                    .publish(u.clone())
+                    .map_err(|e| format!("{e:?}")),
+            );
+        }
+        if let Some(t) = &o.traversal {
+            log(
+                "traversal",
+                self.traversal
+                    .publish(t.clone())
+                    .map_err(|e| format!("{e:?}")),
+            );
+        }
+        if let Some(g) = &o.grid {
+            log(
+                "grid_map",
+                self.grid.publish(g.clone()).map_err(|e| format!("{e:?}")),
+            );
+        }
+        if let Some(g) = &o.occupancy {
+            log(
+                "occupancy",
+                self.occupancy
+                    .publish(g.clone())
+                    .map_err(|e| format!("{e:?}")),
+            );
+        }
+    }
+}
+
+/// The pose nearest `stamp` within `tolerance`.
+fn nearest_pose(
+    poses: &VecDeque<(i64, MapPose)>,
+    stamp: i64,
+    tolerance: Duration,
+) -> Option<MapPose> {
+    poses
+        .iter()
+        .min_by_key(|(t, _)| (t - stamp).unsigned_abs())
+        .filter(|(t, _)| (t - stamp).unsigned_abs() <= tolerance.as_nanos() as u64)
+        .map(|(_, p)| *p)
+}
+
+fn work(
+    sh: &Shared,
+    c: &NodeConfig,
+    mut processor: Processor,
+    pubs: &Publishers,
+    mut recorder: Option<Recorder>,
+) -> Result<Option<PathBuf>, Ros2Error> {
+    let mut limiter = Limiter::new(c.log_every);
+    let mut last_stamp: Option<Time> = None;
+    loop {
+        let (mut frame, recorded) = {
+            let mut inbox = sh.lock();
+            while inbox.frame.is_none() && !inbox.stop {
+                inbox = sh.ready.wait(inbox).unwrap_or_else(|e| e.into_inner());
+            }
+            if inbox.stop {
+                let recorded = std::mem::take(&mut inbox.record);
+                drop(inbox);
+                if let Some(r) = &mut recorder {
+                    write_inputs(r, recorded)?;
+                }
+                break;
+            }
+            let mut frame = inbox.frame.take().expect("checked above");
+            frame.info = inbox.info.clone();
+            (frame, std::mem::take(&mut inbox.record))
+        };
+        if let Some(r) = &mut recorder {
+            write_inputs(r, recorded)?;
+        }
+        let stamp = frame.header().stamp;
+        if last_stamp.is_some_and(|l| stamp <= l) {
+            sh.stats.dropped.fetch_add(1, Ordering::Relaxed);
+            continue;
+        }
+        if c.pose.is_some() {
+            frame.pose = wait_for_pose(sh, stamp.nanos(), c.pose_tolerance);
+        }
+        match processor.process(&frame) {
+            Ok(out) => {
+                last_stamp = Some(stamp);
+                limiter.good();
+                pubs.publish(&out);
+                sh.stats.published.fetch_add(1, Ordering::Relaxed);
+                if out.grid.is_some() {
+                    sh.stats.fused.fetch_add(1, Ordering::Relaxed);
+                }
+                if let Some(e) = &out.map_error {
+                    limiter.skipped("map", &format!("not fused into the map: {e}"));
+                }
+                if c.pose.is_some() && frame.pose.is_none() {
+                    limiter.skipped(
+                        "pose missing",
+                        "no pose within the tolerance of the frame's stamp: not fused",
+                    );
+                }
+                if let Some(r) = &mut recorder {
+                    write_outputs(r, pubs, &out, &processor)?;
+                }
+            }
+            Err(e) => {
+                sh.stats.skipped.fetch_add(1, Ordering::Relaxed);
+                limiter.skipped(e.kind(), &e.to_string());
+            }
+        }
+    }
+    recorder.map(Recorder::finish).transpose()
+}
+
+/// The pose for a frame: one already within the tolerance, else the first to arrive within
+/// the tolerance of the frame's stamp (waiting at most the tolerance, plus 100 ms).
+fn wait_for_pose(sh: &Shared, stamp: i64, tolerance: Duration) -> Option<MapPose> {
+    let deadline = std::time::Instant::now() + tolerance + Duration::from_millis(100);
+    let mut inbox = sh.lock();
+    loop {
+        if let Some(p) = nearest_pose(&inbox.poses, stamp, tolerance) {
+            return Some(p);
+        }
+        let now = std::time::Instant::now();
+        if now >= deadline || inbox.stop {
+            return None;
+        }
+        inbox = sh
+            .ready
+            .wait_timeout(inbox, deadline - now)
+            .unwrap_or_else(|e| e.into_inner())
+            .0;
+    }
+}
+
+fn write_inputs(r: &mut Recorder, recorded: Vec<Recorded>) -> Result<(), Ros2Error> {
+    for m in recorded {
+        match m {
+            Recorded::Image(t, img, ns) => r.ros(&t, &*img, &img.header.stamp, ns)?,
+            Recorded::Info(t, info, ns) => r.ros(&t, &*info, &info.header.stamp, ns)?,
+            Recorded::Odometry(t, o, ns) => r.ros(&t, &*o, &o.header.stamp, ns)?,
+            Recorded::PoseStamped(t, p, ns) => r.ros(&t, &*p, &p.header.stamp, ns)?,
+        }
+    }
+    Ok(())
+}
+
+fn write_outputs(
+    r: &mut Recorder,
+    pubs: &Publishers,
+    out: &Outputs,
+    processor: &Processor,
+) -> Result<(), Ros2Error> {
+    let p = &pubs.prefix;
+    let ns = now_ns();
+    let stamp = out.roughness.header.stamp;
+    r.ros(&format!("{p}/roughness"), &out.roughness, &stamp, ns)?;
+    r.raw_image(&format!("{p}/roughness/foxglove"), &out.roughness, ns)?;
+    if let Some(u) = &out.uncertainty {
+        r.ros(&format!("{p}/uncertainty"), u, &stamp, ns)?;
+    }
+    if let Some(t) = &out.traversal {
+        r.ros(&format!("{p}/traversal"), t, &stamp, ns)?;
+    }
+    if let Some(g) = &out.grid {
+        r.ros(&format!("{p}/grid_map"), g, &stamp, ns)?;
+        if let (Some(map), Some(layers)) = (processor.map(), &out.layers) {
+            r.grid(&format!("{p}/grid/foxglove"), &g.header, map, layers, ns)?;
+        }
+    }
+    if let Some(o) = &out.occupancy {
+        r.ros(&format!("{p}/occupancy"), o, &stamp, ns)?;
+    }
+    Ok(())
+}
+
+impl RunningNode {
+    /// What the node has done so far.
+    pub fn stats(&self) -> &NodeStats {
+        &self.shared.stats
+    }
+
+    /// Stops the node (the worker finishes the frame it is on) and finishes the recording;
+    /// returns its path.
+    pub fn stop(mut self) -> Result<Option<PathBuf>, Ros2Error> {
+        self.shared.lock().stop = true;
+        self.shared.ready.notify_all();
+        if let Some(tx) = self.stop_dds.take() {
+            let _ = tx.send(());
+        }
+        if let Some(h) = self.dds.take() {
+            h.join().map_err(|_| Ros2Error::Dds {
+                what: "DDS thread",
+                message: "panicked".into(),
+            })??;
+        }
+        match self.worker.take() {
+            Some(h) => h.join().map_err(|_| Ros2Error::Dds {
+                what: "worker thread",
+                message: "panicked".into(),
+            })?,
+            None => Ok(None),
+        }
+    }
+}
+
+impl Drop for RunningNode {
+    fn drop(&mut self) {
+        self.shared.lock().stop = true;
+        self.shared.ready.notify_all();
+        if let Some(tx) = self.stop_dds.take() {
+            let _ = tx.send(());
+        }
+    }
+}

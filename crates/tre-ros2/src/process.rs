@@ -1,0 +1,233 @@
+//! One frame from the topics through the pipeline and into the map: what the node does
+//! between receiving and publishing, without DDS (so it is tested and measured alone).
+
+use tre_core::geometry::{Grid, PointMap, Vec3};
+use tre_core::map::{
+    GridMap as Map, Layers, MapConfig, MapError, MapFrame, MapLimits, Pose as MapPose,
+};
+use tre_core::roughness::noise::SensorNoise;
+use tre_pipeline::{FrameInput, Pipeline, PipelineConfig, PipelineError};
+
+use crate::convert;
+use crate::error::InputError;
+use crate::msgs::{CameraInfo, GridMap, Header, Image, OccupancyGrid};
+
+/// The messages of one frame.
+#[derive(Debug, Clone)]
+pub struct FrameMsgs {
+    /// Depth (`geometric`, `rgbd`).
+    pub depth: Option<Image>,
+    /// Colour (`rgb`, `rgbd`).
+    pub colour: Option<Image>,
+    /// The latest camera_info, if any has arrived.
+    pub info: Option<CameraInfo>,
+    /// The camera's pose at the frame's stamp (camera to the map's world), when a pose source
+    /// is configured and had one.
+    pub pose: Option<MapPose>,
+}
+
+impl FrameMsgs {
+    /// The header the outputs carry: the depth frame's, else the colour frame's.
+    pub fn header(&self) -> Header {
+        self.depth
+            .as_ref()
+            .or(self.colour.as_ref())
+            .map(|i| i.header.clone())
+            .unwrap_or_default()
+    }
+}
+
+/// What one frame gave.
+#[derive(Debug, Clone)]
+pub struct Outputs {
+    /// Roughness, metres, `32FC1` (NaN: no data), stamped with the input's header.
+    pub roughness: Image,
+    /// The uncertainty, metres, `32FC1`, when the mode has a noise model or a calibration.
+    pub uncertainty: Option<Image>,
+    /// Three-state traversability, `mono8` (0 unknown, 1 traversable, 2 hazard).
+    pub traversal: Option<Image>,
+    /// The fused map after this frame, when a pose came with it.
+    pub grid: Option<GridMap>,
+    /// The map's three-state layer for Nav2.
+    pub occupancy: Option<OccupancyGrid>,
+    /// The map's layers after this frame.
+    pub layers: Option<Layers>,
+    /// Why the frame was not fused into the map (the map keeps what it had).
+    pub map_error: Option<MapError>,
+}
+
+/// The fused map's settings.
+#[derive(Debug, Clone)]
+pub struct MapSettings {
+    /// Layout of the grid.
+    pub config: MapConfig,
+    /// Thresholds of its three-state layer.
+    pub limits: MapLimits,
+    /// Gravity (down) in the pose's world frame (ROS: −z, REP 103).
+    pub down: Vec3,
+    /// `frame_id` of the published map (the frame of the poses, levelled by `down`).
+    pub frame_id: String,
+}
+
+/// The map and where it started.
+#[derive(Debug)]
+struct MapState {
+    settings: MapSettings,
+    map: Option<Map>,
+    /// Stamp of the first fused frame, nanoseconds: the map's times count from it.
+    t0_ns: Option<i64>,
+}
+
+impl MapState {
+    /// Fuses a frame's points and roughness at `pose` (the map starts at its first frame);
+    /// the map's messages and layers after it.
+    fn fuse(
+        &mut self,
+        points: &PointMap,
+        roughness_m: &Grid<f64>,
+        pose: &MapPose,
+        header: &Header,
+        sensor: &SensorNoise,
+    ) -> Result<(GridMap, OccupancyGrid, Layers), MapError> {
+        let t_ns = header.stamp.nanos();
+        let t0 = *self.t0_ns.get_or_insert(t_ns);
+        let t_s = (t_ns - t0) as f64 * 1e-9;
+        let m = match &mut self.map {
+            Some(m) => m,
+            None => {
+                let frame = MapFrame::levelled(Some(self.settings.down), None, points, pose)?;
+                let c = frame.map_from_world * pose.translation;
+                self.map
+                    .insert(Map::new(self.settings.config, frame, (c.x, c.y))?)
+            }
+        };
+        m.fuse(points, Some(roughness_m), pose, t_s, |z| {
+            sensor.sigma_z_m(z)
+        })?;
+        let layers = m.layers(&self.settings.limits);
+        let h = Header {
+            stamp: header.stamp,
+            frame_id: self.settings.frame_id.clone(),
+        };
+        Ok((
+            convert::grid_map(&h, m, &layers),
+            convert::occupancy(&h, m, &layers),
+            layers,
+        ))
+    }
+}
+
+/// The pipeline, its configuration, the sensor's noise model and the map.
+#[derive(Debug)]
+pub struct Processor {
+    pipeline: Pipeline,
+    cfg: PipelineConfig,
+    sensor: Option<SensorNoise>,
+    map: Option<MapState>,
+}
+
+impl Processor {
+    /// A processor running `cfg` on `pipeline`; `sensor` gives the uncertainty and three-state
+    /// maps (and the map's height variance); `map` fuses frames that come with a pose.
+    pub fn new(
+        pipeline: Pipeline,
+        cfg: PipelineConfig,
+        sensor: Option<SensorNoise>,
+        map: Option<MapSettings>,
+    ) -> Self {
+        Self {
+            pipeline,
+            cfg,
+            sensor,
+            map: map.map(|settings| MapState {
+                settings,
+                map: None,
+                t0_ns: None,
+            }),
+        }
+    }
+
+    /// The pipeline's configuration.
+    pub fn config(&self) -> &PipelineConfig {
+        &self.cfg
+    }
+
+    /// The frame's outputs, or why it was skipped.
+    pub fn process(&mut self, f: &FrameMsgs) -> Result<Outputs, InputError> {
+        let header = f.header();
+        let image = f
+            .depth
+            .as_ref()
+            .or(f.colour.as_ref())
+            .ok_or(InputError::Empty)?;
+        let info = f.info.as_ref().ok_or(InputError::NoCameraInfo)?;
+        let k = convert::intrinsics(info, image)?;
+        let depth_m = f.depth.as_ref().map(convert::depth_m).transpose()?;
+        let rgb = f.colour.as_ref().map(convert::rgb).transpose()?;
+        if let (Some(c), Some(d)) = (&f.colour, &f.depth) {
+            if (c.width, c.height) != (d.width, d.height) {
+                return Err(InputError::SizeMismatch {
+                    info: (d.width, d.height),
+                    image: (c.width, c.height),
+                });
+            }
+        }
+        let input = FrameInput {
+            rgb,
+            depth_m,
+            intrinsics: Some(k),
+            mounting: None,
+        };
+        tre_pipeline::check_input(&input, &self.cfg).map_err(InputError::Pipeline)?;
+        let out = self
+            .pipeline
+            .run(&input, &self.cfg)
+            .map_err(InputError::Pipeline)?;
+        let roughness = convert::float_image(&header, &out.roughness_m);
+        let table = self.pipeline.interval_table_for(&self.cfg);
+        let maps = match out.sensor_maps(&input, self.cfg.mode, self.sensor.as_ref(), None, table) {
+            Ok(maps) => Some(maps),
+            Err(PipelineError::NoSensorModel { .. } | PipelineError::NoSensorDepth { .. }) => None,
+            Err(e) => return Err(InputError::Pipeline(e)),
+        };
+        let mut outputs = Outputs {
+            roughness,
+            uncertainty: maps
+                .as_ref()
+                .map(|m| convert::float_image(&header, &m.uncertainty_m)),
+            traversal: maps
+                .as_ref()
+                .map(|m| convert::traversal_image(&header, &m.traversal)),
+            grid: None,
+            occupancy: None,
+            layers: None,
+            map_error: None,
+        };
+        if let (Some(state), Some(pose), Some(depth), Some(sensor)) =
+            (&mut self.map, f.pose, &input.depth_m, self.sensor)
+        {
+            let points = k.back_project_map(depth);
+            let fused = state.fuse(&points, &out.roughness_m, &pose, &header, &sensor);
+            match fused {
+                Ok((grid, occupancy, layers)) => {
+                    outputs.grid = Some(grid);
+                    outputs.occupancy = Some(occupancy);
+                    outputs.layers = Some(layers);
+                }
+                Err(e) => outputs.map_error = Some(e),
+            }
+        }
+        self.pipeline.recycle(out);
+        Ok(outputs)
+    }
+
+    /// The fused map, if one has started.
+    pub fn map(&self) -> Option<&Map> {
+        self.map.as_ref().and_then(|s| s.map.as_ref())
+    }
+
+    /// The map's settings, if it is on.
+    pub fn map_settings(&self) -> Option<&MapSettings> {
+        self.map.as_ref().map(|s| &s.settings)
+    }
+}

@@ -1,0 +1,188 @@
+"""Read a recording of `tre ros2 --record` with the Python `mcap` and `mcap-ros2-support`
+packages (an independent reader) and check it: every channel's schema and encodings, the
+message counts, and the values (the roughness against a `tre infer` .npy, the Foxglove
+channels against the ROS 2 ones). With --render, draw what the recording holds as a PNG
+(docs/ros2.md's picture).
+
+    python scripts/check_mcap.py run.mcap --frames 5 [--roughness-npy f.npy] [--render out.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+# topic: (schema name, schema encoding, message encoding, count rule)
+OUTPUTS = {
+    "/tre/roughness": ("sensor_msgs/msg/Image", "ros2msg", "cdr"),
+    "/tre/uncertainty": ("sensor_msgs/msg/Image", "ros2msg", "cdr"),
+    "/tre/traversal": ("sensor_msgs/msg/Image", "ros2msg", "cdr"),
+    "/tre/grid_map": ("grid_map_msgs/msg/GridMap", "ros2msg", "cdr"),
+    "/tre/occupancy": ("nav_msgs/msg/OccupancyGrid", "ros2msg", "cdr"),
+    "/tre/roughness/foxglove": ("foxglove.RawImage", "jsonschema", "json"),
+    "/tre/grid/foxglove": ("foxglove.Grid", "jsonschema", "json"),
+}
+INPUTS = {
+    "/camera/depth/image_rect_raw": ("sensor_msgs/msg/Image", "ros2msg", "cdr"),
+    "/camera/depth/camera_info": ("sensor_msgs/msg/CameraInfo", "ros2msg", "cdr"),
+    "/odom": ("nav_msgs/msg/Odometry", "ros2msg", "cdr"),
+}
+
+
+def fail(msg: str) -> None:
+    print(f"check_mcap: {msg}", file=sys.stderr)
+    sys.exit(1)
+
+
+def read(path: Path) -> tuple[dict, dict[str, list]]:
+    """Channels by topic (schema name and encodings), and the messages of each topic, decoded."""
+    with path.open("rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        if summary is None:
+            fail("no summary: the recording was not finished")
+        channels = {}
+        for ch in summary.channels.values():
+            schema = summary.schemas[ch.schema_id]
+            channels[ch.topic] = (schema.name, schema.encoding, ch.message_encoding)
+        cdr_topics = [t for t, c in channels.items() if c[2] == "cdr"]
+        messages: dict[str, list] = {t: [] for t in channels}
+        for _, channel, _, decoded in reader.iter_decoded_messages(topics=cdr_topics):
+            messages[channel.topic].append(decoded)
+        f.seek(0)
+        reader = make_reader(f)
+        for _, channel, message in reader.iter_messages():
+            if channel.message_encoding == "json":
+                messages[channel.topic].append(json.loads(message.data))
+    return channels, messages
+
+
+def float_image(msg) -> np.ndarray:
+    if msg.encoding != "32FC1" or msg.is_bigendian:
+        fail(f"roughness encoding {msg.encoding}, big-endian {msg.is_bigendian}")
+    return np.frombuffer(bytes(msg.data), "<f4").reshape(msg.height, msg.width)
+
+
+def grid_layer(msg, name: str) -> np.ndarray:
+    """A GridMap layer in tre map's layout (row 0 at the largest y, column 0 at the smallest x)."""
+    arr = msg.data[list(msg.layers).index(name)]
+    dims = [(d.label, d.size, d.stride) for d in arr.layout.dim]
+    if [d[0] for d in dims] != ["column_index", "row_index"]:
+        fail(f"grid_map dimension labels {dims}")
+    cols, rows = dims[0][1], dims[1][1]
+    # Column-major: data[c * rows + r], r along -x, c along -y.
+    a = np.asarray(arr.data, dtype=np.float32).reshape(cols, rows)
+    return a[:, ::-1]
+
+
+def foxglove_layer(msg: dict, name: str) -> np.ndarray:
+    field = next(f for f in msg["fields"] if f["name"] == name)
+    data = np.frombuffer(base64.b64decode(msg["data"]), np.uint8)
+    side = msg["column_count"]
+    stride = msg["cell_stride"]
+    cells = data.reshape(-1, stride)[:, field["offset"] : field["offset"] + 4]
+    values = cells.copy().view("<f4").reshape(-1, side)
+    return values[::-1, :]  # rows from the bottom (+y) to tre map's top-down rows
+
+
+def same(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.shape == b.shape and bool(np.all((a == b) | (np.isnan(a) & np.isnan(b))))
+
+
+def check(path: Path, frames: int, roughness_npy: Path | None) -> dict[str, list]:
+    channels, messages = read(path)
+    for topic, want in {**INPUTS, **OUTPUTS}.items():
+        if channels.get(topic) != want:
+            fail(f"{topic}: channel {channels.get(topic)}, expected {want}")
+    for topic in OUTPUTS:
+        if len(messages[topic]) != frames:
+            fail(f"{topic}: {len(messages[topic])} messages, expected {frames}")
+    for topic in INPUTS:
+        if len(messages[topic]) < frames:
+            fail(f"{topic}: {len(messages[topic])} messages, expected at least {frames}")
+    rough = float_image(messages["/tre/roughness"][-1])
+    fox = messages["/tre/roughness/foxglove"][-1]
+    fox_img = np.frombuffer(base64.b64decode(fox["data"]), "<f4").reshape(fox["height"], fox["width"])
+    if not same(rough, fox_img):
+        fail("the foxglove.RawImage roughness differs from the sensor_msgs/Image one")
+    if roughness_npy is not None:
+        want = np.load(roughness_npy).astype(np.float32)
+        if not same(rough, want):
+            fail(f"the recorded roughness differs from {roughness_npy}")
+    grid = messages["/tre/grid_map"][-1]
+    fgrid = messages["/tre/grid/foxglove"][-1]
+    for name in grid.layers:
+        if not same(grid_layer(grid, name), foxglove_layer(fgrid, name)):
+            fail(f"layer {name}: foxglove.Grid and grid_map_msgs/GridMap differ")
+    occ = np.asarray(messages["/tre/occupancy"][-1].data, dtype=np.int8)
+    if not set(np.unique(occ)) <= {-1, 0, 100}:
+        fail(f"occupancy values {np.unique(occ)}")
+    trav = grid_layer(grid, "traversal")[::-1, :].ravel()
+    want_occ = np.where(trav == 1, 0, np.where(trav == 2, 100, -1))
+    if not np.array_equal(occ, want_occ):
+        fail("occupancy differs from the grid map's traversal layer")
+    counts = {t: len(m) for t, m in sorted(messages.items())}
+    print(json.dumps({"channels": {t: list(c) for t, c in sorted(channels.items())}, "messages": counts}, indent=1))
+    return messages
+
+
+def render(messages: dict[str, list], out: Path) -> None:
+    """Depth in, roughness and three-state out, and the map's elevation and occupancy, side by side."""
+    from PIL import Image, ImageDraw
+
+    def colour(a: np.ndarray, lo: float, hi: float) -> Image.Image:
+        t = np.clip((a - lo) / (hi - lo), 0, 1)
+        rgb = np.stack([t * 255, (1 - np.abs(2 * t - 1)) * 200, (1 - t) * 255], -1)
+        rgb[~np.isfinite(a)] = 40
+        return Image.fromarray(rgb.astype(np.uint8))
+
+    d = messages["/camera/depth/image_rect_raw"][-1]
+    depth = np.frombuffer(bytes(d.data), "<u2").reshape(d.height, d.width) / 1000.0
+    depth = np.where(depth > 0, depth, np.nan)
+    rough = float_image(messages["/tre/roughness"][-1])
+    t = messages["/tre/traversal"][-1]
+    trav = np.frombuffer(bytes(t.data), np.uint8).reshape(t.height, t.width)
+    pal = np.array([[90, 90, 90], [40, 170, 60], [210, 40, 40]], np.uint8)
+    grid = messages["/tre/grid_map"][-1]
+    elev = grid_layer(grid, "elevation")
+    occ = np.asarray(messages["/tre/occupancy"][-1].data, np.int16).reshape(grid_layer(grid, "count").shape)[::-1, :]
+    occ_rgb = np.where(occ[..., None] == 100, [210, 40, 40], np.where(occ[..., None] == 0, [240, 240, 240], [90, 90, 90]))
+    panels = [
+        ("depth in (/camera/depth/image_rect_raw)", colour(depth, 0.5, 3.5)),
+        ("roughness 0-5 cm (/tre/roughness)", colour(rough, 0.0, 0.05)),
+        ("three-state (/tre/traversal)", Image.fromarray(pal[np.minimum(trav, 2)])),
+        ("map elevation (/tre/grid_map)", colour(elev, np.nanmin(elev), np.nanmax(elev)).resize((480, 480), Image.NEAREST)),
+        ("occupancy (/tre/occupancy)", Image.fromarray(occ_rgb.astype(np.uint8)).resize((480, 480), Image.NEAREST)),
+    ]
+    w = sum(p.width for _, p in panels) + 10 * (len(panels) + 1)
+    sheet = Image.new("RGB", (w, 520), (255, 255, 255))
+    draw = ImageDraw.Draw(sheet)
+    x = 10
+    for title, p in panels:
+        sheet.paste(p, (x, 30))
+        draw.text((x, 8), title, fill=(0, 0, 0))
+        x += p.width + 10
+    sheet.save(out)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("mcap", type=Path)
+    ap.add_argument("--frames", type=int, required=True, help="frames the node published")
+    ap.add_argument("--roughness-npy", type=Path, help="tre infer's roughness of the last frame")
+    ap.add_argument("--render", type=Path, help="write a picture of the recording")
+    args = ap.parse_args()
+    messages = check(args.mcap, args.frames, args.roughness_npy)
+    if args.render:
+        render(messages, args.render)
+
+
+if __name__ == "__main__":
+    main()

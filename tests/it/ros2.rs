@@ -1,0 +1,629 @@
+//! `tre ros2` against a second ROS 2 node (ros2-client, no ROS installation): the kitchen
+//! sequence's real depth frames, camera_info and poses in; roughness images and a grid map out,
+//! equal to `tre infer` and `tre map` on the same frames; bad input skipped while the node keeps
+//! running; the recording read back by the Python `mcap` reader.
+//!
+//! RustDDS finds its peers by multicast on a multicast-capable interface (not loopback): each
+//! test has a domain id of its own, and when no peer is found the test fails saying what the
+//! machine lacks.
+#![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
+use ros2_client::qos::{Durability, History, Reliability, WhenFull};
+use ros2_client::{
+    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
+    QosProfile, Subscription,
+};
+use tre::ros2::msgs::{
+    CameraInfo, GridMap, Header, Image, OccupancyGrid, Odometry, Point, Pose, PoseWithCovariance,
+    Quaternion, RosMessage, Time,
+};
+
+use crate::common::shared_data;
+
+/// A domain id of this test process and test (RustDDS's ports follow the id; 0 to 232).
+fn domain_id(test: u16) -> u16 {
+    100 + ((std::process::id() % 40) as u16) * 3 + test
+}
+
+fn qos() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability(Reliability::Reliable {
+            when_full: WhenFull::DEFAULT,
+        })
+        .history(History::KeepLast { depth: 4 })
+}
+
+fn latched() -> QosProfile {
+    qos().durability(Durability::TransientLocal)
+}
+
+/// The test's own node: publishes the inputs, subscribes to the outputs.
+struct Peer {
+    _ctx: Context,
+    node: Node,
+    depth: Publisher<Image>,
+    info: Publisher<CameraInfo>,
+    odom: Publisher<Odometry>,
+    roughness: Subscription<Image>,
+    traversal: Subscription<Image>,
+    grid: Subscription<GridMap>,
+    occupancy: Subscription<OccupancyGrid>,
+}
+
+fn topic<M: RosMessage>(
+    node: &mut Node,
+    name: &str,
+    q: &QosProfile,
+) -> ros2_client::dds::rustdds::Topic {
+    node.create_topic(
+        &Name::parse(name).unwrap(),
+        MessageTypeName::new(M::PACKAGE, M::NAME),
+        q,
+    )
+    .unwrap()
+}
+
+impl Peer {
+    fn new(domain: u16) -> Self {
+        let ctx = Context::with_options(ContextOptions::new().domain_id(domain)).unwrap();
+        let mut node = ctx
+            .new_node(
+                NodeName::new("/", &format!("tre_test_{}", std::process::id())).unwrap(),
+                NodeOptions::new().enable_rosout(false),
+            )
+            .unwrap();
+        let q = qos();
+        let t = topic::<Image>(&mut node, "/camera/depth/image_rect_raw", &q);
+        let depth = node.create_publisher(&t, Some(q.clone())).unwrap();
+        let t = topic::<CameraInfo>(&mut node, "/camera/depth/camera_info", &q);
+        let info = node.create_publisher(&t, Some(q.clone())).unwrap();
+        let t = topic::<Odometry>(&mut node, "/odom", &q);
+        let odom = node.create_publisher(&t, Some(q.clone())).unwrap();
+        let t = topic::<Image>(&mut node, "/tre/roughness", &q);
+        let roughness = node.create_subscription(&t, Some(q.clone())).unwrap();
+        let t = topic::<Image>(&mut node, "/tre/traversal", &q);
+        let traversal = node.create_subscription(&t, Some(q.clone())).unwrap();
+        let t = topic::<GridMap>(&mut node, "/tre/grid_map", &q);
+        let grid = node.create_subscription(&t, Some(q.clone())).unwrap();
+        let l = latched();
+        let t = topic::<OccupancyGrid>(&mut node, "/tre/occupancy", &l);
+        let occupancy = node.create_subscription(&t, Some(l)).unwrap();
+        let spinner = node.spinner().unwrap();
+        std::thread::Builder::new()
+            .name("test-ros2-spin".into())
+            .spawn(move || futures::executor::block_on(spinner.spin()))
+            .unwrap();
+        Self {
+            _ctx: ctx,
+            node,
+            depth,
+            info,
+            odom,
+            roughness,
+            traversal,
+            grid,
+            occupancy,
+        }
+    }
+
+    /// Waits until the node under test has matched our depth publisher and roughness
+    /// subscription; fails saying what discovery needs.
+    fn wait_for_tre(&self, odom: bool) {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while self.depth.get_subscription_count(&self.node) == 0
+            || self.info.get_subscription_count(&self.node) == 0
+            || (odom && self.odom.get_subscription_count(&self.node) == 0)
+            || self.roughness.get_publisher_count(&self.node) == 0
+        {
+            assert!(
+                Instant::now() < deadline,
+                "no ROS 2 peer discovered in 30 s: RustDDS discovers peers by UDP multicast \
+                 (239.255.0.1) on a multicast-capable, up interface other than loopback; this \
+                 machine's interfaces: {}",
+                interfaces()
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+/// `ip -brief link`, for the message of a failed discovery.
+fn interfaces() -> String {
+    Command::new("ip")
+        .args(["-brief", "link"])
+        .output()
+        .map_or_else(
+            |e| e.to_string(),
+            |o| String::from_utf8_lossy(&o.stdout).replace('\n', "; "),
+        )
+}
+
+/// Takes messages from `sub` until one stamped `stamp` arrives (older ones are dropped), or
+/// `None` after `wait`.
+fn take_stamped<M: RosMessage + 'static>(
+    sub: &Subscription<M>,
+    stamp: Time,
+    wait: Duration,
+    header: impl Fn(&M) -> &Header,
+) -> Option<M> {
+    let deadline = Instant::now() + wait;
+    while Instant::now() < deadline {
+        match sub.take() {
+            Ok(Some((m, _))) if header(&m).stamp == stamp => return Some(m),
+            Ok(Some(_)) => {}
+            _ => std::thread::sleep(Duration::from_millis(5)),
+        }
+    }
+    None
+}
+
+struct Kitchen {
+    dir: PathBuf,
+    stems: Vec<String>,
+    camera: PathBuf,
+    gravity: [f64; 3],
+}
+
+fn kitchen(n: usize) -> Option<Kitchen> {
+    let dir = shared_data("data/real-rgbd-2/sevenscenes_redkitchen")?;
+    let g: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("gravity.json")).unwrap()).unwrap();
+    let gravity = [0, 1, 2].map(|i| g["gravity"][i].as_f64().unwrap());
+    Some(Kitchen {
+        stems: (0..n).map(|i| format!("frame-{:06}", 5 * i)).collect(),
+        dir,
+        camera: Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("cameras/real-rgbd-2_sevenscenes_redkitchen.json"),
+        gravity,
+    })
+}
+
+fn stamp(i: usize) -> Time {
+    Time {
+        sec: 1_700_000_000 + i as i32,
+        nanosec: 0,
+    }
+}
+
+fn header(i: usize) -> Header {
+    Header {
+        stamp: stamp(i),
+        frame_id: "camera_depth_optical_frame".into(),
+    }
+}
+
+fn depth_msg(path: &Path, i: usize) -> Image {
+    let img = image::open(path).unwrap().to_luma16();
+    let (w, h) = img.dimensions();
+    Image {
+        header: header(i),
+        height: h,
+        width: w,
+        encoding: "16UC1".into(),
+        is_bigendian: 0,
+        step: 2 * w,
+        data: img.as_raw().iter().flat_map(|v| v.to_le_bytes()).collect(),
+    }
+}
+
+fn info_msg(i: usize, (w, h): (u32, u32)) -> CameraInfo {
+    CameraInfo {
+        header: header(i),
+        width: w,
+        height: h,
+        distortion_model: "plumb_bob".into(),
+        d: vec![0.0; 5],
+        k: [585.0, 0.0, 320.0, 0.0, 585.0, 240.0, 0.0, 0.0, 1.0],
+        r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        p: [
+            585.0, 0.0, 320.0, 0.0, 0.0, 585.0, 240.0, 0.0, 0.0, 0.0, 1.0, 0.0,
+        ],
+        ..CameraInfo::default()
+    }
+}
+
+/// The kitchen pose of `stem` as a ROS pose, and the same pose after the node's quaternion
+/// conversion as a 4×4 text `tre map` reads (so both fuse with the same bits).
+fn pose_msg(k: &Kitchen, stem: &str) -> (Pose, String) {
+    let text = std::fs::read_to_string(k.dir.join(format!("poses/{stem}.txt"))).unwrap();
+    let v: Vec<f64> = text
+        .split_whitespace()
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let m = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
+    let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&m));
+    let pose = Pose {
+        position: Point {
+            x: v[3],
+            y: v[7],
+            z: v[11],
+        },
+        orientation: Quaternion {
+            x: q.i,
+            y: q.j,
+            z: q.k,
+            w: q.w,
+        },
+    };
+    let p = tre::ros2::convert::map_pose(&pose, &tre::map::Pose::identity()).unwrap();
+    let (r, t) = (p.rotation, p.translation);
+    let text = format!(
+        "{:?} {:?} {:?} {:?}\n{:?} {:?} {:?} {:?}\n{:?} {:?} {:?} {:?}\n0 0 0 1\n",
+        r[(0, 0)],
+        r[(0, 1)],
+        r[(0, 2)],
+        t.x,
+        r[(1, 0)],
+        r[(1, 1)],
+        r[(1, 2)],
+        t.y,
+        r[(2, 0)],
+        r[(2, 1)],
+        r[(2, 2)],
+        t.z,
+    );
+    (pose, text)
+}
+
+fn odom_msg(pose: Pose, i: usize) -> Odometry {
+    Odometry {
+        header: Header {
+            stamp: stamp(i),
+            frame_id: "world".into(),
+        },
+        child_frame_id: "camera_depth_optical_frame".into(),
+        pose: PoseWithCovariance {
+            pose,
+            ..PoseWithCovariance::default()
+        },
+        ..Odometry::default()
+    }
+}
+
+/// `tre ros2` as a child process (and its stdout, past the first line), killed on drop.
+struct Tre(
+    Option<Child>,
+    Option<std::io::BufReader<std::process::ChildStdout>>,
+    String,
+);
+
+impl Drop for Tre {
+    fn drop(&mut self) {
+        if let Some(c) = &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn start_tre(args: &[&str]) -> Tre {
+    let child = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .arg("ros2")
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut child = child;
+    // The node prints one line once it has joined the domain.
+    let mut first = String::new();
+    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+    std::io::BufRead::read_line(&mut out, &mut first).unwrap();
+    if first.is_empty() {
+        let o = child.wait_with_output().unwrap();
+        panic!(
+            "tre ros2 did not start: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    assert!(first.starts_with("ros2 node"), "{first}");
+    Tre(Some(child), Some(out), first)
+}
+
+/// `tre ros2` stopped by SIGTERM: its exit status, stdout and stderr.
+fn stop_tre(mut tre: Tre) -> (bool, String, String) {
+    let child = tre.0.take().unwrap();
+    Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    let mut stdout = tre.2.clone();
+    std::io::Read::read_to_string(&mut tre.1.take().unwrap(), &mut stdout).unwrap();
+    let o = child.wait_with_output().unwrap();
+    (
+        o.status.success(),
+        stdout,
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn f32_values(img: &Image) -> Vec<f32> {
+    assert_eq!(img.encoding, "32FC1");
+    img.data
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect()
+}
+
+fn npy_f32(path: &Path) -> Vec<f32> {
+    let a = tre::io::npy::read_npy(std::fs::File::open(path).unwrap()).unwrap();
+    let g = tre::io::npy_grid(a).unwrap();
+    g.as_slice().iter().map(|&v| v as f32).collect()
+}
+
+fn same_bits(a: &[f32], b: &[f32]) -> bool {
+    a.len() == b.len()
+        && a.iter()
+            .zip(b)
+            .all(|(x, y)| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan()))
+}
+
+/// One layer of a GridMap message in `tre map`'s layout (row-major, column 0 at the smallest
+/// x, row 0 at the largest y).
+fn grid_layer(g: &GridMap, name: &str) -> Vec<f32> {
+    let i = g.layers.iter().position(|l| l == name).unwrap();
+    let a = &g.data[i];
+    assert_eq!(a.layout.dim[0].label, "column_index");
+    assert_eq!(a.layout.dim[1].label, "row_index");
+    let side = a.layout.dim[1].size as usize;
+    let mut out = Vec::with_capacity(side * side);
+    for c in 0..side {
+        out.extend(a.data[c * side..(c + 1) * side].iter().rev());
+    }
+    out
+}
+
+#[test]
+fn kitchen_frames_through_the_node_equal_infer_and_map() {
+    let Some(k) = kitchen(5) else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let record = dir.path().join("run.mcap");
+    let domain = domain_id(0).to_string();
+    let gravity = format!(
+        "--gravity={:?},{:?},{:?}",
+        k.gravity[0], k.gravity[1], k.gravity[2]
+    );
+    let tre = start_tre(&[
+        "--domain-id",
+        &domain,
+        "--odom-topic",
+        "/odom",
+        "--sensor",
+        "kinect_v1",
+        &gravity,
+        "--map-frame",
+        "world",
+        "--record",
+        record.to_str().unwrap(),
+    ]);
+    let peer = Peer::new(domain_id(0));
+    peer.wait_for_tre(true);
+    // `tre map`'s sequence: the same depth frames, the poses after the quaternion round trip.
+    let seq = dir.path().join("seq");
+    for sub in ["depth", "poses"] {
+        std::fs::create_dir_all(seq.join(sub)).unwrap();
+    }
+    std::fs::copy(k.dir.join("gravity.json"), seq.join("gravity.json")).unwrap();
+    std::fs::copy(&k.camera, seq.join("intrinsics.json")).unwrap();
+    let mut last_grid = None;
+    for (i, stem) in k.stems.iter().enumerate() {
+        let depth_path = k.dir.join(format!("depth/{stem}.png"));
+        std::fs::copy(&depth_path, seq.join(format!("depth/{stem}.png"))).unwrap();
+        let (pose, text) = pose_msg(&k, stem);
+        std::fs::write(seq.join(format!("poses/{stem}.txt")), text).unwrap();
+        let depth = depth_msg(&depth_path, i);
+        let info = info_msg(i, (depth.width, depth.height));
+        // Publish until the node answers (a frame it already has is dropped as stale).
+        let mut out = None;
+        for _ in 0..5 {
+            peer.odom.publish(odom_msg(pose, i)).unwrap();
+            peer.info.publish(info.clone()).unwrap();
+            peer.depth.publish(depth.clone()).unwrap();
+            out = take_stamped(&peer.roughness, stamp(i), Duration::from_secs(8), |m| {
+                &m.header
+            });
+            if out.is_some() {
+                break;
+            }
+        }
+        let roughness = out.unwrap_or_else(|| panic!("no roughness for {stem}"));
+        assert_eq!(roughness.header, header(i));
+        let traversal = take_stamped(&peer.traversal, stamp(i), Duration::from_secs(5), |m| {
+            &m.header
+        })
+        .unwrap();
+        assert_eq!(
+            (traversal.encoding.as_str(), traversal.width),
+            ("mono8", 640)
+        );
+        last_grid = Some(
+            take_stamped(&peer.grid, stamp(i), Duration::from_secs(5), |m| &m.header).unwrap(),
+        );
+        // The same frame through `tre infer`.
+        let npy = dir.path().join(format!("{stem}.npy"));
+        let o = Command::new(env!("CARGO_BIN_EXE_tre"))
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(["infer", "--mode", "geometric", "--format", "npy", "--depth"])
+            .arg(&depth_path)
+            .arg("--camera")
+            .arg(&k.camera)
+            .arg("-o")
+            .arg(&npy)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            same_bits(&f32_values(&roughness), &npy_f32(&npy)),
+            "{stem}: the node's roughness differs from tre infer's"
+        );
+    }
+    let occupancy = take_stamped(&peer.occupancy, stamp(4), Duration::from_secs(5), |m| {
+        &m.header
+    })
+    .unwrap();
+    let (ok, stdout, stderr) = stop_tre(tre);
+    assert!(ok, "tre ros2 failed: {stderr}");
+    assert!(stdout.contains("published 5"), "{stdout}");
+    // The same frames through `tre map`.
+    let out = dir.path().join("map");
+    let o = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .arg("map")
+        .arg(&seq)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let grid = last_grid.unwrap();
+    assert_eq!(grid.header.frame_id, "world");
+    assert_eq!(grid.info.resolution, 0.04);
+    for name in tre::map::LAYER_NAMES {
+        assert!(
+            same_bits(
+                &grid_layer(&grid, name),
+                &npy_f32(&out.join(format!("{name}.npy")))
+            ),
+            "layer {name}: the node's map differs from tre map's"
+        );
+    }
+    // Occupancy: the three-state layer, rows from the bottom, unknown -1, hazard 100.
+    let t = npy_f32(&out.join("traversal.npy"));
+    let side = 200;
+    for iy in 0..side {
+        for x in 0..side {
+            let want = match t[(side - 1 - iy) * side + x] as u8 {
+                1 => 0,
+                2 => 100,
+                _ => -1,
+            };
+            assert_eq!(occupancy.data[iy * side + x], want);
+        }
+    }
+    assert!(occupancy.data.contains(&0) && occupancy.data.contains(&-1));
+    check_recording(&record, dir.path());
+    // `TRE_ROS2_RECORDING_OUT=FILE` keeps the recording (docs/ros2.md's picture is drawn from it).
+    if let Some(keep) = std::env::var_os("TRE_ROS2_RECORDING_OUT") {
+        std::fs::copy(&record, keep).unwrap();
+    }
+}
+
+/// The recording decoded by the Python `mcap` and `mcap-ros2-support` packages
+/// (scripts/check_mcap.py): schemas, counts and the roughness values against `tre infer`'s.
+fn check_recording(record: &Path, dir: &Path) {
+    let Some(python) = mcap_python() else { return };
+    let o = Command::new(python)
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/check_mcap.py"))
+        .arg(record)
+        .arg("--frames")
+        .arg("5")
+        .arg("--roughness-npy")
+        .arg(dir.join("frame-000020.npy"))
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "check_mcap.py: {}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// A Python with `mcap` and `mcap_ros2`: `$TRE_MCAP_PYTHON`, else CI's virtualenv. Without one
+/// the check is skipped, saying so, unless `TRE_REQUIRE_SHARED=1` (as in CI).
+fn mcap_python() -> Option<PathBuf> {
+    let candidates = [
+        std::env::var_os("TRE_MCAP_PYTHON").map(PathBuf::from),
+        Some(Path::new(env!("CARGO_MANIFEST_DIR")).join(".ci/.venv-py/bin/python")),
+    ];
+    for p in candidates.into_iter().flatten() {
+        let ok = Command::new(&p)
+            .args(["-c", "import mcap, mcap_ros2, numpy"])
+            .status()
+            .is_ok_and(|s| s.success());
+        if ok {
+            return Some(p);
+        }
+    }
+    assert!(
+        std::env::var("TRE_REQUIRE_SHARED").map_or(true, |v| v != "1"),
+        "TRE_REQUIRE_SHARED=1: the recording check needs a Python with mcap, mcap-ros2-support \
+         and numpy (TRE_MCAP_PYTHON, or .ci/.venv-py as .ci/run makes it)"
+    );
+    eprintln!("skipped the recording check: no Python with mcap and mcap-ros2-support");
+    None
+}
+
+#[test]
+fn bad_input_is_skipped_and_the_node_recovers() {
+    let Some(k) = kitchen(1) else { return };
+    let domain = domain_id(1).to_string();
+    let tre = start_tre(&["--domain-id", &domain, "--sensor", "kinect_v1"]);
+    let peer = Peer::new(domain_id(1));
+    peer.wait_for_tre(false);
+    let depth_path = k.dir.join(format!("depth/{}.png", k.stems[0]));
+    let good = depth_msg(&depth_path, 0);
+    let info = info_msg(0, (good.width, good.height));
+    let settle = Duration::from_millis(700);
+    // 1. No camera_info yet.
+    let mut d = good.clone();
+    d.header = header(1);
+    peer.depth.publish(d.clone()).unwrap();
+    std::thread::sleep(settle);
+    // 2. A camera_info of another size.
+    let mut small = info.clone();
+    small.width = 320;
+    peer.info.publish(small).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    d.header = header(2);
+    peer.depth.publish(d.clone()).unwrap();
+    std::thread::sleep(settle);
+    // 3. An encoding the node does not read.
+    peer.info.publish(info.clone()).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    let mut bad = d.clone();
+    bad.header = header(3);
+    bad.encoding = "8UC2".into();
+    peer.depth.publish(bad).unwrap();
+    std::thread::sleep(settle);
+    // 4. Nothing valid.
+    let mut empty = d.clone();
+    empty.header = header(4);
+    empty.data.fill(0);
+    peer.depth.publish(empty).unwrap();
+    std::thread::sleep(settle);
+    // No output for any of them.
+    for i in 1..=4 {
+        assert!(take_stamped(&peer.roughness, stamp(i), Duration::ZERO, |m| &m.header).is_none());
+    }
+    // 5. A good frame: the node recovers.
+    let mut ok = None;
+    for _ in 0..5 {
+        d.header = header(5);
+        peer.depth.publish(d.clone()).unwrap();
+        ok = take_stamped(&peer.roughness, stamp(5), Duration::from_secs(8), |m| {
+            &m.header
+        });
+        if ok.is_some() {
+            break;
+        }
+    }
+    assert!(ok.is_some(), "no roughness after the bad frames");
+    let (exit_ok, stdout, stderr) = stop_tre(tre);
+    assert!(exit_ok, "{stderr}");
+    assert!(stdout.contains("skipped (bad input) 4"), "{stdout}");
+    for why in [
+        "no camera_info received yet",
+        "camera_info is 320×480 but the image is 640×480",
+        "encoding \"8UC2\" is not read",
+        "no valid pixel",
+        "frames are good again",
+    ] {
+        assert_eq!(stderr.matches(why).count(), 1, "{why:?} once in: {stderr}");
+    }
+}
