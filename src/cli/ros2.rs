@@ -135,55 +135,14 @@ fn numbers(s: &str, n: usize) -> Result<Vec<f64>, String> {
 
 impl Ros2 {
     pub(crate) fn run(self) -> anyhow::Result<()> {
-        let cfg = self.stages.config(self.mode);
-        let pose = match (&self.odom_topic, &self.pose_topic) {
-            (Some(t), _) => Some(PoseSource::Odometry(t.clone())),
-            (None, Some(t)) => Some(PoseSource::PoseStamped(t.clone())),
-            (None, None) => None,
-        };
-        let map = match &pose {
-            Some(_) if self.sensor.is_none() => {
-                return Err(ros2::ConfigProblem::MapWithoutSensor.into())
-            }
-            Some(_) if self.mode == Mode::Rgb => {
-                return Err(ros2::ConfigProblem::MapWithoutDepth.into())
-            }
-            Some(_) => Some(MapSettings {
-                config: MapConfig {
-                    cell_m: self.cell_cm / 100.0,
-                    side: (self.size_m / (self.cell_cm / 100.0)).round() as usize,
-                    max_range_m: self.max_range_m,
-                    ..MapConfig::default()
-                },
-                limits: MapLimits::default(),
-                down: self.gravity,
-                frame_id: self.map_frame.clone(),
-            }),
-            None => None,
-        };
         if self.domain_id > 232 {
             return Err(ros2::ConfigProblem::DomainId(self.domain_id).into());
         }
+        let cfg = self.stages.config(self.mode);
+        let map = self.map_settings()?;
         let pipeline = self.stages.pipeline(&[cfg])?;
         let processor = Processor::new(pipeline, cfg, self.sensor, map);
-        let config = NodeConfig {
-            domain_id: self.domain_id,
-            node_name: self.node_name.clone(),
-            depth_topic: self.depth_topic.clone(),
-            colour_topic: self.colour_topic.clone(),
-            info_topic: self.info_topic.clone(),
-            pose,
-            camera_in_body: self.camera_in_body.unwrap_or_else(Pose::identity),
-            pose_tolerance: Duration::from_millis(self.pose_tolerance_ms),
-            output_prefix: self.output_prefix.clone(),
-            input_reliability: match self.input_reliability {
-                InputReliability::BestEffort => Reliability::BestEffort,
-                InputReliability::Reliable => Reliability::Reliable,
-            },
-            record: self.record.clone(),
-            ..NodeConfig::default()
-        };
-        let node = ros2::start(config, processor)?;
+        let node = ros2::start(self.node_config(), processor)?;
         println!(
             "ros2 node {} on domain {} ({}), mode {}: reading {}, publishing under {}",
             self.node_name,
@@ -196,6 +155,78 @@ impl Ros2 {
             },
             self.output_prefix
         );
+        self.wait()?;
+        let s = node.stats();
+        let count = |c: &std::sync::atomic::AtomicU64| c.load(std::sync::atomic::Ordering::Relaxed);
+        let line = format!(
+            "frames received {}, published {}, dropped (stale) {}, skipped (bad input) {}, fused \
+             into the map {}",
+            count(&s.received),
+            count(&s.published),
+            count(&s.dropped),
+            count(&s.skipped),
+            count(&s.fused),
+        );
+        if let Some(path) = node.stop()? {
+            println!("recorded {}", path.display());
+        }
+        println!("{line}");
+        Ok(())
+    }
+
+    fn pose_source(&self) -> Option<PoseSource> {
+        match (&self.odom_topic, &self.pose_topic) {
+            (Some(t), _) => Some(PoseSource::Odometry(t.clone())),
+            (None, Some(t)) => Some(PoseSource::PoseStamped(t.clone())),
+            (None, None) => None,
+        }
+    }
+
+    fn map_settings(&self) -> anyhow::Result<Option<MapSettings>> {
+        if self.pose_source().is_none() {
+            return Ok(None);
+        }
+        if self.sensor.is_none() {
+            return Err(ros2::ConfigProblem::MapWithoutSensor.into());
+        }
+        if self.mode == Mode::Rgb {
+            return Err(ros2::ConfigProblem::MapWithoutDepth.into());
+        }
+        Ok(Some(MapSettings {
+            config: MapConfig {
+                cell_m: self.cell_cm / 100.0,
+                side: (self.size_m / (self.cell_cm / 100.0)).round() as usize,
+                max_range_m: self.max_range_m,
+                ..MapConfig::default()
+            },
+            limits: MapLimits::default(),
+            down: self.gravity,
+            frame_id: self.map_frame.clone(),
+        }))
+    }
+
+    fn node_config(&self) -> NodeConfig {
+        NodeConfig {
+            domain_id: self.domain_id,
+            node_name: self.node_name.clone(),
+            depth_topic: self.depth_topic.clone(),
+            colour_topic: self.colour_topic.clone(),
+            info_topic: self.info_topic.clone(),
+            pose: self.pose_source(),
+            camera_in_body: self.camera_in_body.unwrap_or_else(Pose::identity),
+            pose_tolerance: Duration::from_millis(self.pose_tolerance_ms),
+            output_prefix: self.output_prefix.clone(),
+            input_reliability: match self.input_reliability {
+                InputReliability::BestEffort => Reliability::BestEffort,
+                InputReliability::Reliable => Reliability::Reliable,
+            },
+            record: self.record.clone(),
+            ..NodeConfig::default()
+        }
+    }
+
+    /// Until Ctrl-C, SIGTERM or `--duration-s`.
+    fn wait(&self) -> anyhow::Result<()> {
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()
@@ -211,20 +242,6 @@ impl Ros2 {
                 None => crate::server::shutdown_signal().await,
             }
         });
-        let s = node.stats();
-        let line = format!(
-            "frames received {}, published {}, dropped (stale) {}, skipped (bad input) {}, fused \
-             into the map {}",
-            s.received.load(std::sync::atomic::Ordering::Relaxed),
-            s.published.load(std::sync::atomic::Ordering::Relaxed),
-            s.dropped.load(std::sync::atomic::Ordering::Relaxed),
-            s.skipped.load(std::sync::atomic::Ordering::Relaxed),
-            s.fused.load(std::sync::atomic::Ordering::Relaxed),
-        );
-        if let Some(path) = node.stop()? {
-            println!("recorded {}", path.display());
-        }
-        println!("{line}");
         Ok(())
     }
 }

@@ -379,6 +379,118 @@ fn grid_layer(g: &GridMap, name: &str) -> Vec<f32> {
     out
 }
 
+impl Peer {
+    /// Publishes frame `i` (with its camera_info and pose) until the node answers with its
+    /// roughness (a frame the node already has is dropped as stale, so a repeat is harmless).
+    fn send(&self, i: usize, depth_path: &Path, pose: Option<Pose>) -> Image {
+        let depth = depth_msg(depth_path, i);
+        let info = info_msg(i, (depth.width, depth.height));
+        for _ in 0..5 {
+            if let Some(pose) = pose {
+                self.odom.publish(odom_msg(pose, i)).unwrap();
+            }
+            self.info.publish(info.clone()).unwrap();
+            self.depth.publish(depth.clone()).unwrap();
+            let out = take_stamped(&self.roughness, stamp(i), Duration::from_secs(8), |m| {
+                &m.header
+            });
+            if let Some(out) = out {
+                return out;
+            }
+        }
+        panic!("no roughness for frame {i}")
+    }
+}
+
+/// Frame `i` through the node: its roughness equal to `tre infer`'s, its three-state image,
+/// and the map after it; the frame and its pose also go into `tre map`'s sequence `seq`.
+fn send_and_check(
+    peer: &Peer,
+    k: &Kitchen,
+    i: usize,
+    stem: &str,
+    dir: &Path,
+    seq: &Path,
+) -> GridMap {
+    let depth_path = k.dir.join(format!("depth/{stem}.png"));
+    std::fs::copy(&depth_path, seq.join(format!("depth/{stem}.png"))).unwrap();
+    // `tre map`'s poses: after the node's quaternion round trip.
+    let (pose, text) = pose_msg(k, stem);
+    std::fs::write(seq.join(format!("poses/{stem}.txt")), text).unwrap();
+    let roughness = peer.send(i, &depth_path, Some(pose));
+    assert_eq!(roughness.header, header(i));
+    let traversal = take_stamped(&peer.traversal, stamp(i), Duration::from_secs(5), |m| {
+        &m.header
+    })
+    .unwrap();
+    assert_eq!(
+        (traversal.encoding.as_str(), traversal.width),
+        ("mono8", 640)
+    );
+    let grid = take_stamped(&peer.grid, stamp(i), Duration::from_secs(5), |m| &m.header).unwrap();
+    // The same frame through `tre infer`.
+    let npy = dir.join(format!("{stem}.npy"));
+    infer_npy(&depth_path, &k.camera, &npy);
+    assert!(
+        same_bits(&f32_values(&roughness), &npy_f32(&npy)),
+        "{stem}: the node's roughness differs from tre infer's"
+    );
+    grid
+}
+
+/// The folders of a `tre map` sequence, its gravity and camera (the frames and poses follow).
+fn map_sequence(k: &Kitchen, seq: &Path) {
+    for sub in ["depth", "poses"] {
+        std::fs::create_dir_all(seq.join(sub)).unwrap();
+    }
+    std::fs::copy(k.dir.join("gravity.json"), seq.join("gravity.json")).unwrap();
+    std::fs::copy(&k.camera, seq.join("intrinsics.json")).unwrap();
+}
+
+fn run_tre_map(seq: &Path, out: &Path) {
+    let o = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .arg("map")
+        .arg(seq)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// `tre infer --mode geometric` on a depth PNG, written as `.npy`.
+fn infer_npy(depth: &Path, camera: &Path, npy: &Path) {
+    let o = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["infer", "--mode", "geometric", "--format", "npy", "--depth"])
+        .arg(depth)
+        .arg("--camera")
+        .arg(camera)
+        .arg("-o")
+        .arg(npy)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// The occupancy grid is the map's three-state layer: rows from the bottom, unknown -1,
+/// traversable 0, hazard 100.
+fn assert_occupancy_is_traversal(occupancy: &OccupancyGrid, traversal: &[f32]) {
+    let side = occupancy.info.width as usize;
+    assert_eq!(traversal.len(), side * side);
+    for iy in 0..side {
+        for x in 0..side {
+            let want = match traversal[(side - 1 - iy) * side + x] as u8 {
+                1 => 0,
+                2 => 100,
+                _ => -1,
+            };
+            assert_eq!(occupancy.data[iy * side + x], want);
+        }
+    }
+    assert!(occupancy.data.contains(&0) && occupancy.data.contains(&-1));
+}
+
 #[test]
 fn kitchen_frames_through_the_node_equal_infer_and_map() {
     let Some(k) = kitchen(5) else { return };
@@ -404,64 +516,11 @@ fn kitchen_frames_through_the_node_equal_infer_and_map() {
     ]);
     let peer = Peer::new(domain_id(0));
     peer.wait_for_tre(true);
-    // `tre map`'s sequence: the same depth frames, the poses after the quaternion round trip.
     let seq = dir.path().join("seq");
-    for sub in ["depth", "poses"] {
-        std::fs::create_dir_all(seq.join(sub)).unwrap();
-    }
-    std::fs::copy(k.dir.join("gravity.json"), seq.join("gravity.json")).unwrap();
-    std::fs::copy(&k.camera, seq.join("intrinsics.json")).unwrap();
+    map_sequence(&k, &seq);
     let mut last_grid = None;
     for (i, stem) in k.stems.iter().enumerate() {
-        let depth_path = k.dir.join(format!("depth/{stem}.png"));
-        std::fs::copy(&depth_path, seq.join(format!("depth/{stem}.png"))).unwrap();
-        let (pose, text) = pose_msg(&k, stem);
-        std::fs::write(seq.join(format!("poses/{stem}.txt")), text).unwrap();
-        let depth = depth_msg(&depth_path, i);
-        let info = info_msg(i, (depth.width, depth.height));
-        // Publish until the node answers (a frame it already has is dropped as stale).
-        let mut out = None;
-        for _ in 0..5 {
-            peer.odom.publish(odom_msg(pose, i)).unwrap();
-            peer.info.publish(info.clone()).unwrap();
-            peer.depth.publish(depth.clone()).unwrap();
-            out = take_stamped(&peer.roughness, stamp(i), Duration::from_secs(8), |m| {
-                &m.header
-            });
-            if out.is_some() {
-                break;
-            }
-        }
-        let roughness = out.unwrap_or_else(|| panic!("no roughness for {stem}"));
-        assert_eq!(roughness.header, header(i));
-        let traversal = take_stamped(&peer.traversal, stamp(i), Duration::from_secs(5), |m| {
-            &m.header
-        })
-        .unwrap();
-        assert_eq!(
-            (traversal.encoding.as_str(), traversal.width),
-            ("mono8", 640)
-        );
-        last_grid = Some(
-            take_stamped(&peer.grid, stamp(i), Duration::from_secs(5), |m| &m.header).unwrap(),
-        );
-        // The same frame through `tre infer`.
-        let npy = dir.path().join(format!("{stem}.npy"));
-        let o = Command::new(env!("CARGO_BIN_EXE_tre"))
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .args(["infer", "--mode", "geometric", "--format", "npy", "--depth"])
-            .arg(&depth_path)
-            .arg("--camera")
-            .arg(&k.camera)
-            .arg("-o")
-            .arg(&npy)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        assert!(
-            same_bits(&f32_values(&roughness), &npy_f32(&npy)),
-            "{stem}: the node's roughness differs from tre infer's"
-        );
+        last_grid = Some(send_and_check(&peer, &k, i, stem, dir.path(), &seq));
     }
     let occupancy = take_stamped(&peer.occupancy, stamp(4), Duration::from_secs(5), |m| {
         &m.header
@@ -472,14 +531,7 @@ fn kitchen_frames_through_the_node_equal_infer_and_map() {
     assert!(stdout.contains("published 5"), "{stdout}");
     // The same frames through `tre map`.
     let out = dir.path().join("map");
-    let o = Command::new(env!("CARGO_BIN_EXE_tre"))
-        .arg("map")
-        .arg(&seq)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    run_tre_map(&seq, &out);
     let grid = last_grid.unwrap();
     assert_eq!(grid.header.frame_id, "world");
     assert_eq!(grid.info.resolution, 0.04);
@@ -492,20 +544,7 @@ fn kitchen_frames_through_the_node_equal_infer_and_map() {
             "layer {name}: the node's map differs from tre map's"
         );
     }
-    // Occupancy: the three-state layer, rows from the bottom, unknown -1, hazard 100.
-    let t = npy_f32(&out.join("traversal.npy"));
-    let side = 200;
-    for iy in 0..side {
-        for x in 0..side {
-            let want = match t[(side - 1 - iy) * side + x] as u8 {
-                1 => 0,
-                2 => 100,
-                _ => -1,
-            };
-            assert_eq!(occupancy.data[iy * side + x], want);
-        }
-    }
-    assert!(occupancy.data.contains(&0) && occupancy.data.contains(&-1));
+    assert_occupancy_is_traversal(&occupancy, &npy_f32(&out.join("traversal.npy")));
     check_recording(&record, dir.path());
     // `TRE_ROS2_RECORDING_OUT=FILE` keeps the recording (docs/ros2.md's picture is drawn from it).
     if let Some(keep) = std::env::var_os("TRE_ROS2_RECORDING_OUT") {

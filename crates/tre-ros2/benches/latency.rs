@@ -80,21 +80,15 @@ fn processor() -> Processor {
     Processor::new(Pipeline::new(None), cfg, Some(sensor), None)
 }
 
-fn main() {
-    let seconds: f64 = std::env::var("TRE_BENCH_SECONDS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(30.0);
-    let frames = frames();
-    let k = info(&frames[0]);
-
-    // In-process: the node's work without DDS, and the pipeline alone.
+/// The same frames in-process, after a warm-up round: the node's processing and the
+/// pipeline alone, milliseconds.
+fn in_process(frames: &[Image], k: &CameraInfo) -> (Vec<f64>, Vec<f64>) {
     let mut p = processor();
     let (mut node_ms, mut pipe_ms) = (Vec::new(), Vec::new());
     let mut pipeline = Pipeline::new(None);
     let cfg = *p.config();
     for round in 0..3 {
-        for f in &frames {
+        for f in frames {
             let msgs = FrameMsgs {
                 depth: Some(f.clone()),
                 colour: None,
@@ -102,15 +96,12 @@ fn main() {
                 pose: None,
             };
             let t = Instant::now();
-            let out = p.process(&msgs).unwrap();
+            drop(p.process(&msgs).unwrap());
             let dt = t.elapsed().as_secs_f64() * 1e3;
-            drop(out);
-            let depth = tre_ros2::convert::depth_m(f).unwrap();
-            let intr = tre_ros2::convert::intrinsics(&k, f).unwrap();
             let input = FrameInput {
                 rgb: None,
-                depth_m: Some(depth),
-                intrinsics: Some(intr),
+                depth_m: Some(tre_ros2::convert::depth_m(f).unwrap()),
+                intrinsics: Some(tre_ros2::convert::intrinsics(k, f).unwrap()),
                 mounting: None,
             };
             let t = Instant::now();
@@ -123,17 +114,20 @@ fn main() {
             }
         }
     }
+    (node_ms, pipe_ms)
+}
 
-    // Over DDS, at 15 frames/s.
-    let domain = 150 + (std::process::id() % 60) as u16;
-    let node = tre_ros2::start(
-        NodeConfig {
-            domain_id: domain,
-            ..NodeConfig::default()
-        },
-        processor(),
-    )
-    .unwrap();
+/// A peer node on `domain`: depth and camera_info publishers, a roughness subscription,
+/// matched with the node under test.
+fn peer(
+    domain: u16,
+) -> (
+    Context,
+    ros2_client::Node,
+    ros2_client::Publisher<Image>,
+    ros2_client::Publisher<CameraInfo>,
+    ros2_client::Subscription<Image>,
+) {
     let ctx = Context::with_options(ContextOptions::new().domain_id(domain)).unwrap();
     let mut peer = ctx
         .new_node(NodeName::new("/", "tre_bench").unwrap(), NodeOptions::new())
@@ -170,7 +164,10 @@ fn main() {
         .create_subscription::<Image>(&t, Some(q.clone()))
         .unwrap();
     let spinner = peer.spinner().unwrap();
-    std::thread::spawn(move || futures::executor::block_on(spinner.spin()));
+    std::thread::Builder::new()
+        .name("bench-spin".into())
+        .spawn(move || futures::executor::block_on(spinner.spin()))
+        .unwrap();
     let deadline = Instant::now() + Duration::from_secs(30);
     while depth_pub.get_subscription_count(&peer) == 0 || sub.get_publisher_count(&peer) == 0 {
         assert!(
@@ -179,49 +176,66 @@ fn main() {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
+    (ctx, peer, depth_pub, info_pub, sub)
+}
+
+/// Publishes `total` frames at 15 frames/s stamped when sent; the latency of every answer.
+fn over_dds(frames: &[Image], k: &CameraInfo, total: usize) -> (Vec<f64>, u64) {
+    let domain = 150 + (std::process::id() % 60) as u16;
+    let config = NodeConfig {
+        domain_id: domain,
+        ..NodeConfig::default()
+    };
+    let node = tre_ros2::start(config, processor()).unwrap();
+    let (_ctx, _peer, depth_pub, info_pub, sub) = peer(domain);
     std::thread::sleep(Duration::from_millis(500));
     info_pub.publish(k.clone()).unwrap();
     std::thread::sleep(Duration::from_millis(200));
     let period = Duration::from_secs_f64(1.0 / 15.0);
-    let total = (seconds * 15.0) as usize;
-    let warm = 15;
     let mut lat_ms = Vec::new();
     let start = Instant::now();
     let mut sent = 0;
-    while sent < total + warm
-        || Instant::now() < start + period * (sent as u32) + Duration::from_secs(1)
-    {
-        let due = start + period * sent as u32;
-        if sent < total + warm && Instant::now() >= due {
+    while sent < total || Instant::now() < start + period * (sent as u32) + Duration::from_secs(1) {
+        if sent < total && Instant::now() >= start + period * sent as u32 {
             let mut f = frames[sent % frames.len()].clone();
             f.header.stamp = now();
             depth_pub.publish(f).unwrap();
             sent += 1;
         }
         while let Ok(Some((m, _))) = sub.take() {
-            let dt = (now().nanos() - m.header.stamp.nanos()) as f64 * 1e-6;
-            lat_ms.push(dt);
+            lat_ms.push((now().nanos() - m.header.stamp.nanos()) as f64 * 1e-6);
         }
         std::thread::sleep(Duration::from_micros(500));
     }
-    let stats = node.stats();
+    let dropped = node
+        .stats()
+        .dropped
+        .load(std::sync::atomic::Ordering::Relaxed);
+    let _ = node.stop();
+    (lat_ms, dropped)
+}
+
+fn main() {
+    let seconds: f64 = std::env::var("TRE_BENCH_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(30.0);
+    let frames = frames();
+    let k = info(&frames[0]);
+    let (mut n, mut pp) = in_process(&frames, &k);
+    let warm = 15;
+    let total = (seconds * 15.0) as usize + warm;
+    let (lat_ms, dropped) = over_dds(&frames, &k, total);
     let answered = lat_ms.len();
-    let measured: Vec<f64> = lat_ms.iter().skip(warm.min(answered)).copied().collect();
-    let mut m = measured.clone();
-    let (mut n, mut pp) = (node_ms.clone(), pipe_ms.clone());
+    let mut m: Vec<f64> = lat_ms.iter().skip(warm.min(answered)).copied().collect();
     println!("ROS 2 node, geometric, 640x480 kitchen depth frames at 15 frames/s for {seconds} s:");
-    println!(
-        "  sent {}, answered {answered}, dropped as stale {}",
-        total + warm,
-        stats.dropped.load(std::sync::atomic::Ordering::Relaxed)
-    );
+    println!("  sent {total}, answered {answered}, dropped as stale {dropped}");
     println!(
         "  latency stamp -> roughness received: p50 {:.1} ms, p90 {:.1} ms, p99 {:.1} ms, max {:.1} ms ({} frames after {warm} warm-up)",
-        pct(&mut m, 0.5), pct(&mut m, 0.9), pct(&mut m, 0.99), pct(&mut m, 1.0), measured.len()
+        pct(&mut m, 0.5), pct(&mut m, 0.9), pct(&mut m, 0.99), pct(&mut m, 1.0), m.len()
     );
     println!(
         "  in-process, same frames: the node's processing (decode, pipeline, sensor maps, encode) p50 {:.1} ms; the pipeline alone (tre infer's work) p50 {:.1} ms",
         pct(&mut n, 0.5), pct(&mut pp, 0.5)
     );
-    let _ = node.stop();
 }

@@ -412,6 +412,38 @@ fn on_pose(sh: &Shared, c: &NodeConfig, stamp: &Time, pose: &crate::msgs::Pose) 
     }
 }
 
+/// rgbd: the depth and colour frames of one stamp make a frame; an unmatched one waits (the
+/// last four of each).
+fn pair_rgbd(inbox: &mut Inbox, img: Image, is_depth: bool) -> Option<FrameMsgs> {
+    let stamp = img.header.stamp;
+    let (mine, other) = if is_depth {
+        (&mut inbox.depth, &mut inbox.colour)
+    } else {
+        (&mut inbox.colour, &mut inbox.depth)
+    };
+    let Some(i) = other.iter().position(|o| o.header.stamp == stamp) else {
+        mine.push_back(img);
+        while mine.len() > 4 {
+            mine.pop_front();
+        }
+        return None;
+    };
+    let partner = other.remove(i).expect("index found above");
+    other.retain(|o| o.header.stamp > stamp);
+    mine.retain(|o| o.header.stamp > stamp);
+    let (depth, colour) = if is_depth {
+        (img, partner)
+    } else {
+        (partner, img)
+    };
+    Some(FrameMsgs {
+        depth: Some(depth),
+        colour: Some(colour),
+        info: None,
+        pose: None,
+    })
+}
+
 /// A depth or colour frame arrives: it becomes the waiting frame (with its partner in rgbd).
 fn on_image(sh: &Shared, c: &NodeConfig, mode: Mode, img: Image, is_depth: bool) {
     let mut inbox = sh.lock();
@@ -440,37 +472,7 @@ fn on_image(sh: &Shared, c: &NodeConfig, mode: Mode, img: Image, is_depth: bool)
             info: None,
             pose: None,
         }),
-        Mode::Rgbd => {
-            let stamp = img.header.stamp;
-            let inbox = &mut *inbox;
-            let (mine, other) = if is_depth {
-                (&mut inbox.depth, &mut inbox.colour)
-            } else {
-                (&mut inbox.colour, &mut inbox.depth)
-            };
-            if let Some(i) = other.iter().position(|o| o.header.stamp == stamp) {
-                let partner = other.remove(i).expect("index found above");
-                other.retain(|o| o.header.stamp > stamp);
-                mine.retain(|o| o.header.stamp > stamp);
-                let (depth, colour) = if is_depth {
-                    (img, partner)
-                } else {
-                    (partner, img)
-                };
-                Some(FrameMsgs {
-                    depth: Some(depth),
-                    colour: Some(colour),
-                    info: None,
-                    pose: None,
-                })
-            } else {
-                mine.push_back(img);
-                while mine.len() > 4 {
-                    mine.pop_front();
-                }
-                None
-            }
-        }
+        Mode::Rgbd => pair_rgbd(&mut inbox, img, is_depth),
     };
     if let Some(f) = frame {
         sh.stats.received.fetch_add(1, Ordering::Relaxed);

@@ -1,7 +1,7 @@
 //! One frame from the topics through the pipeline and into the map: what the node does
 //! between receiving and publishing, without DDS (so it is tested and measured alone).
 
-use tre_core::geometry::{Grid, PointMap, Vec3};
+use tre_core::geometry::{Grid, Intrinsics, PointMap, Vec3};
 use tre_core::map::{
     GridMap as Map, Layers, MapConfig, MapError, MapFrame, MapLimits, Pose as MapPose,
 };
@@ -76,6 +76,32 @@ struct MapState {
     map: Option<Map>,
     /// Stamp of the first fused frame, nanoseconds: the map's times count from it.
     t0_ns: Option<i64>,
+}
+
+/// The pipeline's input of a frame's messages, and its intrinsics.
+fn frame_input(f: &FrameMsgs) -> Result<(FrameInput, Intrinsics), InputError> {
+    let image = f
+        .depth
+        .as_ref()
+        .or(f.colour.as_ref())
+        .ok_or(InputError::Empty)?;
+    let info = f.info.as_ref().ok_or(InputError::NoCameraInfo)?;
+    let k = convert::intrinsics(info, image)?;
+    if let (Some(c), Some(d)) = (&f.colour, &f.depth) {
+        if (c.width, c.height) != (d.width, d.height) {
+            return Err(InputError::SizeMismatch {
+                info: (d.width, d.height),
+                image: (c.width, c.height),
+            });
+        }
+    }
+    let input = FrameInput {
+        rgb: f.colour.as_ref().map(convert::rgb).transpose()?,
+        depth_m: f.depth.as_ref().map(convert::depth_m).transpose()?,
+        intrinsics: Some(k),
+        mounting: None,
+    };
+    Ok((input, k))
 }
 
 impl MapState {
@@ -155,29 +181,7 @@ impl Processor {
     /// The frame's outputs, or why it was skipped.
     pub fn process(&mut self, f: &FrameMsgs) -> Result<Outputs, InputError> {
         let header = f.header();
-        let image = f
-            .depth
-            .as_ref()
-            .or(f.colour.as_ref())
-            .ok_or(InputError::Empty)?;
-        let info = f.info.as_ref().ok_or(InputError::NoCameraInfo)?;
-        let k = convert::intrinsics(info, image)?;
-        let depth_m = f.depth.as_ref().map(convert::depth_m).transpose()?;
-        let rgb = f.colour.as_ref().map(convert::rgb).transpose()?;
-        if let (Some(c), Some(d)) = (&f.colour, &f.depth) {
-            if (c.width, c.height) != (d.width, d.height) {
-                return Err(InputError::SizeMismatch {
-                    info: (d.width, d.height),
-                    image: (c.width, c.height),
-                });
-            }
-        }
-        let input = FrameInput {
-            rgb,
-            depth_m,
-            intrinsics: Some(k),
-            mounting: None,
-        };
+        let (input, k) = frame_input(f)?;
         tre_pipeline::check_input(&input, &self.cfg).map_err(InputError::Pipeline)?;
         let out = self
             .pipeline
