@@ -10,8 +10,11 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use tre::geometry::dsac::{dsac_normals, dsac_normals_into, DsacConfig, DsacScratch, CANDIDATES};
 use tre::geometry::normals::{local_planes_into, PackedPoints};
 use tre::geometry::raycast::{render_depth, MarchConfig};
-use tre::geometry::{ls_normals, Grid, Intrinsics, LocalPlanes, Mounting, Neighbourhood, PointMap};
-use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
+use tre::geometry::{
+    normals::{ls_normals, LocalPlanes, Neighbourhood},
+    Grid, Intrinsics, Mounting, PointMap,
+};
+use tre::roughness::annotate::{annotate, AnnotateConfig, AnnotateInput};
 
 fn kinect_frame() -> (Grid<f64>, Intrinsics) {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real-rgbd/metric3d_nyu");

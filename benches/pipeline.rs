@@ -16,7 +16,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion};
 use image::DynamicImage;
 use ndarray::Array4;
 use tre::geometry::normals::{local_planes_into, PackedPoints};
-use tre::geometry::{LocalPlanes, Neighbourhood};
+use tre::geometry::normals::{LocalPlanes, Neighbourhood};
 use tre::io::{depth_png16, encode_png, read_camera, read_depth, CameraFile};
 use tre::model::{Models, SessionConfig};
 use tre::pipeline::resize::resize_nearest;
@@ -24,14 +24,14 @@ use tre::pipeline::{
     CentroidMethod, FrameInput, GeometricMethod, Method, Mode, NormalsMethod, Pipeline,
     PipelineConfig, StageTimings,
 };
+use tre::roughness::annotate::{annotate, AnnotateConfig, AnnotateInput};
 use tre::roughness::noise::{SensorNoise, SensorPreset};
-use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
+use tre::server::options::FrameOptions;
 use tre::server::request::{
-    assumptions, config_for, decode_frame, encode_reply, DecodeLimits, FrameDefaults, FrameOptions,
-    FrameRequest,
+    assumptions, config_for, decode_frame, encode_reply, DecodeLimits, FrameDefaults, FrameRequest,
 };
 use tre::synth::dataset::{build_scene, scene_views, view_conditions};
-use tre::synth::{render, SynthConfig};
+use tre::synth::{dataset::SynthConfig, render};
 
 /// A rendered synthetic frame of `side`×`side` as pipeline input (RGB, depth, camera, mounting).
 fn frame(side: usize) -> FrameInput {

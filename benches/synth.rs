@@ -5,11 +5,11 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use tre::geometry::Intrinsics;
+use tre::roughness::annotate::{annotate, AnnotateConfig, AnnotateInput};
 use tre::roughness::noise::SensorPreset;
-use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 use tre::synth::dataset::{build_scene, scene_views, view_conditions};
 use tre::synth::sensor::{simulate, SensorInput, SensorModel};
-use tre::synth::{render, Conditions, Content, RenderedFrame, SynthConfig, View};
+use tre::synth::{content::Content, dataset::SynthConfig, render, Conditions, RenderedFrame, View};
 
 fn synth(c: &mut Criterion) {
     let cfg = SynthConfig::default();
@@ -53,7 +53,7 @@ fn synth(c: &mut Criterion) {
         ..SynthConfig::default()
     };
     c.bench_function("synth/scene_9_frames_on_disk", |b| {
-        b.iter(|| tre::synth::generate(&one).expect("writes"))
+        b.iter(|| tre::synth::dataset::generate(&one).expect("writes"))
     });
 }
 

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use clap::Args;
 
-use crate::geometry::Neighbourhood;
+use crate::geometry::normals::Neighbourhood;
 use crate::io;
-use crate::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation};
+use crate::roughness::annotate::{annotate, AnnotateConfig, AnnotateInput, Annotation};
 
 /// Annotate a depth frame with roughness.
 #[derive(Debug, Args)]

@@ -10,7 +10,7 @@ use clap::{Args, ValueEnum};
 
 use crate::io;
 use crate::loadtest::report::{self, SweepReport};
-use crate::loadtest::{run, svg, sweep, Ask, FrameSource, Load, LoadConfig, Protocol, Report};
+use crate::loadtest::{run, svg, sweep, Ask, Load, LoadConfig, LoadSource, Protocol, Report};
 
 /// Interface to load.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -178,11 +178,11 @@ impl Loadtest {
     /// The checked configuration.
     pub(crate) fn config(&self) -> anyhow::Result<LoadConfig> {
         let frames = if let Some(dir) = &self.frames {
-            FrameSource::Dir(dir.clone())
+            LoadSource::Dir(dir.clone())
         } else if !self.frame.is_empty() {
-            FrameSource::Files(self.frame.clone())
+            LoadSource::Files(self.frame.clone())
         } else {
-            FrameSource::Synthetic {
+            LoadSource::Synthetic {
                 size: (self.synth_size, self.synth_size),
             }
         };
@@ -192,9 +192,9 @@ impl Loadtest {
         };
         let (url, ask) = self.ask()?;
         let depth = if let Some(dir) = &self.depth_dir {
-            Some(FrameSource::Dir(dir.clone()))
+            Some(LoadSource::Dir(dir.clone()))
         } else if !self.depth.is_empty() {
-            Some(FrameSource::Files(self.depth.clone()))
+            Some(LoadSource::Files(self.depth.clone()))
         } else {
             None
         };

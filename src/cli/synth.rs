@@ -7,7 +7,10 @@ use clap::Args;
 
 use crate::roughness::noise::SensorPreset;
 use crate::synth::imaging::ImageEffect;
-use crate::synth::{generate, Content, SynthConfig};
+use crate::synth::{
+    content::Content,
+    dataset::{generate, SynthConfig},
+};
 
 /// Generate a synthetic terrain dataset.
 #[derive(Debug, Args)]

@@ -6,13 +6,16 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use image::RgbImage;
-use tre::geometry::{local_planes, Grid, Mounting, Neighbourhood};
+use tre::geometry::{
+    normals::{local_planes, Neighbourhood},
+    Grid, Mounting,
+};
 use tre::model::{Models, SessionConfig};
 use tre::pipeline::{
     CentroidMethod, FrameInput, GeometricMethod, Method, Mode, NormalsMethod, Pipeline,
     PipelineConfig, PipelineError,
 };
-use tre::synth::SynthConfig;
+use tre::synth::dataset::SynthConfig;
 
 use crate::common::{real, synth_config};
 
@@ -44,7 +47,7 @@ fn synth_frame() -> &'static (tempfile::TempDir, PathBuf) {
             ply: false,
             ..synth_config(dir.path(), 1, 5, (64, 64), 1)
         };
-        let manifest = tre::synth::generate(&cfg).expect("synth generates");
+        let manifest = tre::synth::dataset::generate(&cfg).expect("synth generates");
         let frame = dir.path().join(&manifest.scenes[0].frames[0].dir);
         (dir, frame)
     })

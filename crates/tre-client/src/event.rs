@@ -169,7 +169,10 @@ pub enum Event {
         sequence: Option<u64>,
         /// What kind of error: the server's stable code, or the client's own.
         code: ErrorKind,
-        /// What went wrong.
+        /// What went wrong, for a person: the server's message as it sent it (kinds
+        /// [`ErrorKind::Server`] and [`ErrorKind::Unknown`]; the server's typed error is the
+        /// code), or this client's [`ClientError`] as text (kinds [`ErrorKind::BadMessage`]
+        /// and [`ErrorKind::BadResult`]), as it is shown and recorded.
         message: String,
     },
     /// A frame that will get no answer.

@@ -7,13 +7,14 @@ use std::path::{Path, PathBuf};
 use image::{DynamicImage, ImageFormat};
 use tokio_tungstenite::tungstenite::Bytes;
 
-use super::LoadError;
+use super::{LoadConfigProblem, LoadError};
 use tre_synth::dataset::{build_scene, scene_views, view_conditions};
-use tre_synth::{render, SynthConfig};
+use tre_synth::{dataset::SynthConfig, render};
 
-/// Where the frames come from.
+/// Where a load test's frames come from (a client session's are a
+/// [`tre_client::source::SourceSpec`]).
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum FrameSource {
+pub enum LoadSource {
     /// One synthetic terrain frame of this size (width, height), rendered with a fixed seed.
     Synthetic {
         /// Width and height, pixels.
@@ -25,15 +26,16 @@ pub enum FrameSource {
     Dir(PathBuf),
 }
 
-impl Default for FrameSource {
+impl Default for LoadSource {
     fn default() -> Self {
         Self::Synthetic { size: (256, 256) }
     }
 }
 
-/// One encoded frame.
+/// One frame of a load test, encoded once for both transports (a client session's frame is
+/// a [`tre_client::Frame`]).
 #[derive(Debug, Clone)]
-pub struct Frame {
+pub struct LoadFrame {
     /// The HTTP body: the image alone (PNG or JPEG), or with depth or a camera a multipart
     /// form of parts `rgb`, `depth` and `camera`, built once.
     pub bytes: Bytes,
@@ -50,7 +52,7 @@ const BOUNDARY: &str = "tre-loadtest-5e1f7c";
 /// The content type of a multipart load-test body.
 const MULTIPART: &str = "multipart/form-data; boundary=tre-loadtest-5e1f7c";
 
-impl Frame {
+impl LoadFrame {
     /// A frame of `image` (may be empty) and `depth` (may be empty), with the camera JSON
     /// `camera` as written (may be empty) for the HTTP form.
     pub fn new(image: Vec<u8>, depth: Vec<u8>, camera: &[u8]) -> Self {
@@ -103,18 +105,18 @@ impl Frame {
 /// The frames of a run, cycled by request index.
 #[derive(Debug, Clone)]
 pub struct Frames {
-    frames: Vec<Frame>,
+    frames: Vec<LoadFrame>,
     /// What they are, for the report (`synthetic 256×256 PNG, 151 KB`).
     pub description: String,
 }
 
 impl Frames {
     /// Loads or renders the frames of `source`.
-    pub fn load(source: &FrameSource) -> Result<Self, LoadError> {
+    pub fn load(source: &LoadSource) -> Result<Self, LoadError> {
         match source {
-            FrameSource::Synthetic { size } => synthetic(*size),
-            FrameSource::Files(paths) => from_files(paths),
-            FrameSource::Dir(dir) => from_files(&files_in(dir, &["png", "jpg", "jpeg"])?),
+            LoadSource::Synthetic { size } => synthetic(*size),
+            LoadSource::Files(paths) => from_files(paths),
+            LoadSource::Dir(dir) => from_files(&files_in(dir, &["png", "jpg", "jpeg"])?),
         }
     }
 
@@ -122,7 +124,7 @@ impl Frames {
     pub fn from_bytes(images: Vec<Vec<u8>>, description: impl Into<String>) -> Self {
         let frames = images
             .into_iter()
-            .map(|b| Frame::new(b, Vec::new(), &[]))
+            .map(|b| LoadFrame::new(b, Vec::new(), &[]))
             .collect();
         Self {
             frames,
@@ -134,8 +136,8 @@ impl Frames {
     /// place (cycled; both lists of files must then be as long), and the camera JSON `camera`
     /// (as written, sent with every HTTP request; empty: none).
     pub fn with_depth(
-        images: Option<&FrameSource>,
-        depth: Option<&FrameSource>,
+        images: Option<&LoadSource>,
+        depth: Option<&LoadSource>,
         camera: &[u8],
     ) -> Result<Self, LoadError> {
         let images = match images {
@@ -150,7 +152,7 @@ impl Frames {
             let frames = images
                 .frames
                 .iter()
-                .map(|f| Frame::new(f.image.to_vec(), Vec::new(), camera))
+                .map(|f| LoadFrame::new(f.image.to_vec(), Vec::new(), camera))
                 .collect();
             return Ok(Self {
                 frames,
@@ -158,33 +160,30 @@ impl Frames {
             });
         };
         let paths = match depth {
-            FrameSource::Files(p) => p.clone(),
-            FrameSource::Dir(d) => files_in(d, &["png", "npy"])?,
-            FrameSource::Synthetic { .. } => {
-                return Err(LoadError::Config(
-                    "depth: give depth files or a folder of them".into(),
-                ))
+            LoadSource::Files(p) => p.clone(),
+            LoadSource::Dir(d) => files_in(d, &["png", "npy"])?,
+            LoadSource::Synthetic { .. } => {
+                return Err(LoadError::Config(LoadConfigProblem::SyntheticDepth))
             }
         };
         let depths = read_depth_files(&paths)?;
         let kb = depths.iter().map(Vec::len).sum::<usize>().div_ceil(1024);
-        let frames: Vec<Frame> = match &images {
+        let frames: Vec<LoadFrame> = match &images {
             Some(images) if images.len() != depths.len() => {
-                return Err(LoadError::Config(format!(
-                    "{} images but {} depth frames: give one depth frame per image",
-                    images.len(),
-                    depths.len()
-                )))
+                return Err(LoadError::Config(LoadConfigProblem::DepthCount {
+                    images: images.len(),
+                    depths: depths.len(),
+                }))
             }
             Some(images) => images
                 .frames
                 .iter()
                 .zip(depths)
-                .map(|(f, d)| Frame::new(f.image.to_vec(), d, camera))
+                .map(|(f, d)| LoadFrame::new(f.image.to_vec(), d, camera))
                 .collect(),
             None => depths
                 .into_iter()
-                .map(|d| Frame::new(Vec::new(), d, camera))
+                .map(|d| LoadFrame::new(Vec::new(), d, camera))
                 .collect(),
         };
         let with_camera = if camera.is_empty() { "" } else { ", a camera" };
@@ -198,8 +197,8 @@ impl Frames {
         })
     }
 
-    /// Frame for request `i` (cycling).
-    pub fn get(&self, i: u64) -> &Frame {
+    /// The frame for request `i` (cycling).
+    pub fn get(&self, i: u64) -> &LoadFrame {
         let n = self.frames.len().max(1) as u64;
         &self.frames[(i % n) as usize]
     }
@@ -247,9 +246,8 @@ pub(crate) fn content_type(bytes: &[u8]) -> Option<&'static str> {
 
 /// View 4 (straight ahead) of scene 0 of seed 7, rendered at `size` and encoded as PNG.
 pub(crate) fn synthetic_png(size: (usize, usize)) -> Result<Vec<u8>, LoadError> {
-    let bad = |why: String| LoadError::Config(format!("synthetic frame: {why}"));
     if size.0 == 0 || size.1 == 0 || size.0 * size.1 > 16_000_000 {
-        return Err(bad(format!("size {}×{} out of range", size.0, size.1)));
+        return Err(LoadError::Config(LoadConfigProblem::SyntheticSize { size }));
     }
     let cfg = SynthConfig {
         seed: 7,
@@ -265,7 +263,7 @@ pub(crate) fn synthetic_png(size: (usize, usize)) -> Result<Vec<u8>, LoadError> 
     let mut png = Cursor::new(Vec::new());
     DynamicImage::ImageRgb8(frame.rgb)
         .write_to(&mut png, ImageFormat::Png)
-        .map_err(|e| bad(e.to_string()))?;
+        .map_err(LoadError::Synthetic)?;
     Ok(png.into_inner())
 }
 
@@ -293,7 +291,7 @@ fn from_files(paths: &[PathBuf]) -> Result<Frames, LoadError> {
             why: "not a PNG or JPEG".into(),
         })?;
         total += bytes.len();
-        frames.push(Frame::new(bytes, Vec::new(), &[]));
+        frames.push(LoadFrame::new(bytes, Vec::new(), &[]));
     }
     let description = match paths {
         [one] => format!("{} ({} KB)", one.display(), total.div_ceil(1024)),
@@ -356,10 +354,10 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let txt = dir.path().join("a.png");
         std::fs::write(&txt, "hello").expect("write");
-        let e = Frames::load(&FrameSource::Files(vec![txt])).expect_err("not an image");
+        let e = Frames::load(&LoadSource::Files(vec![txt])).expect_err("not an image");
         assert!(e.to_string().contains("not a PNG or JPEG"), "{e}");
         let empty = tempfile::tempdir().expect("tempdir");
-        let e = Frames::load(&FrameSource::Dir(empty.path().into())).expect_err("empty");
+        let e = Frames::load(&LoadSource::Dir(empty.path().into())).expect_err("empty");
         assert!(e.to_string().contains("no .png"), "{e}");
     }
 }

@@ -10,7 +10,7 @@ use tokio::sync::Semaphore;
 use tokio::task::JoinSet;
 use tokio::time::Instant;
 
-use super::frames::{Frame, Frames};
+use super::frames::{Frames, LoadFrame};
 use super::plan::Plan;
 use super::stats::{Outcome, Recorder, Report, RunInfo};
 use super::{Load, LoadConfig, LoadError, Protocol, Target};
@@ -45,8 +45,7 @@ pub(super) async fn drive(
         .tcp_nodelay(true)
         .resolve(&target.host, target.addr);
     if target.tls {
-        let tls = tre_client::tls::client_config(cfg.ca_cert.as_deref())
-            .map_err(|e| LoadError::Config(e.to_string()))?;
+        let tls = tre_client::tls::client_config(cfg.ca_cert.as_deref()).map_err(LoadError::Tls)?;
         builder = builder.use_preconfigured_tls(rustls::ClientConfig::clone(&tls));
     }
     let client = builder.build()?;
@@ -146,7 +145,7 @@ async fn closed_loop(shared: &Arc<Shared>, connections: usize) {
 }
 
 /// Sends one frame and reads the whole answer.
-async fn send(client: &Client, url: &str, frame: &Frame) -> Outcome {
+async fn send(client: &Client, url: &str, frame: &LoadFrame) -> Outcome {
     let sent = client
         .post(url)
         .header(CONTENT_TYPE, frame.content_type)

@@ -37,7 +37,7 @@ use std::time::Duration;
 use report::SweepReport;
 use serde::{Deserialize, Serialize};
 
-pub use frames::{FrameSource, Frames};
+pub use frames::{Frames, LoadFrame, LoadSource};
 pub use stats::{Percentiles, Report};
 pub use target::Target;
 
@@ -107,10 +107,10 @@ pub struct LoadConfig {
     /// Time one request may take before it counts as a `timeout` error.
     pub timeout: Duration,
     /// The frames sent, cycled.
-    pub frames: FrameSource,
+    pub frames: LoadSource,
     /// Depth sent with each frame (files paired with the frames in order, or a folder of
     /// `.png`/`.npy`), as `tre client --depth` sends it.
-    pub depth: Option<FrameSource>,
+    pub depth: Option<LoadSource>,
     /// Send the depth alone, no image (the geometric mode's input).
     pub depth_only: bool,
     /// What every frame asks for.
@@ -205,7 +205,7 @@ impl Default for LoadConfig {
             requests: None,
             warmup: Duration::ZERO,
             timeout: Duration::from_secs(30),
-            frames: FrameSource::default(),
+            frames: LoadSource::default(),
             depth: None,
             depth_only: false,
             ask: Ask::default(),
@@ -216,38 +216,40 @@ impl Default for LoadConfig {
 impl LoadConfig {
     /// Checks the settings; the error names the bad one.
     pub fn validate(&self) -> Result<(), LoadError> {
-        let bad = |msg: String| Err(LoadError::Config(msg));
+        self.problem().map_or(Ok(()), |p| Err(LoadError::Config(p)))
+    }
+
+    /// The first setting out of its range, if any.
+    fn problem(&self) -> Option<LoadConfigProblem> {
         if let Load::Open { rate_per_s } = self.load {
             if !(rate_per_s.is_finite() && rate_per_s > 0.0) {
-                return bad(format!("rate: must be a positive number, got {rate_per_s}"));
+                return Some(LoadConfigProblem::Rate { rate_per_s });
             }
         }
         if self.connections == 0 {
-            return bad("connections: must be at least 1".into());
+            return Some(LoadConfigProblem::NoConnections);
         }
         if self.max_in_flight == 0 {
-            return bad("max-in-flight: must be at least 1".into());
+            return Some(LoadConfigProblem::NoInFlight);
         }
         if self.duration.is_none() && self.requests.is_none() {
-            return bad("give a duration, a number of requests or both".into());
+            return Some(LoadConfigProblem::NoEnd);
         }
         if self.duration.is_some_and(|d| d.is_zero()) || self.requests == Some(0) {
-            return bad("duration and requests: must be positive".into());
+            return Some(LoadConfigProblem::EmptyWindow);
         }
         if self.timeout.is_zero() {
-            return bad("timeout: must be positive".into());
+            return Some(LoadConfigProblem::NoTimeout);
         }
         if self.depth_only && self.depth.is_none() {
-            return bad("depth only: give the depth frames".into());
+            return Some(LoadConfigProblem::DepthOnlyWithoutDepth);
         }
         if self.protocol == Protocol::Ws && !self.ask.query.is_empty() {
-            return bad(format!(
-                "query {:?}: extra query parameters go to HTTP only; the stream takes the mode, \
-                 camera, sensor, normals, DSAC hypotheses and traversal options",
-                self.ask.query
-            ));
+            return Some(LoadConfigProblem::QueryOnStream {
+                query: self.ask.query.clone(),
+            });
         }
-        Ok(())
+        None
     }
 
     /// The frames of this run: images, depth and the camera as configured.
@@ -268,7 +270,7 @@ impl LoadConfig {
 /// The `Authorization: Bearer KEY` value of `key`, marked sensitive (kept out of debug output).
 pub(crate) fn bearer(key: &str) -> Result<reqwest::header::HeaderValue, LoadError> {
     let mut v = reqwest::header::HeaderValue::from_str(&format!("Bearer {key}"))
-        .map_err(|_| LoadError::Config("--api-key: not a valid header value".into()))?;
+        .map_err(|_| LoadError::Config(LoadConfigProblem::ApiKey))?;
     v.set_sensitive(true);
     Ok(v)
 }
@@ -277,8 +279,14 @@ pub(crate) fn bearer(key: &str) -> Result<reqwest::header::HeaderValue, LoadErro
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
     /// A bad setting.
-    #[error("{0}")]
-    Config(String),
+    #[error(transparent)]
+    Config(LoadConfigProblem),
+    /// The TLS configuration (`--ca-cert`) cannot be built.
+    #[error(transparent)]
+    Tls(#[from] tre_client::tls::TlsError),
+    /// The synthetic frame cannot be encoded.
+    #[error("synthetic frame: {0}")]
+    Synthetic(image::ImageError),
     /// The URL does not parse or is not `http(s)://` / `ws(s)://`.
     #[error("url {url:?}: {why}")]
     Url {
@@ -340,6 +348,74 @@ pub enum LoadError {
     },
 }
 
+/// A setting of a load test out of its range, or settings that do not go together; the
+/// message names the setting as the `tre loadtest` option spells it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LoadConfigProblem {
+    /// An open-loop rate that is not a positive number.
+    #[error("rate: must be a positive number, got {rate_per_s}")]
+    Rate {
+        /// The rate given, requests a second.
+        rate_per_s: f64,
+    },
+    /// No connection.
+    #[error("connections: must be at least 1")]
+    NoConnections,
+    /// No request may be outstanding.
+    #[error("max-in-flight: must be at least 1")]
+    NoInFlight,
+    /// Neither a duration nor a number of requests: the run would not end.
+    #[error("give a duration, a number of requests or both")]
+    NoEnd,
+    /// A duration or number of requests of 0.
+    #[error("duration and requests: must be positive")]
+    EmptyWindow,
+    /// A request timeout of 0.
+    #[error("timeout: must be positive")]
+    NoTimeout,
+    /// Depth alone, without depth frames.
+    #[error("depth only: give the depth frames")]
+    DepthOnlyWithoutDepth,
+    /// Extra query parameters for the stream, which has no query.
+    #[error(
+        "query {query:?}: extra query parameters go to HTTP only; the stream takes the mode, \
+         camera, sensor, normals, DSAC hypotheses and traversal options"
+    )]
+    QueryOnStream {
+        /// The parameters given.
+        query: String,
+    },
+    /// An API key that cannot be a header value.
+    #[error("--api-key: not a valid header value")]
+    ApiKey,
+    /// A sweep without rates.
+    #[error("sweep: give at least one rate")]
+    NoRates,
+    /// A sweep's latency objective that is not positive.
+    #[error("slo-ms: must be positive, got {slo_ms}")]
+    Slo {
+        /// The objective given, milliseconds.
+        slo_ms: f64,
+    },
+    /// Synthetic depth, which the load tester does not render.
+    #[error("depth: give depth files or a folder of them")]
+    SyntheticDepth,
+    /// Image and depth files that do not pair up.
+    #[error("{images} images but {depths} depth frames: give one depth frame per image")]
+    DepthCount {
+        /// Images given.
+        images: usize,
+        /// Depth frames given.
+        depths: usize,
+    },
+    /// A synthetic frame of no pixels, or of more than 16 million.
+    #[error("synthetic frame: size {}×{} out of range", size.0, size.1)]
+    SyntheticSize {
+        /// The size asked for, `(width, height)`.
+        size: (usize, usize),
+    },
+}
+
 /// Runs one load test as `cfg` says and reports on its measured window.
 pub async fn run(cfg: &LoadConfig) -> Result<Report, LoadError> {
     cfg.validate()?;
@@ -372,12 +448,10 @@ pub async fn sweep(
     mut progress: impl FnMut(&Report),
 ) -> Result<SweepReport, LoadError> {
     if rates_per_s.is_empty() {
-        return Err(LoadError::Config("sweep: give at least one rate".into()));
+        return Err(LoadError::Config(LoadConfigProblem::NoRates));
     }
     if !(slo_ms.is_finite() && slo_ms > 0.0) {
-        return Err(LoadError::Config(format!(
-            "slo-ms: must be positive, got {slo_ms}"
-        )));
+        return Err(LoadError::Config(LoadConfigProblem::Slo { slo_ms }));
     }
     let mut rates = rates_per_s.to_vec();
     rates.sort_by(f64::total_cmp);

@@ -170,10 +170,9 @@ pub(super) async fn drive(
     frames: &Frames,
 ) -> Result<Report, LoadError> {
     let tls = match target.tls {
-        true => Some(
-            tre_client::tls::client_config(cfg.ca_cert.as_deref())
-                .map_err(|e| LoadError::Config(e.to_string()))?,
-        ),
+        true => {
+            Some(tre_client::tls::client_config(cfg.ca_cert.as_deref()).map_err(LoadError::Tls)?)
+        }
         false => None,
     };
     let mut sockets = Vec::with_capacity(cfg.connections);

@@ -6,7 +6,7 @@ use ndarray::Array4;
 use super::normals::NetInputs;
 use super::tensors::{vectors_from_tensor_into, vectors_tensor};
 use super::{PipelineError, Traversability};
-use tre_core::geometry::gravity::slope_from_up;
+use tre_core::geometry::slope_from_up;
 use tre_core::geometry::{Grid, PointMap, Vec3};
 use tre_model::Models;
 

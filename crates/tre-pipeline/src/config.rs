@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::PipelineError;
-use tre_core::geometry::Neighbourhood;
+use tre_core::geometry::normals::Neighbourhood;
 
 // The choices are defined once, with their string forms, beside the geometry: the client and
 // the CLI share them without depending on this crate.

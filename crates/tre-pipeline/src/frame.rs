@@ -11,11 +11,11 @@ use super::resize::{resize_nearest, resize_nearest_reusing};
 use super::spares::Spares;
 use super::{Mode, PipelineError, Traversability};
 use tre_core::geometry::{Grid, Intrinsics, Mounting, PointMap, Vec3, INVALID_POINT};
+use tre_core::roughness::annotate::AnnotateConfig;
 use tre_core::roughness::annotate::{boundary_mask, segment};
 use tre_core::roughness::interval::{self, IntervalTable, SecondAxis};
 use tre_core::roughness::noise::{uncertainty_map, SensorNoise};
 use tre_core::roughness::traversal::{ThreeStateRule, Traversal};
-use tre_core::roughness::AnnotateConfig;
 
 /// Horizontal field of view assumed when a frame comes without intrinsics, degrees.
 pub const DEFAULT_HFOV_DEG: f64 = 60.0;

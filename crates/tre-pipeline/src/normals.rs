@@ -7,7 +7,11 @@ use super::tensors::{vectors_from_tensor_into, vectors_tensor};
 use super::PipelineError;
 use tre_core::geometry::dsac::{dsac_normals_into, DsacScratch};
 use tre_core::geometry::normals::{local_planes_into, PackedPoints};
-use tre_core::geometry::{DsacConfig, Grid, LocalPlanes, Neighbourhood, PointMap, Vec3};
+use tre_core::geometry::{
+    dsac::DsacConfig,
+    normals::{LocalPlanes, Neighbourhood},
+    Grid, PointMap, Vec3,
+};
 use tre_model::Models;
 
 /// Initial normals and, for LS, the window centroids that came with them for free.

@@ -21,10 +21,12 @@ use super::{
 use tre_core::geometry::dsac::DsacScratch;
 use tre_core::geometry::floor::{fit_floor, FloorFitConfig};
 use tre_core::geometry::normals::{window_centroids_into, PackedPoints};
-use tre_core::geometry::{DsacConfig, Grid, Intrinsics, LocalPlanes, PointMap, Vec3};
+use tre_core::geometry::{
+    dsac::DsacConfig, normals::LocalPlanes, Grid, Intrinsics, PointMap, Vec3,
+};
+use tre_core::roughness::annotate::AnnotateConfig;
 use tre_core::roughness::annotate::{spec_roughness_into, surface_term_into, SpecMaps, SpecPlanes};
 use tre_core::roughness::interval::{Calibration, IntervalTable};
-use tre_core::roughness::AnnotateConfig;
 use tre_model::Models;
 
 /// A frame's gravity: its stated mounting, else (with sensor depth) a confident fit of the

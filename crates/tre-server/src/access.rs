@@ -17,7 +17,7 @@ use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 
-use super::error::{ApiError, Refused};
+use super::error::{ApiError, Refused, RequestError};
 use super::AppState;
 use tre_proto::ErrorCode;
 
@@ -50,17 +50,16 @@ pub(crate) async fn guard(
     let cross = origin.as_deref().filter(|o| !same_origin(o, req.headers()));
     let open = OPEN_PATHS.contains(&path.as_str());
     let mut resp = if let Some(o) = cross.filter(|o| !open && !allowed(&app, o)) {
-        let e = ApiError::new(
-            ErrorCode::Forbidden,
-            format!("origin {o:?} is not allowed (--allow-origin)"),
-        );
+        let e = ApiError::from(RequestError::OriginNotAllowed {
+            origin: o.to_owned(),
+        });
         drain(&app, req).await;
         e.into_response()
     } else if cross.is_some() && is_preflight(&req) {
         preflight()
     } else if let Err(e) = check_key(&app, req.headers(), open) {
         drain(&app, req).await;
-        e.into_response()
+        ApiError::from(e).into_response()
     } else {
         req.extensions_mut().insert(RequestId(id.clone()));
         next.run(req).await
@@ -174,7 +173,7 @@ fn preflight() -> Response {
 }
 
 /// With `--api-key`, the request must carry `Authorization: Bearer KEY` (open paths excepted).
-fn check_key(app: &AppState, headers: &HeaderMap, open: bool) -> Result<(), ApiError> {
+fn check_key(app: &AppState, headers: &HeaderMap, open: bool) -> Result<(), RequestError> {
     let Some(key) = app.cfg.api_key.as_deref() else {
         return Ok(());
     };
@@ -189,15 +188,9 @@ fn check_key(app: &AppState, headers: &HeaderMap, open: bool) -> Result<(), ApiE
             scheme.eq_ignore_ascii_case("bearer").then(|| token.trim())
         });
     match given {
-        None => Err(ApiError::new(
-            ErrorCode::Unauthorized,
-            "this server wants an API key: send `Authorization: Bearer KEY`",
-        )),
+        None => Err(RequestError::NoApiKey),
         Some(token) if equal_in_constant_time(token.as_bytes(), key.as_bytes()) => Ok(()),
-        Some(_) => Err(ApiError::new(
-            ErrorCode::Unauthorized,
-            "the API key is not this server's",
-        )),
+        Some(_) => Err(RequestError::WrongApiKey),
     }
 }
 

@@ -42,13 +42,12 @@ use hyper_util::service::TowerToHyperService;
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
-use super::error::ApiError;
+use super::error::{ApiError, RequestError};
 use super::metrics::Metrics;
 use super::pace::ReadBytes;
 use super::refusals::RefusalLog;
 use super::stall::Stall;
 use super::watched::{Watch, Watched, WriteOp};
-use tre_proto::ErrorCode;
 
 /// What a client may hold without doing anything.
 #[derive(Debug, Clone, Copy)]
@@ -73,7 +72,11 @@ fn refuse_router(limits: ConnectionLimits) -> Router {
             let mut body = req.into_body();
             let declared = usize::try_from(body.size_hint().lower()).unwrap_or(usize::MAX);
             // A body declared larger than the limit is not read: the answer goes at once.
-            let mut seen = if declared > limits.drain_bytes { declared } else { 0 };
+            let mut seen = if declared > limits.drain_bytes {
+                declared
+            } else {
+                0
+            };
             while seen <= limits.drain_bytes {
                 match body.frame().await {
                     Some(Ok(frame)) => {
@@ -85,13 +88,9 @@ fn refuse_router(limits: ConnectionLimits) -> Router {
             }
         };
         let _ = tokio::time::timeout(limits.header_read, drain).await;
-        ApiError::new(
-            ErrorCode::Overloaded,
-            format!(
-                "the server holds its limit of {} open connections (--max-connections); retry later",
-                limits.max_open
-            ),
-        )
+        ApiError::from(RequestError::TooManyConnections {
+            max_open: limits.max_open,
+        })
     })
 }
 

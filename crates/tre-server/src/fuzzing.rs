@@ -8,7 +8,9 @@ use axum::body::Bytes;
 use super::error::ApiError;
 use super::http::{check_shapes, parse_body};
 use super::proto::{decode_client, Incoming, StreamSettings};
-use super::request::{decode_depth, decode_frame, decode_image, strict_camera, DecodeLimits};
+use super::request::{
+    decode_depth, decode_frame, decode_image, strict_camera, DecodeLimits, ImagePart,
+};
 use tre_io::npy;
 use tre_pipeline::FrameInput;
 use tre_proto::ErrorCode;
@@ -22,7 +24,8 @@ pub fn limits() -> DecodeLimits {
 }
 
 /// A refusal must be a client error with a message, whatever the bytes; `false`.
-fn refused(what: &str, e: &ApiError) -> bool {
+fn refused(what: &str, e: impl Into<ApiError>) -> bool {
+    let e = e.into();
     assert!(
         e.code != ErrorCode::Internal && (400..500).contains(&e.code.http_status()),
         "{what}: bytes from a client gave {:?}: {}",
@@ -45,9 +48,9 @@ fn within(what: &str, (w, h): (usize, usize)) -> bool {
 
 /// An image part (PNG or JPEG): the header-shape check, then decoding.
 pub fn image(data: &[u8]) -> bool {
-    match decode_image("rgb", data, limits()) {
+    match decode_image(ImagePart::Rgb, data, limits()) {
         Ok(img) => within("image", (img.width() as usize, img.height() as usize)),
-        Err(e) => refused("image", &e),
+        Err(e) => refused("image", e),
     }
 }
 
@@ -55,7 +58,7 @@ pub fn image(data: &[u8]) -> bool {
 pub fn depth(data: &[u8]) -> bool {
     match decode_depth(data, 1000.0, limits()) {
         Ok(d) => within("depth", d.size()),
-        Err(e) => refused("depth", &e),
+        Err(e) => refused("depth", e),
     }
 }
 
@@ -80,7 +83,7 @@ pub fn camera(data: &[u8]) -> bool {
             );
             true
         }
-        Err(e) => refused("camera", &e),
+        Err(e) => refused("camera", e),
     }
 }
 
@@ -88,7 +91,7 @@ pub fn camera(data: &[u8]) -> bool {
 fn frame(what: &str, req: &super::request::FrameRequest) -> bool {
     match decode_frame(req, limits()) {
         Ok(input) => frame_within(what, &input),
-        Err(e) => refused(what, &e),
+        Err(e) => refused(what, e),
     }
 }
 
@@ -112,7 +115,7 @@ pub fn multipart(data: &[u8]) -> bool {
     let parsed = runtime.block_on(parse_body(MULTIPART_TYPE, body, limits()));
     let req = match parsed.and_then(|req| check_shapes(&req, limits()).map(|()| req)) {
         Ok(req) => req,
-        Err(e) => return refused("multipart", &e),
+        Err(e) => return refused("multipart", e),
     };
     frame("multipart", &req)
 }
@@ -122,7 +125,7 @@ pub fn stream(data: &[u8]) -> bool {
     match decode_client(data) {
         Ok(Incoming::Hello(_)) => true,
         Ok(Incoming::Frame(f)) => frame("stream", &f.into_request(&StreamSettings::default())),
-        Err((_, e)) => refused("stream", &e),
+        Err((_, e)) => refused("stream", e),
     }
 }
 

@@ -10,19 +10,16 @@ use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use http_body_util::BodyExt;
 
-use super::error::ApiError;
+use super::error::{ApiError, ImagePart, RequestError};
 use super::metrics::Gauges;
 use super::openapi::{Binary, ErrorResponse, Guarded, JsonObject, RoughnessForm};
+use super::options::Format;
 use super::query::RoughnessQuery;
 use super::request::{
-    image_header, strict_camera, DecodeLimits, Format, FrameReply, FrameRequest, SCALE_M,
+    image_header, strict_camera, DecodeLimits, FrameReply, FrameRequest, SCALE_M,
 };
 use super::{AppState, OVERSIZE_READ_FACTOR};
 use tre_proto::ErrorCode;
-
-fn bad(msg: impl Into<String>) -> ApiError {
-    ApiError::new(ErrorCode::BadRequest, msg)
-}
 
 /// `POST /v1/roughness`.
 #[utoipa::path(
@@ -96,40 +93,31 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
         None => Ok(RoughnessQuery::default()),
         Some(q) => Query::<RoughnessQuery>::try_from_uri(req.uri())
             .map(|Query(q)| q)
-            .map_err(|e| bad(format!("query {q:?}: {}", e.body_text()))),
+            .map_err(|rejection| RequestError::Query {
+                query: q.to_owned(),
+                rejection,
+            }),
     };
     // The body is read before a bad query is answered: a client still sending it would
     // otherwise meet a closed connection instead of the error.
     let mut frame = tokio::time::timeout(body_timeout, read_body(app, req))
         .await
-        .map_err(|_| {
-            ApiError::new(
-                ErrorCode::RequestTimeout,
-                format!(
-                    "the body did not arrive within {} ms (--body-timeout-ms)",
-                    body_timeout.as_millis()
-                ),
-            )
+        .map_err(|_| RequestError::BodyTimeout {
+            timeout: body_timeout,
         })??;
     let timeout = app.cfg.request_timeout;
     let deadline = tokio::time::Instant::now() + timeout;
-    let _permit = app.concurrency.clone().try_acquire_owned().map_err(|_| {
-        ApiError::new(
-            ErrorCode::TooManyRequests,
-            format!(
-                "more than {} requests at once (--max-concurrent); retry later",
-                app.cfg.max_concurrent
-            ),
-        )
-    })?;
+    let _permit =
+        app.concurrency
+            .clone()
+            .try_acquire_owned()
+            .map_err(|_| RequestError::TooManyRequests {
+                max_concurrent: app.cfg.max_concurrent,
+            })?;
     let query = query?;
     frame.options = query.options()?;
     match (&frame.camera, query.camera(app.cfg.decode_limits())?) {
-        (Some(_), Some(_)) => {
-            return Err(bad(
-                "the camera is given both in the query and as a multipart part; give it once",
-            ))
-        }
+        (Some(_), Some(_)) => return Err(RequestError::CameraTwice.into()),
         (None, from_query) => frame.camera = from_query,
         (Some(_), None) => {}
     }
@@ -137,36 +125,25 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
     let rx = app.workers.submit(frame)?;
     match tokio::time::timeout_at(deadline, rx).await {
         Ok(Ok((result, _queued))) => result,
-        Ok(Err(_)) => Err(ApiError::new(
-            ErrorCode::Internal,
-            "the worker stopped before answering",
-        )),
-        Err(_) => Err(ApiError::new(
-            ErrorCode::Timeout,
-            format!(
-                "no answer within {} ms of the body's arrival (--request-timeout-ms)",
-                timeout.as_millis()
-            ),
-        )),
+        Ok(Err(_)) => Err(RequestError::WorkerStopped.into()),
+        Err(_) => Err(RequestError::Timeout { timeout }.into()),
     }
 }
 
 /// The images' shapes from their headers, before the frame takes a place in the queue: a
 /// frame beyond the limits is refused at once rather than when a worker reaches it. (The
 /// worker checks again, and checks `.npy` depth, whose shape comes with its parsing.)
-pub(crate) fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result<(), ApiError> {
+pub(crate) fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result<(), RequestError> {
     if let Some(rgb) = &frame.rgb {
-        image_header("rgb", rgb, limits)?;
+        image_header(ImagePart::Rgb, rgb, limits)?;
     }
     if let Some(depth) = frame
         .depth
         .as_ref()
         .filter(|d| !d.starts_with(b"\x93NUMPY"))
     {
-        match image_header("depth", depth, limits) {
-            Err(e) if e.code == ErrorCode::TooLarge || e.message.contains("(--max-") => {
-                return Err(e)
-            }
+        match image_header(ImagePart::Depth, depth, limits) {
+            Err(e) if e.is_over_limit() => return Err(e),
             // Other depth errors are answered by the worker, saying what depth may be.
             _ => {}
         }
@@ -176,7 +153,7 @@ pub(crate) fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result
 
 /// Reads the body within the byte limit: a bare image, or multipart with `rgb`, `depth`,
 /// `camera`.
-async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, ApiError> {
+async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, RequestError> {
     let content_type = req
         .headers()
         .get(header::CONTENT_TYPE)
@@ -194,17 +171,17 @@ pub(crate) async fn parse_body(
     content_type: &str,
     bytes: Bytes,
     limits: DecodeLimits,
-) -> Result<FrameRequest, ApiError> {
+) -> Result<FrameRequest, RequestError> {
     // The boundary keeps its case (browsers' mix both); only the type is compared lowercase.
     let lower = content_type.to_ascii_lowercase();
     if lower.starts_with("multipart/form-data") {
         let req = Request::builder()
             .header(header::CONTENT_TYPE, content_type)
             .body(Body::from(bytes))
-            .map_err(|e| bad(format!("multipart: {e}")))?;
+            .map_err(RequestError::MultipartHeader)?;
         let multipart = Multipart::from_request(req, &())
             .await
-            .map_err(|e| bad(format!("multipart: {}", e.body_text())))?;
+            .map_err(RequestError::MultipartBoundary)?;
         return read_multipart(multipart, limits).await;
     }
     let image_type = [
@@ -216,10 +193,9 @@ pub(crate) async fn parse_body(
     ];
     let essence = lower.split(';').next().unwrap_or("").trim();
     if !image_type.contains(&essence) {
-        return Err(ApiError::new(
-            ErrorCode::UnsupportedMedia,
-            format!("Content-Type {essence:?}: send image/png, image/jpeg or multipart/form-data"),
-        ));
+        return Err(RequestError::ContentType {
+            essence: essence.to_owned(),
+        });
     }
     Ok(FrameRequest {
         rgb: Some(bytes.to_vec()),
@@ -230,17 +206,13 @@ pub(crate) async fn parse_body(
 /// The body, if it has at most `limit` bytes and arrives at `pace`; a 413 otherwise, once the
 /// rest has been read (up to [`OVERSIZE_READ_FACTOR`] × `limit`) and discarded, or at once when
 /// the declared length is beyond that; a 408 when it falls below the pace.
-async fn read_within(mut body: Body, limit: usize, mut pace: BodyPace) -> Result<Bytes, ApiError> {
+async fn read_within(
+    mut body: Body,
+    limit: usize,
+    mut pace: BodyPace,
+) -> Result<Bytes, RequestError> {
     let most = limit.saturating_mul(OVERSIZE_READ_FACTOR);
-    let too_large = || {
-        ApiError::new(
-            ErrorCode::TooLarge,
-            format!(
-                "the body is larger than the limit of {} (--max-body-bytes)",
-                tre_io::units::format_size(limit, "B")
-            ),
-        )
-    };
+    let too_large = || RequestError::BodyTooLarge { limit };
     // The declared length, if any, sizes the buffer once (never beyond the limit).
     let declared = usize::try_from(body.size_hint().lower()).unwrap_or(usize::MAX);
     if declared > most {
@@ -262,7 +234,7 @@ async fn read_within(mut body: Body, limit: usize, mut pace: BodyPace) -> Result
         let Some(frame) = next else {
             break;
         };
-        let frame = frame.map_err(|e| bad(format!("reading the body: {e}")))?;
+        let frame = frame.map_err(RequestError::ReadBody)?;
         let Ok(data) = frame.into_data() else {
             continue;
         };
@@ -311,7 +283,7 @@ impl BodyPace {
 
     /// Counts `n` bytes arrived at `now`; at the end of a window, a 408 if it held too few,
     /// else the next window starts.
-    fn check(&mut self, n: usize, now: tokio::time::Instant) -> Result<(), ApiError> {
+    fn check(&mut self, n: usize, now: tokio::time::Instant) -> Result<(), RequestError> {
         self.bytes = self.bytes.saturating_add(n);
         if self.deadline().is_none_or(|end| now < end) {
             return Ok(());
@@ -319,13 +291,11 @@ impl BodyPace {
         let secs = (now - self.since).as_secs_f64();
         let rate = self.bytes as f64 / secs;
         if rate < self.min_bytes_per_s as f64 {
-            return Err(ApiError::new(
-                ErrorCode::RequestTimeout,
-                format!(
-                    "the body arrived at {rate:.0} bytes/s over {secs:.1} s, below the minimum of {} bytes/s (--min-body-rate)",
-                    self.min_bytes_per_s
-                ),
-            ));
+            return Err(RequestError::BodyTooSlow {
+                rate,
+                secs,
+                min_bytes_per_s: self.min_bytes_per_s,
+            });
         }
         self.since = now;
         self.bytes = 0;
@@ -333,31 +303,26 @@ impl BodyPace {
     }
 }
 
-async fn read_multipart(mut m: Multipart, limits: DecodeLimits) -> Result<FrameRequest, ApiError> {
+async fn read_multipart(
+    mut m: Multipart,
+    limits: DecodeLimits,
+) -> Result<FrameRequest, RequestError> {
     let mut frame = FrameRequest::default();
-    while let Some(field) = m
-        .next_field()
-        .await
-        .map_err(|e| bad(format!("multipart: {}", e.body_text())))?
-    {
+    while let Some(field) = m.next_field().await.map_err(RequestError::Multipart)? {
         let name = field.name().unwrap_or("").to_owned();
-        let data = field
-            .bytes()
-            .await
-            .map_err(|e| bad(format!("multipart field {name:?}: {}", e.body_text())))?;
+        let data = match field.bytes().await {
+            Ok(data) => data,
+            Err(source) => return Err(RequestError::MultipartField { name, source }),
+        };
         match name.as_str() {
             "rgb" => set_once(&mut frame.rgb, &name, || Ok(data.to_vec()))?,
             "depth" => set_once(&mut frame.depth, &name, || Ok(data.to_vec()))?,
             "camera" => set_once(&mut frame.camera, &name, || strict_camera(&data, limits))?,
-            other => {
-                return Err(bad(format!(
-                    "multipart: unknown field {other:?} (rgb, depth, camera)"
-                )))
-            }
+            _ => return Err(RequestError::UnknownPart { name }),
         }
     }
     if frame.rgb.is_none() && frame.depth.is_none() {
-        return Err(bad("multipart: give an `rgb` part, a `depth` part or both"));
+        return Err(RequestError::NoImagePart);
     }
     Ok(frame)
 }
@@ -366,12 +331,12 @@ async fn read_multipart(mut m: Multipart, limits: DecodeLimits) -> Result<FrameR
 fn set_once<T>(
     slot: &mut Option<T>,
     name: &str,
-    value: impl FnOnce() -> Result<T, ApiError>,
-) -> Result<(), ApiError> {
+    value: impl FnOnce() -> Result<T, RequestError>,
+) -> Result<(), RequestError> {
     if slot.is_some() {
-        return Err(bad(format!(
-            "multipart: the {name:?} part is given twice; send each part once"
-        )));
+        return Err(RequestError::PartTwice {
+            name: name.to_owned(),
+        });
     }
     *slot = Some(value()?);
     Ok(())
@@ -474,8 +439,8 @@ fn reply_response(reply: FrameReply) -> Response {
 
 /// Any other path: a JSON 404.
 pub(crate) async fn not_found(uri: axum::http::Uri) -> Response {
-    let why = format!("no route {}; see /openapi.json", uri.path());
-    ApiError::new(ErrorCode::NotFound, why).into_response()
+    let path = uri.path().to_owned();
+    ApiError::from(RequestError::NoRoute { path }).into_response()
 }
 
 /// A known path with another method: a JSON 405.
@@ -483,11 +448,8 @@ pub(crate) async fn method_not_allowed(
     method: axum::http::Method,
     uri: axum::http::Uri,
 ) -> Response {
-    let why = format!(
-        "{method} is not allowed on {}; see /openapi.json",
-        uri.path()
-    );
-    ApiError::new(ErrorCode::MethodNotAllowed, why).into_response()
+    let path = uri.path().to_owned();
+    ApiError::from(RequestError::MethodNotAllowed { method, path }).into_response()
 }
 
 /// `GET /v1/streams/{id}/map`: the grid map of an open stream whose Hello asked for one.
@@ -523,16 +485,8 @@ pub(crate) async fn stream_map(
             )
                 .into_response()
         }
-        Some(None) => ApiError::new(
-            ErrorCode::NotFound,
-            format!("stream {id:?} keeps a map, but no frame has been fused into it yet"),
-        )
-        .into_response(),
-        None => ApiError::new(
-            ErrorCode::NotFound,
-            format!("no open stream {id:?} keeps a map (ask for one with Hello.map)"),
-        )
-        .into_response(),
+        Some(None) => ApiError::from(RequestError::EmptyStreamMap { stream: id }).into_response(),
+        None => ApiError::from(RequestError::NoStreamMap { stream: id }).into_response(),
     }
 }
 
@@ -573,11 +527,7 @@ pub(crate) async fn readyz(State(app): State<Arc<AppState>>) -> Response {
         )
             .into_response()
     } else {
-        ApiError::new(
-            ErrorCode::NotReady,
-            "models loading or warming up, or shutting down",
-        )
-        .into_response()
+        ApiError::from(RequestError::NotReady).into_response()
     }
 }
 

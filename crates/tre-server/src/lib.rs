@@ -48,6 +48,7 @@ use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
 pub use config::{ConfigError, MIN_API_KEY_CHARS};
+pub use error::RequestError;
 pub use signal::{serve_until_signal, shutdown_signal};
 
 use metrics::Metrics;

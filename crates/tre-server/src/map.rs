@@ -5,6 +5,7 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError, Weak};
 
+use super::error::RequestError;
 use tre_core::geometry::{Intrinsics, Vec3};
 use tre_core::map::{GridMap, MapConfig, MapFrame, MapLimits, Pose, LAYER_NAMES, LAYER_UNITS};
 use tre_core::roughness::noise::SensorNoise;
@@ -196,17 +197,17 @@ impl SessionMap {
 
 /// The map settings of a Hello's `map`, checked: a cell of 1 mm to 1 m, 1 to 1,000 cells a
 /// side, a finite non-negative rate, gravity of 3 finite values if given.
-pub(crate) fn settings_from_pb(m: &pb::MapSettings) -> Result<MapSettings, String> {
+pub(crate) fn settings_from_pb(m: &pb::MapSettings) -> Result<MapSettings, RequestError> {
     let cell_m = if m.cell_m == 0.0 { 0.04 } else { m.cell_m };
     let side = if m.side == 0 { 200 } else { m.side as usize };
     if !(cell_m.is_finite() && (0.001..=1.0).contains(&cell_m)) {
-        return Err(format!("hello.map.cell_m: {cell_m} is outside 0.001–1 m"));
+        return Err(RequestError::MapCellSize { cell_m });
     }
     if side > 1000 {
-        return Err(format!("hello.map.side: {side} is more than 1000 cells"));
+        return Err(RequestError::MapSide { side });
     }
     if !(m.send_hz.is_finite() && m.send_hz >= 0.0) {
-        return Err(format!("hello.map.send_hz: {} is not a rate", m.send_hz));
+        return Err(RequestError::MapSendRate { send_hz: m.send_hz });
     }
     let gravity = match m.gravity.as_slice() {
         [] => None,
@@ -214,9 +215,9 @@ pub(crate) fn settings_from_pb(m: &pb::MapSettings) -> Result<MapSettings, Strin
             Some(Vec3::new(x, y, z))
         }
         other => {
-            return Err(format!(
-                "hello.map.gravity: expected 3 finite values, not all 0, got {other:?}"
-            ))
+            return Err(RequestError::MapGravity {
+                gravity: other.to_vec(),
+            })
         }
     };
     Ok(MapSettings {

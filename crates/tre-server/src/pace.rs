@@ -73,18 +73,6 @@ pub(crate) struct TooSlow {
     pub min_bytes_per_s: u64,
 }
 
-impl std::fmt::Display for TooSlow {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "a message arrived at {:.0} bytes/s over {:.1} s, below the minimum of {} bytes/s (--min-body-rate); closed with 1008",
-            self.bytes as f64 / self.secs.max(1e-9),
-            self.secs,
-            self.min_bytes_per_s
-        )
-    }
-}
-
 impl MessagePace {
     /// The pace of a stream whose connection reads through `read`, from `now`;
     /// `min_bytes_per_s` 0: none.

@@ -3,16 +3,16 @@
 
 use prost::Message;
 
-use super::error::ApiError;
+use super::error::{ApiError, RequestError};
 use super::map::{settings_from_pb, MapSettings};
-use super::request::{FrameOptions, FrameReply, FrameRequest, SCALE_M};
+use super::options::FrameOptions;
+use super::request::{FrameReply, FrameRequest, SCALE_M};
 use tre_core::kinds::StreamFormat;
 use tre_core::map::Pose;
-use tre_core::roughness::noise::{SensorNoise, SensorPreset};
+use tre_core::roughness::noise::SensorNoise;
 use tre_io::{CameraFile, SensorSpec};
 use tre_pipeline::{check_dsac_hypotheses, Traversability};
 use tre_proto::v1 as pb;
-use tre_proto::ErrorCode;
 
 /// A stream's settings from its Hello.
 #[derive(Debug, Clone, Default)]
@@ -64,29 +64,24 @@ pub(crate) enum Incoming {
     Frame(StreamFrame),
 }
 
-fn bad(field: &str, why: impl std::fmt::Display) -> ApiError {
-    ApiError::new(ErrorCode::BadRequest, format!("{field}: {why}"))
-}
-
 /// The camera message's sensor: coefficients when given, else the name (a preset, or a
 /// description).
-fn sensor_from_pb(name: Option<String>, sigma_mm: &[f64]) -> Result<Option<SensorSpec>, ApiError> {
-    let bad_camera = |why: String| ApiError::new(ErrorCode::BadCamera, why);
+fn sensor_from_pb(
+    name: Option<String>,
+    sigma_mm: &[f64],
+) -> Result<Option<SensorSpec>, RequestError> {
     match (sigma_mm, name) {
         ([], None) => Ok(None),
         ([], Some(n)) => Ok(Some(SensorSpec::from_json(n.into())?)),
         (&[a, b, c], _) => SensorNoise::coefficients([a, b, c])
             .map(|m| Some(SensorSpec::Model(m)))
-            .map_err(|e| bad_camera(format!("camera.{e}"))),
-        (other, _) => Err(bad_camera(format!(
-            "camera.sensor_sigma_mm: give exactly three coefficients [a, b, c], got {}",
-            other.len()
-        ))),
+            .map_err(RequestError::SensorCoefficients),
+        (other, _) => Err(RequestError::SensorCoefficientCount { given: other.len() }),
     }
 }
 
 /// A stream message's camera as the camera file it stands for (the same checks as a file).
-fn camera_from_pb(c: pb::Camera) -> Result<CameraFile, ApiError> {
+fn camera_from_pb(c: pb::Camera) -> Result<CameraFile, RequestError> {
     let cam = CameraFile {
         fx: c.fx,
         fy: c.fy,
@@ -99,9 +94,8 @@ fn camera_from_pb(c: pb::Camera) -> Result<CameraFile, ApiError> {
         height_m: c.height_m,
         sensor: sensor_from_pb(c.sensor, &c.sensor_sigma_mm)?,
     };
-    let camera = |e| ApiError::new(ErrorCode::BadCamera, format!("camera: {e}"));
-    cam.intrinsics().map_err(camera)?;
-    cam.mounting().map_err(camera)?;
+    cam.intrinsics().map_err(RequestError::Camera)?;
+    cam.mounting().map_err(RequestError::Camera)?;
     // The stated size is checked against each frame's; the side limit is the frame's.
     let ranges = super::request::DecodeLimits {
         max_side: usize::MAX,
@@ -109,10 +103,7 @@ fn camera_from_pb(c: pb::Camera) -> Result<CameraFile, ApiError> {
     };
     super::request::check_camera_ranges(&cam, ranges)?;
     if let Some(s) = cam.depth_scale.filter(|s| !(s.is_finite() && *s > 0.0)) {
-        return Err(ApiError::new(
-            ErrorCode::BadCamera,
-            format!("camera.depth_scale: must be positive, got {s}"),
-        ));
+        return Err(RequestError::MessageDepthScale { scale: s });
     }
     Ok(cam)
 }
@@ -123,7 +114,7 @@ fn hello_map(
     map: Option<&pb::MapSettings>,
     sensor: Option<&SensorNoise>,
     camera: Option<&CameraFile>,
-) -> Result<Option<MapSettings>, ApiError> {
+) -> Result<Option<MapSettings>, RequestError> {
     let Some(m) = map else {
         return Ok(None);
     };
@@ -131,22 +122,16 @@ fn hello_map(
         .and_then(|c| c.sensor.as_ref())
         .and_then(SensorSpec::noise);
     if sensor.is_none() && camera_model.is_none() {
-        return Err(bad(
-            "hello.map",
-            "the map's height variance needs a sensor noise model: the camera's sensor or \
-             hello.sensor",
-        ));
+        return Err(RequestError::MapWithoutSensor);
     }
-    settings_from_pb(m)
-        .map(Some)
-        .map_err(|e| ApiError::new(ErrorCode::BadRequest, e))
+    settings_from_pb(m).map(Some)
 }
 
 impl TryFrom<pb::Hello> for StreamSettings {
-    type Error = ApiError;
+    type Error = RequestError;
 
-    fn try_from(h: pb::Hello) -> Result<Self, ApiError> {
-        let unknown = |field: &str, v: i32| bad(field, format!("unknown value {v}"));
+    fn try_from(h: pb::Hello) -> Result<Self, RequestError> {
+        let unknown = |field, value| RequestError::UnknownValue { field, value };
         let mode = pb::Mode::try_from(h.mode).map_err(|_| unknown("hello.mode", h.mode))?;
         let format =
             pb::Format::try_from(h.format).map_err(|_| unknown("hello.format", h.format))?;
@@ -156,28 +141,19 @@ impl TryFrom<pb::Hello> for StreamSettings {
             0 => None,
             k => Some(
                 check_dsac_hypotheses(k)
-                    .map_err(|e| bad("hello.dsac_hypotheses", e.to_string()))?,
+                    .map_err(|e| RequestError::HelloDsacHypotheses(Box::new(e)))?,
             ),
         };
         if let Some(m) = h.preview_max_m.filter(|m| !(m.is_finite() && *m > 0.0)) {
-            return Err(bad(
-                "hello.preview_max_m",
-                format!("must be positive, got {m}"),
-            ));
+            return Err(RequestError::HelloPreviewMax { m });
         }
         let sensor = match sensor_from_pb(h.sensor, &h.sensor_sigma_mm) {
             Ok(None) => None,
             Ok(Some(SensorSpec::Model(m))) => Some(m),
-            Ok(Some(SensorSpec::Description(d))) => {
-                return Err(bad(
-                    "hello.sensor",
-                    format!(
-                        "{d:?} names no noise model; one of {}",
-                        SensorPreset::names()
-                    ),
-                ))
+            Ok(Some(SensorSpec::Description(name))) => {
+                return Err(RequestError::HelloSensorDescription { name })
             }
-            Err(e) => return Err(bad("hello.sensor", e.message)),
+            Err(e) => return Err(RequestError::HelloSensor(Box::new(e))),
         };
         let camera = h.camera.map(camera_from_pb).transpose()?;
         let map = hello_map(h.map.as_ref(), sensor.as_ref(), camera.as_ref())?;
@@ -196,7 +172,7 @@ impl TryFrom<pb::Hello> for StreamSettings {
                 traversal_bytes: h.want_traversal,
                 uncertainty_f32: h.want_uncertainty,
                 traversability: Traversability::from_cm_deg(h.max_roughness_cm, h.max_slope_deg)
-                    .map_err(|e| ApiError::new(ErrorCode::BadRequest, format!("hello.{e}")))?,
+                    .map_err(RequestError::HelloTraversability)?,
                 ..FrameOptions::default()
             },
         })
@@ -204,23 +180,15 @@ impl TryFrom<pb::Hello> for StreamSettings {
 }
 
 impl TryFrom<pb::Frame> for StreamFrame {
-    type Error = ApiError;
+    type Error = RequestError;
 
-    fn try_from(f: pb::Frame) -> Result<Self, ApiError> {
+    fn try_from(f: pb::Frame) -> Result<Self, RequestError> {
         if f.image.is_empty() && f.depth.is_empty() {
-            return Err(ApiError::new(
-                ErrorCode::BadRequest,
-                "frame: neither image nor depth is set",
-            ));
+            return Err(RequestError::EmptyFrame);
         }
         let pose = match f.pose.as_slice() {
             [] => None,
-            v => Some(Pose::from_row_major(v).map_err(|e| {
-                ApiError::new(
-                    ErrorCode::BadRequest,
-                    format!("frame.pose: {e}; 16 values, a 4×4 camera-to-world matrix row by row"),
-                )
-            })?),
+            v => Some(Pose::from_row_major(v).map_err(RequestError::Pose)?),
         };
         Ok(Self {
             sequence: f.sequence,
@@ -235,13 +203,8 @@ impl TryFrom<pb::Frame> for StreamFrame {
 
 /// Decodes one binary WebSocket message from a client. The error carries the frame's sequence
 /// number when the message was a frame.
-pub(crate) fn decode_client(bytes: &[u8]) -> Result<Incoming, (Option<u64>, ApiError)> {
-    let msg = pb::ClientMessage::decode(bytes).map_err(|e| {
-        (
-            None,
-            bad("message", format!("not a roughness.v1.ClientMessage: {e}")),
-        )
-    })?;
+pub(crate) fn decode_client(bytes: &[u8]) -> Result<Incoming, (Option<u64>, RequestError)> {
+    let msg = pb::ClientMessage::decode(bytes).map_err(|e| (None, RequestError::NotAMessage(e)))?;
     match msg.msg {
         Some(pb::client_message::Msg::Hello(h)) => StreamSettings::try_from(h)
             .map(Incoming::Hello)
@@ -252,10 +215,7 @@ pub(crate) fn decode_client(bytes: &[u8]) -> Result<Incoming, (Option<u64>, ApiE
                 .map(Incoming::Frame)
                 .map_err(|e| (Some(seq), e))
         }
-        None => Err((
-            None,
-            bad("message", "empty ClientMessage (neither hello nor frame)"),
-        )),
+        None => Err((None, RequestError::EmptyMessage)),
     }
 }
 
@@ -370,6 +330,7 @@ pub(crate) fn result(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use tre_proto::ErrorCode;
 
     #[test]
     fn the_sequence_of_a_frame_is_read_without_decoding_it() {
@@ -406,7 +367,7 @@ mod tests {
     #[test]
     fn garbage_is_a_bad_request() {
         let (seq, e) = decode_client(&[0xFF, 0xFF, 0xFF, 0x01, 0x02]).unwrap_err();
-        assert_eq!((seq, e.code), (None, ErrorCode::BadRequest));
+        assert_eq!((seq, e.code()), (None, ErrorCode::BadRequest));
     }
 
     #[test]
@@ -424,8 +385,8 @@ mod tests {
             })),
         };
         let (_, e) = decode_client(&hello.encode_to_vec()).unwrap_err();
-        assert_eq!(e.code, ErrorCode::BadCamera);
-        assert!(e.message.starts_with("camera"), "{}", e.message);
+        assert_eq!(e.code(), ErrorCode::BadCamera);
+        assert!(e.to_string().starts_with("camera"), "{e}");
     }
 
     #[test]
@@ -437,6 +398,6 @@ mod tests {
             })),
         };
         let (seq, e) = decode_client(&frame.encode_to_vec()).unwrap_err();
-        assert_eq!((seq, e.code), (Some(9), ErrorCode::BadRequest));
+        assert_eq!((seq, e.code()), (Some(9), ErrorCode::BadRequest));
     }
 }

@@ -11,12 +11,12 @@ use utoipa::openapi::schema::{ObjectBuilder, Schema, Type};
 use utoipa::openapi::RefOr;
 use utoipa::{IntoParams, PartialSchema, ToSchema};
 
-use super::error::ApiError;
-use super::request::{check_camera_ranges, DecodeLimits, Extras, Format, FrameOptions, OutputMap};
+use super::error::RequestError;
+use super::options::{Extras, Format, FrameOptions, OutputMap};
+use super::request::{check_camera_ranges, DecodeLimits};
 use tre_core::kinds::{names, parse_choice, Mode, NormalsMethod};
 use tre_io::CameraFile;
 use tre_pipeline::{check_dsac_hypotheses, Traversability, MAX_DSAC_HYPOTHESES};
-use tre_proto::ErrorCode;
 
 /// Query of `POST /v1/roughness`.
 #[derive(Debug, Default, Deserialize, IntoParams)]
@@ -146,24 +146,20 @@ impl PartialSchema for DsacHypothesesParam {
 
 impl ToSchema for DsacHypothesesParam {}
 
-fn bad(msg: impl Into<String>) -> ApiError {
-    ApiError::new(ErrorCode::BadRequest, msg)
-}
-
 /// `value`, when given, as a choice of `E` (400 `bad_request` naming `field` otherwise).
-fn choice<E>(field: &str, value: Option<&str>) -> Result<Option<E>, ApiError>
+fn choice<E>(field: &str, value: Option<&str>) -> Result<Option<E>, RequestError>
 where
     E: IntoEnumIterator + EnumMessage + FromStr,
 {
     value
         .map(|v| parse_choice(field, v))
         .transpose()
-        .map_err(bad)
+        .map_err(RequestError::Choice)
 }
 
 impl RoughnessQuery {
     /// The options, checked.
-    pub(crate) fn options(&self) -> Result<FrameOptions, ApiError> {
+    pub(crate) fn options(&self) -> Result<FrameOptions, RequestError> {
         let format = choice::<Format>("format", self.format.as_deref())?.unwrap_or_default();
         let mode = choice::<Mode>("mode", self.mode.as_deref())?;
         let normals = choice::<NormalsMethod>("normals", self.normals.as_deref())?;
@@ -171,9 +167,9 @@ impl RoughnessQuery {
             .dsac_hypotheses
             .map(check_dsac_hypotheses)
             .transpose()
-            .map_err(|e| bad(format!("dsac_hypotheses: {e}")))?;
+            .map_err(|e| RequestError::DsacHypotheses(Box::new(e)))?;
         if let Some(cm) = self.preview_max_cm.filter(|c| !(c.is_finite() && *c > 0.0)) {
-            return Err(bad(format!("preview_max_cm: must be positive, got {cm}")));
+            return Err(RequestError::PreviewMax { cm });
         }
         Ok(FrameOptions {
             mode,
@@ -185,20 +181,20 @@ impl RoughnessQuery {
             extras: self.extras()?,
             traversable_bytes: false,
             traversability: Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
-                .map_err(|e| bad(e.to_string()))?,
+                .map_err(RequestError::Traversability)?,
             sensor: self
                 .sensor
                 .as_deref()
                 .map(str::parse)
                 .transpose()
-                .map_err(|e: String| bad(format!("sensor: {e}")))?,
+                .map_err(RequestError::Sensor)?,
             traversal_bytes: false,
             uncertainty_f32: false,
         })
     }
 
     /// The extra maps of `outputs`.
-    fn extras(&self) -> Result<Extras, ApiError> {
+    fn extras(&self) -> Result<Extras, RequestError> {
         let mut extras = Extras::default();
         for name in self
             .outputs
@@ -206,9 +202,8 @@ impl RoughnessQuery {
             .flat_map(|o| o.split(','))
             .filter(|s| !s.is_empty())
         {
-            let map: OutputMap = name.parse().map_err(|_| {
-                let known = OutputMap::all_names();
-                bad(format!("outputs: unknown map {name:?} ({known})"))
+            let map: OutputMap = name.parse().map_err(|_| RequestError::UnknownOutput {
+                name: name.to_owned(),
             })?;
             extras.add(map);
         }
@@ -216,7 +211,7 @@ impl RoughnessQuery {
     }
 
     /// Camera from the query (all four intrinsics, or none of them).
-    pub(crate) fn camera(&self, limits: DecodeLimits) -> Result<Option<CameraFile>, ApiError> {
+    pub(crate) fn camera(&self, limits: DecodeLimits) -> Result<Option<CameraFile>, RequestError> {
         let k = [self.fx, self.fy, self.cx, self.cy];
         let any = k.iter().any(Option::is_some)
             || self.pitch_deg.is_some()
@@ -226,10 +221,7 @@ impl RoughnessQuery {
             return Ok(None);
         }
         let [Some(fx), Some(fy), Some(cx), Some(cy)] = k else {
-            return Err(ApiError::new(
-                ErrorCode::BadCamera,
-                "camera: give all of fx, fy, cx, cy",
-            ));
+            return Err(RequestError::PartialIntrinsics);
         };
         let cam = CameraFile {
             fx,
@@ -252,7 +244,7 @@ impl RoughnessQuery {
 mod tests {
     use super::*;
 
-    fn query(q: &str) -> Result<FrameOptions, ApiError> {
+    fn query(q: &str) -> Result<FrameOptions, RequestError> {
         parse_query(q).options()
     }
 
@@ -292,8 +284,8 @@ mod tests {
         ] {
             let e = query(q).unwrap_err();
             assert_eq!(
-                (e.code, e.message.as_str()),
-                (ErrorCode::BadRequest, message)
+                (e.code(), e.to_string().as_str()),
+                (tre_proto::ErrorCode::BadRequest, message)
             );
         }
     }

@@ -6,8 +6,9 @@ use std::io::Cursor;
 
 use image::{DynamicImage, ImageFormat, ImageReader};
 
-use super::error::ApiError;
-pub use super::options::{Extras, Format, FrameOptions, OutputMap};
+pub use super::error::ImagePart;
+use super::error::RequestError;
+use super::options::{Format, FrameOptions, OutputMap};
 use tre_core::geometry::Grid;
 use tre_core::roughness::interval::IntervalTable;
 use tre_io::{self as io, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
@@ -15,7 +16,6 @@ use tre_pipeline::{
     Assumption, FrameInput, FrameOutput, Gravity, Mode, NormalsMethod, PipelineConfig,
     PipelineError, DEFAULT_DSAC_HYPOTHESES,
 };
-use tre_proto::ErrorCode;
 
 /// A frame as received: encoded images and an unchecked camera.
 #[derive(Debug, Clone, Default)]
@@ -64,51 +64,39 @@ impl Default for DecodeLimits {
 }
 
 impl DecodeLimits {
-    /// Checks a `w`×`h` image (`what`: `rgb` or `depth`) against the limits: 422 `bad_image`
-    /// without pixels or beyond the aspect ratio, 413 `too_large` beyond the side or the
+    /// Checks a `w`×`h` image `part` against the limits: 422 `bad_image` (`bad_depth` for
+    /// depth) without pixels or beyond the aspect ratio, 413 `too_large` beyond the side or the
     /// pixel count; each message names the limit and its option.
-    pub fn check_shape(&self, what: &str, w: usize, h: usize) -> Result<(), ApiError> {
+    pub fn check_shape(&self, part: ImagePart, w: usize, h: usize) -> Result<(), RequestError> {
         let (long, short) = (w.max(h), w.min(h));
-        // A depth part's shape is a depth error, as the rest of what is wrong with depth.
-        let bad_shape = if what == "depth" {
-            ErrorCode::BadDepth
-        } else {
-            ErrorCode::BadImage
-        };
+        let size = (w, h);
         let pixels = (w as u64).saturating_mul(h as u64);
         if short == 0 {
-            return Err(ApiError::new(
-                bad_shape,
-                format!("{what}: the image is {w}×{h}, it has no pixels"),
-            ));
+            return Err(RequestError::NoPixels { part, size });
         }
         if long > self.max_side {
-            return Err(ApiError::new(
-                ErrorCode::TooLarge,
-                format!(
-                    "{what}: the image is {w}×{h}, a side longer than the limit of {} pixels (--max-side)",
-                    self.max_side
-                ),
-            ));
+            let max_side = self.max_side;
+            return Err(RequestError::SideTooLong {
+                part,
+                size,
+                max_side,
+            });
         }
         if pixels > self.max_pixels as u64 {
-            return Err(ApiError::new(
-                ErrorCode::TooLarge,
-                format!(
-                    "{what}: the image is {w}×{h} = {pixels} pixels, more than the limit of {} ({} pixels, --max-pixels)",
-                    self.max_pixels,
-                    io::units::format_size(self.max_pixels, "")
-                ),
-            ));
+            let max_pixels = self.max_pixels;
+            return Err(RequestError::TooManyPixels {
+                part,
+                size,
+                max_pixels,
+            });
         }
         if long > short.saturating_mul(self.max_aspect) {
-            return Err(ApiError::new(
-                bad_shape,
-                format!(
-                    "{what}: the image is {w}×{h}, its longer side more than {} times the shorter (--max-aspect)",
-                    self.max_aspect
-                ),
-            ));
+            let max_aspect = self.max_aspect;
+            return Err(RequestError::TooNarrow {
+                part,
+                size,
+                max_aspect,
+            });
         }
         Ok(())
     }
@@ -167,50 +155,46 @@ fn sniff(bytes: &[u8]) -> Option<ImageFormat> {
     }
 }
 
-/// Decodes `what` (`rgb` or `depth`) after checking its header against the pixel limit, so a
-/// small file that declares a huge image is refused before any allocation.
+/// Decodes image `part` after checking its header against the pixel limit, so a small file
+/// that declares a huge image is refused before any allocation.
 pub fn decode_image(
-    what: &str,
+    part: ImagePart,
     bytes: &[u8],
     limits: DecodeLimits,
-) -> Result<DynamicImage, ApiError> {
-    let (format, (w, h)) = image_header(what, bytes, limits)?;
+) -> Result<DynamicImage, RequestError> {
+    let (format, (w, h)) = image_header(part, bytes, limits)?;
     let pixels = u64::from(w) * u64::from(h);
     if format == ImageFormat::Jpeg {
-        return io::decode_jpeg(bytes)
-            .map_err(|e| ApiError::new(ErrorCode::BadImage, format!("{what}: {e}")));
+        return io::decode_jpeg(bytes).map_err(|source| RequestError::Jpeg { part, source });
     }
-    let bad = |e: image::ImageError| ApiError::new(ErrorCode::BadImage, format!("{what}: {e}"));
     let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
     let mut l = image::Limits::default();
     l.max_image_width = Some(w);
     l.max_image_height = Some(h);
     l.max_alloc = Some(pixels * 16 + (1 << 20));
     reader.limits(l);
-    reader.decode().map_err(bad)
+    reader
+        .decode()
+        .map_err(|source| RequestError::Undecodable { part, source })
 }
 
-/// The format and size of an image from its header, checked against the limits, without
+/// The format and size of image `part` from its header, checked against the limits, without
 /// decoding its pixels.
 pub fn image_header(
-    what: &str,
+    part: ImagePart,
     bytes: &[u8],
     limits: DecodeLimits,
-) -> Result<(ImageFormat, (u32, u32)), ApiError> {
+) -> Result<(ImageFormat, (u32, u32)), RequestError> {
     if bytes.is_empty() {
-        return Err(ApiError::new(ErrorCode::BadImage, format!("{what}: empty")));
+        return Err(RequestError::EmptyImage { part });
     }
     let Some(format) = sniff(bytes) else {
-        return Err(ApiError::new(
-            ErrorCode::UnsupportedMedia,
-            format!("{what}: not a PNG or JPEG image"),
-        ));
+        return Err(RequestError::NotAnImage { part });
     };
-    let bad = |e: image::ImageError| ApiError::new(ErrorCode::BadImage, format!("{what}: {e}"));
     let (w, h) = ImageReader::with_format(Cursor::new(bytes), format)
         .into_dimensions()
-        .map_err(bad)?;
-    limits.check_shape(what, w as usize, h as usize)?;
+        .map_err(|source| RequestError::Undecodable { part, source })?;
+    limits.check_shape(part, w as usize, h as usize)?;
     Ok((format, (w, h)))
 }
 
@@ -222,12 +206,17 @@ pub use tre_io::CAMERA_KEYS;
 /// Physical ranges of a camera sent by a client: focal lengths 1 px to 10⁶ px, pitch −90° to
 /// 90°, height above the ground 1 cm to 100 m, depth scale above 0 and at most 10⁶ units per
 /// metre, a stated size within the side limit. Anything else is 422 `bad_camera`.
-pub fn check_camera_ranges(cam: &CameraFile, limits: DecodeLimits) -> Result<(), ApiError> {
-    let within = |name: &str, v: Option<f64>, lo: f64, hi: f64, unit: &str| match v {
-        Some(x) if !(x.is_finite() && (lo..=hi).contains(&x)) => Err(ApiError::new(
-            ErrorCode::BadCamera,
-            format!("camera: {name} = {x} is outside {lo}–{hi} {unit}"),
-        )),
+pub fn check_camera_ranges(cam: &CameraFile, limits: DecodeLimits) -> Result<(), RequestError> {
+    let within = |name, v: Option<f64>, lo, hi, unit| match v {
+        Some(value) if !(value.is_finite() && (lo..=hi).contains(&value)) => {
+            Err(RequestError::CameraRange {
+                name,
+                value,
+                lo,
+                hi,
+                unit,
+            })
+        }
         _ => Ok(()),
     };
     within("fx", Some(cam.fx), 1.0, 1e6, "px")?;
@@ -238,15 +227,12 @@ pub fn check_camera_ranges(cam: &CameraFile, limits: DecodeLimits) -> Result<(),
     within("height_m", cam.height_m, 0.01, 100.0, "m")?;
     within("depth_scale", cam.depth_scale, 1e-3, 1e6, "units per metre")?;
     for (name, side) in [("width", cam.width), ("height", cam.height)] {
-        if side.is_some_and(|s| s == 0 || s > limits.max_side) {
-            return Err(ApiError::new(
-                ErrorCode::BadCamera,
-                format!(
-                    "camera: {name} = {} is outside 1–{} px (--max-side)",
-                    side.unwrap_or(0),
-                    limits.max_side
-                ),
-            ));
+        if let Some(side) = side.filter(|&s| s == 0 || s > limits.max_side) {
+            return Err(RequestError::CameraSide {
+                name,
+                side,
+                max_side: limits.max_side,
+            });
         }
     }
     Ok(())
@@ -255,19 +241,13 @@ pub fn check_camera_ranges(cam: &CameraFile, limits: DecodeLimits) -> Result<(),
 /// A camera JSON from a client, read as every interface reads a camera file
 /// ([`CameraFile`]: the parameters of [`CAMERA_KEYS`], other keys metadata unless they look
 /// like a misspelt parameter), within [`check_camera_ranges`].
-pub fn strict_camera(json: &[u8], limits: DecodeLimits) -> Result<CameraFile, ApiError> {
-    let bad = |why: String| ApiError::new(ErrorCode::BadCamera, format!("camera: {why}"));
+pub fn strict_camera(json: &[u8], limits: DecodeLimits) -> Result<CameraFile, RequestError> {
     let value: serde_json::Value =
-        serde_json::from_slice(json).map_err(|e| bad(format!("not valid JSON ({e})")))?;
+        serde_json::from_slice(json).map_err(RequestError::CameraNotJson)?;
     if !value.is_object() {
-        return Err(bad("expected a JSON object {fx, fy, cx, cy, ...}".into()));
+        return Err(RequestError::CameraNotObject);
     }
-    let cam: CameraFile = serde_json::from_value(value).map_err(|e| {
-        bad(format!(
-            "not valid camera JSON ({{fx, fy, cx, cy, pitch_deg?, height_m?, depth_scale?, \
-             sensor?, width?, height?}}; other keys are notes): {e}"
-        ))
-    })?;
+    let cam: CameraFile = serde_json::from_value(value).map_err(RequestError::CameraFields)?;
     check_camera_ranges(&cam, limits)?;
     Ok(cam)
 }
@@ -278,84 +258,71 @@ pub fn decode_depth(
     bytes: &[u8],
     units_per_m: f64,
     limits: DecodeLimits,
-) -> Result<Grid<f64>, ApiError> {
+) -> Result<Grid<f64>, RequestError> {
     let depth = depth_of(bytes, units_per_m, limits)?;
     io::check_depth(&depth)?;
     Ok(depth)
 }
 
 /// [`decode_depth`] without the check of its values.
-fn depth_of(bytes: &[u8], units_per_m: f64, limits: DecodeLimits) -> Result<Grid<f64>, ApiError> {
-    let bad = |m: String| ApiError::new(ErrorCode::BadDepth, format!("depth: {m}"));
+fn depth_of(
+    bytes: &[u8],
+    units_per_m: f64,
+    limits: DecodeLimits,
+) -> Result<Grid<f64>, RequestError> {
     if bytes.starts_with(b"\x93NUMPY") {
         // The shape is bounded from the header, before any value is converted; the pixel limit
         // is then checked with the side and aspect limits, naming each.
         let array = io::npy::read_npy_within(Cursor::new(bytes), limits.max_pixels)?;
         let grid = io::npy_depth(array)?;
         let (w, h) = grid.size();
-        limits.check_shape("depth", w, h)?;
+        limits.check_shape(ImagePart::Depth, w, h)?;
         return Ok(grid);
     }
     // Not an image, or a broken one: a depth error, saying what depth may be.
-    let image = decode_image("depth", bytes, limits).map_err(|e| match e.code {
-        ErrorCode::BadImage | ErrorCode::UnsupportedMedia => ApiError::new(
-            ErrorCode::BadDepth,
-            format!(
-                "{}; depth must be a 16-bit grey PNG or a float .npy",
-                e.message
-            ),
-        ),
+    let image = decode_image(ImagePart::Depth, bytes, limits).map_err(|e| match e {
+        RequestError::EmptyImage { .. }
+        | RequestError::NotAnImage { .. }
+        | RequestError::Undecodable { .. }
+        | RequestError::Jpeg { .. } => RequestError::NotDepth(Box::new(e)),
         _ => e,
     })?;
     match image {
         DynamicImage::ImageLuma16(img) => Ok(io::depth_from_luma16(img, units_per_m)),
-        other => Err(bad(format!(
-            "must be a 16-bit grey PNG or a float .npy, got {:?}",
-            other.color()
-        ))),
+        other => Err(RequestError::DepthColour {
+            color: other.color(),
+        }),
     }
 }
 
 /// An RGB frame from `bytes`, refusing 16-bit grey (depth sent as colour) with 422
 /// `bad_image` that says where depth goes.
-fn rgb_frame(bytes: &[u8], limits: DecodeLimits) -> Result<image::RgbImage, ApiError> {
-    let image = decode_image("rgb", bytes, limits)?;
+fn rgb_frame(bytes: &[u8], limits: DecodeLimits) -> Result<image::RgbImage, RequestError> {
+    let image = decode_image(ImagePart::Rgb, bytes, limits)?;
     if let Some(why) = io::not_rgb(image.color()) {
-        return Err(ApiError::new(
-            ErrorCode::BadImage,
-            format!(
-                "rgb: {why}: the multipart part `depth` over HTTP (a `camera` part gives its \
-                 depth_scale), the frame's `depth` field on the stream"
-            ),
-        ));
+        return Err(RequestError::DepthAsRgb { why });
     }
     Ok(image.to_rgb8())
 }
 
 /// The pipeline input for `req`: decoded images, checked camera.
-pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInput, ApiError> {
-    let camera = |e: tre_core::geometry::GeometryError| {
-        ApiError::new(ErrorCode::BadCamera, format!("camera: {e}"))
-    };
+pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInput, RequestError> {
     let (intrinsics, mounting, scale) = match &req.camera {
         Some(c) => (
-            Some(c.intrinsics().map_err(camera)?),
-            c.mounting().map_err(camera)?,
+            Some(c.intrinsics().map_err(RequestError::Camera)?),
+            c.mounting().map_err(RequestError::Camera)?,
             c.depth_scale.unwrap_or(1000.0),
         ),
         None => (None, None, 1000.0),
     };
     if !(scale.is_finite() && scale > 0.0) {
-        return Err(ApiError::new(
-            ErrorCode::BadCamera,
-            format!("camera: depth_scale must be positive, got {scale}"),
-        ));
+        return Err(RequestError::DepthScale { scale });
     }
     // The geometric mode uses no RGB: an image sent along is checked from its header (format,
     // limits, the depth's size) but not decoded.
     let geometric = req.options.mode == Some(Mode::Geometric) && req.depth.is_some();
     let (rgb, unused_rgb) = match &req.rgb {
-        Some(b) if geometric => (None, Some(image_header("rgb", b, limits)?.1)),
+        Some(b) if geometric => (None, Some(image_header(ImagePart::Rgb, b, limits)?.1)),
         Some(b) => (Some(rgb_frame(b, limits)?), None),
         None => (None, None),
     };
@@ -380,10 +347,7 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
         mounting,
     };
     let Some(size) = frame.size() else {
-        return Err(ApiError::new(
-            ErrorCode::BadRequest,
-            "the frame has neither an image nor depth",
-        ));
+        return Err(RequestError::NoInput);
     };
     if let Some(c) = &req.camera {
         c.check_size(size)?;
@@ -435,23 +399,25 @@ pub fn config_for(
 }
 
 /// Encodes a PNG with the settings `tre infer` uses (fast compression, adaptive filter).
-fn png(img: &DynamicImage) -> Result<Vec<u8>, ApiError> {
+fn png(img: &DynamicImage) -> Result<Vec<u8>, RequestError> {
     let mut out = Vec::new();
-    io::encode_png(img, &mut out)
-        .map_err(|e| ApiError::new(ErrorCode::Internal, format!("encoding PNG: {e}")))?;
+    io::encode_png(img, &mut out).map_err(RequestError::EncodePng)?;
     Ok(out)
 }
 
 /// Writes an `.npy` into memory.
-fn npy<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Result<Vec<u8>, ApiError> {
+fn npy<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Result<Vec<u8>, RequestError> {
     let mut out = Vec::new();
-    io::npy::write_npy(&mut out, shape, data)
-        .map_err(|e| ApiError::new(ErrorCode::Internal, format!("encoding .npy: {e}")))?;
+    io::npy::write_npy(&mut out, shape, data).map_err(RequestError::EncodeNpy)?;
     Ok(out)
 }
 
 /// A mask as PNG part `name` (file `filename`): 8-bit grey, 255 where set.
-fn mask_part(name: OutputMap, filename: &'static str, mask: &Grid<bool>) -> Result<Part, ApiError> {
+fn mask_part(
+    name: OutputMap,
+    filename: &'static str,
+    mask: &Grid<bool>,
+) -> Result<Part, RequestError> {
     let grey = mask.map(|&m| if m { 255u8 } else { 0 });
     png_part(name, filename, &DynamicImage::ImageLuma8(io::gray8(&grey)))
 }
@@ -461,7 +427,7 @@ fn png_part(
     name: OutputMap,
     filename: &'static str,
     image: &DynamicImage,
-) -> Result<Part, ApiError> {
+) -> Result<Part, RequestError> {
     Ok(Part {
         name: name.into(),
         content_type: "image/png",
@@ -471,7 +437,7 @@ fn png_part(
 }
 
 /// The roughness map in the options' format.
-fn encode_roughness(r: &Grid<f64>, opts: &FrameOptions) -> Result<Vec<u8>, ApiError> {
+fn encode_roughness(r: &Grid<f64>, opts: &FrameOptions) -> Result<Vec<u8>, RequestError> {
     let (w, h) = r.size();
     Ok(match opts.format {
         Format::Png16 => png(&DynamicImage::ImageLumaA16(io::roughness_png16(r)))?,
@@ -514,7 +480,7 @@ pub fn encode_reply(
     out: &FrameOutput,
     opts: &FrameOptions,
     (mode, assumed): (Mode, Vec<Assumption>),
-) -> Result<FrameReply, ApiError> {
+) -> Result<FrameReply, RequestError> {
     let (w, h) = out.roughness_m.size();
     let roughness = encode_roughness(&out.roughness_m, opts)?;
     let mut extras = Vec::new();
@@ -586,7 +552,7 @@ pub fn encode_sensor_maps(
     (mode, table): (Mode, Option<&IntervalTable>),
     req: &FrameRequest,
     reply: &mut FrameReply,
-) -> Result<(), ApiError> {
+) -> Result<(), RequestError> {
     let opts = &req.options;
     if !opts.wants_sensor_maps() {
         return Ok(());

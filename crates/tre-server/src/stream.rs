@@ -23,7 +23,7 @@ use tokio::sync::{oneshot, OwnedSemaphorePermit};
 use tokio::time::MissedTickBehavior;
 
 use super::access::RequestId;
-use super::error::ApiError;
+use super::error::{ApiError, RequestError};
 use super::map::{MapJob, SessionMap, SharedMap};
 use super::pace::{MessagePace, ReadBytes, PACE_WINDOW};
 use super::proto::{self, Incoming, StreamFrame, StreamSettings};
@@ -61,10 +61,7 @@ pub(crate) async fn stream(
     let id = id.map_or_else(|| "-".to_owned(), |Extension(RequestId(id))| id);
     let ws = match ws {
         Ok(ws) => ws,
-        Err(e) => {
-            let why = format!("/v1/stream is a WebSocket: {}", e.body_text());
-            return ApiError::new(ErrorCode::BadRequest, why).into_response();
-        }
+        Err(e) => return ApiError::from(RequestError::NotAWebSocket(e)).into_response(),
     };
     let waiting = if app.streams.available_permits() == 0 {
         None
@@ -75,10 +72,9 @@ pub(crate) async fn stream(
         let why = if app.streams.available_permits() == 0 {
             streams_full(&app)
         } else {
-            format!(
-                "{} streams wait for their first message, the limit (--max-connections); retry later",
-                app.cfg.max_connections
-            )
+            RequestError::StreamsWaiting {
+                max_connections: app.cfg.max_connections,
+            }
         };
         return too_many(&app, &id, why).into_response();
     };
@@ -101,20 +97,19 @@ pub(crate) async fn stream(
 }
 
 /// Why a stream is refused when every `--max-streams` place is held.
-fn streams_full(app: &AppState) -> String {
-    format!(
-        "{} streams are open, the limit (--max-streams); retry later",
-        app.cfg.max_streams
-    )
+fn streams_full(app: &AppState) -> RequestError {
+    RequestError::StreamsFull {
+        max_streams: app.cfg.max_streams,
+    }
 }
 
-/// The 429 of a stream over a limit, counted and logged.
-fn too_many(app: &AppState, id: &str, why: String) -> ApiError {
-    app.metrics
-        .request("stream", ErrorCode::TooManyRequests.as_str(), None);
+/// The 429 of a stream over a limit (`why`), counted and logged.
+fn too_many(app: &AppState, id: &str, why: RequestError) -> ApiError {
+    let e = ApiError::from(why);
+    app.metrics.request("stream", e.code.as_str(), None);
     app.refusals
-        .refused("stream", id, ErrorCode::TooManyRequests.as_str(), &why);
-    ApiError::new(ErrorCode::TooManyRequests, why)
+        .refused("stream", id, e.code.as_str(), &e.message);
+    e
 }
 
 /// Whether a read failed because the message was over the hard size limit.
@@ -239,8 +234,7 @@ impl Connection {
                 Event::Done(done) => self.answer(*done).await && self.start_waiting().await,
                 Event::WorkerGone => {
                     let frame = self.in_flight.take().map(|f| f.frame.sequence);
-                    let e =
-                        ApiError::new(ErrorCode::Internal, "the worker stopped before answering");
+                    let e = ApiError::from(RequestError::WorkerStopped);
                     self.send(proto::error(frame, &e)).await && self.start_waiting().await
                 }
                 Event::Ping => self.on_ping().await,
@@ -311,14 +305,11 @@ impl Connection {
         let Some(Err(slow)) = self.pace.as_mut().map(|p| p.end_window(now)) else {
             return true;
         };
-        let why = slow.to_string();
+        let e = ApiError::from(RequestError::from(slow));
         self.app
             .refusals
-            .refused("stream", &self.id, "ws_close_1008_slow", &why);
-        self.app
-            .metrics
-            .request("stream", ErrorCode::RequestTimeout.as_str(), None);
-        let e = ApiError::new(ErrorCode::RequestTimeout, why);
+            .refused("stream", &self.id, "ws_close_1008_slow", &e.message);
+        self.app.metrics.request("stream", e.code.as_str(), None);
         let _ = self.send(proto::error(None, &e)).await;
         self.close(1008, "message too slow").await;
         false
@@ -336,8 +327,7 @@ impl Connection {
         let bytes = match msg {
             Message::Binary(b) => b,
             Message::Text(_) => {
-                let e = ApiError::new(ErrorCode::BadRequest, "text messages are not part of the protocol; send binary roughness.v1.ClientMessage");
-                return self.refuse(None, &e).await;
+                return self.refuse(None, RequestError::TextMessage).await;
             }
             Message::Close(_) => {
                 // The reply the WebSocket queued on reading the client's close goes out now.
@@ -348,14 +338,11 @@ impl Connection {
         };
         let limit = self.app.cfg.ws_max_message_bytes;
         if bytes.len() > limit {
-            let e = ApiError::new(
-                ErrorCode::TooLarge,
-                format!(
-                    "message of {} bytes, more than the limit of {limit}",
-                    bytes.len()
-                ),
-            );
-            return self.refuse(proto::peek_frame_sequence(&bytes), &e).await;
+            let e = RequestError::MessageTooLarge {
+                bytes: bytes.len(),
+                limit,
+            };
+            return self.refuse(proto::peek_frame_sequence(&bytes), e).await;
         }
         match proto::decode_client(&bytes) {
             Ok(Incoming::Hello(settings)) => {
@@ -369,11 +356,12 @@ impl Connection {
                 self.send(proto::ready(limit, models, &self.id)).await
             }
             Ok(Incoming::Frame(frame)) => self.on_frame(frame).await,
-            Err((seq, e)) => self.refuse(seq, &e).await,
+            Err((seq, e)) => self.refuse(seq, e).await,
         }
     }
 
-    async fn refuse(&mut self, seq: Option<u64>, e: &ApiError) -> bool {
+    async fn refuse(&mut self, seq: Option<u64>, e: impl Into<ApiError>) -> bool {
+        let e = e.into();
         self.app.metrics.request("stream", e.code.as_str(), None);
         if e.code == ErrorCode::Internal {
             tracing::error!(request_id = %self.id, error = %e.message, "stream frame failed");
@@ -382,13 +370,13 @@ impl Connection {
                 .refusals
                 .refused("stream", &self.id, e.code.as_str(), &e.message);
         }
-        self.send(proto::error(seq, e)).await
+        self.send(proto::error(seq, &e)).await
     }
 
     async fn on_frame(&mut self, frame: StreamFrame) -> bool {
         if self.settings.is_none() {
-            let e = ApiError::new(ErrorCode::BadRequest, "send a Hello before the first frame");
-            return self.refuse(Some(frame.sequence), &e).await;
+            let e = RequestError::FrameBeforeHello;
+            return self.refuse(Some(frame.sequence), e).await;
         }
         if self.in_flight.is_none() {
             return self.start(frame, Instant::now()).await;
@@ -417,7 +405,7 @@ impl Connection {
                 self.in_flight = Some(InFlight { frame, arrived, rx });
                 true
             }
-            Err(e) => self.refuse(Some(frame.sequence), &e).await,
+            Err(e) => self.refuse(Some(frame.sequence), e).await,
         }
     }
 
@@ -446,7 +434,7 @@ impl Connection {
                 );
                 self.send(msg).await && self.send_map().await
             }
-            Err(e) => self.refuse(Some(done.frame.sequence), &e).await,
+            Err(e) => self.refuse(Some(done.frame.sequence), e).await,
         }
     }
 

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 use tokio::sync::oneshot;
 
-use super::error::ApiError;
+use super::error::{ApiError, RequestError};
 use super::metrics::Metrics;
 use super::request::{
     assumptions, config_for, decode_frame, encode_reply, encode_sensor_maps, DecodeLimits,
@@ -21,7 +21,6 @@ use tre_core::geometry::Grid;
 use tre_core::roughness::interval::Calibration;
 use tre_model::{Models, SessionConfig};
 use tre_pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
-use tre_proto::ErrorCode;
 
 /// How the pool is built.
 #[derive(Debug, Clone)]
@@ -170,19 +169,13 @@ impl Workers {
     pub(crate) fn submit(
         &self,
         request: FrameRequest,
-    ) -> Result<oneshot::Receiver<(JobResult, Duration)>, ApiError> {
+    ) -> Result<oneshot::Receiver<(JobResult, Duration)>, RequestError> {
         if !self.ready() {
-            return Err(ApiError::new(
-                ErrorCode::NotReady,
-                "the models are still loading",
-            ));
+            return Err(RequestError::Loading);
         }
         let guard = self.tx.lock().unwrap_or_else(PoisonError::into_inner);
         let Some(tx) = guard.as_ref() else {
-            return Err(ApiError::new(
-                ErrorCode::NotReady,
-                "the server is shutting down",
-            ));
+            return Err(RequestError::ShuttingDown);
         };
         let (reply, rx) = oneshot::channel();
         let job = Job {
@@ -199,17 +192,11 @@ impl Workers {
         };
         match sent {
             Ok(()) => Ok(rx),
-            Err(TrySendError::Full(_)) => Err(ApiError::new(
-                ErrorCode::Overloaded,
-                format!(
-                    "all {} workers are busy and {} frames are queued; retry later",
-                    self.count, self.capacity
-                ),
-            )),
-            Err(TrySendError::Disconnected(_)) => Err(ApiError::new(
-                ErrorCode::NotReady,
-                "the workers have stopped",
-            )),
+            Err(TrySendError::Full(_)) => Err(RequestError::QueueFull {
+                workers: self.count,
+                queued: self.capacity,
+            }),
+            Err(TrySendError::Disconnected(_)) => Err(RequestError::WorkersStopped),
         }
     }
 
@@ -235,8 +222,7 @@ impl Workers {
             // cannot fail; if it did, the client hears why instead of waiting.
             if let Err(e) = tx.try_send(job) {
                 let job = e.into_inner();
-                let error =
-                    ApiError::new(ErrorCode::Overloaded, "the queue could not keep the frame");
+                let error = RequestError::RequeueFailed.into();
                 let _ = job.reply.send((Err(error), job.enqueued.elapsed()));
             }
         }
@@ -315,10 +301,7 @@ fn guarded(i: usize, job: impl FnOnce() -> JobResult) -> JobResult {
             .or_else(|| panic.downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "no message".to_string());
         tracing::error!(worker = i, panic = %what, "a frame hit a bug; the worker goes on");
-        Err(ApiError::new(
-            ErrorCode::Internal,
-            format!("the frame hit a bug in the server ({what}); the server goes on"),
-        ))
+        Err(RequestError::Panic { panic: what }.into())
     })
 }
 
@@ -413,6 +396,7 @@ fn warm_up(pipeline: &mut Pipeline) -> Result<(), tre_pipeline::PipelineError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use tre_proto::ErrorCode;
 
     #[test]
     fn a_panicking_job_is_an_internal_error_and_the_next_one_runs() {
@@ -421,7 +405,7 @@ mod tests {
         assert!(e.message.contains("index 7 out of range"), "{e}");
         let e = guarded(0, || panic!("{}", String::from("formatted"))).unwrap_err();
         assert!(e.message.contains("formatted"), "{e}");
-        let ok = guarded(0, || Err(ApiError::new(ErrorCode::BadImage, "fine")));
-        assert_eq!(ok.unwrap_err().code, ErrorCode::BadImage);
+        let ok = guarded(0, || Err(RequestError::NoInput.into()));
+        assert_eq!(ok.unwrap_err().code, ErrorCode::BadRequest);
     }
 }

@@ -16,10 +16,6 @@ pub mod surface;
 mod terrain;
 
 pub use appearance::{Conditions, Lighting, Weather};
-pub use content::Content;
-pub use dataset::{generate, SynthConfig};
 pub use heightgrid::HeightGrid;
 pub use render::{render, RenderedFrame, Scene, View};
-pub use sensor::{simulate, SensorInput, SensorModel};
-pub use surface::Category;
 pub use terrain::Terrain;

@@ -5,12 +5,12 @@ use super::*;
 /// A tiny synthetic dataset: one 64×64 frame, all of it the test split.
 fn tiny_dataset() -> tempfile::TempDir {
     let data = tempfile::tempdir().unwrap();
-    let cfg = tre::synth::SynthConfig {
+    let cfg = tre::synth::dataset::SynthConfig {
         test_fraction: 1.0,
         ply: false,
         ..crate::common::synth_config(data.path(), 1, 7, (64, 64), 1)
     };
-    tre::synth::generate(&cfg).unwrap();
+    tre::synth::dataset::generate(&cfg).unwrap();
     data
 }
 

@@ -291,14 +291,14 @@ pub(crate) fn synth_config(
     seed: u64,
     size: (usize, usize),
     views: u32,
-) -> tre::synth::SynthConfig {
-    tre::synth::SynthConfig {
+) -> tre::synth::dataset::SynthConfig {
+    tre::synth::dataset::SynthConfig {
         out: out.to_owned(),
         scenes,
         seed,
         size,
         views,
-        ..tre::synth::SynthConfig::default()
+        ..tre::synth::dataset::SynthConfig::default()
     }
 }
 
@@ -338,10 +338,10 @@ pub(crate) fn real_frames() -> Vec<RealFrame> {
 pub(crate) fn spec(
     depth: &tre::geometry::Grid<f64>,
     k: &tre::geometry::Intrinsics,
-) -> tre::roughness::Annotation {
-    tre::roughness::annotate(
-        &tre::roughness::AnnotateInput::depth(depth, k),
-        &tre::roughness::AnnotateConfig::default(),
+) -> tre::roughness::annotate::Annotation {
+    tre::roughness::annotate::annotate(
+        &tre::roughness::annotate::AnnotateInput::depth(depth, k),
+        &tre::roughness::annotate::AnnotateConfig::default(),
     )
     .unwrap()
 }

@@ -8,7 +8,7 @@ use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use tre::loadtest::{run_on, FrameSource, Frames, Load, LoadConfig, Report, Target};
+use tre::loadtest::{run_on, Frames, Load, LoadConfig, LoadSource, Report, Target};
 
 /// Runs `f` on a two-thread runtime.
 pub(crate) fn block_on<F: std::future::Future>(f: F) -> F::Output {
@@ -155,7 +155,7 @@ pub(crate) fn cfg(load: Load) -> LoadConfig {
 /// 40 requests a second for 3 s (after 0.5 s of warm-up) over HTTP with the synthetic frame
 /// against the service at `url`; started with one worker and a queue of 1, it must refuse most.
 pub(crate) fn over_one_worker(url: &str) -> Report {
-    let frames = Frames::load(&FrameSource::default()).expect("synthetic frame");
+    let frames = Frames::load(&LoadSource::default()).expect("synthetic frame");
     let target = block_on(Target::resolve(url, false)).expect("loopback target");
     let http = LoadConfig {
         load: Load::Open { rate_per_s: 40.0 },

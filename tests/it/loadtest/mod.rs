@@ -16,7 +16,7 @@ use std::sync::{Mutex, MutexGuard};
 use std::time::Duration;
 
 use tre::loadtest::{
-    report, run_on, FrameSource, Frames, Load, LoadConfig, Protocol, Report, Target,
+    report, run_on, Frames, Load, LoadConfig, LoadSource, Protocol, Report, Target,
 };
 
 pub(crate) mod fake;
@@ -343,7 +343,7 @@ fn the_real_service_refuses_excess_load_fast_and_streams_a_result_for_every_fram
         "refusals ({refusal_p99} ms) should come back well before results ({} ms)",
         r.latency_ms.p50_ms
     );
-    let frames = Frames::load(&FrameSource::default()).expect("synthetic frame");
+    let frames = Frames::load(&LoadSource::default()).expect("synthetic frame");
     let target = block_on(Target::resolve(&server.url(), false)).expect("loopback target");
     let ws = LoadConfig {
         protocol: Protocol::Ws,

@@ -8,8 +8,8 @@ fn spec_png16() -> Vec<u16> {
     let (depth, camera) = tum();
     let (cam, k) = tre::io::read_camera(&camera).unwrap();
     let depth_m = tre::io::read_depth(&depth, cam.depth_scale.unwrap()).unwrap();
-    let input = tre::roughness::AnnotateInput::depth(&depth_m, &k);
-    let spec = tre::roughness::annotate(&input, &Default::default()).unwrap();
+    let input = tre::roughness::annotate::AnnotateInput::depth(&depth_m, &k);
+    let spec = tre::roughness::annotate::annotate(&input, &Default::default()).unwrap();
     let hazards = spec
         .roughness_m
         .as_slice()

@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use tre::geometry::{Grid, Intrinsics, Vec3};
+use tre::roughness::annotate::{annotate, AnnotateConfig, AnnotateInput};
 use tre::roughness::noise::{pixel_noise_map, SensorNoise, SensorPreset};
 use tre::roughness::traversal::{shares, ThreeStateRule, Traversal};
-use tre::roughness::{annotate, AnnotateConfig, AnnotateInput};
 
 mod calibrated;
 mod maps;

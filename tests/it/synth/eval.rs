@@ -11,7 +11,7 @@ fn eval_scores_the_geometric_baseline_on_a_generated_split() {
         test_fraction: 0.5,
         ..synth_config(dir.path(), 3, 11, (96, 96), 2)
     };
-    let m = tre::synth::generate(&cfg).unwrap();
+    let m = tre::synth::dataset::generate(&cfg).unwrap();
     let split = if m.counts.1 > 0 { "test" } else { "train" };
     let (rmse, text) = eval_geometric(dir.path(), split, &[]);
     // RMSE is a finite, positive number of centimetres, below a metre on ground seen from 1 m.
@@ -81,7 +81,7 @@ fn eval_reads_sensor_depth_against_exact_ground_truth() {
         sensors: vec![SensorPreset::KinectV1],
         ..synth_config(dir.path(), 2, 4, (128, 96), 2)
     };
-    tre::synth::generate(&cfg).unwrap();
+    tre::synth::dataset::generate(&cfg).unwrap();
     let exact = eval_rmse(dir.path(), "train", "exact");
     let sensor = eval_rmse(dir.path(), "train", "sensor");
     // Kinect noise and holes make the spec on sensor depth differ more from the exact truth.

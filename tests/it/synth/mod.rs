@@ -11,8 +11,8 @@ use crate::common::synth_config;
 use tre::geometry::{Grid, Intrinsics, Mounting};
 use tre::roughness::noise::SensorPreset;
 use tre::synth::{
-    render, Category, Conditions, HeightGrid, Lighting, RenderedFrame, Scene, SynthConfig, Terrain,
-    View, Weather,
+    dataset::SynthConfig, render, surface::Category, Conditions, HeightGrid, Lighting,
+    RenderedFrame, Scene, Terrain, View, Weather,
 };
 
 mod eval;

@@ -1,23 +1,24 @@
 //! Geometry core: pinhole camera, gravity frame, least-squares planes and normals, Eq. 1, and the
 //! DSAC hypothesis sampler. Pure and synchronous (rayon for row-parallel kernels only).
 
-pub mod camera;
+mod camera;
 pub mod dsac;
 pub mod fastmath;
 pub mod floor;
-pub mod gravity;
-pub mod grid;
+mod gravity;
+mod grid;
 pub mod hash;
 pub mod normals;
-pub mod plane;
+mod plane;
 pub mod raycast;
 pub mod simd;
 
-pub use camera::{is_valid_point, Intrinsics, PointMap, INVALID_POINT};
-pub use dsac::{dsac_normals, DsacConfig};
-pub use gravity::Mounting;
-pub use grid::Grid;
-pub use normals::{local_planes, ls_normals, window_centroids, LocalPlanes, Neighbourhood};
+pub use camera::{
+    depth_of, is_valid_point, Intrinsics, PointMap, INVALID_POINT, MAX_FOV_DEG, MIN_FOV_DEG,
+};
+pub use gravity::{slope_from_up, Mounting};
+pub use grid::{Grid, NEIGHBOURS_8};
+pub(crate) use plane::orient_towards_camera;
 pub use plane::{Moments, Plane};
 
 /// A 3-D vector or point in metres (f64: geometry where precision matters).

@@ -33,7 +33,7 @@ impl Neighbourhood {
     /// Half-width of the search window for a point at depth `z_m`, seen with focal `fx_px`.
     ///
     /// ```
-    /// use tre_core::geometry::Neighbourhood;
+    /// use tre_core::geometry::normals::Neighbourhood;
     /// let n = Neighbourhood::default();
     /// assert_eq!(n.half_width(500.0, 5.0), 5);
     /// assert_eq!(n.half_width(500.0, 1.0), 7);
@@ -302,7 +302,8 @@ pub fn local_planes(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> Loca
 ///
 /// ```
 /// use tre_core::geometry::normals::{local_planes_into, PackedPoints};
-/// use tre_core::geometry::{local_planes, Grid, Intrinsics, LocalPlanes, Neighbourhood};
+/// use tre_core::geometry::normals::{local_planes, LocalPlanes, Neighbourhood};
+/// use tre_core::geometry::{Grid, Intrinsics};
 /// let k = Intrinsics::from_hfov(12, 10, 60.0).unwrap();
 /// let points = k.back_project_map(&Grid::from_fn(12, 10, |x, _| 1.0 + 0.01 * x as f64));
 /// let (mut packed, mut out) = (PackedPoints::default(), LocalPlanes::default());
@@ -394,7 +395,8 @@ pub fn window_centroids(points: &PointMap, fx_px: f64, hood: &Neighbourhood) -> 
 ///
 /// ```
 /// use tre_core::geometry::normals::{window_centroids_into, PackedPoints};
-/// use tre_core::geometry::{window_centroids, Grid, Intrinsics, Neighbourhood, PointMap};
+/// use tre_core::geometry::normals::{window_centroids, Neighbourhood};
+/// use tre_core::geometry::{Grid, Intrinsics, PointMap};
 /// let k = Intrinsics::from_hfov(9, 8, 60.0).unwrap();
 /// let points = k.back_project_map(&Grid::from_fn(9, 8, |_, y| 1.0 + 0.02 * y as f64));
 /// let (mut packed, mut out) = (PackedPoints::default(), PointMap::default());

@@ -62,7 +62,7 @@ impl Plane {
 }
 
 /// Flips `normal` if needed so that it faces a camera at the origin from `point`.
-pub fn orient_towards_camera(normal: &Vec3, point: &Vec3) -> Vec3 {
+pub(crate) fn orient_towards_camera(normal: &Vec3, point: &Vec3) -> Vec3 {
     if normal.dot(point) > 0.0 {
         -normal
     } else {
@@ -138,7 +138,7 @@ impl Moments {
 /// smallest root, so the iteration climbs to it); the eigenvector is the largest cross
 /// product of two rows of `A − λI`. `None` when the two smallest eigenvalues are not separated
 /// by 1e-6 of the largest entry (no unique plane: collinear or isotropic points).
-pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
+pub(crate) fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
     let scale = a.abs().max();
     if !(scale > 0.0) || !scale.is_finite() {
         return None;
@@ -150,7 +150,7 @@ pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
 
 /// Symmetric 3×3 matrices in lanes (structure of arrays): the entries xx, xy, xz, yy, yz, zz,
 /// each an array over the lanes.
-pub type SymLanes<const N: usize> = [[f64; N]; 6];
+pub(crate) type SymLanes<const N: usize> = [[f64; N]; 6];
 
 /// The (row, column) of each entry of [`SymLanes`]: xx, xy, xz, yy, yz, zz.
 const SYM_AXES: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
@@ -168,7 +168,7 @@ fn sym_matrix<const N: usize>(a: &SymLanes<N>, l: usize) -> Matrix3<f64> {
 
 /// The covariance matrices of `m` in lanes ([`Moments::covariance`] is one lane of it).
 #[inline(always)]
-pub fn covariance_lanes<const N: usize>(m: &[Moments; N]) -> SymLanes<N> {
+pub(crate) fn covariance_lanes<const N: usize>(m: &[Moments; N]) -> SymLanes<N> {
     let inv_n: [f64; N] = from_fn(|l| 1.0 / f64::from(m[l].count.max(1)));
     let mean: [[f64; N]; 3] = from_fn(|a| from_fn(|l| m[l].sum[a] * inv_n[l]));
     from_fn(|e| {
@@ -181,7 +181,7 @@ pub fn covariance_lanes<const N: usize>(m: &[Moments; N]) -> SymLanes<N> {
 /// ([`covariance_lanes`], [`smallest_eigenvectors`]): `None` with fewer than 3 points or no
 /// unique plane. Same normals as [`Moments::fit`] up to rounding.
 #[inline(always)]
-pub fn fit_normals<const N: usize>(m: &[Moments; N]) -> [Option<Vec3>; N] {
+pub(crate) fn fit_normals<const N: usize>(m: &[Moments; N]) -> [Option<Vec3>; N] {
     let fits = smallest_eigenvectors(&covariance_lanes(m));
     from_fn(|l| fits[l].filter(|_| m[l].count >= 3))
 }
@@ -192,7 +192,7 @@ pub fn fit_normals<const N: usize>(m: &[Moments; N]) -> [Option<Vec3>; N] {
 /// scalar solver. Same results as the scalar solver up to rounding, and each lane's result
 /// depends on its own matrix only, bit for bit, whatever the other lanes hold.
 #[inline(always)]
-pub fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3>; N] {
+pub(crate) fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3>; N] {
     let mut scale = [0.0f64; N];
     for e in covs {
         for (s, v) in scale.iter_mut().zip(e) {

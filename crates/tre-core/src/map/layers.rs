@@ -186,7 +186,7 @@ fn judge(
 
 /// The largest height difference from `h` to a seen 8-neighbour of `(c, r)` (NaN: none seen).
 fn step_at(height: &impl Fn(isize, isize) -> Option<f64>, (c, r): (isize, isize), h: f64) -> f64 {
-    crate::geometry::grid::NEIGHBOURS_8
+    crate::geometry::NEIGHBOURS_8
         .iter()
         .filter_map(|&(dc, dr)| height(c + dc as isize, r + dr as isize))
         .map(|n| (n - h).abs())

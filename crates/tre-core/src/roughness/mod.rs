@@ -9,9 +9,6 @@ pub mod metrics;
 pub mod noise;
 pub mod traversal;
 
-pub use annotate::{annotate, AnnotateConfig, AnnotateInput, Annotation};
-pub use metrics::{DepthAccumulator, NormalAccumulator, RoughnessAccumulator};
-
 /// Errors of the roughness layer.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum RoughnessError {

@@ -7,7 +7,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use super::annotate::{edge_term, AnnotateConfig};
-use crate::geometry::camera::{is_valid_point, PointMap};
+use crate::geometry::{is_valid_point, PointMap};
 use crate::geometry::{Grid, Intrinsics, Vec3};
 
 /// A named depth sensor whose noise model is built in (sources in docs/sensor-noise.md).
@@ -368,7 +368,7 @@ fn count_within(points: &PointMap, x: usize, y: usize, half: usize, radius_m: f6
 fn neighbour_spacing(k: &Intrinsics, (x, y): (usize, usize), p: &Vec3, n: &Vec3) -> f64 {
     let d = n.dot(p);
     let mut far: f64 = 0.0;
-    for (dx, dy) in crate::geometry::grid::NEIGHBOURS_8 {
+    for (dx, dy) in crate::geometry::NEIGHBOURS_8 {
         let ray = Vec3::new(
             (x as f64 + f64::from(dx) - k.cx_px) / k.fx_px,
             (y as f64 + f64::from(dy) - k.cy_px) / k.fy_px,

@@ -4,11 +4,14 @@
 
 use nalgebra::Vector3;
 use tre_core::geometry::raycast::{render_depth, MarchConfig};
-use tre_core::geometry::{Grid, Intrinsics, Mounting, Neighbourhood, Vec3};
-use tre_core::roughness::{annotate, AnnotateConfig, AnnotateInput, RoughnessError};
+use tre_core::geometry::{normals::Neighbourhood, Grid, Intrinsics, Mounting, Vec3};
+use tre_core::roughness::{
+    annotate::{annotate, AnnotateConfig, AnnotateInput},
+    RoughnessError,
+};
 
 /// The spec (annotation spec v1, default settings) on a depth map alone.
-fn spec(depth: &Grid<f64>, k: &Intrinsics) -> tre_core::roughness::Annotation {
+fn spec(depth: &Grid<f64>, k: &Intrinsics) -> tre_core::roughness::annotate::Annotation {
     annotate(&AnnotateInput::depth(depth, k), &AnnotateConfig::default()).unwrap()
 }
 
@@ -22,7 +25,7 @@ fn robot_camera() -> (Intrinsics, Mounting, (usize, usize)) {
 }
 
 /// Every valid pixel of `ann` reads flat (under a micrometre).
-fn assert_flat(ann: &tre_core::roughness::Annotation) {
+fn assert_flat(ann: &tre_core::roughness::annotate::Annotation) {
     assert!(ann
         .roughness_m
         .as_slice()

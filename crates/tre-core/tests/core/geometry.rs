@@ -6,7 +6,10 @@ use nalgebra::{Rotation3, Vector3};
 use proptest::prelude::*;
 use tre_core::geometry::dsac::{self, DsacConfig, CANDIDATES};
 use tre_core::geometry::raycast::{render_depth, MarchConfig};
-use tre_core::geometry::{ls_normals, Grid, Intrinsics, Mounting, Neighbourhood, Vec3};
+use tre_core::geometry::{
+    normals::{ls_normals, Neighbourhood},
+    Grid, Intrinsics, Mounting, Vec3,
+};
 
 fn camera(w: usize, h: usize) -> Intrinsics {
     Intrinsics::from_hfov(w, h, 70.0).unwrap()

@@ -32,7 +32,10 @@ use tre_core::roughness::hazard::{
 use tre_core::roughness::metrics::DepthMetrics;
 use tre_core::roughness::noise::SensorNoise;
 use tre_core::roughness::traversal::Traversal;
-use tre_core::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation, DepthAccumulator};
+use tre_core::roughness::{
+    annotate::{annotate, AnnotateConfig, AnnotateInput, Annotation},
+    metrics::DepthAccumulator,
+};
 use tre_io::sheet::{
     categorical_legend, colour_bar_legend, contact_sheet, roughness_panel, stack, Panel,
 };

@@ -14,9 +14,9 @@ fn body_pace_judges_each_window() {
     pace.check(6000, t0 + BODY_RATE_WINDOW).unwrap();
     assert_eq!((pace.since, pace.bytes), (t0 + BODY_RATE_WINDOW, 0));
     let e = pace.check(100, t0 + 2 * BODY_RATE_WINDOW).unwrap_err();
-    assert_eq!(e.code, ErrorCode::RequestTimeout);
-    assert!(e.message.contains("--min-body-rate"), "{e}");
-    assert!(e.message.contains("20 bytes/s"), "{e}");
+    assert_eq!(e.code(), ErrorCode::RequestTimeout);
+    assert!(e.to_string().contains("--min-body-rate"), "{e}");
+    assert!(e.to_string().contains("20 bytes/s"), "{e}");
     let mut off = BodyPace::new(0);
     assert_eq!(off.deadline(), None);
     off.check(0, t0 + Duration::from_secs(3600)).unwrap();

@@ -11,9 +11,9 @@ use tower_service::Service;
 
 use super::*;
 use crate::metrics::Metrics;
+use crate::options::Format;
 use crate::query::RoughnessQuery;
 use crate::refusals::RefusalLog;
-use crate::request::Format;
 use crate::workers::{PoolConfig, Workers};
 use crate::{router, AppState, ServeConfig};
 use tre_core::kinds::{names, Mode, NormalsMethod};

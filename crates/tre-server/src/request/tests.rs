@@ -1,6 +1,7 @@
 //! Tests of decoding a frame under the limits.
 
 use super::*;
+use tre_proto::ErrorCode;
 
 const LIMITS: DecodeLimits = DecodeLimits {
     max_pixels: 1_000_000,
@@ -16,10 +17,12 @@ fn png_bytes(w: u32, h: u32) -> Vec<u8> {
 
 #[test]
 fn refuses_what_is_not_an_image() {
-    let e = decode_image("rgb", b"hello world", LIMITS).unwrap_err();
-    assert_eq!(e.code, ErrorCode::UnsupportedMedia);
+    let e = decode_image(ImagePart::Rgb, b"hello world", LIMITS).unwrap_err();
+    assert_eq!(e.code(), ErrorCode::UnsupportedMedia);
     assert_eq!(
-        decode_image("rgb", b"", LIMITS).unwrap_err().code,
+        decode_image(ImagePart::Rgb, b"", LIMITS)
+            .unwrap_err()
+            .code(),
         ErrorCode::BadImage
     );
 }
@@ -28,17 +31,21 @@ fn refuses_what_is_not_an_image() {
 fn refuses_truncated_and_oversized_images() {
     let good = png_bytes(64, 48);
     assert_eq!(
-        decode_image("rgb", &good, LIMITS).expect("decodes").width(),
+        decode_image(ImagePart::Rgb, &good, LIMITS)
+            .expect("decodes")
+            .width(),
         64
     );
-    let e = decode_image("rgb", &good[..good.len() / 2], LIMITS).unwrap_err();
-    assert_eq!(e.code, ErrorCode::BadImage, "{e}");
+    let e = decode_image(ImagePart::Rgb, &good[..good.len() / 2], LIMITS).unwrap_err();
+    assert_eq!(e.code(), ErrorCode::BadImage, "{e}");
     let small = DecodeLimits {
         max_pixels: 1000,
         ..LIMITS
     };
     assert_eq!(
-        decode_image("rgb", &good, small).unwrap_err().code,
+        decode_image(ImagePart::Rgb, &good, small)
+            .unwrap_err()
+            .code(),
         ErrorCode::TooLarge
     );
 }
@@ -46,7 +53,7 @@ fn refuses_truncated_and_oversized_images() {
 #[test]
 fn depth_must_be_16_bit() {
     let e = decode_depth(&png_bytes(4, 4), 1000.0, LIMITS).unwrap_err();
-    assert_eq!(e.code, ErrorCode::BadDepth);
+    assert_eq!(e.code(), ErrorCode::BadDepth);
 }
 
 fn npy_bytes<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Vec<u8> {
@@ -78,15 +85,15 @@ fn depth_errors_are_depth_errors() {
         (npy_bytes(&[2, 3], &[1500.0f32; 6]), "in millimetres"),
     ] {
         let e = decode_depth(&bytes, 1000.0, LIMITS).unwrap_err();
-        assert_eq!(e.code, ErrorCode::BadDepth, "{e}");
+        assert_eq!(e.code(), ErrorCode::BadDepth, "{e}");
         assert!(
-            e.message.starts_with("depth: ") && e.message.contains(says),
+            e.to_string().starts_with("depth: ") && e.to_string().contains(says),
             "{e}"
         );
     }
     let big = npy_bytes(&[1001, 1000], &vec![1.0f32; 1_001_000]);
     let e = decode_depth(&big, 1000.0, LIMITS).unwrap_err();
-    assert_eq!(e.code, ErrorCode::TooLarge, "{e}");
+    assert_eq!(e.code(), ErrorCode::TooLarge, "{e}");
 }
 
 /// In the geometric mode an RGB part is not decoded (nothing uses it), but its header is
@@ -116,7 +123,7 @@ fn the_geometric_mode_checks_an_rgb_part_without_decoding_it() {
         (png_bytes(2000, 1000), ErrorCode::TooLarge),
     ] {
         let e = decode_frame(&request(rgb, geometric), LIMITS).unwrap_err();
-        assert_eq!(e.code, code, "{e}");
+        assert_eq!(e.code(), code, "{e}");
     }
 }
 
@@ -136,12 +143,12 @@ fn shapes_beyond_the_side_or_aspect_limits_are_refused_from_the_header() {
         (2048, 255, ErrorCode::BadImage, "--max-aspect"),
         (2048, 1, ErrorCode::BadImage, "--max-aspect"),
     ] {
-        let e = decode_image("rgb", &png_bytes(w, h), limits).unwrap_err();
-        assert_eq!(e.code, code, "{w}×{h}: {e}");
-        assert!(e.message.contains(says), "{w}×{h}: {e}");
+        let e = decode_image(ImagePart::Rgb, &png_bytes(w, h), limits).unwrap_err();
+        assert_eq!(e.code(), code, "{w}×{h}: {e}");
+        assert!(e.to_string().contains(says), "{w}×{h}: {e}");
     }
-    assert!(decode_image("rgb", &png_bytes(2048, 256), limits).is_ok());
+    assert!(decode_image(ImagePart::Rgb, &png_bytes(2048, 256), limits).is_ok());
     let e = decode_depth(&npy_bytes(&[1, 100], &[1.0f32; 100]), 1000.0, limits).unwrap_err();
-    assert_eq!(e.code, ErrorCode::BadDepth, "{e}");
-    assert!(e.message.contains("--max-aspect"), "{e}");
+    assert_eq!(e.code(), ErrorCode::BadDepth, "{e}");
+    assert!(e.to_string().contains("--max-aspect"), "{e}");
 }

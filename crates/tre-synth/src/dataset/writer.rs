@@ -12,14 +12,17 @@ use crate::imaging::Imaging;
 use crate::render::{RenderedFrame, View};
 use crate::sensor::{simulate, SensorInput, SensorModel};
 use tre_core::roughness::noise::SensorPreset;
-use tre_core::roughness::{annotate, AnnotateConfig, AnnotateInput, RoughnessError};
+use tre_core::roughness::{
+    annotate::{annotate, AnnotateConfig, AnnotateInput},
+    RoughnessError,
+};
 use tre_io::{self as io, IoError};
 
 /// Spec v1 on a rendered frame's exact depth, normals and labels.
 pub(super) fn annotate_frame(
     f: &RenderedFrame,
     k: &tre_core::geometry::Intrinsics,
-) -> Result<tre_core::roughness::Annotation, FrameError> {
+) -> Result<tre_core::roughness::annotate::Annotation, FrameError> {
     let input = AnnotateInput {
         depth_m: &f.depth_m,
         intrinsics: k,

@@ -141,7 +141,7 @@ fn natural_output_is_unchanged() {
     // but the JSON ones (images, depth, labels, normals, ground truth, PLY, contact sheet).
     let dir = tempfile::tempdir().unwrap();
     let cfg = synth_config(dir.path(), 2, 5, (160, 120), 3);
-    tre_synth::generate(&cfg).unwrap();
+    tre_synth::dataset::generate(&cfg).unwrap();
     assert_eq!(
         digest_without_json(dir.path()),
         (
@@ -165,8 +165,8 @@ fn indoor_urban_and_mixed_same_seed_same_bytes() {
             ply: false,
             ..small_config(out, 21)
         };
-        tre_synth::generate(&cfg(a.path())).unwrap();
-        tre_synth::generate(&cfg(b.path())).unwrap();
+        tre_synth::dataset::generate(&cfg(a.path())).unwrap();
+        tre_synth::dataset::generate(&cfg(b.path())).unwrap();
         let (fa, fb) = (files(a.path()), files(b.path()));
         assert_eq!(fa.len(), 2 + 2 * 3 * 9, "{content}");
         for ((na, ba), (nb, bb)) in fa.iter().zip(&fb) {
@@ -192,7 +192,7 @@ fn labels_seen(content: Content, seed: u64) -> BTreeSet<u8> {
         content,
         ..SynthConfig::default()
     };
-    let m = tre_synth::generate(&cfg).unwrap();
+    let m = tre_synth::dataset::generate(&cfg).unwrap();
     let mut seen = BTreeSet::new();
     for f in &m.scenes[0].frames {
         let labels = tre_io::read_labels(&dir.path().join(&f.dir).join("labels.png")).unwrap();
@@ -377,8 +377,8 @@ fn an_interrupted_run_resumes_keeping_complete_frames() {
         resume,
         ..small_config(out, 12)
     };
-    tre_synth::generate(&cfg(a.path(), false)).unwrap();
-    tre_synth::generate(&cfg(b.path(), false)).unwrap();
+    tre_synth::dataset::generate(&cfg(a.path(), false)).unwrap();
+    tre_synth::dataset::generate(&cfg(b.path(), false)).unwrap();
     // Interrupt b: no manifest or contact sheet yet, the run's settings recorded, one frame
     // half written, one not started, and a kept frame marked to show it is not rewritten.
     let root = b.path();
@@ -400,9 +400,11 @@ fn an_interrupted_run_resumes_keeping_complete_frames() {
         seed: 13,
         ..cfg(root, true)
     };
-    let e = tre_synth::generate(&other).unwrap_err().to_string();
+    let e = tre_synth::dataset::generate(&other)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("other settings"), "{e}");
-    tre_synth::generate(&cfg(root, true)).unwrap();
+    tre_synth::dataset::generate(&cfg(root, true)).unwrap();
     assert_eq!(std::fs::read(&marked).unwrap(), b"kept");
     std::fs::copy(a.path().join("scene_00000/view_1/rgb.png"), &marked).unwrap();
     let (fa, fb) = (files(a.path()), files(root));
@@ -417,7 +419,7 @@ fn an_interrupted_run_resumes_keeping_complete_frames() {
         assert!(ba == bb, "{na} differs after resuming");
     }
     // A finished dataset resumes to itself.
-    tre_synth::generate(&cfg(root, true)).unwrap();
+    tre_synth::dataset::generate(&cfg(root, true)).unwrap();
     assert_eq!(files(root).len(), fa.len());
 }
 

@@ -9,13 +9,13 @@
 use std::path::Path;
 
 use tre_core::geometry::{is_valid_point, Grid, Intrinsics, Mounting, Vec3};
+use tre_core::roughness::annotate::{annotate, AnnotateConfig, AnnotateInput, Annotation};
 use tre_core::roughness::noise::SensorPreset;
-use tre_core::roughness::{annotate, AnnotateConfig, AnnotateInput, Annotation};
 use tre_synth::imaging::ImageEffect;
 use tre_synth::surface::{Region, Steps};
 use tre_synth::{
-    render, Category, Conditions, HeightGrid, Lighting, RenderedFrame, Scene, SynthConfig, Terrain,
-    View, Weather,
+    dataset::SynthConfig, render, surface::Category, Conditions, HeightGrid, Lighting,
+    RenderedFrame, Scene, Terrain, View, Weather,
 };
 
 mod content;

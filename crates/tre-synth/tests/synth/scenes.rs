@@ -10,9 +10,9 @@ fn same_seed_same_bytes() {
         tempfile::tempdir().unwrap(),
         tempfile::tempdir().unwrap(),
     );
-    tre_synth::generate(&small_config(a.path(), 5)).unwrap();
-    tre_synth::generate(&small_config(b.path(), 5)).unwrap();
-    tre_synth::generate(&small_config(c.path(), 6)).unwrap();
+    tre_synth::dataset::generate(&small_config(a.path(), 5)).unwrap();
+    tre_synth::dataset::generate(&small_config(b.path(), 5)).unwrap();
+    tre_synth::dataset::generate(&small_config(c.path(), 6)).unwrap();
     let (fa, fb, fc) = (files(a.path()), files(b.path()), files(c.path()));
     assert_eq!(
         fa.len(),
@@ -124,7 +124,7 @@ fn random_optics_draw_every_frame_within_the_documented_ranges() {
         random_optics: true,
         ..synth_config(dir.path(), 2, 11, (96, 72), 9)
     };
-    tre_synth::generate(&cfg).unwrap();
+    tre_synth::dataset::generate(&cfg).unwrap();
     let within = |(lo, hi): (f64, f64), v: f64| v >= lo - 1e-9 && v <= hi + 1e-9;
     let (mut shapes, mut pitches, mut rolls) = (Vec::new(), Vec::new(), Vec::new());
     for s in 0..2 {
@@ -246,8 +246,8 @@ fn image_effects_change_only_the_image_and_are_recorded() {
         ply: false,
         ..small_config(out, 8)
     };
-    tre_synth::generate(&cfg(a.path(), vec![])).unwrap();
-    tre_synth::generate(&cfg(b.path(), ImageEffect::ALL.to_vec())).unwrap();
+    tre_synth::dataset::generate(&cfg(a.path(), vec![])).unwrap();
+    tre_synth::dataset::generate(&cfg(b.path(), ImageEffect::ALL.to_vec())).unwrap();
     let (fa, fb) = (files(a.path()), files(b.path()));
     let mut rgb_differs = 0;
     for ((na, ba), (_, bb)) in fa.iter().zip(&fb) {

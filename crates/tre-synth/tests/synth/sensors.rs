@@ -190,8 +190,8 @@ fn same_seed_same_depth_and_the_exact_frame_is_untouched() {
         ply: false,
         ..small_config(out, 3)
     };
-    tre_synth::generate(&cfg(a.path(), SensorPreset::Exact)).unwrap();
-    tre_synth::generate(&cfg(b.path(), SensorPreset::KinectV1)).unwrap();
+    tre_synth::dataset::generate(&cfg(a.path(), SensorPreset::Exact)).unwrap();
+    tre_synth::dataset::generate(&cfg(b.path(), SensorPreset::KinectV1)).unwrap();
     let (fa, fb) = (files(a.path()), files(b.path()));
     let mut sensor_differs = 0;
     for ((na, ba), (nb, bb)) in fa.iter().zip(&fb) {

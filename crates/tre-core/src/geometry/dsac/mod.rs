@@ -105,7 +105,7 @@ impl DsacConfig {
     /// the reference for the f32 scorer (module docs, step 4).
     ///
     /// ```
-    /// let cfg = tre_core::geometry::DsacConfig::default();
+    /// let cfg = tre_core::geometry::dsac::DsacConfig::default();
     /// assert_eq!(cfg.soft_inlier(0.01), 0.5);
     /// ```
     #[inline]
@@ -198,7 +198,8 @@ pub struct PixelHypotheses {
 /// the camera origin.
 ///
 /// ```
-/// use tre_core::geometry::{dsac, DsacConfig, Grid, Vec3};
+/// use tre_core::geometry::dsac::{self, DsacConfig};
+/// use tre_core::geometry::{Grid, Vec3};
 /// let points = Grid::from_fn(9, 9, |x, y| Vec3::new(0.01 * x as f64, 0.01 * y as f64, 1.0));
 /// let cands = dsac::candidates(&points, 4, 4);
 /// let rho = dsac::candidate_probabilities(&[0.0; 49], &cands);
@@ -237,7 +238,8 @@ pub fn pixel_hypotheses(
 /// pixel, so the answer does not depend on the number of threads.
 ///
 /// ```
-/// use tre_core::geometry::{dsac, DsacConfig, Grid, Vec3};
+/// use tre_core::geometry::dsac::{self, DsacConfig};
+/// use tre_core::geometry::{Grid, Vec3};
 /// let points = Grid::from_fn(9, 9, |x, y| Vec3::new(0.01 * x as f64, 0.01 * y as f64, 1.0));
 /// let normals = dsac::dsac_normals(&points, &vec![0.0; 49 * 81], &DsacConfig::default()).unwrap();
 /// assert!((normals[(4, 4)].z + 1.0).abs() < 1e-9);
@@ -264,7 +266,8 @@ pub struct DsacScratch {
 ///
 /// ```
 /// use tre_core::geometry::dsac::{dsac_normals, dsac_normals_into, DsacScratch};
-/// use tre_core::geometry::{DsacConfig, Grid, Vec3};
+/// use tre_core::geometry::dsac::DsacConfig;
+/// use tre_core::geometry::{Grid, Vec3};
 /// let points = Grid::from_fn(9, 9, |x, y| Vec3::new(0.01 * x as f64, 0.01 * y as f64, 1.0));
 /// let logits = vec![0.0; 49 * 81];
 /// let (mut scratch, mut out) = (DsacScratch::default(), Grid::default());

@@ -5,10 +5,10 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::RoughnessError;
-use crate::geometry::camera::{is_valid_point, PointMap};
 use crate::geometry::normals::{local_planes, window_centroids, Neighbourhood};
-use crate::geometry::plane::orient_towards_camera;
+use crate::geometry::orient_towards_camera;
 use crate::geometry::Plane;
+use crate::geometry::{is_valid_point, PointMap};
 use crate::geometry::{Grid, Intrinsics, Vec3, INVALID_POINT};
 
 /// Parameters of annotation spec v1, with the spec's defaults.
@@ -152,7 +152,8 @@ pub struct SpecMaps {
 /// pixels without a point). This is what `tre annotate` and the `geometric` mode both run.
 ///
 /// ```
-/// use tre_core::geometry::{local_planes, Grid, Intrinsics, Neighbourhood};
+/// use tre_core::geometry::normals::{local_planes, Neighbourhood};
+/// use tre_core::geometry::{Grid, Intrinsics};
 /// use tre_core::roughness::annotate::{spec_roughness_into, AnnotateConfig, SpecMaps, SpecPlanes};
 /// // A 10 cm drop between two floor halves seen from above.
 /// let k = Intrinsics::from_hfov(40, 30, 60.0).unwrap();

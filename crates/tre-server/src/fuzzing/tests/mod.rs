@@ -154,7 +154,7 @@ fn fuzz_stream_messages() {
 #[test]
 fn seeds_are_accepted() {
     for png in small_pngs() {
-        assert!(super::decode_image("rgb", &png, super::limits()).is_ok());
+        assert!(super::decode_image(super::ImagePart::Rgb, &png, super::limits()).is_ok());
     }
     assert!(super::decode_depth(&small_depth(17, 11), 1000.0, super::limits()).is_ok());
     assert!(super::strict_camera(&camera_json(), super::limits()).is_ok());
