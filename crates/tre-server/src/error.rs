@@ -525,12 +525,12 @@ pub enum RequestError {
     },
     /// A Hello's `sensor` that describes a sensor without naming a noise model.
     #[error(
-        "hello.sensor: {name:?} names no noise model; one of {}",
+        "hello.sensor: {description:?} names no noise model; one of {}",
         SensorPreset::names()
     )]
     HelloSensorDescription {
         /// The text given.
-        name: String,
+        description: String,
     },
     /// A Hello's `sensor` that does not read (the camera's sensor's error).
     #[error("hello.sensor: {0}")]

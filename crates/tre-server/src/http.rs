@@ -107,13 +107,9 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
         })??;
     let timeout = app.cfg.request_timeout;
     let deadline = tokio::time::Instant::now() + timeout;
-    let _permit =
-        app.concurrency
-            .clone()
-            .try_acquire_owned()
-            .map_err(|_| RequestError::TooManyRequests {
-                max_concurrent: app.cfg.max_concurrent,
-            })?;
+    let max_concurrent = app.cfg.max_concurrent;
+    let permit = app.concurrency.clone().try_acquire_owned();
+    let _permit = permit.map_err(|_| RequestError::TooManyRequests { max_concurrent })?;
     let query = query?;
     frame.options = query.options()?;
     match (&frame.camera, query.camera(app.cfg.decode_limits())?) {

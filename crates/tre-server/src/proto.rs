@@ -150,8 +150,8 @@ impl TryFrom<pb::Hello> for StreamSettings {
         let sensor = match sensor_from_pb(h.sensor, &h.sensor_sigma_mm) {
             Ok(None) => None,
             Ok(Some(SensorSpec::Model(m))) => Some(m),
-            Ok(Some(SensorSpec::Description(name))) => {
-                return Err(RequestError::HelloSensorDescription { name })
+            Ok(Some(SensorSpec::Description(description))) => {
+                return Err(RequestError::HelloSensorDescription { description })
             }
             Err(e) => return Err(RequestError::HelloSensor(Box::new(e))),
         };
