@@ -109,7 +109,9 @@ def check(path: Path, frames: int, roughness_npy: Path | None) -> dict[str, list
             fail(f"{topic}: {len(messages[topic])} messages, expected at least {frames}")
     rough = float_image(messages["/tre/roughness"][-1])
     fox = messages["/tre/roughness/foxglove"][-1]
-    fox_img = np.frombuffer(base64.b64decode(fox["data"]), "<f4").reshape(fox["height"], fox["width"])
+    fox_img = np.frombuffer(base64.b64decode(fox["data"]), "<f4").reshape(
+        fox["height"], fox["width"]
+    )
     if not same(rough, fox_img):
         fail("the foxglove.RawImage roughness differs from the sensor_msgs/Image one")
     if roughness_npy is not None:
@@ -129,12 +131,17 @@ def check(path: Path, frames: int, roughness_npy: Path | None) -> dict[str, list
     if not np.array_equal(occ, want_occ):
         fail("occupancy differs from the grid map's traversal layer")
     counts = {t: len(m) for t, m in sorted(messages.items())}
-    print(json.dumps({"channels": {t: list(c) for t, c in sorted(channels.items())}, "messages": counts}, indent=1))
+    print(
+        json.dumps(
+            {"channels": {t: list(c) for t, c in sorted(channels.items())}, "messages": counts},
+            indent=1,
+        )
+    )
     return messages
 
 
 def render(messages: dict[str, list], out: Path) -> None:
-    """Depth in, roughness and three-state out, and the map's elevation and occupancy, side by side."""
+    """Depth in, roughness and three-state out, the map's elevation and occupancy, side by side."""
     from PIL import Image, ImageDraw
 
     def colour(a: np.ndarray, lo: float, hi: float) -> Image.Image:
@@ -152,14 +159,26 @@ def render(messages: dict[str, list], out: Path) -> None:
     pal = np.array([[90, 90, 90], [40, 170, 60], [210, 40, 40]], np.uint8)
     grid = messages["/tre/grid_map"][-1]
     elev = grid_layer(grid, "elevation")
-    occ = np.asarray(messages["/tre/occupancy"][-1].data, np.int16).reshape(grid_layer(grid, "count").shape)[::-1, :]
-    occ_rgb = np.where(occ[..., None] == 100, [210, 40, 40], np.where(occ[..., None] == 0, [240, 240, 240], [90, 90, 90]))
+    occ = np.asarray(messages["/tre/occupancy"][-1].data, np.int16).reshape(
+        grid_layer(grid, "count").shape
+    )[::-1, :]
+    occ_rgb = np.where(
+        occ[..., None] == 100,
+        [210, 40, 40],
+        np.where(occ[..., None] == 0, [240, 240, 240], [90, 90, 90]),
+    )
     panels = [
         ("depth in (/camera/depth/image_rect_raw)", colour(depth, 0.5, 3.5)),
         ("roughness 0-5 cm (/tre/roughness)", colour(rough, 0.0, 0.05)),
         ("three-state (/tre/traversal)", Image.fromarray(pal[np.minimum(trav, 2)])),
-        ("map elevation (/tre/grid_map)", colour(elev, np.nanmin(elev), np.nanmax(elev)).resize((480, 480), Image.NEAREST)),
-        ("occupancy (/tre/occupancy)", Image.fromarray(occ_rgb.astype(np.uint8)).resize((480, 480), Image.NEAREST)),
+        (
+            "map elevation (/tre/grid_map)",
+            colour(elev, np.nanmin(elev), np.nanmax(elev)).resize((480, 480), Image.NEAREST),
+        ),
+        (
+            "occupancy (/tre/occupancy)",
+            Image.fromarray(occ_rgb.astype(np.uint8)).resize((480, 480), Image.NEAREST),
+        ),
     ]
     w = sum(p.width for _, p in panels) + 10 * (len(panels) + 1)
     sheet = Image.new("RGB", (w, 520), (255, 255, 255))
