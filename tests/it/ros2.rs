@@ -285,24 +285,41 @@ fn odom_msg(pose: Pose, i: usize) -> Odometry {
     }
 }
 
-/// `tre ros2` as a child process (and its stdout, past the first line), killed on drop.
-struct Tre(
-    Option<Child>,
-    Option<std::io::BufReader<std::process::ChildStdout>>,
-    String,
-);
+/// `tre ros2` as a child process, killed on drop: its stdout past the first line, and its
+/// stderr as it comes (read on a thread of its own, so a test can wait for a log line).
+struct Tre {
+    child: Option<Child>,
+    stdout: Option<std::io::BufReader<std::process::ChildStdout>>,
+    first: String,
+    log: std::sync::Arc<std::sync::Mutex<String>>,
+    log_thread: Option<std::thread::JoinHandle<()>>,
+}
 
 impl Drop for Tre {
     fn drop(&mut self) {
-        if let Some(c) = &mut self.0 {
+        if let Some(c) = &mut self.child {
             let _ = c.kill();
             let _ = c.wait();
         }
     }
 }
 
+impl Tre {
+    /// Waits until `needle` is in the log; false after `wait`.
+    fn wait_for_log(&self, needle: &str, wait: Duration) -> bool {
+        let deadline = Instant::now() + wait;
+        while Instant::now() < deadline {
+            if self.log.lock().unwrap().contains(needle) {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        false
+    }
+}
+
 fn start_tre(args: &[&str]) -> Tre {
-    let child = Command::new(env!("CARGO_BIN_EXE_tre"))
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tre"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .arg("ros2")
         .args(args)
@@ -310,37 +327,54 @@ fn start_tre(args: &[&str]) -> Tre {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let mut child = child;
+    let log = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+    let stderr = child.stderr.take().unwrap();
+    let sink = std::sync::Arc::clone(&log);
+    let log_thread = std::thread::Builder::new()
+        .name("tre-ros2-stderr".into())
+        .spawn(move || {
+            for line in std::io::BufRead::lines(std::io::BufReader::new(stderr)) {
+                let Ok(line) = line else { break };
+                let mut l = sink.lock().unwrap();
+                l.push_str(&line);
+                l.push('\n');
+            }
+        })
+        .unwrap();
     // The node prints one line once it has joined the domain.
     let mut first = String::new();
     let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
     std::io::BufRead::read_line(&mut out, &mut first).unwrap();
     if first.is_empty() {
-        let o = child.wait_with_output().unwrap();
-        panic!(
-            "tre ros2 did not start: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        let _ = child.wait();
+        let _ = log_thread.join();
+        panic!("tre ros2 did not start: {}", log.lock().unwrap());
     }
     assert!(first.starts_with("ros2 node"), "{first}");
-    Tre(Some(child), Some(out), first)
+    Tre {
+        child: Some(child),
+        stdout: Some(out),
+        first,
+        log,
+        log_thread: Some(log_thread),
+    }
 }
 
 /// `tre ros2` stopped by SIGTERM: its exit status, stdout and stderr.
 fn stop_tre(mut tre: Tre) -> (bool, String, String) {
-    let child = tre.0.take().unwrap();
+    let mut child = tre.child.take().unwrap();
     Command::new("kill")
         .args(["-TERM", &child.id().to_string()])
         .status()
         .unwrap();
-    let mut stdout = tre.2.clone();
-    std::io::Read::read_to_string(&mut tre.1.take().unwrap(), &mut stdout).unwrap();
-    let o = child.wait_with_output().unwrap();
-    (
-        o.status.success(),
-        stdout,
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
+    let mut stdout = tre.first.clone();
+    std::io::Read::read_to_string(&mut tre.stdout.take().unwrap(), &mut stdout).unwrap();
+    let status = child.wait().unwrap();
+    if let Some(t) = tre.log_thread.take() {
+        t.join().unwrap();
+    }
+    let stderr = tre.log.lock().unwrap().clone();
+    (status.success(), stdout, stderr)
 }
 
 fn f32_values(img: &Image) -> Vec<f32> {
@@ -608,20 +642,27 @@ fn bad_input_is_skipped_and_the_node_recovers() {
     let depth_path = k.dir.join(format!("depth/{}.png", k.stems[0]));
     let good = depth_msg(&depth_path, 0);
     let info = info_msg(0, (good.width, good.height));
-    let settle = Duration::from_millis(700);
+    // Each bad frame is skipped, and logged, before the next one is sent.
+    let logged = |why: &str| {
+        assert!(
+            tre.wait_for_log(why, Duration::from_secs(30)),
+            "{why:?} not logged: {}",
+            tre.log.lock().unwrap()
+        );
+    };
     // 1. No camera_info yet.
     let mut d = good.clone();
     d.header = header(1);
     peer.depth.publish(d.clone()).unwrap();
-    std::thread::sleep(settle);
+    logged("no camera_info received yet");
     // 2. A camera_info of another size.
     let mut small = info.clone();
     small.width = 320;
     peer.info.publish(small).unwrap();
-    std::thread::sleep(Duration::from_millis(200));
+    std::thread::sleep(Duration::from_millis(500));
     d.header = header(2);
     peer.depth.publish(d.clone()).unwrap();
-    std::thread::sleep(settle);
+    logged("camera_info is 320×480 but the image is 640×480");
     // 3. An encoding the node does not read.
     peer.info.publish(info.clone()).unwrap();
     std::thread::sleep(Duration::from_millis(200));
@@ -629,30 +670,19 @@ fn bad_input_is_skipped_and_the_node_recovers() {
     bad.header = header(3);
     bad.encoding = "8UC2".into();
     peer.depth.publish(bad).unwrap();
-    std::thread::sleep(settle);
+    logged("encoding \"8UC2\" is not read");
     // 4. Nothing valid.
     let mut empty = d.clone();
     empty.header = header(4);
     empty.data.fill(0);
     peer.depth.publish(empty).unwrap();
-    std::thread::sleep(settle);
+    logged("no valid pixel");
     // No output for any of them.
     for i in 1..=4 {
         assert!(take_stamped(&peer.roughness, stamp(i), Duration::ZERO, |m| &m.header).is_none());
     }
     // 5. A good frame: the node recovers.
-    let mut ok = None;
-    for _ in 0..5 {
-        d.header = header(5);
-        peer.depth.publish(d.clone()).unwrap();
-        ok = take_stamped(&peer.roughness, stamp(5), Duration::from_secs(8), |m| {
-            &m.header
-        });
-        if ok.is_some() {
-            break;
-        }
-    }
-    assert!(ok.is_some(), "no roughness after the bad frames");
+    assert_eq!(peer.send(5, &depth_path, None).header, header(5));
     let (exit_ok, stdout, stderr) = stop_tre(tre);
     assert!(exit_ok, "{stderr}");
     assert!(stdout.contains("skipped (bad input) 4"), "{stdout}");

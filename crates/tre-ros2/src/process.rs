@@ -85,8 +85,9 @@ fn frame_input(f: &FrameMsgs) -> Result<(FrameInput, Intrinsics), InputError> {
         .as_ref()
         .or(f.colour.as_ref())
         .ok_or(InputError::Empty)?;
-    let info = f.info.as_ref().ok_or(InputError::NoCameraInfo)?;
-    let k = convert::intrinsics(info, image)?;
+    // The images first: what is wrong with a frame itself is said whatever camera_info came.
+    let depth_m = f.depth.as_ref().map(convert::depth_m).transpose()?;
+    let rgb = f.colour.as_ref().map(convert::rgb).transpose()?;
     if let (Some(c), Some(d)) = (&f.colour, &f.depth) {
         if (c.width, c.height) != (d.width, d.height) {
             return Err(InputError::SizeMismatch {
@@ -95,9 +96,11 @@ fn frame_input(f: &FrameMsgs) -> Result<(FrameInput, Intrinsics), InputError> {
             });
         }
     }
+    let info = f.info.as_ref().ok_or(InputError::NoCameraInfo)?;
+    let k = convert::intrinsics(info, image)?;
     let input = FrameInput {
-        rgb: f.colour.as_ref().map(convert::rgb).transpose()?,
-        depth_m: f.depth.as_ref().map(convert::depth_m).transpose()?,
+        rgb,
+        depth_m,
         intrinsics: Some(k),
         mounting: None,
     };
