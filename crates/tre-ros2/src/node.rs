@@ -519,46 +519,23 @@ impl Publishers {
     }
 
     fn publish(&self, o: &Outputs) {
-        let log = |what: &str, r: Result<(), String>| {
-            if let Err(e) = r {
-                tracing::warn!("publishing {what}: {e}");
-            }
-        };
-        log(
-            "roughness",
-            self.roughness
-                .publish(o.roughness.clone())
-                .map_err(|e| format!("{e:?}")),
-        );
-        if let Some(u) = &o.uncertainty {
-            log(
-                "uncertainty",
-                self.uncertainty
-                    .publish(u.clone())
-                    .map_err(|e| format!("{e:?}")),
-            );
-        }
-        if let Some(t) = &o.traversal {
-            log(
-                "traversal",
-                self.traversal
-                    .publish(t.clone())
-                    .map_err(|e| format!("{e:?}")),
-            );
-        }
-        if let Some(g) = &o.grid {
-            log(
-                "grid_map",
-                self.grid.publish(g.clone()).map_err(|e| format!("{e:?}")),
-            );
-        }
-        if let Some(g) = &o.occupancy {
-            log(
-                "occupancy",
-                self.occupancy
-                    .publish(g.clone())
-                    .map_err(|e| format!("{e:?}")),
-            );
+        send(&self.roughness, "roughness", Some(&o.roughness));
+        send(&self.uncertainty, "uncertainty", o.uncertainty.as_ref());
+        send(&self.traversal, "traversal", o.traversal.as_ref());
+        send(&self.grid, "grid_map", o.grid.as_ref());
+        send(&self.occupancy, "occupancy", o.occupancy.as_ref());
+    }
+}
+
+/// Publishes `msg` when there is one; a failure is logged (the next frame publishes again).
+fn send<M: RosMessage + Clone + std::fmt::Debug>(
+    publisher: &Publisher<M>,
+    what: &str,
+    msg: Option<&M>,
+) {
+    if let Some(m) = msg {
+        if let Err(e) = publisher.publish(m.clone()) {
+            tracing::warn!("publishing {what}: {e:?}");
         }
     }
 }
