@@ -6,7 +6,6 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use clap::Args;
 
-use crate::geometry::normals::Neighbourhood;
 use crate::io;
 use crate::roughness::annotate::{annotate, AnnotateConfig, AnnotateInput, Annotation};
 
@@ -32,15 +31,9 @@ pub(crate) struct Annotate {
     /// Output folder (created if missing).
     #[arg(long, short)]
     pub out: PathBuf,
-    /// Geometric resolution ε, metres.
-    #[arg(long, default_value_t = 0.015)]
-    pub epsilon_m: f64,
-    /// Neighbourhood radius R, metres.
-    #[arg(long, default_value_t = 0.05)]
-    pub radius_m: f64,
-    /// Cap on the window half-width, pixels.
-    #[arg(long, default_value_t = 7)]
-    pub max_half_width: usize,
+    /// The spec's settings.
+    #[command(flatten)]
+    pub spec: AnnotateConfig,
     /// Top of the preview's colour scale, centimetres.
     #[arg(long, default_value_t = 5.0)]
     pub preview_max_cm: f64,
@@ -50,7 +43,13 @@ impl Annotate {
     /// Reads the inputs, annotates and writes every output.
     pub(crate) fn run(self) -> anyhow::Result<()> {
         self.check_outputs()?;
-        let cfg = self.config()?;
+        let cfg = self.spec.checked()?;
+        if !(self.preview_max_cm.is_finite() && self.preview_max_cm > 0.0) {
+            bail!(
+                "--preview-max-cm must be positive, got {}",
+                self.preview_max_cm
+            );
+        }
         let (cam, k) = io::read_camera(&self.camera)?;
         let scale = self.depth_scale.or(cam.depth_scale).unwrap_or(1000.0);
         if !(scale.is_finite() && scale > 0.0) {
@@ -81,27 +80,6 @@ impl Annotate {
         Ok(())
     }
 
-    fn config(&self) -> anyhow::Result<AnnotateConfig> {
-        for (name, v) in [
-            ("--epsilon-m", self.epsilon_m),
-            ("--radius-m", self.radius_m),
-            ("--preview-max-cm", self.preview_max_cm),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                bail!("{name} must be positive, got {v}");
-            }
-        }
-        let hood = Neighbourhood {
-            radius_m: self.radius_m,
-            max_half_width: self.max_half_width.max(1),
-        };
-        Ok(AnnotateConfig {
-            epsilon_m: self.epsilon_m,
-            hood,
-            ..AnnotateConfig::default()
-        })
-    }
-
     /// Refuses, before any work, an output folder that holds an input: its outputs would mix
     /// with the data there (a `tre synth` view's ground truth has the same file names), and any
     /// output that would replace an input lies in it.
@@ -126,22 +104,11 @@ impl Annotate {
     }
 
     fn write(&self, ann: &Annotation) -> anyhow::Result<()> {
-        let out = &self.out;
-        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-        let p = |name: &str| -> PathBuf { Path::new(out).join(name) };
-        io::save(
-            &p("roughness.png"),
-            &image::DynamicImage::ImageLumaA16(io::roughness_png16(&ann.roughness_m)),
-        )?;
-        io::write_npy_f32(&p("roughness.npy"), &ann.roughness_m)?;
-        io::write_mask_png(&p("boundary.png"), &ann.boundary)?;
-        io::write_npy_f32(&p("edge_weight.npy"), &ann.edge_weight_m)?;
-        io::write_npy_u32(&p("segments.npy"), &ann.segments)?;
         let title = format!("roughness, annotation spec v1: {}", file_name(&self.depth));
-        let preview =
-            io::previews::roughness_preview(&ann.roughness_m, self.preview_max_cm / 100.0, &title);
-        io::save(&p("preview.png"), &image::DynamicImage::ImageRgb8(preview))?;
-        Ok(())
+        let max_m = self.preview_max_cm / 100.0;
+        Ok(io::outputs::write_annotation(
+            &self.out, ann, max_m, &title,
+        )?)
     }
 }
 

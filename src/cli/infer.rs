@@ -4,36 +4,17 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use clap::{Args, ValueEnum};
+use clap::Args;
 
-use super::options::StageArgs;
 use crate::io;
-use crate::io::outputs::{self, MapFile, SensorMapFiles};
+use crate::io::outputs::{self, SensorMapFiles};
+use crate::kinds::{value_parser_of, MapFormat};
 use crate::pipeline::{
     Assumption, FrameInput, FrameOutput, Method, Mode, PipelineConfig, PipelineError, SensorMaps,
-    Traversability,
+    StageArgs, Traversability,
 };
 use crate::roughness::interval::IntervalTable;
 use crate::roughness::noise::{SensorNoise, SensorPreset};
-
-/// Output format of the roughness map.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub(crate) enum Format {
-    /// 16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data.
-    Png16,
-    /// (H, W) float32 .npy in metres, NaN where there is no data.
-    Npy,
-}
-
-impl Format {
-    /// The file it writes.
-    fn file(self) -> MapFile {
-        match self {
-            Self::Png16 => MapFile::Png16,
-            Self::Npy => MapFile::Npy,
-        }
-    }
-}
 
 /// Estimate roughness for one frame.
 #[derive(Debug, Args)]
@@ -65,8 +46,8 @@ pub(crate) struct Infer {
     #[arg(long, short)]
     pub out: PathBuf,
     /// Output format.
-    #[arg(long, value_enum, default_value = "png16")]
-    pub format: Format,
+    #[arg(long, default_value = "png16", value_parser = value_parser_of(MapFormat::FILE))]
+    pub format: MapFormat,
     /// Top of the preview's colour scale, centimetres.
     #[arg(long, default_value_t = 5.0)]
     pub preview_max_cm: f64,
@@ -80,20 +61,15 @@ pub(crate) struct Infer {
     /// realsense_d435, azure_kinect, lidar, exact) or coefficients a,b,c (σ_z = a + b·z + c·z²
     /// mm). With one (rgbd and geometric modes), the uncertainty map and the three-state map
     /// are written beside the output (docs/sensor-noise.md).
-    #[arg(long, env = "TRE_SENSOR", value_parser = parse_sensor)]
+    #[arg(long, env = "TRE_SENSOR")]
     pub sensor: Option<SensorNoise>,
-}
-
-/// `--sensor`: a preset name or `a,b,c`.
-pub(super) fn parse_sensor(s: &str) -> Result<SensorNoise, String> {
-    s.parse()
 }
 
 impl Infer {
     /// Reads the frame, runs the pipeline and writes the roughness map and its preview.
     pub(crate) fn run(self) -> anyhow::Result<()> {
         self.check_outputs()?;
-        if self.stages.method == Method::EndToEnd && self.depth.is_some() {
+        if self.stages.config.method == Method::EndToEnd && self.depth.is_some() {
             bail!(
                 "the end-to-end baseline runs from RGB alone, so --depth would be ignored: drop \
                  it, or use --method pipeline"
@@ -197,10 +173,12 @@ impl Infer {
             interval_m: maps.interval_m.as_ref().map(|(lo, hi)| (lo, hi)),
             traversal: &maps.traversal,
         };
+        let max_m = self.preview_max_cm / 100.0;
         Ok(outputs::write_sensor_maps(
             &self.out,
-            self.format.file(),
+            self.format,
             &files,
+            max_m,
             title,
         )?)
     }
@@ -212,7 +190,7 @@ impl Infer {
             .out
             .extension()
             .map(|e| e.to_string_lossy().to_ascii_lowercase());
-        let wanted = self.format.file().extension();
+        let wanted = self.format.extension();
         if ext.as_deref() != Some(wanted) {
             bail!(
                 "-o {}: the {} format writes a .{wanted} file; name it so (other image kinds \
@@ -240,13 +218,11 @@ impl Infer {
 
     /// The mode asked for, or the one the inputs imply.
     fn mode(&self) -> anyhow::Result<Mode> {
-        Ok(match (self.mode, &self.frame, &self.depth) {
-            (Some(mode), _, _) => mode,
-            (None, Some(_), Some(_)) => Mode::Rgbd,
-            (None, None, Some(_)) => Mode::Geometric,
-            (None, Some(_), None) => Mode::Rgb,
-            (None, None, None) => bail!("give an RGB frame, --depth, or both"),
-        })
+        match (self.mode, self.frame.is_some(), self.depth.is_some()) {
+            (Some(mode), _, _) => Ok(mode),
+            (None, false, false) => bail!("give an RGB frame, --depth, or both"),
+            (None, rgb, depth) => Ok(Mode::implied(rgb, depth)),
+        }
     }
 
     /// The frame, depth and camera from disk, the camera's sensor, and whether a depth scale
@@ -308,8 +284,7 @@ impl Infer {
     /// it.
     fn write(&self, out: &FrameOutput, title: &str) -> anyhow::Result<()> {
         let max_m = self.preview_max_cm / 100.0;
-        let file = self.format.file();
-        outputs::write_roughness(&self.out, file, &out.roughness_m, max_m, title)
+        outputs::write_roughness(&self.out, self.format, &out.roughness_m, max_m, title)
             .with_context(|| format!("writing {}", self.out.display()))
     }
 }

@@ -7,13 +7,11 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::Args;
 
-use super::infer::parse_sensor;
-use super::options::StageArgs;
 use crate::io::map_files::{write_map, MapRun, MapSummary};
 use crate::io::sequence::{read_gravity, sequence_frames, FrameSelection, SequenceFrame};
 use crate::io::{self, CameraFile};
 use crate::map::{GridMap, MapConfig, MapFrame, MapLimits, Pose};
-use crate::pipeline::{FrameInput, Mode};
+use crate::pipeline::{FrameInput, Mode, StageArgs};
 use crate::roughness::noise::SensorNoise;
 
 /// Fuse a sequence of depth frames into a gravity-aligned roughness grid map.
@@ -39,21 +37,15 @@ pub(crate) struct Map {
     #[arg(long, value_enum, default_value = "geometric")]
     pub mode: Mode,
     /// Depth sensor noise model (default: the camera's `sensor`): a preset or a,b,c.
-    #[arg(long, value_parser = parse_sensor)]
+    #[arg(long)]
     pub sensor: Option<SensorNoise>,
     /// Points farther than this from the camera are left out, metres (the depth's noise
     /// grows with the square of the distance).
     #[arg(long, default_value_t = 3.0)]
     pub max_range_m: f64,
-    /// Use every Nth frame.
-    #[arg(long, default_value_t = 1)]
-    pub stride: usize,
-    /// Use at most this many frames.
-    #[arg(long)]
-    pub limit: Option<usize>,
-    /// Fuse the frames in reverse order (the map should not depend on the order).
-    #[arg(long)]
-    pub reverse: bool,
+    /// Which frames, in which order.
+    #[command(flatten)]
+    pub select: FrameSelection,
     /// Pipeline switches and models (for the learned modes).
     #[command(flatten)]
     pub stages: StageArgs,
@@ -120,12 +112,7 @@ impl Map {
     /// The sequence's frames (stride, limit and order applied); without a pose for every
     /// frame, the first alone (a robot-centred map), with a warning.
     fn frames(&self) -> anyhow::Result<Vec<SequenceFrame>> {
-        let select = FrameSelection {
-            stride: self.stride,
-            limit: self.limit,
-            reverse: self.reverse,
-        };
-        let mut frames = sequence_frames(&self.sequence, select)?;
+        let mut frames = sequence_frames(&self.sequence, self.select)?;
         if !frames.iter().all(|f| f.pose.is_some()) {
             eprintln!("warning: no poses/ for every frame: one frame makes a robot-centred map");
             frames.truncate(1);

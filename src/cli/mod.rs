@@ -7,7 +7,6 @@ pub(crate) mod eval;
 pub(crate) mod infer;
 pub(crate) mod loadtest;
 pub(crate) mod map;
-pub(crate) mod options;
 #[cfg(feature = "ros2")]
 pub(crate) mod ros2;
 pub(crate) mod serve;

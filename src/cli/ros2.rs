@@ -6,11 +6,9 @@ use std::time::Duration;
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 
-use super::infer::parse_sensor;
-use super::options::StageArgs;
 use crate::geometry::Vec3;
 use crate::map::{MapConfig, MapLimits, Pose};
-use crate::pipeline::Mode;
+use crate::pipeline::{Mode, StageArgs};
 use crate::ros2::{self, MapSettings, NodeConfig, PoseSource, Processor, Reliability};
 use crate::roughness::noise::SensorNoise;
 
@@ -76,7 +74,7 @@ pub(crate) struct Ros2 {
     /// Depth sensor noise model (kinect_v1, realsense_d435, azure_kinect, lidar, exact, or
     /// a,b,c with σ_z = a + b·z + c·z² mm): the uncertainty and three-state images, and the
     /// map's height variance. Without it, neither is published and no map is made.
-    #[arg(long, env = "TRE_SENSOR", value_parser = parse_sensor)]
+    #[arg(long, env = "TRE_SENSOR")]
     pub sensor: Option<SensorNoise>,
     /// Prefix of the output topics (roughness, uncertainty, traversal, grid_map, occupancy).
     #[arg(long, default_value = "/tre")]

@@ -1,11 +1,12 @@
 //! Settings of the streaming client: where the server is, what to ask it for, how fast to send
-//! and how to reconnect, checked once by [`ClientConfig::validate`].
+//! and how to reconnect, checked once by [`ClientConfig::validate`]. Those a user states are
+//! options of `tre client` (clap's, behind the `cli` feature: each doc comment is its `--help`).
 
 use std::time::Duration;
 
 use super::error::{ConfigProblem, UrlProblem};
 use super::ClientError;
-use tre_core::kinds::{Mode, NormalsMethod, Traversability};
+use tre_core::kinds::{MapFormat, Mode, NormalsMethod, Traversability};
 use tre_core::roughness::noise::SensorNoise;
 use tre_io::CameraFile;
 
@@ -23,15 +24,42 @@ pub enum Rate {
 /// Exponential back-off between connection attempts: the first attempt is immediate, attempt
 /// `k + 1` waits `initial · factor^(k−1)`, capped at `max`.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct Backoff {
-    /// Wait before the second attempt.
+    /// First wait between connection attempts, milliseconds (doubling, see --reconnect-factor).
+    #[cfg_attr(feature = "cli", arg(long = "reconnect-initial-ms",
+        value_name = "RECONNECT_INITIAL_MS", env = "TRE_CLIENT_RECONNECT_INITIAL_MS",
+        default_value = "200", value_parser = tre_io::units::parse_millis))]
     pub initial: Duration,
-    /// Longest wait.
+    /// Longest wait between connection attempts, milliseconds.
+    #[cfg_attr(feature = "cli", arg(long = "reconnect-max-ms", value_name = "RECONNECT_MAX_MS",
+        env = "TRE_CLIENT_RECONNECT_MAX_MS", default_value = "5000",
+        value_parser = tre_io::units::parse_millis))]
     pub max: Duration,
-    /// Growth per attempt (≥ 1).
+    /// Growth of the wait per failed attempt.
+    #[cfg_attr(
+        feature = "cli",
+        arg(
+            long = "reconnect-factor",
+            value_name = "RECONNECT_FACTOR",
+            env = "TRE_CLIENT_RECONNECT_FACTOR",
+            default_value_t = 2.0
+        )
+    )]
     pub factor: f64,
-    /// Give up after this many failed attempts in a row; `None`: never.
-    pub give_up_after: Option<u32>,
+    /// Failed connection attempts in a row before giving up (0: never).
+    // The full path keeps clap from reading the option as optional: it always has a value,
+    // and 0 is `None`.
+    #[cfg_attr(feature = "cli", arg(long = "reconnect-attempts",
+        value_name = "RECONNECT_ATTEMPTS", env = "TRE_CLIENT_RECONNECT_ATTEMPTS",
+        default_value = "20", value_parser = attempts))]
+    pub give_up_after: std::option::Option<u32>,
+}
+
+/// `--reconnect-attempts`: a count, 0 for never.
+#[cfg(feature = "cli")]
+fn attempts(text: &str) -> Result<Option<u32>, std::num::ParseIntError> {
+    Ok(Some(text.parse()?).filter(|&n| n > 0))
 }
 
 impl Default for Backoff {
@@ -72,68 +100,97 @@ impl Backoff {
     }
 }
 
-/// Encoding of the roughness maps the server sends back: the stream's format, defined once
-/// with the other domain choices.
-pub use tre_core::kinds::StreamFormat as Format;
-
 /// Settings of a stream session.
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct ClientConfig {
-    /// The server: `ws://host:port/v1/stream`, `ws://host:port`, `http://host:port` (the
-    /// service's base URL; `/v1/stream` is appended) or `host:port`; `wss://` or `https://`
-    /// for TLS (rustls, [`tls`](super::tls)), as a TLS-terminating proxy in front of the
-    /// service serves it.
+    /// Server: ws://host:port/v1/stream, ws://host:port, http://host:port or host:port;
+    /// wss:// or https:// for TLS (a TLS-terminating proxy in front of the service).
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_SERVER"))]
     pub server: String,
-    /// API key of a server started with `--api-key`, sent as `Authorization: Bearer KEY` on
-    /// the upgrade and the readiness check.
+    /// API key of a server started with --api-key (sent as `Authorization: Bearer KEY`).
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_API_KEY", hide_env_values = true)
+    )]
     pub api_key: Option<String>,
-    /// PEM file of a private CA whose certificates the server's may chain to, beside the
-    /// public roots (`wss://` and `https://` only).
+    /// PEM file of a private CA to trust beside the public roots, for a wss:// or https://
+    /// server whose certificate it issued.
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_CA_CERT"))]
     pub ca_cert: Option<std::path::PathBuf>,
     /// Intrinsics and mounting of the camera; `None`: the server's defaults (60° horizontal
     /// field of view, 60° pitch, 1 m height).
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub camera: Option<CameraFile>,
-    /// Input mode; `None`: rgbd for frames with depth, else rgb.
+    /// Input mode; default: rgbd for frames with depth, else rgb.
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_MODE", value_enum))]
     pub mode: Option<Mode>,
-    /// Encoding of the maps.
-    pub format: Format,
-    /// Seed of the DSAC sampler (same seed, same output).
+    /// Encoding of the maps asked of the server: png16 (SEQ_NAME.png, 16-bit, 0.1 mm per
+    /// unit), color (a preview PNG) or f32 (SEQ_NAME.npy, float32 metres).
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_CLIENT_FORMAT", default_value = "png16",
+        value_parser = tre_core::kinds::value_parser_of(MapFormat::STREAM)))]
+    pub format: MapFormat,
+    /// Seed of the DSAC sampler: the same seed gives the same output.
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_SEED", default_value_t = 0))]
     pub seed: u64,
-    /// Initial normals; `None`: the server's default (`tre serve --normals`, DSAC unless set).
+    /// Initial normals: dsac (the paper's method) or ls (faster); default: the server's.
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_CLIENT_NORMALS", value_enum))]
     pub normals: Option<NormalsMethod>,
-    /// DSAC hypotheses per pixel, 1 to 64; `None`: the server's default
-    /// (`tre serve --dsac-hypotheses`, 12 unless set).
+    /// DSAC hypotheses per pixel, 1 to 64 (fewer are faster); default: the server's.
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_CLIENT_DSAC_HYPOTHESES",
+        value_parser = tre_core::kinds::dsac_hypotheses_parser()))]
     pub dsac_hypotheses: Option<u32>,
-    /// Top of the colour scale of [`Format::Color`], metres; `None`: 0.05.
+    /// Top of the colour scale of [`MapFormat::Color`], metres; `None`: 0.05.
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub preview_max_m: Option<f64>,
-    /// Also ask for the traversability mask.
+    /// Also ask for traversability, written as SEQ_NAME_traversable.png (255 = traversable).
+    #[cfg_attr(
+        feature = "cli",
+        arg(long = "traversable", env = "TRE_CLIENT_TRAVERSABLE")
+    )]
     pub want_traversable: bool,
-    /// Also ask for the three-state traversability and uncertainty maps (the camera must name
-    /// a sensor noise model; modes with sensor depth only).
+    /// Also ask for the three-state map and the uncertainty (the camera must name a sensor
+    /// noise model, docs/sensor-noise.md), written as SEQ_NAME_traversal.png (0 unknown,
+    /// 1 traversable, 2 hazard) and SEQ_NAME_uncertainty.png (16-bit, 0.1 mm per unit).
+    #[cfg_attr(feature = "cli", arg(long = "traversal", env = "TRE_CLIENT_TRAVERSAL"))]
     pub want_traversal: bool,
-    /// The mask's largest roughness, centimetres; `None`: 5.
+    /// Traversability: the largest roughness, centimetres (default 5).
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_CLIENT_MAX_ROUGHNESS_CM"))]
     pub max_roughness_cm: Option<f64>,
-    /// The mask's steepest slope, degrees; `None`: 20.
+    /// Traversability: the steepest slope, degrees (default 20).
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_CLIENT_MAX_SLOPE_DEG"))]
     pub max_slope_deg: Option<f64>,
-    /// The depth sensor's noise model, overriding the camera's `sensor`.
+    /// Depth sensor noise model, overriding the camera JSON's "sensor" (as `tre infer
+    /// --sensor`): a preset (kinect_v1, realsense_d435, azure_kinect, lidar, exact) or a,b,c.
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_SENSOR"))]
     pub sensor: Option<SensorNoise>,
     /// How fast frames go out.
+    #[cfg_attr(feature = "cli", arg(skip = Rate::AsFastAsResults))]
     pub rate: Rate,
     /// Reconnection back-off (also used for the first connection).
+    #[cfg_attr(feature = "cli", command(flatten))]
     pub reconnect: Backoff,
-    /// A frame without an answer after this long is reported lost (`LostReason::TimedOut`).
+    /// A frame without an answer after this long is counted lost, milliseconds.
+    #[cfg_attr(feature = "cli", arg(long = "frame-timeout-ms", value_name = "FRAME_TIMEOUT_MS",
+        env = "TRE_CLIENT_FRAME_TIMEOUT_MS", default_value = "30000",
+        value_parser = tre_io::units::parse_millis))]
     pub frame_timeout: Duration,
     /// Limit of each connection step (readiness check, WebSocket handshake, Hello → Ready).
+    #[cfg_attr(feature = "cli", arg(skip = ClientConfig::default().connect_timeout))]
     pub connect_timeout: Duration,
     /// A connection on which nothing has been heard for this long is dropped and re-made (the
     /// server pings every 15 s).
+    #[cfg_attr(feature = "cli", arg(skip = ClientConfig::default().silence_timeout))]
     pub silence_timeout: Duration,
     /// Before each connection, wait for `GET /readyz` to answer 200, so that frames do not
     /// meet a server still loading its models (a 404 counts as ready: a proxy without it).
+    #[cfg_attr(feature = "cli", arg(skip = ClientConfig::default().wait_ready))]
     pub wait_ready: bool,
     /// Frames awaiting an answer that are remembered; beyond, the oldest is reported lost.
+    #[cfg_attr(feature = "cli", arg(skip = ClientConfig::default().max_pending))]
     pub max_pending: usize,
     /// Events buffered for the application; when full, the connection stops reading.
+    #[cfg_attr(feature = "cli", arg(skip = ClientConfig::default().event_capacity))]
     pub event_capacity: usize,
 }
 
@@ -145,7 +202,7 @@ impl Default for ClientConfig {
             ca_cert: None,
             camera: None,
             mode: None,
-            format: Format::Png16,
+            format: MapFormat::Png16,
             seed: 0,
             normals: None,
             dsac_hypotheses: None,

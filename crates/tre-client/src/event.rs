@@ -7,10 +7,10 @@ use std::time::Duration;
 use image::RgbImage;
 use tokio_tungstenite::tungstenite;
 
-use super::config::Format;
 use super::error::Chain;
 use super::ClientError;
 use tre_core::geometry::Grid;
+use tre_core::kinds::MapFormat;
 use tre_io::CameraFile;
 use tre_proto::ErrorCode;
 
@@ -47,9 +47,9 @@ impl Frame {
 /// The roughness map of a result.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Roughness {
-    /// Metres per pixel, NaN where there is no data ([`Format::Png16`], [`Format::F32`]).
+    /// Metres per pixel, NaN where there is no data ([`MapFormat::Png16`], [`MapFormat::F32`]).
     Metres(Grid<f64>),
-    /// The colour map ([`Format::Color`]), the frame's size.
+    /// The colour map ([`MapFormat::Color`]), the frame's size.
     Colour(RgbImage),
 }
 
@@ -69,7 +69,7 @@ pub struct FrameResult {
     /// The map as the server sent it (`format`-encoded): a PNG16 can be written out as is.
     pub encoded: Vec<u8>,
     /// How `encoded` is encoded.
-    pub format: Format,
+    pub format: MapFormat,
     /// Traversability (`true`: traversable), if asked for.
     pub traversable: Option<Grid<bool>>,
     /// Three-state traversability, if asked for.

@@ -49,6 +49,8 @@
 //! # }
 //! ```
 
+#[cfg(feature = "cli")]
+mod cli;
 mod clock;
 mod config;
 mod connection;
@@ -60,8 +62,10 @@ mod session;
 pub mod source;
 pub mod tls;
 
+#[cfg(feature = "cli")]
+pub use cli::{ArgsError, ClientArgs};
 pub use clock::unix_us;
-pub use config::{endpoints, Backoff, ClientConfig, Endpoints, Format, Rate};
+pub use config::{endpoints, Backoff, ClientConfig, Endpoints, Rate};
 pub use error::{
     ClientError, ConfigProblem, ConnectProblem, MapProblem, ProtocolProblem, RejectProblem,
     ResultProblem, ServerSaid, UpgradeAnswer, UrlProblem,

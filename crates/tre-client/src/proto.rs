@@ -8,11 +8,12 @@ use image::{DynamicImage, ImageFormat};
 use prost::Message;
 
 use super::clock::Stamp;
-use super::config::{ClientConfig, Format};
+use super::config::ClientConfig;
 use super::error::{MapProblem, ProtocolProblem, ResultProblem};
 use super::event::{ErrorKind, Event, Frame, FrameResult, Roughness, ServerInfo};
 use super::ClientError;
 use tre_core::geometry::Grid;
+use tre_core::kinds::MapFormat;
 use tre_core::roughness::noise::SensorNoise;
 use tre_core::roughness::traversal::Traversal;
 use tre_io::{self as io, CameraFile, ROUGHNESS_PNG_SCALE_M};
@@ -216,7 +217,7 @@ impl TryFrom<(WireResult, Stamp)> for FrameResult {
             }));
         }
         let format = pb::Format::try_from(r.format)
-            .map(Format::from)
+            .map(MapFormat::from)
             .map_err(|_| bad(ResultProblem::UnknownFormat(r.format)))?;
         let roughness =
             decode_map(&r.roughness, format, r.scale_m, (w, h)).map_err(in_map("roughness"))?;
@@ -225,7 +226,7 @@ impl TryFrom<(WireResult, Stamp)> for FrameResult {
         let traversal = decode_traversal(&r.traversal, (w, h)).map_err(bad)?;
         let uncertainty_m = match r.uncertainty.len() {
             0 => None,
-            _ => match decode_map(&r.uncertainty, Format::F32, r.scale_m, (w, h)) {
+            _ => match decode_map(&r.uncertainty, MapFormat::F32, r.scale_m, (w, h)) {
                 Ok(Roughness::Metres(m)) => Some(m),
                 Ok(Roughness::Colour(_)) => None,
                 Err(e) => return Err(in_map("uncertainty")(e)),
@@ -269,7 +270,7 @@ impl TryFrom<(WireResult, Stamp)> for FrameResult {
 /// Decodes a map of a Result and checks its size.
 fn decode_map(
     bytes: &[u8],
-    format: Format,
+    format: MapFormat,
     scale_m: f64,
     (w, h): (usize, usize),
 ) -> Result<Roughness, MapProblem> {
@@ -288,7 +289,7 @@ fn decode_map(
         }
     };
     match format {
-        Format::Png16 => {
+        MapFormat::Png16 => {
             let img = png()?;
             if !matches!(img, DynamicImage::ImageLumaA16(_)) {
                 return Err(MapProblem::NotGreyAlpha16(img.color()));
@@ -301,12 +302,13 @@ fn decode_map(
             }
             Ok(Roughness::Metres(m))
         }
-        Format::Color => {
+        MapFormat::Color => {
             let img = png()?.to_rgb8();
             check(img.dimensions())?;
             Ok(Roughness::Colour(img))
         }
-        Format::F32 => {
+        // `.npy` never comes back: the wire carries it as F32.
+        MapFormat::F32 | MapFormat::Npy => {
             if bytes.len() != 4 * w * h {
                 return Err(MapProblem::Float32Bytes {
                     bytes: bytes.len(),
@@ -453,7 +455,7 @@ mod tests {
         use tre_core::kinds::{Mode, NormalsMethod};
         let cfg = ClientConfig {
             mode: Some(Mode::Rgbd),
-            format: Format::F32,
+            format: MapFormat::F32,
             seed: 42,
             normals: Some(NormalsMethod::Ls),
             dsac_hypotheses: Some(4),

@@ -1,9 +1,9 @@
 //! The domain choices a client, the CLI and the pipeline share (input mode, method, normals,
-//! centroids, the stream's map encoding) and the traversability thresholds: each choice is one
+//! centroids, the roughness map's encoding) and the traversability thresholds: each choice is one
 //! enum whose string forms (`rgbd`, `surface-only`, `png16`) are derived once, by strum for
 //! parsing and printing, by serde for JSON, and by clap for the CLI.
 //!
-//! clap's `ValueEnum` is derived behind the `clap` feature (the root package `tre` enables it):
+//! clap's `ValueEnum` is derived behind the `cli` feature (the root package `tre` enables it):
 //! the CLI then takes these very enums, instead of copies converted by hand, while the crates
 //! that never parse a command line (pipeline, server, client) build this one without clap. A
 //! newtype in the CLI could not derive `ValueEnum` and would list the values a second time.
@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use strum::{EnumMessage, IntoEnumIterator};
 
 /// Declares a domain choice: an enum with the derives every choice has (strum's string forms,
-/// serde, and clap's `ValueEnum` behind the `clap` feature). Attributes given inside (docs,
+/// serde, and clap's `ValueEnum` behind the `cli` feature). Attributes given inside (docs,
 /// `serde`/`strum` casing, an extra `derive(Default)`) follow them.
 macro_rules! choice {
     ($(#[$meta:meta])* pub enum $name:ident { $($body:tt)* }) => {
@@ -36,7 +36,7 @@ macro_rules! choice {
             strum::VariantNames,
             strum::EnumMessage,
         )]
-        #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+        #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
         $(#[$meta])*
         pub enum $name { $($body)* }
     };
@@ -49,13 +49,13 @@ choice! {
 pub enum Mode {
     /// One RGB frame; the depth net predicts depth.
     #[cfg_attr(
-        feature = "clap",
+        feature = "cli",
         value(help = "One RGB frame: the depth net predicts depth")
     )]
     Rgb,
     /// RGB plus a depth-sensor frame; the depth net is skipped.
     #[cfg_attr(
-        feature = "clap",
+        feature = "cli",
         value(help = "RGB plus a registered depth frame: the depth net is skipped")
     )]
     Rgbd,
@@ -63,13 +63,33 @@ pub enum Mode {
     /// labels (LS normals, window centroids, surface and edge terms), or the paper's
     /// surface-only baseline ([`GeometricMethod`]); the switches are ignored.
     #[cfg_attr(
-        feature = "clap",
+        feature = "cli",
         value(
             help = "Depth only, no networks: annotation spec v1 (surface and edge terms), as `tre annotate`"
         )
     )]
     Geometric,
 }
+}
+
+impl Mode {
+    /// The mode of a frame that does not choose one, from the inputs it has: rgbd with RGB and
+    /// depth, geometric with depth alone, else rgb (`tre infer`, HTTP and the stream alike).
+    ///
+    /// ```
+    /// use tre_core::kinds::Mode;
+    /// assert_eq!(Mode::implied(true, true), Mode::Rgbd);
+    /// assert_eq!(Mode::implied(false, true), Mode::Geometric);
+    /// assert_eq!(Mode::implied(true, false), Mode::Rgb);
+    /// ```
+    #[must_use]
+    pub fn implied(rgb: bool, depth: bool) -> Self {
+        match (rgb, depth) {
+            (true, true) => Self::Rgbd,
+            (false, true) => Self::Geometric,
+            _ => Self::Rgb,
+        }
+    }
 }
 
 choice! {
@@ -82,7 +102,7 @@ pub enum GeometricMethod {
     /// drops and steps read as hazards. Equal to `tre annotate` on the same depth.
     #[default]
     #[cfg_attr(
-        feature = "clap",
+        feature = "cli",
         value(
             help = "The whole annotation spec v1: surface term and edge term (drops and steps are hazards)"
         )
@@ -91,7 +111,7 @@ pub enum GeometricMethod {
     /// The paper's classical baseline: Eq. 1 with LS normals and window centroids, no edge
     /// term (every drop is missed). What the paper's tables use.
     #[cfg_attr(
-        feature = "clap",
+        feature = "cli",
         value(
             help = "The paper's surface-only baseline: Eq. 1 with LS normals and window centroids, no edge term"
         )
@@ -109,14 +129,14 @@ pub enum Method {
     /// The staged pipeline of Fig. 5 (the switches choose its stages).
     #[default]
     #[cfg_attr(
-        feature = "clap",
+        feature = "cli",
         value(help = "The staged pipeline of the paper's Fig. 5")
     )]
     Pipeline,
     /// `end_to_end.onnx`: RGB and the flat-ground prior straight to roughness (needs RGB; the
     /// mode and switches are ignored; no depth, normals or slope come out).
     #[cfg_attr(
-        feature = "clap",
+        feature = "cli",
         value(help = "The end-to-end baseline (end_to_end.onnx; RGB only)")
     )]
     EndToEnd,
@@ -129,10 +149,10 @@ choice! {
 #[strum(serialize_all = "lowercase")]
 pub enum NormalsMethod {
     /// Least-squares planes over the metric neighbourhood (no network).
-    #[cfg_attr(feature = "clap", value(help = "Least-squares planes"))]
+    #[cfg_attr(feature = "cli", value(help = "Least-squares planes"))]
     Ls,
     /// Neighbour net probabilities and DSAC plane hypotheses.
-    #[cfg_attr(feature = "clap", value(help = "Neighbour net and DSAC hypotheses"))]
+    #[cfg_attr(feature = "cli", value(help = "Neighbour net and DSAC hypotheses"))]
     Dsac,
 }
 }
@@ -143,42 +163,81 @@ choice! {
 #[strum(serialize_all = "lowercase")]
 pub enum CentroidMethod {
     /// The centroid net (edge- and semantics-aware).
-    #[cfg_attr(feature = "clap", value(help = "The centroid net"))]
+    #[cfg_attr(feature = "cli", value(help = "The centroid net"))]
     Net,
     /// The mean of the neighbourhood's points (no network).
-    #[cfg_attr(feature = "clap", value(help = "The mean of the metric neighbourhood"))]
+    #[cfg_attr(feature = "cli", value(help = "The mean of the metric neighbourhood"))]
     Window,
 }
 }
 
 choice! {
-/// Encoding of the roughness maps a stream sends back (the protocol's `Format`).
+/// How a roughness map is encoded: the file `tre infer` writes, the body of an HTTP answer, the
+/// map of a stream's result. One enum for all of them; each interface takes the encodings it
+/// can carry ([`MapFormat::FILE`], [`MapFormat::HTTP`], [`MapFormat::STREAM`]), and the stream's
+/// protocol has its own generated enum, converted in one place (`tre-proto`).
 #[derive(Default)]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]
-pub enum StreamFormat {
-    /// 16-bit grey + alpha PNG at 0.1 mm per unit (as `tre infer` writes), decoded to metres.
+pub enum MapFormat {
+    /// 16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data (what
+    /// `tre infer` writes; decoded to metres by the client).
     #[default]
     #[cfg_attr(
-        feature = "clap",
-        value(
-            help = "16-bit grey + alpha PNG, 0.1 mm per unit (written as received, as `tre infer` writes)"
-        )
+        feature = "cli",
+        value(help = "16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data")
     )]
     Png16,
-    /// 8-bit turbo colour map PNG of the frame's size (for display; not decoded to metres).
+    /// 8-bit turbo colour map PNG of the frame's size (dark grey: no data), for people; not
+    /// decoded to metres.
+    // `to_string` makes `color` its printed name; strum lists it again after the aliases.
+    #[strum(serialize = "color", serialize = "colour", to_string = "color")]
     #[cfg_attr(
-        feature = "clap",
-        value(help = "8-bit turbo colour map of the frame's size (written as received)")
+        feature = "cli",
+        value(help = "8-bit turbo colour map PNG of the frame's size")
     )]
     Color,
-    /// Raw little-endian float32 metres (NaN: no data), decoded to metres.
+    /// `(H, W)` float32 `.npy` in metres, NaN where there is no data.
     #[cfg_attr(
-        feature = "clap",
-        value(help = "Float32 metres (written as the same 16-bit PNG as png16)")
+        feature = "cli",
+        value(help = "(H, W) float32 .npy in metres, NaN where there is no data")
+    )]
+    Npy,
+    /// Raw little-endian float32 metres, row-major, NaN where there is no data (the stream's
+    /// `FORMAT_F32`; a file of them is written as `.npy`).
+    #[cfg_attr(
+        feature = "cli",
+        value(help = "Float32 metres, NaN where there is no data (written as .npy)")
     )]
     F32,
 }
+}
+
+impl MapFormat {
+    /// What a file of a map can be (`tre infer --format`).
+    pub const FILE: &'static [Self] = &[Self::Png16, Self::Npy];
+    /// What an HTTP answer can be (`format=` of `POST /v1/roughness`).
+    pub const HTTP: &'static [Self] = &[Self::Png16, Self::Color, Self::Npy];
+    /// What a stream's result can be (the protocol's `Format`; `tre client --format`).
+    pub const STREAM: &'static [Self] = &[Self::Png16, Self::Color, Self::F32];
+
+    /// The extension of a file holding a map so encoded: `png`, or `npy` for float32 metres.
+    #[must_use]
+    pub fn extension(self) -> &'static str {
+        match self {
+            Self::Png16 | Self::Color => "png",
+            Self::Npy | Self::F32 => "npy",
+        }
+    }
+
+    /// MIME type of the encoded map.
+    #[must_use]
+    pub fn content_type(self) -> &'static str {
+        match self {
+            Self::Png16 | Self::Color => "image/png",
+            Self::Npy | Self::F32 => "application/octet-stream",
+        }
+    }
 }
 
 /// The names a choice of `E` parses from, in declaration order, as a message lists them:
@@ -204,9 +263,7 @@ pub fn one_of<E: IntoEnumIterator + EnumMessage>() -> String {
 /// Every name a choice of `E` parses from, aliases after their variant's first name: the
 /// allowed values of a document (`png16, color, colour, npy`).
 pub fn names<E: IntoEnumIterator + EnumMessage>() -> Vec<&'static str> {
-    E::iter()
-        .flat_map(|v| v.get_serializations().iter().copied())
-        .collect()
+    names_of_these(&E::iter().collect::<Vec<_>>())
 }
 
 /// `value` as a choice of `E`, or an error naming `field`, the choices and what was given:
@@ -227,6 +284,82 @@ pub fn parse_choice<E: IntoEnumIterator + EnumMessage + FromStr>(
     value
         .parse()
         .map_err(|_| format!("{field}: expected {}, got {value:?}", one_of::<E>()))
+}
+
+/// As [`one_of`], for the choices in `allowed` alone: `png16, color or npy`.
+pub fn one_of_these<E: EnumMessage>(allowed: &[E]) -> String {
+    let names: Vec<&str> = allowed
+        .iter()
+        .filter_map(|v| v.get_serializations().first().copied())
+        .collect();
+    match names.split_last() {
+        None => String::new(),
+        Some((last, [])) => (*last).to_owned(),
+        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+    }
+}
+
+/// As [`names`], for the choices in `allowed` alone.
+pub fn names_of_these<E: EnumMessage>(allowed: &[E]) -> Vec<&'static str> {
+    let mut names = Vec::new();
+    for name in allowed.iter().flat_map(|v| v.get_serializations().iter()) {
+        if !names.contains(name) {
+            names.push(*name);
+        }
+    }
+    names
+}
+
+/// As [`parse_choice`], for an interface that takes the choices in `allowed` alone.
+///
+/// ```
+/// use tre_core::kinds::{parse_choice_of, MapFormat};
+/// let http = MapFormat::HTTP;
+/// assert_eq!(parse_choice_of("format", "colour", http), Ok(MapFormat::Color));
+/// assert_eq!(
+///     parse_choice_of("format", "f32", http).unwrap_err(),
+///     r#"format: expected png16, color or npy, got "f32""#
+/// );
+/// ```
+pub fn parse_choice_of<E: EnumMessage + FromStr + PartialEq>(
+    field: &str,
+    value: &str,
+    allowed: &[E],
+) -> Result<E, String> {
+    value
+        .parse()
+        .ok()
+        .filter(|v| allowed.contains(v))
+        .ok_or_else(|| format!("{field}: expected {}, got {value:?}", one_of_these(allowed)))
+}
+
+/// clap's parser of an option that takes the choices in `allowed` alone, each listed in
+/// `--help` with its own help (`tre infer --format`: [`MapFormat::FILE`]).
+#[cfg(feature = "cli")]
+pub fn value_parser_of<E>(allowed: &'static [E]) -> impl clap::builder::TypedValueParser<Value = E>
+where
+    E: clap::ValueEnum + Clone + Send + Sync + 'static,
+{
+    use clap::builder::TypedValueParser;
+    let values = allowed
+        .iter()
+        .filter_map(clap::ValueEnum::to_possible_value);
+    clap::builder::PossibleValuesParser::new(values).map(|name| {
+        E::from_str(&name, false).expect("clap accepted one of the listed names; this is a bug")
+    })
+}
+
+/// DSAC hypotheses per pixel that the models were trained with (docs/design.md: K = 12).
+pub const DEFAULT_DSAC_HYPOTHESES: u32 = 12;
+
+/// Most DSAC hypotheses per pixel accepted. With the same seed, hypothesis `j` is the same for
+/// every K above `j`, so a larger K never scores lower.
+pub const MAX_DSAC_HYPOTHESES: u32 = 64;
+
+/// clap's parser of a `--dsac-hypotheses` option: 1 to [`MAX_DSAC_HYPOTHESES`].
+#[cfg(feature = "cli")]
+pub fn dsac_hypotheses_parser() -> clap::builder::RangedI64ValueParser<u32> {
+    clap::value_parser!(u32).range(1..=i64::from(MAX_DSAC_HYPOTHESES))
 }
 
 /// Thresholds of the traversability map: a pixel is traversable when its roughness and its
@@ -322,7 +455,6 @@ mod tests {
         one_spelling::<Method>(&["pipeline", "end-to-end"]);
         one_spelling::<NormalsMethod>(&["ls", "dsac"]);
         one_spelling::<CentroidMethod>(&["net", "window"]);
-        one_spelling::<StreamFormat>(&["png16", "color", "f32"]);
     }
 
     #[test]
@@ -339,11 +471,26 @@ mod tests {
             parse_choice::<Method>("method", "end-to-end"),
             Ok(Method::EndToEnd)
         );
-        assert_eq!(one_of::<StreamFormat>(), "png16, color or f32");
+        assert_eq!(one_of::<MapFormat>(), "png16, color, npy or f32");
+        assert_eq!(one_of_these(MapFormat::STREAM), "png16, color or f32");
+        assert_eq!(MapFormat::Color.to_string(), "color");
+        assert_eq!(
+            serde_json::json!(MapFormat::Color),
+            serde_json::json!("color")
+        );
+        assert_eq!("colour".parse(), Ok(MapFormat::Color));
+        assert_eq!(
+            names::<MapFormat>(),
+            ["png16", "color", "colour", "npy", "f32"]
+        );
+        assert_eq!(
+            names_of_these(MapFormat::HTTP),
+            ["png16", "color", "colour", "npy"]
+        );
     }
 
     /// The CLI's values are the same names (clap derives its own from the variants).
-    #[cfg(feature = "clap")]
+    #[cfg(feature = "cli")]
     #[test]
     fn the_cli_values_are_the_same_names() {
         fn same<E: clap::ValueEnum + AsRef<str>>() {
@@ -358,6 +505,6 @@ mod tests {
         same::<Method>();
         same::<NormalsMethod>();
         same::<CentroidMethod>();
-        same::<StreamFormat>();
+        same::<MapFormat>();
     }
 }

@@ -5,6 +5,11 @@
 //! calibrate` parse arguments, call these and print.
 
 pub mod calibrate;
+#[cfg(feature = "cli")]
+mod cli;
 pub mod real;
 pub mod synthetic;
 pub mod tables;
+
+#[cfg(feature = "cli")]
+pub use cli::{CalibrateArgs, EvalArgs, Fitted};

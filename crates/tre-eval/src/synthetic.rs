@@ -16,7 +16,7 @@ use tre_synth::dataset::Manifest;
 
 /// Which depth of a `tre synth` frame the modes read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum DepthSource {
     /// The exact rendered depth (`depth.png`).
     Exact,

@@ -1,35 +1,18 @@
 //! The files of one frame's result, as `tre infer` writes them: the roughness map (16-bit PNG
-//! or float `.npy`) with its colour preview, and the uncertainty and three-state maps beside it
+//! or float `.npy`, a [`MapFormat`]) with its colour preview, and the uncertainty and three-state maps beside it
 //! (`<stem>_uncertainty.png|npy`, `<stem>_lo.npy` / `<stem>_hi.npy`, `<stem>_traversal.png`,
-//! `<stem>_traversal_preview.png`).
+//! `<stem>_traversal_preview.png`); and the files of an annotation, as `tre annotate` writes
+//! them ([`write_annotation`]).
 
 use std::path::{Path, PathBuf};
 
 use image::DynamicImage;
 use tre_core::geometry::Grid;
+use tre_core::kinds::MapFormat;
+use tre_core::roughness::annotate::Annotation;
 use tre_core::roughness::traversal::Traversal;
 
 use crate::IoError;
-
-/// How a map is written to a file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MapFile {
-    /// 16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data.
-    Png16,
-    /// `(H, W)` float32 `.npy` in metres, NaN where there is no data.
-    Npy,
-}
-
-impl MapFile {
-    /// The file extension it writes.
-    #[must_use]
-    pub fn extension(self) -> &'static str {
-        match self {
-            Self::Png16 => "png",
-            Self::Npy => "npy",
-        }
-    }
-}
 
 /// `DIR/<stem>_<what>.<ext>` beside `out`.
 #[must_use]
@@ -58,17 +41,17 @@ pub fn sensor_map_paths(out: &Path) -> Vec<PathBuf> {
     ]
 }
 
-/// Writes the roughness map `roughness_m` to `out` as `file`, creating its folder, and its
+/// Writes the roughness map `roughness_m` to `out` as `format`, creating its folder, and its
 /// preview (colour scale 0 to `preview_max_m`, titled `title`) beside it.
 pub fn write_roughness(
     out: &Path,
-    file: MapFile,
+    format: MapFormat,
     roughness_m: &Grid<f64>,
     preview_max_m: f64,
     title: &str,
 ) -> Result<(), IoError> {
     crate::paths::create_parent(out)?;
-    write_map(out, file, roughness_m)?;
+    write_map(out, format, roughness_m, preview_max_m)?;
     let preview = crate::previews::roughness_preview(roughness_m, preview_max_m, title);
     crate::save(&preview_path(out), &DynamicImage::ImageRgb8(preview))
 }
@@ -84,18 +67,20 @@ pub struct SensorMapFiles<'a> {
     pub traversal: &'a Grid<Traversal>,
 }
 
-/// Writes `maps` beside `out`: `<stem>_uncertainty.png|npy` (and with `.npy` the interval's
-/// ends `<stem>_lo.npy`, `<stem>_hi.npy`), `<stem>_traversal.png` (0 unknown, 1 traversable,
-/// 2 hazard) and `<stem>_traversal_preview.png` titled `title`.
+/// Writes `maps` beside `out`: `<stem>_uncertainty.png|npy` as `format` (colour scale 0 to
+/// `preview_max_m` for `color`; with `.npy` also the interval's ends `<stem>_lo.npy`,
+/// `<stem>_hi.npy`), `<stem>_traversal.png` (0 unknown, 1 traversable, 2 hazard) and
+/// `<stem>_traversal_preview.png` titled `title`.
 pub fn write_sensor_maps(
     out: &Path,
-    file: MapFile,
+    format: MapFormat,
     maps: &SensorMapFiles<'_>,
+    preview_max_m: f64,
     title: &str,
 ) -> Result<(), IoError> {
-    let ext = file.extension();
-    write_map(&beside(out, "uncertainty", ext), file, maps.uncertainty_m)?;
-    if let (MapFile::Npy, Some((lo, hi))) = (file, maps.interval_m) {
+    let path = beside(out, "uncertainty", format.extension());
+    write_map(&path, format, maps.uncertainty_m, preview_max_m)?;
+    if let ("npy", Some((lo, hi))) = (format.extension(), maps.interval_m) {
         crate::write_npy_f32(&beside(out, "lo", "npy"), lo)?;
         crate::write_npy_f32(&beside(out, "hi", "npy"), hi)?;
     }
@@ -111,14 +96,45 @@ pub fn write_sensor_maps(
     )
 }
 
-/// Writes one map of metres to `path` as `file`.
-fn write_map(path: &Path, file: MapFile, map_m: &Grid<f64>) -> Result<(), IoError> {
-    match file {
-        MapFile::Png16 => crate::save(
+/// Writes `ann` into the folder `out` (created if missing): `roughness.png` (16-bit, 0.1 mm per
+/// unit), `roughness.npy`, `boundary.png`, `edge_weight.npy`, `segments.npy` and `preview.png`
+/// (colour scale 0 to `preview_max_m`, titled `title`).
+pub fn write_annotation(
+    out: &Path,
+    ann: &Annotation,
+    preview_max_m: f64,
+    title: &str,
+) -> Result<(), IoError> {
+    crate::paths::create_dir(out)?;
+    let p = |name: &str| out.join(name);
+    let png16 = DynamicImage::ImageLumaA16(crate::roughness_png16(&ann.roughness_m));
+    crate::save(&p("roughness.png"), &png16)?;
+    crate::write_npy_f32(&p("roughness.npy"), &ann.roughness_m)?;
+    crate::write_mask_png(&p("boundary.png"), &ann.boundary)?;
+    crate::write_npy_f32(&p("edge_weight.npy"), &ann.edge_weight_m)?;
+    crate::write_npy_u32(&p("segments.npy"), &ann.segments)?;
+    let preview = crate::previews::roughness_preview(&ann.roughness_m, preview_max_m, title);
+    crate::save(&p("preview.png"), &DynamicImage::ImageRgb8(preview))
+}
+
+/// Writes one map of metres to `path` as `format`: a float32 `.npy` for `npy` and `f32`, a
+/// turbo colour map from 0 to `colour_max_m` for `color`.
+fn write_map(
+    path: &Path,
+    format: MapFormat,
+    map_m: &Grid<f64>,
+    colour_max_m: f64,
+) -> Result<(), IoError> {
+    match format {
+        MapFormat::Png16 => crate::save(
             path,
             &DynamicImage::ImageLumaA16(crate::roughness_png16(map_m)),
         ),
-        MapFile::Npy => crate::write_npy_f32(path, map_m),
+        MapFormat::Color => crate::save(
+            path,
+            &DynamicImage::ImageRgb8(crate::colormap::colourise(map_m, 0.0, colour_max_m)),
+        ),
+        MapFormat::Npy | MapFormat::F32 => crate::write_npy_f32(path, map_m),
     }
 }
 
@@ -142,7 +158,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("sub/r.npy");
         let r = Grid::from_vec(2, 1, vec![0.01, f64::NAN]).unwrap();
-        write_roughness(&out, MapFile::Npy, &r, 0.05, "test").unwrap();
+        write_roughness(&out, MapFormat::Npy, &r, 0.05, "test").unwrap();
         assert!(out.is_file() && preview_path(&out).is_file());
         let t = Grid::from_vec(2, 1, vec![Traversal::Traversable, Traversal::Unknown]).unwrap();
         let maps = SensorMapFiles {
@@ -150,7 +166,7 @@ mod tests {
             interval_m: Some((&r, &r)),
             traversal: &t,
         };
-        write_sensor_maps(&out, MapFile::Npy, &maps, "test").unwrap();
+        write_sensor_maps(&out, MapFormat::Npy, &maps, 0.05, "test").unwrap();
         for what in ["uncertainty", "lo", "hi"] {
             assert!(beside(&out, what, "npy").is_file(), "{what}");
         }

@@ -22,14 +22,20 @@ pub struct SequenceFrame {
     pub pose: Option<PathBuf>,
 }
 
-/// Which frames of a sequence to take, in which order.
+/// Which frames of a sequence to take, in which order (options of `tre map`, clap's behind the
+/// `cli` feature).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct FrameSelection {
-    /// Every `stride`-th frame (0 and 1: all).
+    /// Use every Nth frame.
+    // 0 and 1: all.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 1))]
     pub stride: usize,
-    /// At most this many.
+    /// Use at most this many frames.
+    #[cfg_attr(feature = "cli", arg(long))]
     pub limit: Option<usize>,
-    /// Last first.
+    /// Fuse the frames in reverse order (the map should not depend on the order).
+    #[cfg_attr(feature = "cli", arg(long))]
     pub reverse: bool,
 }
 

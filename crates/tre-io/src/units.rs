@@ -1,6 +1,8 @@
 //! Sizes for people: byte counts and pixel counts read with binary suffixes (`32MiB`, `4Mi`,
 //! `512k`) and written the same way (`32 MiB`), so that help texts, errors and logs never show
-//! `33554432`.
+//! `33554432`; and times given as whole milliseconds or seconds (`--stall-timeout-ms 700`).
+
+use std::time::Duration;
 
 /// Reads a size: a whole number with an optional suffix `k`/`Ki`/`KiB` (2¹⁰), `M`/`Mi`/`MiB`
 /// (2²⁰) or `G`/`Gi`/`GiB` (2³⁰), case-insensitive, `B` optional, spaces allowed.
@@ -31,6 +33,36 @@ pub fn parse_size(text: &str) -> Result<usize, String> {
         _ => return Err(bad()),
     };
     n.checked_mul(1 << shift).ok_or_else(bad)
+}
+
+/// Reads a time given as a whole number of milliseconds.
+///
+/// ```
+/// use std::time::Duration;
+/// use tre_io::units::parse_millis;
+/// assert_eq!(parse_millis("1500"), Ok(Duration::from_millis(1500)));
+/// assert!(parse_millis("1.5").is_err() && parse_millis("-1").is_err());
+/// ```
+pub fn parse_millis(text: &str) -> Result<Duration, String> {
+    text.trim()
+        .parse()
+        .map(Duration::from_millis)
+        .map_err(|e| format!("{text:?}: expected a whole number of milliseconds ({e})"))
+}
+
+/// Reads a time given as a whole number of seconds.
+///
+/// ```
+/// use std::time::Duration;
+/// use tre_io::units::parse_seconds;
+/// assert_eq!(parse_seconds("30"), Ok(Duration::from_secs(30)));
+/// assert!(parse_seconds("0.5").is_err());
+/// ```
+pub fn parse_seconds(text: &str) -> Result<Duration, String> {
+    text.trim()
+        .parse()
+        .map(Duration::from_secs)
+        .map_err(|e| format!("{text:?}: expected a whole number of seconds ({e})"))
 }
 
 /// A count with a binary suffix when it is a whole number of them, else plain (`unit`: `B`

@@ -22,6 +22,8 @@
 //! # }
 //! ```
 
+#[cfg(feature = "cli")]
+mod cli;
 mod frames;
 mod http;
 mod plan;
@@ -37,6 +39,8 @@ use std::time::Duration;
 use report::SweepReport;
 use serde::{Deserialize, Serialize};
 
+#[cfg(feature = "cli")]
+pub use cli::{ArgsError, LoadtestArgs};
 pub use frames::{Frames, LoadFrame, LoadSource};
 pub use stats::{Percentiles, Report};
 pub use target::Target;
@@ -44,10 +48,11 @@ pub use target::Target;
 /// Which interface of the service is loaded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Protocol {
     /// `POST /v1/roughness`, one frame per request.
     Http,
-    /// `GET /v1/stream`, protobuf frames over WebSocket connections.
+    /// `GET /v1/stream` (WebSocket, protobuf frames).
     Ws,
 }
 

@@ -27,13 +27,13 @@ mod session;
 use std::fmt::Display;
 use std::path::PathBuf;
 
-pub use locate::{locate_models, FoundModels, ModelSearch, ModelsRule, MODELS_ENV};
+pub use locate::{find_models, locate_models, FoundModels, ModelSearch, ModelsRule, MODELS_ENV};
 pub use manifest::{Dim, Manifest, ManifestProblem, ModelEntry, TensorSpec, MANIFEST_FORMAT};
 pub use models::{Models, CENTROID_NET, DEPTH_NET, END_TO_END, NEIGHBOUR_NET, NORMAL_REFINER};
 use runtime::RuntimeError;
 pub use session::{
     check_threads, cores, ExecutionProvider, InputProblem, ModelSession, OnnxProblem, Optimisation,
-    SessionConfig, ThreadsError, MAX_WORKERS_PER_CORE,
+    Provider, ProviderMissing, SessionConfig, ThreadsError, MAX_WORKERS_PER_CORE,
 };
 
 /// Errors of the model layer; every variant about one model names it.

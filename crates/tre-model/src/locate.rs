@@ -158,6 +158,18 @@ pub fn locate_models(cli_value: Option<&Path>) -> Result<FoundModels, ModelError
     ModelSearch::from_process(cli_value).resolve()
 }
 
+/// As [`locate_models`], logging the folder found and the rule that found it: the models folder
+/// of every command that loads models.
+///
+/// # Errors
+///
+/// As [`ModelSearch::resolve`].
+pub fn find_models(cli_value: Option<&Path>) -> Result<PathBuf, ModelError> {
+    let found = locate_models(cli_value)?;
+    tracing::info!(path = %found.dir.display(), "models folder found by {}", found.rule);
+    Ok(found.dir)
+}
+
 /// `dir` without `..` components where the filesystem can resolve them, so that messages show
 /// `/usr/share/tre/models` rather than `/usr/bin/../share/tre/models`.
 fn tidy(dir: &Path) -> PathBuf {

@@ -68,6 +68,52 @@ pub enum ExecutionProvider {
     },
 }
 
+/// The execution provider a user names (`tre serve --provider`), whether or not this build
+/// has it; [`ExecutionProvider::of`] turns it into one this build can run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum Provider {
+    /// ONNX Runtime's CPU kernels.
+    #[default]
+    Cpu,
+    /// NVIDIA CUDA (needs a build with `--features cuda` and a GPU build of ONNX Runtime).
+    Cuda,
+    /// NVIDIA TensorRT (needs a build with `--features tensorrt` and a GPU build of ONNX Runtime).
+    Tensorrt,
+}
+
+/// A provider this build of tre was compiled without (see [`ExecutionProvider`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "--provider {provider:?}: this build of tre lacks the cargo feature for it (build with \
+     --features cuda or tensorrt)"
+)]
+pub struct ProviderMissing {
+    /// The provider asked for.
+    pub provider: Provider,
+}
+
+impl ExecutionProvider {
+    /// `provider` on GPU `device_id` (the CPU ignores it), if this build has it.
+    ///
+    /// # Errors
+    ///
+    /// [`ProviderMissing`] for CUDA or TensorRT in a build without their cargo feature.
+    pub fn of(provider: Provider, device_id: i32) -> Result<Self, ProviderMissing> {
+        let _ = device_id;
+        Ok(match provider {
+            Provider::Cpu => Self::Cpu,
+            #[cfg(feature = "cuda")]
+            Provider::Cuda => Self::Cuda { device_id },
+            #[cfg(feature = "tensorrt")]
+            Provider::Tensorrt => Self::TensorRt { device_id },
+            // Reachable or not depending on the GPU features this build has.
+            #[allow(unreachable_patterns)]
+            provider => return Err(ProviderMissing { provider }),
+        })
+    }
+}
+
 impl From<Optimisation> for GraphOptimizationLevel {
     fn from(level: Optimisation) -> Self {
         match level {

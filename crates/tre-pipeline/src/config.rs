@@ -18,11 +18,7 @@ pub const DEFAULT_MAX_INPUT_PIXELS: usize = 40_000_000;
 /// Largest working size accepted, pixels per side.
 pub const MAX_WORKING_SIDE: usize = 4096;
 
-/// DSAC hypotheses per pixel that the models were trained with (docs/design.md: K = 12).
-pub const DEFAULT_DSAC_HYPOTHESES: u32 = 12;
-
-/// Most DSAC hypotheses per pixel accepted.
-pub const MAX_DSAC_HYPOTHESES: u32 = 64;
+pub use tre_core::kinds::{DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES};
 
 /// `k` when it is a number of DSAC hypotheses the pipeline accepts (1 to
 /// [`MAX_DSAC_HYPOTHESES`]).
@@ -43,41 +39,58 @@ fn default_dsac_hypotheses() -> u32 {
 }
 
 /// Everything one run of the pipeline needs besides the frame. The default is the full
-/// pipeline on RGB: depth net, DSAC normals, refiner, centroid net.
+/// pipeline on RGB: depth net, DSAC normals, refiner, centroid net. The switches are options of
+/// `tre infer`, `eval`, `map` and `calibrate` (clap's, behind the `cli` feature: each doc
+/// comment is its `--help`); each command sets the mode its own way. Geometric mode ignores
+/// them: it uses LS normals, no refiner and window centroids ([`PipelineConfig::effective`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct PipelineConfig {
     /// Where depth comes from.
+    #[cfg_attr(feature = "cli", arg(skip = Mode::Rgb))]
     pub mode: Mode,
     /// Staged pipeline or end-to-end baseline.
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "pipeline"))]
     pub method: Method,
-    /// Initial normals (ignored in geometric mode, which uses LS).
+    /// Initial normals (ignored in geometric mode).
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "dsac"))]
     pub normals: NormalsMethod,
-    /// Run the normal refiner (ignored in geometric mode).
+    /// Normal refiner (ignored in geometric mode).
+    #[cfg_attr(feature = "cli", arg(long, default_value = "on",
+        action = clap::ArgAction::Set, value_parser = super::cli::on_off()))]
     pub refine: bool,
-    /// Centroids (ignored in geometric mode, which uses windows).
+    /// Centroids (ignored in geometric mode).
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "net"))]
     pub centroid: CentroidMethod,
     /// What the geometric mode computes (ignored in the other modes).
     #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "spec"))]
     pub geometric: GeometricMethod,
-    /// Seed of the DSAC sampler for this request: the same seed gives the same output.
+    /// Seed of the DSAC sampler: the same seed gives the same output.
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_SEED", default_value_t = 0))]
     pub seed: u64,
-    /// DSAC hypotheses per pixel, K: 1 to [`MAX_DSAC_HYPOTHESES`]. The default,
-    /// [`DEFAULT_DSAC_HYPOTHESES`], is what the neighbour net was trained with; fewer cost
-    /// less time (docs/evaluation.md gives what they cost in accuracy). With the same seed,
-    /// hypothesis `j` is the same for every K above `j`, so a larger K never scores lower.
+    /// DSAC hypotheses per pixel, 1 to 64 (12: as trained; fewer are faster, see
+    /// docs/evaluation.md).
     #[serde(default = "default_dsac_hypotheses")]
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_DSAC_HYPOTHESES",
+        default_value_t = DEFAULT_DSAC_HYPOTHESES,
+        value_parser = tre_core::kinds::dsac_hypotheses_parser()))]
     pub dsac_hypotheses: u32,
     /// Size the stages run at, `(width, height)`. `None`: when any network runs, the longer
     /// side of the frame takes the manifest's working size (256 without models) and the other
     /// keeps the aspect ratio (`fit_aspect` in `run.rs`); in geometric mode, the
     /// input's own size.
     /// With networks, both sides must be multiples of the manifest's stride.
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub working_size: Option<(usize, usize)>,
     /// Neighbourhood of LS normals and window centroids.
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub neighbourhood: Neighbourhood,
     /// Traversability thresholds.
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub traversability: Traversability,
     /// Largest input frame, pixels.
+    #[cfg_attr(feature = "cli", arg(skip = DEFAULT_MAX_INPUT_PIXELS))]
     pub max_input_pixels: usize,
 }
 

@@ -22,10 +22,13 @@
 
 mod calibration;
 pub mod centroid;
+#[cfg(feature = "cli")]
+mod cli;
 mod config;
 mod depth;
 mod frame;
 mod gravity;
+mod load;
 pub mod normals;
 pub mod resize;
 mod run;
@@ -34,6 +37,8 @@ mod summary;
 pub mod tensors;
 
 pub use calibration::{models_key, read_calibration, stale_calibration, CalibrationProblem};
+#[cfg(feature = "cli")]
+pub use cli::StageArgs;
 pub use config::{
     check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod,
     PipelineConfig, Traversability, DEFAULT_DSAC_HYPOTHESES, DEFAULT_MAX_INPUT_PIXELS,
@@ -46,7 +51,7 @@ pub use run::{check_input, Pipeline, DEFAULT_WORKING_SIZE};
 
 use tre_core::geometry::GeometryError;
 use tre_core::roughness::noise::SensorPreset;
-use tre_model::ModelError;
+use tre_model::{ModelError, ThreadsError};
 
 /// Errors of the pipeline layer: bad frames, bad settings, and failures of the stages.
 #[derive(Debug, thiserror::Error)]
@@ -144,7 +149,19 @@ pub enum PipelineError {
     /// Bad intrinsics or mounting, or geometry inputs that do not fit.
     #[error(transparent)]
     Geometry(#[from] GeometryError),
-    /// A learned stage failed.
+    /// A learned stage failed, or no models folder was found.
     #[error(transparent)]
     Model(#[from] ModelError),
+    /// The models of a folder could not be loaded.
+    #[error("loading models from {}", dir.display())]
+    LoadModels {
+        /// The models folder.
+        dir: std::path::PathBuf,
+        /// Why (boxed: a [`ModelError`] beside a path would make every pipeline error large).
+        #[source]
+        source: Box<ModelError>,
+    },
+    /// ONNX Runtime threads the cores cannot use.
+    #[error(transparent)]
+    Threads(#[from] ThreadsError),
 }

@@ -1,8 +1,12 @@
 //! The protocol's enums as the domain choices of [`tre_core::kinds`], and back: one conversion
 //! each way per enum, shared by the server and the client. `UNSPECIFIED` leaves the choice to
 //! the other end (`None`), except for the format, where it means PNG16.
+//!
+//! The protocol's `Format` is prost's generated wire enum, not a second domain choice: it
+//! carries the encodings of [`MapFormat::STREAM`], and a map asked for as `.npy` goes as its
+//! float32 values (`FORMAT_F32`).
 
-use tre_core::kinds::{Mode, NormalsMethod, StreamFormat};
+use tre_core::kinds::{MapFormat, Mode, NormalsMethod};
 
 use super::v1;
 
@@ -50,17 +54,18 @@ impl From<v1::Normals> for Option<NormalsMethod> {
     }
 }
 
-impl From<StreamFormat> for v1::Format {
-    fn from(f: StreamFormat) -> Self {
+impl From<MapFormat> for v1::Format {
+    /// The wire's encoding of a map (`.npy` goes as its float32 values).
+    fn from(f: MapFormat) -> Self {
         match f {
-            StreamFormat::Png16 => Self::Png16,
-            StreamFormat::Color => Self::Color,
-            StreamFormat::F32 => Self::F32,
+            MapFormat::Png16 => Self::Png16,
+            MapFormat::Color => Self::Color,
+            MapFormat::Npy | MapFormat::F32 => Self::F32,
         }
     }
 }
 
-impl From<v1::Format> for StreamFormat {
+impl From<v1::Format> for MapFormat {
     /// The format of a message (unspecified: PNG16, as the protocol says).
     fn from(f: v1::Format) -> Self {
         match f {
@@ -74,7 +79,7 @@ impl From<v1::Format> for StreamFormat {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tre_core::kinds::{Mode, NormalsMethod, StreamFormat};
+    use tre_core::kinds::{MapFormat, Mode, NormalsMethod};
 
     /// Every choice goes to the wire and comes back the same; unspecified is `None` (PNG16 for
     /// the format).
@@ -87,12 +92,13 @@ mod tests {
         for n in NormalsMethod::iter().map(Some).chain([None]) {
             assert_eq!(Option::<NormalsMethod>::from(v1::Normals::from(n)), n);
         }
-        for f in StreamFormat::iter() {
-            assert_eq!(StreamFormat::from(v1::Format::from(f)), f);
+        for &f in MapFormat::STREAM {
+            assert_eq!(MapFormat::from(v1::Format::from(f)), f);
         }
         assert_eq!(
-            StreamFormat::from(v1::Format::Unspecified),
-            StreamFormat::Png16
+            MapFormat::from(v1::Format::from(MapFormat::Npy)),
+            MapFormat::F32
         );
+        assert_eq!(MapFormat::from(v1::Format::Unspecified), MapFormat::Png16);
     }
 }

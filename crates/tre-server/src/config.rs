@@ -1,8 +1,11 @@
-//! The checks of a [`ServeConfig`], run by [`serve`](crate::serve) before anything starts, so
-//! that a library user gets the same refusals as `tre serve`.
+//! The choices a [`ServeConfig`] leaves to the service (workers, threads, queue, models folder)
+//! and its checks, run by [`serve`](crate::serve) before anything starts, so that a library user
+//! gets the same settings and refusals as `tre serve`.
 
-use crate::ServeConfig;
-use tre_model::{check_threads, ThreadsError};
+use std::path::Path;
+
+use crate::{ServeConfig, ServeError};
+use tre_model::{check_threads, ExecutionProvider, ProviderMissing, SessionConfig, ThreadsError};
 
 /// Shortest API key accepted.
 pub const MIN_API_KEY_CHARS: usize = 16;
@@ -30,6 +33,9 @@ pub enum ConfigError {
     /// Workers or ONNX Runtime threads the cores cannot use.
     #[error(transparent)]
     Threads(#[from] ThreadsError),
+    /// An execution provider this build lacks.
+    #[error(transparent)]
+    Provider(#[from] ProviderMissing),
     /// No worker, or no room in the queue.
     #[error("{flag} (ServeConfig::{field}) must be at least 1 once chosen")]
     Empty {
@@ -41,10 +47,61 @@ pub enum ConfigError {
 }
 
 impl ServeConfig {
+    /// These settings with every choice they leave made for `cores` cores, then checked
+    /// ([`validate`](Self::validate)): workers (0: one per core), ONNX Runtime threads per worker
+    /// (0: cores / workers, at least 1), the queue (0: 2 per worker), the models folder
+    /// ([`tre_model::find_models`]: the one given, else the usual places; logged), and an empty
+    /// API key read as none. `tre serve` resolves its options before it starts; [`serve`](crate::serve)
+    /// resolves settings that still leave a choice.
+    ///
+    /// # Errors
+    ///
+    /// [`ServeError::Manifest`] when no models folder is found, [`ServeError::Settings`] when
+    /// [`validate`](Self::validate) refuses the result.
+    pub fn resolve(mut self, cores: usize) -> Result<Self, ServeError> {
+        if self.workers == 0 {
+            self.workers = cores;
+        }
+        if self.ort_threads == 0 {
+            self.ort_threads = (cores / self.workers.max(1)).max(1);
+        }
+        if self.queue == 0 {
+            self.queue = 2 * self.workers;
+        }
+        self.models = Some(tre_model::find_models(self.models.as_deref())?);
+        self.api_key = self.api_key.filter(|k| !k.is_empty());
+        self.validate(cores)?;
+        Ok(self)
+    }
+
+    /// Whether [`resolve`](Self::resolve) has nothing left to choose.
+    pub fn is_resolved(&self) -> bool {
+        self.models.is_some() && self.workers > 0 && self.ort_threads > 0 && self.queue > 0
+    }
+
+    /// The models folder (`models` until resolved).
+    pub fn models_dir(&self) -> &Path {
+        self.models.as_deref().unwrap_or(Path::new("models"))
+    }
+
+    /// The ONNX Runtime settings of each worker.
+    ///
+    /// # Errors
+    ///
+    /// [`ConfigError::Provider`] for a provider this build lacks.
+    pub fn session(&self) -> Result<SessionConfig, ConfigError> {
+        Ok(SessionConfig {
+            intra_threads: self.ort_threads,
+            provider: ExecutionProvider::of(self.provider, self.device_id)?,
+            ..SessionConfig::default()
+        })
+    }
+
     /// Refuses settings the service cannot run with: a limit or timeout of 0, an API key
     /// shorter than [`MIN_API_KEY_CHARS`], more workers or ONNX Runtime threads than `cores`
-    /// can use (see [`check_threads`]).
+    /// can use (see [`check_threads`]), an execution provider this build lacks.
     pub fn validate(&self, cores: usize) -> Result<(), ConfigError> {
+        self.session()?;
         if let Some(&(flag, field, _)) = self.positive().iter().find(|(_, _, v)| *v == 0) {
             return Err(ConfigError::NotPositive { flag, field });
         }
@@ -63,7 +120,7 @@ impl ServeConfig {
         {
             return Err(ConfigError::ApiKeyTooShort { chars: key.len() });
         }
-        check_threads(Some(self.workers), self.session.intra_threads, cores)?;
+        check_threads(Some(self.workers), self.ort_threads, cores)?;
         Ok(())
     }
 
@@ -124,7 +181,12 @@ mod tests {
 
     #[test]
     fn the_defaults_pass_and_each_zero_names_its_option() {
-        ServeConfig::default().validate(2).unwrap();
+        let chosen = ServeConfig {
+            workers: 1,
+            queue: 2,
+            ..ServeConfig::default()
+        };
+        chosen.validate(2).unwrap();
         type Case = (fn(&mut ServeConfig), &'static str);
         let cases: [Case; 4] = [
             (|c| c.max_connections = 0, "--max-connections"),
@@ -166,5 +228,88 @@ mod tests {
         };
         let e = many.validate(2).unwrap_err().to_string();
         assert!(e.contains("--workers 9: at most 8"), "{e}");
+    }
+
+    #[test]
+    fn zeros_are_chosen_for_the_cores() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("manifest.json"), b"{}").unwrap();
+        let cfg = ServeConfig {
+            models: Some(dir.path().to_path_buf()),
+            api_key: Some(String::new()),
+            ..ServeConfig::default()
+        };
+        assert!(!cfg.is_resolved());
+        let cfg = cfg.resolve(4).unwrap();
+        assert_eq!((cfg.workers, cfg.ort_threads, cfg.queue), (4, 1, 8));
+        assert_eq!(cfg.api_key, None);
+        assert!(cfg.is_resolved());
+        let two = ServeConfig {
+            workers: 2,
+            ..cfg.clone()
+        };
+        assert_eq!(two.resolve(4).unwrap().ort_threads, 1);
+    }
+}
+
+/// The options of `tre serve` (the `cli` feature) become these settings.
+#[cfg(all(test, feature = "cli"))]
+mod cli_tests {
+    use std::time::Duration;
+
+    use clap::Parser;
+
+    use crate::ServeConfig;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        serve: ServeConfig,
+    }
+
+    fn parse(args: &[&str]) -> Result<ServeConfig, String> {
+        let fixed = ["tre", "--workers", "1", "--queue", "2"];
+        let cli = Cli::try_parse_from(fixed.iter().chain(args)).map_err(|e| e.to_string())?;
+        cli.serve.validate(2).map_err(|e| e.to_string())?;
+        Ok(cli.serve)
+    }
+
+    #[test]
+    fn the_options_defaults_are_the_settings_defaults() {
+        let cli = Cli::try_parse_from(["tre"]).unwrap();
+        assert_eq!(cli.serve, ServeConfig::default());
+    }
+
+    #[test]
+    fn the_connection_limits_are_set_and_zero_is_refused() {
+        let cfg = parse(&[]).unwrap();
+        assert_eq!(cfg.ws_idle_timeout, Duration::from_secs(60));
+        assert_eq!(cfg.stall_timeout, Duration::from_secs(30));
+        assert_eq!(cfg.request_timeout, Duration::from_secs(30));
+        assert_eq!(cfg.max_connections, 1024);
+        let cfg = parse(&[
+            "--ws-idle-timeout-ms",
+            "1500",
+            "--stall-timeout-ms",
+            "700",
+            "--request-timeout-ms",
+            "250",
+            "--max-connections",
+            "3",
+        ])
+        .unwrap();
+        assert_eq!(cfg.ws_idle_timeout, Duration::from_millis(1500));
+        assert_eq!(cfg.stall_timeout, Duration::from_millis(700));
+        assert_eq!(cfg.request_timeout, Duration::from_millis(250));
+        assert_eq!(cfg.max_connections, 3);
+        for flag in [
+            "--ws-idle-timeout-ms",
+            "--stall-timeout-ms",
+            "--request-timeout-ms",
+            "--max-connections",
+        ] {
+            let e = parse(&[flag, "0"]).unwrap_err();
+            assert!(e.contains("must be positive") && e.contains(flag), "{e}");
+        }
     }
 }

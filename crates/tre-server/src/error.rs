@@ -741,7 +741,9 @@ fn pipeline_code(e: &PipelineError) -> ErrorCode {
         ) => ErrorCode::BadCamera,
         PipelineError::Geometry(_)
         | PipelineError::Calibration { .. }
-        | PipelineError::Model(_) => ErrorCode::Internal,
+        | PipelineError::Model(_)
+        | PipelineError::LoadModels { .. }
+        | PipelineError::Threads(_) => ErrorCode::Internal,
     }
 }
 

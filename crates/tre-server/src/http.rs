@@ -13,7 +13,6 @@ use http_body_util::BodyExt;
 use super::error::{ApiError, ImagePart, RequestError};
 use super::metrics::Gauges;
 use super::openapi::{Binary, ErrorResponse, Guarded, JsonObject, RoughnessForm};
-use super::options::Format;
 use super::query::RoughnessQuery;
 use super::request::{
     image_header, strict_camera, DecodeLimits, FrameReply, FrameRequest, SCALE_M,
@@ -410,10 +409,7 @@ fn reply_response(reply: FrameReply) -> Response {
         "content-type",
         format!("multipart/mixed; boundary={boundary}"),
     );
-    let name = match reply.format {
-        Format::Png16 | Format::Color => "roughness.png",
-        Format::Npy | Format::F32 => "roughness.npy",
-    };
+    let name = format!("roughness.{}", reply.format.extension());
     let mut body = Vec::new();
     let mut part = |field: &str, file: &str, ct: &str, bytes: &[u8]| {
         body.extend_from_slice(format!("--{boundary}\r\nContent-Disposition: attachment; name=\"{field}\"; filename=\"{file}\"\r\nContent-Type: {ct}\r\n\r\n").as_bytes());
@@ -422,7 +418,7 @@ fn reply_response(reply: FrameReply) -> Response {
     };
     part(
         "roughness",
-        name,
+        &name,
         reply.format.content_type(),
         &reply.roughness,
     );

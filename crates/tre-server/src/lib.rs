@@ -54,7 +54,7 @@ pub use signal::{serve_until_signal, shutdown_signal};
 use metrics::Metrics;
 use refusals::RefusalLog;
 use request::{DecodeLimits, FrameDefaults};
-use tre_model::{Manifest, SessionConfig};
+use tre_model::{Manifest, Provider};
 use tre_pipeline::check_dsac_hypotheses;
 use workers::{PoolConfig, Workers};
 
@@ -64,75 +64,178 @@ use workers::{PoolConfig, Workers};
 /// error, and keeps a stream open; beyond it the connection closes.
 pub(crate) const OVERSIZE_READ_FACTOR: usize = 4;
 
-/// Settings of the service; every field has a `tre serve` option.
-#[derive(Debug, Clone)]
+/// Settings of the service; every field is a `tre serve` option (clap's, behind the `cli`
+/// feature: each doc comment here is its `--help`). Zeros and unset values that mean "choose for
+/// me" (workers, threads, queue, models folder) are chosen by [`ServeConfig::resolve`], which
+/// [`serve`] runs first.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct ServeConfig {
-    /// Address to listen on.
+    /// Address to listen on (port 0: any free port; the address is printed on stdout). The
+    /// default is loopback only; to serve a network, give its address (and an --api-key).
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_ADDR", default_value = "127.0.0.1:8080")
+    )]
     pub addr: SocketAddr,
-    /// Folder with `manifest.json` and the models.
-    pub models: PathBuf,
-    /// Inference worker threads.
+    /// Folder with manifest.json and the ONNX models. When not given: TRE_MODELS, then
+    /// models/ beside the executable, ../share/tre/models relative to it, then models/ in the
+    /// working directory.
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_MODELS"))]
+    pub models: Option<PathBuf>,
+    /// Inference worker threads, each with its own sessions (0: one per core).
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_WORKERS", default_value_t = 0))]
     pub workers: usize,
-    /// ONNX Runtime settings of each worker.
-    pub session: SessionConfig,
-    /// Frames that may wait for a worker.
+    /// ONNX Runtime threads per operator in each worker (0: cores / workers, at least 1).
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_ORT_THREADS", default_value_t = 0)
+    )]
+    pub ort_threads: usize,
+    /// Execution provider.
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_PROVIDER", value_enum, default_value = "cpu")
+    )]
+    pub provider: Provider,
+    /// GPU index for the cuda and tensorrt providers.
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_DEVICE_ID", default_value_t = 0))]
+    pub device_id: i32,
+    /// Frames that may wait for a worker; beyond, requests get 503 at once (0: 2 per worker).
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_QUEUE", default_value_t = 0))]
     pub queue: usize,
-    /// Largest request body, bytes.
+    /// Largest request body, bytes: a number with an optional k, M or G suffix (KiB, MiB,
+    /// GiB).
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_MAX_BODY_BYTES", default_value = "32MiB",
+        value_parser = tre_io::units::parse_size))]
     pub max_body_bytes: usize,
-    /// Largest image, pixels (checked from the header before decoding).
+    /// Largest image, pixels (checked from the header, before decoding). The costliest frame
+    /// is depth-only in the geometric mode, which runs at the frame's own size: at 4 Mpx (the
+    /// default) about 1.6 s of one worker and 0.6 GB resident; at 16 Mpx 7.4 s and 1.3 GB
+    /// (docs/security.md). RGB frames run at the working size and cost far less.
+    /// A number with an optional k, M or G suffix (binary: 4Mi = 4,194,304).
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_MAX_PIXELS", default_value = "4Mi",
+        value_parser = tre_io::units::parse_size))]
     pub max_pixels: usize,
-    /// Longest image side, pixels (checked from the header before decoding).
+    /// Longest image side, pixels (checked from the header, before decoding; beyond: 413).
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_MAX_SIDE", default_value_t = 8192)
+    )]
     pub max_side: usize,
-    /// Largest ratio of an image's longer side to its shorter one (from the header).
+    /// Largest ratio of an image's longer side to its shorter one (checked from the header,
+    /// before decoding; beyond: 422). A 16777216×1 image otherwise costs seconds of resizing.
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_MAX_ASPECT", default_value_t = 8)
+    )]
     pub max_aspect: usize,
-    /// Time a client has to send a request's headers (408 when some came); an idle
-    /// kept-alive connection is closed after it.
+    /// Time a client has to send a request's headers, milliseconds: one that sent part of them
+    /// gets 408, an idle kept-alive connection is closed.
+    #[cfg_attr(feature = "cli", arg(long = "header-timeout-ms", value_name = "HEADER_TIMEOUT_MS",
+        env = "TRE_HEADER_TIMEOUT_MS", default_value = "10000",
+        value_parser = tre_io::units::parse_millis))]
     pub header_timeout: Duration,
-    /// Time a client has to send a request's body once its headers have arrived (408).
+    /// Time a client has to send a request's body once its headers are in, milliseconds (then
+    /// 408). Uploads hold no --max-concurrent place.
+    #[cfg_attr(feature = "cli", arg(long = "body-timeout-ms", value_name = "BODY_TIMEOUT_MS",
+        env = "TRE_BODY_TIMEOUT_MS", default_value = "20000",
+        value_parser = tre_io::units::parse_millis))]
     pub body_timeout: Duration,
-    /// Least average rate of a request's body, bytes a second over each
-    /// `BODY_RATE_WINDOW` (`http.rs`) (408 below it); 0: none.
+    /// Least rate of a request's body, bytes a second, averaged over each 5 s from the headers
+    /// on (the first 5 s are the grace): a body slower than this gets 408 at the end of the
+    /// window, before --body-timeout-ms. 0 turns it off.
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_MIN_BODY_RATE", default_value_t = 1024)
+    )]
     pub min_body_rate: u64,
-    /// Bearer key wanted on every route but `/healthz` and `/readyz`; `None`: no key.
+    /// API key: every route and the stream upgrade except /healthz and /readyz then want
+    /// `Authorization: Bearer KEY` (401 without). Prefer the environment to the command line.
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_API_KEY", hide_env_values = true)
+    )]
     pub api_key: Option<String>,
-    /// Browser origins allowed to call the service and open the stream (`*`: any); a page
-    /// the server itself served is always allowed.
+    /// Browser origins allowed to call the service and open the stream, such as
+    /// `https://ops.example` (repeat, or comma-separate; `*` allows any). Others get 403; a
+    /// page the server itself serves (the demo) is same-origin and always allowed.
+    #[cfg_attr(
+        feature = "cli",
+        arg(
+            long = "allow-origin",
+            value_name = "ALLOW_ORIGIN",
+            env = "TRE_ALLOW_ORIGIN",
+            value_delimiter = ','
+        )
+    )]
     pub allow_origins: Vec<String>,
-    /// Requests handled at once; more get 429.
+    /// HTTP requests handled at once (counted once the body is in); beyond, 429 at once.
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_MAX_CONCURRENT", default_value_t = 64)
+    )]
     pub max_concurrent: usize,
-    /// Time an HTTP request may take once its body has arrived: queue wait and run.
+    /// Time one HTTP request may take once its body is in, the queue and the run, milliseconds
+    /// (then 503 `timeout`).
+    #[cfg_attr(feature = "cli", arg(long = "request-timeout-ms",
+        value_name = "REQUEST_TIMEOUT_MS", env = "TRE_REQUEST_TIMEOUT_MS",
+        default_value = "30000", value_parser = tre_io::units::parse_millis))]
     pub request_timeout: Duration,
-    /// Largest WebSocket message, bytes.
+    /// Largest WebSocket message, bytes, with an optional k, M or G suffix (up to 4× this gets
+    /// an error message; beyond, the connection is closed with 1009).
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_WS_MAX_MESSAGE_BYTES",
+        default_value = "16MiB", value_parser = tre_io::units::parse_size))]
     pub ws_max_message_bytes: usize,
-    /// WebSocket streams open at once; more get 429.
-    pub max_streams: usize,
-    /// A stream whose client sends nothing (no message, no pong) for this long is closed.
-    pub ws_idle_timeout: Duration,
-    /// A connection (HTTP or stream) whose client takes nothing of an answer for this long is
-    /// closed (`stall.rs`).
-    pub stall_timeout: Duration,
-    /// HTTP connections open at once (a stream until its upgrade); more are answered 503 and
-    /// closed (`connections.rs`).
-    pub max_connections: usize,
-    /// Time in-flight work may take to finish after SIGTERM.
-    pub shutdown_grace: Duration,
-    /// What frames get for the settings they do not choose: initial normals (DSAC, the paper's
-    /// method) and DSAC hypotheses per pixel (12, as trained).
+    /// What frames get for the settings they do not choose.
+    #[cfg_attr(feature = "cli", command(flatten))]
     pub defaults: FrameDefaults,
+    /// WebSocket streams open at once; beyond, the upgrade gets 429 at once.
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_MAX_STREAMS", default_value_t = 64)
+    )]
+    pub max_streams: usize,
+    /// A stream whose client sends nothing (no message, no answer to the server's pings) for
+    /// this long is closed, milliseconds; its `--max-streams` place is freed.
+    #[cfg_attr(feature = "cli", arg(long = "ws-idle-timeout-ms",
+        value_name = "WS_IDLE_TIMEOUT_MS", env = "TRE_WS_IDLE_TIMEOUT_MS",
+        default_value = "60000", value_parser = tre_io::units::parse_millis))]
+    pub ws_idle_timeout: Duration,
+    /// A connection whose client takes no byte of an answer for this long (it stopped reading,
+    /// like a hung process with its socket open) is closed, milliseconds: HTTP requests and
+    /// streams alike. A slow client that keeps reading is not affected.
+    #[cfg_attr(feature = "cli", arg(long = "stall-timeout-ms", value_name = "STALL_TIMEOUT_MS",
+        env = "TRE_STALL_TIMEOUT_MS", default_value = "30000",
+        value_parser = tre_io::units::parse_millis))]
+    pub stall_timeout: Duration,
+    /// HTTP connections open at once (a stream counts until its upgrade, then against
+    /// `--max-streams`); beyond, requests get 503 and the connection is closed. Each open
+    /// connection takes a file descriptor: `ulimit -n` should allow twice this plus
+    /// `--max-streams` and about 100 more.
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_MAX_CONNECTIONS", default_value_t = 1024)
+    )]
+    pub max_connections: usize,
+    /// Seconds in-flight work may take to finish after SIGTERM or Ctrl-C.
+    #[cfg_attr(feature = "cli", arg(long = "shutdown-grace-s", value_name = "SHUTDOWN_GRACE_S",
+        env = "TRE_SHUTDOWN_GRACE_S", default_value = "30",
+        value_parser = tre_io::units::parse_seconds))]
+    pub shutdown_grace: Duration,
 }
 
 impl Default for ServeConfig {
+    /// The options' defaults (a test checks that they agree).
     fn default() -> Self {
-        let cores = std::thread::available_parallelism().map_or(1, usize::from);
         Self {
             addr: SocketAddr::from(([127, 0, 0, 1], 8080)),
-            models: PathBuf::from("models"),
-            workers: cores,
-            session: SessionConfig {
-                intra_threads: 1,
-                ..SessionConfig::default()
-            },
-            queue: 2 * cores,
+            models: None,
+            workers: 0,
+            ort_threads: 0,
+            provider: Provider::Cpu,
+            device_id: 0,
+            queue: 0,
             max_body_bytes: 32 << 20,
             max_pixels: 4 << 20,
             max_side: 8192,
@@ -145,12 +248,12 @@ impl Default for ServeConfig {
             max_concurrent: 64,
             request_timeout: Duration::from_secs(30),
             ws_max_message_bytes: 16 << 20,
+            defaults: FrameDefaults::default(),
             max_streams: 64,
             ws_idle_timeout: Duration::from_secs(60),
             stall_timeout: Duration::from_secs(30),
             max_connections: 1024,
             shutdown_grace: Duration::from_secs(30),
-            defaults: FrameDefaults::default(),
         }
     }
 }
@@ -296,18 +399,25 @@ pub async fn serve(
     }
 }
 
-/// Checks the settings, reads the manifest and starts the workers: the service's state, and
-/// the sender that starts its shutdown.
+/// Resolves and checks the settings, reads the manifest and starts the workers: the service's
+/// state, and the sender that starts its shutdown.
 fn start(cfg: &ServeConfig) -> Result<(Arc<AppState>, watch::Sender<bool>), ServeError> {
-    cfg.validate(tre_model::cores())?;
+    let cores = tre_model::cores();
+    let cfg = if cfg.is_resolved() {
+        cfg.validate(cores)?;
+        cfg.clone()
+    } else {
+        cfg.clone().resolve(cores)?
+    };
+    let models = cfg.models_dir().to_path_buf();
     check_dsac_hypotheses(cfg.defaults.dsac_hypotheses).map_err(ServeError::Config)?;
-    let manifest = Manifest::read(&cfg.models)?;
-    let calibration = tre_pipeline::read_calibration(&cfg.models).map_err(ServeError::Config)?;
+    let manifest = Manifest::read(&models)?;
+    let calibration = tre_pipeline::read_calibration(&models).map_err(ServeError::Config)?;
     if let Some(stale) = calibration
         .as_ref()
         .and_then(|c| tre_pipeline::stale_calibration(c, &manifest))
     {
-        tracing::warn!("{}: {stale}", cfg.models.display());
+        tracing::warn!("{}: {stale}", models.display());
     }
     let manifest_json = serde_json::to_string_pretty(&manifest).map_err(std::io::Error::other)?;
     let model_names = manifest.models.keys().cloned().collect();
@@ -315,8 +425,8 @@ fn start(cfg: &ServeConfig) -> Result<(Arc<AppState>, watch::Sender<bool>), Serv
     let pool = PoolConfig {
         workers: cfg.workers,
         queue: cfg.queue,
-        models: cfg.models.clone(),
-        session: cfg.session,
+        models,
+        session: cfg.session()?,
         limits: cfg.decode_limits(),
         defaults: cfg.defaults,
         calibration,

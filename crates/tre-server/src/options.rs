@@ -4,56 +4,8 @@
 
 use strum::{EnumIter, EnumMessage, EnumString, IntoEnumIterator, IntoStaticStr};
 
-use tre_core::kinds::{Mode, NormalsMethod, StreamFormat, Traversability};
+use tre_core::kinds::{MapFormat, Mode, NormalsMethod, Traversability};
 use tre_core::roughness::noise::SensorNoise;
-
-/// Encodings of the roughness map. Over HTTP a client asks for `png16`, `color` (or `colour`)
-/// or `npy`; the stream asks for [`StreamFormat`]s.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, EnumString, EnumIter, EnumMessage)]
-#[strum(serialize_all = "lowercase")]
-pub enum Format {
-    /// 16-bit grey + alpha PNG, 0.1 mm per unit, alpha 0 where there is no data (as `tre infer`).
-    #[default]
-    Png16,
-    /// 8-bit colour map PNG the frame's size (turbo, 0 to `preview_max_m`; dark grey: no data).
-    #[strum(serialize = "color", serialize = "colour")]
-    Color,
-    /// `(H, W)` float32 `.npy`, metres, NaN where there is no data.
-    Npy,
-    /// Raw little-endian float32, metres, row-major (the stream's `FORMAT_F32`); not a choice
-    /// over HTTP.
-    #[strum(disabled)]
-    F32,
-}
-
-impl Format {
-    /// MIME type of the encoded map.
-    pub fn content_type(self) -> &'static str {
-        match self {
-            Self::Png16 | Self::Color => "image/png",
-            Self::Npy | Self::F32 => "application/octet-stream",
-        }
-    }
-
-    /// The stream's encoding of the same map (`.npy` goes as its float32 values).
-    pub fn on_stream(self) -> StreamFormat {
-        match self {
-            Self::Png16 => StreamFormat::Png16,
-            Self::Color => StreamFormat::Color,
-            Self::Npy | Self::F32 => StreamFormat::F32,
-        }
-    }
-}
-
-impl From<StreamFormat> for Format {
-    fn from(f: StreamFormat) -> Self {
-        match f {
-            StreamFormat::Png16 => Self::Png16,
-            StreamFormat::Color => Self::Color,
-            StreamFormat::F32 => Self::F32,
-        }
-    }
-}
 
 /// An extra map a client may ask for beside roughness, by the name of its part in the answer
 /// (HTTP `outputs=depth,slope`).
@@ -139,8 +91,9 @@ impl Extras {
 pub struct FrameOptions {
     /// Input mode; `None`: rgbd with RGB and depth, geometric with depth alone, else rgb.
     pub mode: Option<Mode>,
-    /// Encoding of the roughness map.
-    pub format: Format,
+    /// Encoding of the roughness map ([`MapFormat::HTTP`] over HTTP, [`MapFormat::STREAM`] on
+    /// the stream).
+    pub format: MapFormat,
     /// Seed of the DSAC sampler.
     pub seed: u64,
     /// Initial normals; `None`: the server's default (`tre serve --normals`).
@@ -177,21 +130,6 @@ impl FrameOptions {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tre_core::kinds::{names, one_of, parse_choice};
-
-    #[test]
-    fn http_formats_are_png16_color_and_npy_with_colour_as_an_alias() {
-        assert_eq!(names::<Format>(), ["png16", "color", "colour", "npy"]);
-        assert_eq!(one_of::<Format>(), "png16, color or npy");
-        assert_eq!(parse_choice("format", "colour"), Ok(Format::Color));
-        assert_eq!(
-            parse_choice::<Format>("format", "f32").unwrap_err(),
-            r#"format: expected png16, color or npy, got "f32""#
-        );
-        for f in [Format::Png16, Format::Color, Format::Npy, Format::F32] {
-            assert_eq!(Format::from(f.on_stream()).on_stream(), f.on_stream());
-        }
-    }
 
     #[test]
     fn every_output_map_has_its_part_name_and_sets_its_flag() {

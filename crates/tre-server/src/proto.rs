@@ -7,7 +7,7 @@ use super::error::{ApiError, RequestError};
 use super::map::{settings_from_pb, MapSettings};
 use super::options::FrameOptions;
 use super::request::{FrameReply, FrameRequest, SCALE_M};
-use tre_core::kinds::StreamFormat;
+use tre_core::kinds::MapFormat;
 use tre_core::map::Pose;
 use tre_core::roughness::noise::SensorNoise;
 use tre_io::{CameraFile, SensorSpec};
@@ -163,7 +163,7 @@ impl TryFrom<pb::Hello> for StreamSettings {
             options: FrameOptions {
                 sensor,
                 mode: mode.into(),
-                format: StreamFormat::from(format).into(),
+                format: MapFormat::from(format),
                 seed: h.seed,
                 normals: normals.into(),
                 dsac_hypotheses,
@@ -299,7 +299,7 @@ pub(crate) fn result(
     latency_ms: f64,
     dropped_total: u64,
 ) -> Vec<u8> {
-    let format = pb::Format::from(reply.format.on_stream());
+    let format = pb::Format::from(reply.format);
     encode(pb::server_message::Msg::Result(pb::Result {
         sequence,
         timestamp_us,

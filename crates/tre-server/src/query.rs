@@ -1,6 +1,6 @@
 //! The query of `POST /v1/roughness`: its parameters, documented here for the OpenAPI document
 //! (each field's doc comment is its description there), and their checks. Choices are parsed
-//! by their enums ([`tre_core::kinds`], [`Format`], [`OutputMap`]), whose names are also the
+//! by their enums ([`tre_core::kinds`], [`MapFormat`], [`OutputMap`]), whose names are also the
 //! document's allowed values.
 
 use std::str::FromStr;
@@ -12,9 +12,11 @@ use utoipa::openapi::RefOr;
 use utoipa::{IntoParams, PartialSchema, ToSchema};
 
 use super::error::RequestError;
-use super::options::{Extras, Format, FrameOptions, OutputMap};
+use super::options::{Extras, FrameOptions, OutputMap};
 use super::request::{check_camera_ranges, DecodeLimits};
-use tre_core::kinds::{names, parse_choice, Mode, NormalsMethod};
+use tre_core::kinds::{
+    names, names_of_these, parse_choice, parse_choice_of, MapFormat, Mode, NormalsMethod,
+};
 use tre_io::CameraFile;
 use tre_pipeline::{check_dsac_hypotheses, Traversability, MAX_DSAC_HYPOTHESES};
 
@@ -117,13 +119,15 @@ fn choice_schema<E: IntoEnumIterator + EnumMessage>() -> ObjectBuilder {
         .enum_values(Some(names::<E>()))
 }
 
-/// The schema of `format`: a choice of [`Format`], defaulting to its default.
+/// The schema of `format`: a choice of [`MapFormat::HTTP`], defaulting to the default.
 pub(crate) struct FormatParam;
 
 impl PartialSchema for FormatParam {
     fn schema() -> RefOr<Schema> {
-        let default = Format::default().get_serializations().first().copied();
-        choice_schema::<Format>()
+        let default = MapFormat::default().get_serializations().first().copied();
+        ObjectBuilder::new()
+            .schema_type(Type::String)
+            .enum_values(Some(names_of_these(MapFormat::HTTP)))
             .default(default.map(Into::into))
             .into()
     }
@@ -149,7 +153,7 @@ impl ToSchema for DsacHypothesesParam {}
 /// `value`, when given, as a choice of `E` (400 `bad_request` naming `field` otherwise).
 fn choice<E>(field: &str, value: Option<&str>) -> Result<Option<E>, RequestError>
 where
-    E: IntoEnumIterator + EnumMessage + FromStr,
+    E: IntoEnumIterator + EnumMessage + FromStr + Copy + Into<&'static str>,
 {
     value
         .map(|v| parse_choice(field, v))
@@ -160,7 +164,13 @@ where
 impl RoughnessQuery {
     /// The options, checked.
     pub(crate) fn options(&self) -> Result<FrameOptions, RequestError> {
-        let format = choice::<Format>("format", self.format.as_deref())?.unwrap_or_default();
+        let format = self
+            .format
+            .as_deref()
+            .map(|v| parse_choice_of("format", v, MapFormat::HTTP))
+            .transpose()
+            .map_err(RequestError::Choice)?
+            .unwrap_or_default();
         let mode = choice::<Mode>("mode", self.mode.as_deref())?;
         let normals = choice::<NormalsMethod>("normals", self.normals.as_deref())?;
         let dsac_hypotheses = self
@@ -261,12 +271,15 @@ mod tests {
     #[test]
     fn choices_parse_through_their_enums() {
         let o = query("format=colour&mode=rgbd&normals=ls&outputs=depth,traversal").unwrap();
-        assert_eq!(o.format, Format::Color);
+        assert_eq!(o.format, MapFormat::Color);
         assert_eq!(o.mode, Some(Mode::Rgbd));
         assert_eq!(o.normals, Some(NormalsMethod::Ls));
         assert!(o.extras.depth && o.extras.traversal && !o.extras.slope);
         let o = query("seed=3").unwrap();
-        assert_eq!((o.format, o.mode, o.normals), (Format::Png16, None, None));
+        assert_eq!(
+            (o.format, o.mode, o.normals),
+            (MapFormat::Png16, None, None)
+        );
         for (q, message) in [
             (
                 "format=f32",

@@ -8,8 +8,9 @@ use image::{DynamicImage, ImageFormat, ImageReader};
 
 pub use super::error::ImagePart;
 use super::error::RequestError;
-use super::options::{Format, FrameOptions, OutputMap};
+use super::options::{FrameOptions, OutputMap};
 use tre_core::geometry::Grid;
+use tre_core::kinds::MapFormat;
 use tre_core::roughness::interval::IntervalTable;
 use tre_io::{self as io, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
 use tre_pipeline::{
@@ -125,7 +126,7 @@ pub struct FrameReply {
     /// The roughness map, encoded.
     pub roughness: Vec<u8>,
     /// How it is encoded.
-    pub format: Format,
+    pub format: MapFormat,
     /// Extra maps, encoded.
     pub extras: Vec<Part>,
     /// Traversability, one byte per pixel (1 = traversable), if asked for as bytes.
@@ -358,10 +359,20 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
 /// What a frame gets for the settings it does not choose itself (`tre serve --normals`,
 /// `--dsac-hypotheses`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct FrameDefaults {
-    /// Initial normals.
+    /// Initial normals of frames that do not choose: dsac (the paper's method) or ls (faster;
+    /// see docs/evaluation.md and docs/benchmarks.md). Requests override it with `normals=`.
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_NORMALS", value_enum, default_value = "dsac")
+    )]
     pub normals: NormalsMethod,
-    /// DSAC hypotheses per pixel (1 to [`MAX_DSAC_HYPOTHESES`](tre_pipeline::MAX_DSAC_HYPOTHESES)).
+    /// DSAC hypotheses per pixel, 1 to 64: 12 as the neighbour net was trained; fewer are
+    /// faster at some cost in accuracy (see docs/evaluation.md).
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_DSAC_HYPOTHESES",
+        default_value_t = DEFAULT_DSAC_HYPOTHESES,
+        value_parser = tre_core::kinds::dsac_hypotheses_parser()))]
     pub dsac_hypotheses: u32,
 }
 
@@ -383,11 +394,9 @@ pub fn config_for(
     max_pixels: usize,
     defaults: FrameDefaults,
 ) -> PipelineConfig {
-    let mode = opts.mode.unwrap_or(match (&frame.rgb, &frame.depth_m) {
-        (Some(_), Some(_)) => Mode::Rgbd,
-        (None, Some(_)) => Mode::Geometric,
-        _ => Mode::Rgb,
-    });
+    let mode = opts
+        .mode
+        .unwrap_or_else(|| Mode::implied(frame.rgb.is_some(), frame.depth_m.is_some()));
     PipelineConfig {
         seed: opts.seed,
         normals: opts.normals.unwrap_or(defaults.normals),
@@ -440,17 +449,17 @@ fn png_part(
 fn encode_roughness(r: &Grid<f64>, opts: &FrameOptions) -> Result<Vec<u8>, RequestError> {
     let (w, h) = r.size();
     Ok(match opts.format {
-        Format::Png16 => png(&DynamicImage::ImageLumaA16(io::roughness_png16(r)))?,
-        Format::Color => png(&DynamicImage::ImageRgb8(colormap::colourise(
+        MapFormat::Png16 => png(&DynamicImage::ImageLumaA16(io::roughness_png16(r)))?,
+        MapFormat::Color => png(&DynamicImage::ImageRgb8(colormap::colourise(
             r,
             0.0,
             opts.preview_max_m.unwrap_or(0.05),
         )))?,
-        Format::Npy => npy(
+        MapFormat::Npy => npy(
             &[h, w],
             &r.as_slice().iter().map(|&v| v as f32).collect::<Vec<_>>(),
         )?,
-        Format::F32 => r
+        MapFormat::F32 => r
             .as_slice()
             .iter()
             .flat_map(|&v| (v as f32).to_le_bytes())

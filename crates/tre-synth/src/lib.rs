@@ -4,6 +4,8 @@
 //! annotator (spec v1).
 
 mod appearance;
+#[cfg(feature = "cli")]
+mod cli;
 pub mod content;
 pub mod dataset;
 mod heightgrid;
@@ -16,6 +18,8 @@ pub mod surface;
 mod terrain;
 
 pub use appearance::{Conditions, Lighting, Weather};
+#[cfg(feature = "cli")]
+pub use cli::SynthArgs;
 pub use heightgrid::HeightGrid;
 pub use render::{render, RenderedFrame, Scene, View};
 pub use terrain::Terrain;

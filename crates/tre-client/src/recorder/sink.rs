@@ -173,10 +173,7 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
             &rest,
         );
         // Metres as float32 go to `.npy`; the PNG encodings stay PNG.
-        let ext = match r.format {
-            crate::Format::F32 => "npy",
-            _ => "png",
-        };
+        let ext = r.format.extension();
         let path = self.out.join(format!("{}_{name}.{ext}", r.sequence));
         Job::Map {
             path,

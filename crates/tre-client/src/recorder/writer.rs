@@ -9,7 +9,8 @@ use image::DynamicImage;
 use tokio::sync::mpsc;
 
 use super::RecordError;
-use crate::{Format, FrameResult};
+use crate::FrameResult;
+use tre_core::kinds::MapFormat;
 use tre_io as io;
 
 /// The header of `frames.csv`.
@@ -85,7 +86,7 @@ fn io_error<'p>(
 /// metres, NaN where there is no data; colour as received) and its other maps beside it.
 fn write_map(path: &Path, r: &FrameResult) -> Result<(), RecordError> {
     match (r.format, r.roughness_m()) {
-        (Format::F32, Some(m)) => io::write_npy_f32(path, m)?,
+        (MapFormat::F32 | MapFormat::Npy, Some(m)) => io::write_npy_f32(path, m)?,
         _ => std::fs::write(path, &r.encoded).map_err(io_error("writing", path))?,
     }
     let stem = path

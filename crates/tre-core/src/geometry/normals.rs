@@ -13,10 +13,13 @@ use super::{Grid, Vec3};
 /// The neighbourhood of a pixel: the valid points within `radius_m` of it, searched in a pixel
 /// window of half-width `clamp(⌈radius_m · fx / z⌉, 1, max_half_width)`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct Neighbourhood {
-    /// Metric radius R, metres (default 0.05).
+    /// Neighbourhood radius R, metres.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.05))]
     pub radius_m: f64,
-    /// Cap on the window half-width, pixels (default 7).
+    /// Cap on the window half-width, pixels.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 7))]
     pub max_half_width: usize,
 }
 

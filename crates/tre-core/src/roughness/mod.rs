@@ -48,4 +48,12 @@ pub enum RoughnessError {
         /// The first of them (x, y), in row order.
         first: (usize, usize),
     },
+    /// A setting that must be a positive number (named by its `tre annotate` option).
+    #[error("{option} must be positive, got {value}")]
+    NotPositive {
+        /// The option, such as `--epsilon-m`.
+        option: &'static str,
+        /// What it was given.
+        value: f64,
+    },
 }

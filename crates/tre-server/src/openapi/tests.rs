@@ -11,12 +11,11 @@ use tower_service::Service;
 
 use super::*;
 use crate::metrics::Metrics;
-use crate::options::Format;
 use crate::query::RoughnessQuery;
 use crate::refusals::RefusalLog;
 use crate::workers::{PoolConfig, Workers};
 use crate::{router, AppState, ServeConfig};
-use tre_core::kinds::{names, Mode, NormalsMethod};
+use tre_core::kinds::{names, names_of_these, MapFormat, Mode, NormalsMethod};
 
 /// A service whose workers never start (there are no models): enough for every route to
 /// answer, none with a map.
@@ -24,15 +23,15 @@ fn state() -> (Arc<AppState>, watch::Sender<bool>) {
     let cfg = ServeConfig {
         workers: 1,
         queue: 1,
-        models: "no models here".into(),
+        models: Some("no models here".into()),
         ..ServeConfig::default()
     };
     let metrics = Arc::new(Metrics::default());
     let pool = PoolConfig {
         workers: 1,
         queue: 1,
-        models: cfg.models.clone(),
-        session: cfg.session,
+        models: cfg.models_dir().to_path_buf(),
+        session: cfg.session().unwrap(),
         limits: cfg.decode_limits(),
         defaults: cfg.defaults,
         calibration: None,
@@ -198,7 +197,10 @@ fn the_roughness_parameters_are_the_handlers_query_struct() {
         let p = params.iter().find(|p| p["name"] == name).expect("listed");
         p["schema"]["enum"].clone()
     };
-    assert_eq!(choices("format"), serde_json::json!(names::<Format>()));
+    assert_eq!(
+        choices("format"),
+        serde_json::json!(names_of_these(MapFormat::HTTP))
+    );
     assert_eq!(
         choices("format"),
         serde_json::json!(["png16", "color", "colour", "npy"])

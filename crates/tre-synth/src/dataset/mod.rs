@@ -34,53 +34,96 @@ pub use scene::{
     OpticsRanges, OPTICS,
 };
 
-/// Dataset settings, with the paper's camera by default.
+/// Dataset settings, with the paper's camera by default. Those a user states are options of
+/// `tre synth` (clap's, behind the `cli` feature: each doc comment is its `--help`; the frame
+/// size is [`SynthArgs`](crate::SynthArgs)' `--width` and `--height`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct SynthConfig {
-    /// Output folder (not written to the manifest, so that a dataset is the same wherever it
-    /// is written).
+    /// Output folder (created if missing).
+    // Not written to the manifest, so that a dataset is the same wherever it is written.
     #[serde(skip)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub out: PathBuf,
-    /// Number of scenes.
+    /// Number of scenes (9 views each by default).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 4))]
     pub scenes: u32,
-    /// Dataset seed.
+    /// Dataset seed: the same seed gives the same bytes.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0))]
     pub seed: u64,
     /// Image width and height, pixels.
+    #[cfg_attr(feature = "cli", arg(skip = SynthConfig::default().size))]
     pub size: (usize, usize),
     /// Horizontal field of view, degrees.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 60.0))]
     pub hfov_deg: f64,
-    /// Views per scene, spread evenly over `[-yaw_span, +yaw_span]` (9 over ±60°: 15° steps).
+    /// Views per scene, spread over ±60° of yaw.
+    // Evenly over ±yaw_span_deg: 9 views, 15° apart.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 9))]
     pub views: u32,
     /// Half the yaw span, degrees.
+    #[cfg_attr(feature = "cli", arg(skip = SynthConfig::default().yaw_span_deg))]
     pub yaw_span_deg: f64,
     /// Draw camera height (0.4–1.2 m) and pitch (40–75°) per scene instead of 1 m and 60°.
+    #[cfg_attr(feature = "cli", arg(long))]
     pub random_mounting: bool,
     /// Share of scenes in the test split.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.2))]
     pub test_fraction: f64,
     /// Grid spacing of the rendered surface, metres.
+    #[cfg_attr(feature = "cli", arg(skip = SynthConfig::default().cell_m))]
     pub cell_m: f64,
     /// Write a PLY point cloud per frame.
+    #[cfg_attr(feature = "cli", arg(long = "no-ply", action = clap::ArgAction::SetFalse,
+        help = "Skip the PLY point clouds (they are the largest files)"))]
     pub ply: bool,
-    /// Depth sensors: one is used for every frame; with several, each frame draws one
-    /// (uniformly, from the frame's seed). `exact` copies the exact depth.
+    /// Depth sensor(s) of `depth_sensor.png`: kinect_v1, realsense_d435, azure_kinect, lidar or
+    /// exact; a comma-separated list draws one per frame (docs/synth.md).
+    // Drawn uniformly, from the frame's seed; `exact` copies the exact depth.
     #[serde(default = "default_sensors")]
+    #[cfg_attr(
+        feature = "cli",
+        arg(
+            long = "sensor",
+            value_name = "SENSOR",
+            env = "TRE_SYNTH_SENSOR",
+            value_delimiter = ',',
+            default_value = "exact"
+        )
+    )]
     pub sensors: Vec<SensorPreset>,
-    /// Image-formation effects applied to `rgb.png`, each drawn per frame (none by default:
-    /// the rendered image as it is).
+    /// Image-formation effects on rgb.png, each drawn per frame: exposure, white_balance,
+    /// vignetting, defocus, motion_blur, noise, jpeg (comma-separated; leave one out to turn it
+    /// off; none by default). Ranges in docs/synth.md.
     #[serde(default)]
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_SYNTH_EFFECTS", value_delimiter = ',')
+    )]
     pub effects: Vec<ImageEffect>,
-    /// What the scenes show: natural terrain (the default, left out of `dataset.json` so that
-    /// natural datasets keep their bytes), indoor rooms, urban street edges, or a mix.
+    /// What the scenes show: natural (the paper's six terrain categories), indoor (floors,
+    /// walls, sills, cables, boxes, furniture, stairs), urban (road, sidewalk, curb, kerb ramp,
+    /// drains, posts) or mixed (each scene draws one). Labels in docs/synth.md.
+    // Natural, the default, is left out of `dataset.json`, so that natural datasets keep their
+    // bytes.
     #[serde(default, skip_serializing_if = "Content::is_natural")]
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, env = "TRE_SYNTH_CONTENT", default_value = "natural")
+    )]
     pub content: Content,
-    /// Draw every frame's mounting and optics from [`OPTICS`]: pitch, height, roll, horizontal
-    /// field of view and frame shape (the width stays `size.0`). Overrides `random_mounting`,
-    /// `hfov_deg` and `size.1`. Left out of `dataset.json` when off.
+    /// Draw every frame's camera: pitch 0–85°, height 0.2–2.0 m, roll ±10°, horizontal field
+    /// of view 45–110° and shape 4:3, 16:9 or 1242:375 (the width stays --width); overrides
+    /// --random-mounting, --hfov-deg and --height.
+    // Left out of `dataset.json` when off.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub random_optics: bool,
-    /// Keep the complete frames of an interrupted run with the same settings and write only
-    /// the others (a run option, not written to the manifest).
+    /// Continue an interrupted run into the same --out with the same settings: complete
+    /// frames are kept, the others written.
+    // A run option, not written to the manifest.
     #[serde(skip)]
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_SYNTH_RESUME"))]
     pub resume: bool,
 }
 

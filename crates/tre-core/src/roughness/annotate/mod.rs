@@ -11,17 +11,44 @@ use crate::geometry::Plane;
 use crate::geometry::{is_valid_point, PointMap};
 use crate::geometry::{Grid, Intrinsics, Vec3, INVALID_POINT};
 
-/// Parameters of annotation spec v1, with the spec's defaults.
+/// Parameters of annotation spec v1, with the spec's defaults: ε 0.015 m, R 0.05 m, half-width
+/// cap 7 px, segment angle 10°, edge band σ 1.5 px. The first three are options of
+/// `tre annotate` (clap's, behind the `cli` feature).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct AnnotateConfig {
-    /// Geometric resolution ε, metres (0.015).
+    /// Geometric resolution ε, metres.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.015))]
     pub epsilon_m: f64,
-    /// Neighbourhood of the surface term and of LS normals (R = 0.05 m, half-width cap 7 px).
+    /// Neighbourhood of the surface term and of LS normals.
+    #[cfg_attr(feature = "cli", command(flatten))]
     pub hood: Neighbourhood,
-    /// Largest normal angle within one segment, degrees (10).
+    /// Largest normal angle within one segment, degrees.
+    #[cfg_attr(feature = "cli", arg(skip = AnnotateConfig::default().segment_angle_deg))]
     pub segment_angle_deg: f64,
-    /// Edge band σ, pixels (1.5).
+    /// Edge band σ, pixels.
+    #[cfg_attr(feature = "cli", arg(skip = AnnotateConfig::default().edge_sigma_px))]
     pub edge_sigma_px: f64,
+}
+
+impl AnnotateConfig {
+    /// The settings checked, with a window half-width cap of at least 1 pixel.
+    ///
+    /// # Errors
+    ///
+    /// [`RoughnessError::NotPositive`] for an ε or a radius that is not a positive number.
+    pub fn checked(mut self) -> Result<Self, RoughnessError> {
+        for (option, value) in [
+            ("--epsilon-m", self.epsilon_m),
+            ("--radius-m", self.hood.radius_m),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(RoughnessError::NotPositive { option, value });
+            }
+        }
+        self.hood.max_half_width = self.hood.max_half_width.max(1);
+        Ok(self)
+    }
 }
 
 impl Default for AnnotateConfig {
