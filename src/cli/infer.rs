@@ -225,52 +225,23 @@ impl Infer {
         }
     }
 
-    /// The frame, depth and camera from disk, the camera's sensor, and whether a depth scale
-    /// was given (`--depth-scale` or the camera's).
+    /// The frame, depth and camera from disk ([`io::read_frame_files`]), the camera's sensor,
+    /// and whether a depth scale was given (`--depth-scale` or the camera's).
     fn read_frame(&self) -> anyhow::Result<(FrameInput, Option<io::SensorSpec>, bool)> {
-        let cam = self.camera.as_deref().map(io::read_camera).transpose()?;
-        let stated = self
-            .depth_scale
-            .or(cam.as_ref().and_then(|(c, _)| c.depth_scale));
-        let scale = stated.unwrap_or(1000.0);
-        if !(scale.is_finite() && scale > 0.0) {
-            bail!("--depth-scale must be positive, got {scale}");
-        }
-        let rgb = match &self.frame {
-            Some(path) => {
-                let image = io::read_image(path)?;
-                if let Some(why) = io::not_rgb(image.color()) {
-                    bail!(
-                        "{}: {why} (--depth, with --camera or --depth-scale)",
-                        path.display()
-                    );
-                }
-                Some(image.to_rgb8())
-            }
-            None => None,
-        };
-        let depth_m = match &self.depth {
-            Some(path) => Some(io::read_depth(path, scale)?),
-            None => None,
-        };
-        let mounting = match &cam {
-            Some((c, _)) => c.mounting().context("camera pitch or height")?,
-            None => None,
-        };
+        let read = io::read_frame_files(&io::FrameFiles {
+            rgb: self.frame.as_deref(),
+            depth: self.depth.as_deref(),
+            camera: self.camera.as_deref(),
+            depth_scale: self.depth_scale,
+        })?;
         let frame = FrameInput {
-            rgb,
-            depth_m,
-            intrinsics: cam.as_ref().map(|&(_, k)| k),
-            mounting,
+            rgb: read.rgb,
+            depth_m: read.depth_m,
+            intrinsics: read.camera.as_ref().map(|&(_, k)| k),
+            mounting: read.mounting,
         };
-        if let (Some((c, k)), Some(path), Some((w, h))) = (&cam, &self.camera, frame.size()) {
-            let named = || format!("camera {}", path.display());
-            c.check_size((w, h))
-                .map_err(anyhow::Error::msg)
-                .with_context(named)?;
-            k.check_for(w, h).with_context(named)?;
-        }
-        Ok((frame, cam.and_then(|(c, _)| c.sensor), stated.is_some()))
+        let sensor = read.camera.and_then(|(c, _)| c.sensor);
+        Ok((frame, sensor, read.scale_stated))
     }
 
     /// A preview's title: `what`, the mode and the input's file name.

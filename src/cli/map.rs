@@ -63,7 +63,7 @@ impl Map {
         let frames = self.frames()?;
         let gravity = read_gravity(&self.sequence)?;
         let up_in_cam = cam.mounting()?.map(|m| m.up_in_cam());
-        let cfg = self.map_config();
+        let cfg = MapConfig::square(self.cell_cm / 100.0, self.size_m, self.max_range_m);
         let pcfg = self.stages.config(self.mode);
         let mut pipeline = self.stages.pipeline(&[pcfg])?;
         let mut map: Option<GridMap> = None;
@@ -118,16 +118,6 @@ impl Map {
             frames.truncate(1);
         }
         Ok(frames)
-    }
-
-    /// The grid's settings from the options.
-    fn map_config(&self) -> MapConfig {
-        MapConfig {
-            cell_m: self.cell_cm / 100.0,
-            side: (self.size_m / (self.cell_cm / 100.0)).round() as usize,
-            max_range_m: self.max_range_m,
-            ..MapConfig::default()
-        }
     }
 
     /// The noise model (`--sensor`, else the camera's) and the depth scale (the camera's): the

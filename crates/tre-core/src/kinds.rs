@@ -190,8 +190,7 @@ pub enum MapFormat {
     Png16,
     /// 8-bit turbo colour map PNG of the frame's size (dark grey: no data), for people; not
     /// decoded to metres.
-    // `to_string` makes `color` its printed name; strum lists it again after the aliases.
-    #[strum(serialize = "color", serialize = "colour", to_string = "color")]
+    #[strum(to_string = "color", serialize = "colour")]
     #[cfg_attr(
         feature = "cli",
         value(help = "8-bit turbo colour map PNG of the frame's size")
@@ -241,28 +240,20 @@ impl MapFormat {
 }
 
 /// The names a choice of `E` parses from, in declaration order, as a message lists them:
-/// `rgb, rgbd or geometric`. Each variant gives its first name (strum's first `serialize`, or
-/// the name from `serialize_all`); aliases and variants that do not parse (strum's `disabled`)
-/// are left out.
+/// `rgb, rgbd or geometric`. Each variant gives its printed name (strum's `to_string`, or the
+/// name from `serialize_all`); aliases are left out.
 ///
 /// ```
 /// use tre_core::kinds::{one_of, Mode};
 /// assert_eq!(one_of::<Mode>(), "rgb, rgbd or geometric");
 /// ```
-pub fn one_of<E: IntoEnumIterator + EnumMessage>() -> String {
-    let names: Vec<&str> = E::iter()
-        .filter_map(|v| v.get_serializations().first().copied())
-        .collect();
-    match names.split_last() {
-        None => String::new(),
-        Some((last, [])) => (*last).to_owned(),
-        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
-    }
+pub fn one_of<E: IntoEnumIterator + Copy + Into<&'static str>>() -> String {
+    one_of_these(&E::iter().collect::<Vec<_>>())
 }
 
-/// Every name a choice of `E` parses from, aliases after their variant's first name: the
+/// Every name a choice of `E` parses from, aliases after their variant's printed name: the
 /// allowed values of a document (`png16, color, colour, npy`).
-pub fn names<E: IntoEnumIterator + EnumMessage>() -> Vec<&'static str> {
+pub fn names<E: IntoEnumIterator + EnumMessage + Copy + Into<&'static str>>() -> Vec<&'static str> {
     names_of_these(&E::iter().collect::<Vec<_>>())
 }
 
@@ -277,7 +268,7 @@ pub fn names<E: IntoEnumIterator + EnumMessage>() -> Vec<&'static str> {
 ///     r#"normals: expected ls or dsac, got "LS""#
 /// );
 /// ```
-pub fn parse_choice<E: IntoEnumIterator + EnumMessage + FromStr>(
+pub fn parse_choice<E: IntoEnumIterator + FromStr + Copy + Into<&'static str>>(
     field: &str,
     value: &str,
 ) -> Result<E, String> {
@@ -287,11 +278,8 @@ pub fn parse_choice<E: IntoEnumIterator + EnumMessage + FromStr>(
 }
 
 /// As [`one_of`], for the choices in `allowed` alone: `png16, color or npy`.
-pub fn one_of_these<E: EnumMessage>(allowed: &[E]) -> String {
-    let names: Vec<&str> = allowed
-        .iter()
-        .filter_map(|v| v.get_serializations().first().copied())
-        .collect();
+pub fn one_of_these<E: Copy + Into<&'static str>>(allowed: &[E]) -> String {
+    let names: Vec<&str> = allowed.iter().map(|&v| v.into()).collect();
     match names.split_last() {
         None => String::new(),
         Some((last, [])) => (*last).to_owned(),
@@ -300,11 +288,16 @@ pub fn one_of_these<E: EnumMessage>(allowed: &[E]) -> String {
 }
 
 /// As [`names`], for the choices in `allowed` alone.
-pub fn names_of_these<E: EnumMessage>(allowed: &[E]) -> Vec<&'static str> {
+pub fn names_of_these<E: EnumMessage + Copy + Into<&'static str>>(
+    allowed: &[E],
+) -> Vec<&'static str> {
     let mut names = Vec::new();
-    for name in allowed.iter().flat_map(|v| v.get_serializations().iter()) {
-        if !names.contains(name) {
-            names.push(*name);
+    for &v in allowed {
+        let first: &'static str = v.into();
+        for name in std::iter::once(first).chain(v.get_serializations().iter().copied()) {
+            if !names.contains(&name) {
+                names.push(name);
+            }
         }
     }
     names
@@ -321,7 +314,7 @@ pub fn names_of_these<E: EnumMessage>(allowed: &[E]) -> Vec<&'static str> {
 ///     r#"format: expected png16, color or npy, got "f32""#
 /// );
 /// ```
-pub fn parse_choice_of<E: EnumMessage + FromStr + PartialEq>(
+pub fn parse_choice_of<E: FromStr + PartialEq + Copy + Into<&'static str>>(
     field: &str,
     value: &str,
     allowed: &[E],
@@ -433,7 +426,7 @@ mod tests {
     fn one_spelling<E>(expected: &[&str])
     where
         E: IntoEnumIterator + EnumMessage + AsRef<str> + FromStr + VariantNames + Serialize,
-        E: PartialEq,
+        E: PartialEq + Copy + Into<&'static str>,
         E: std::fmt::Debug + std::fmt::Display + for<'de> Deserialize<'de>,
     {
         assert_eq!(E::VARIANTS, expected);
@@ -441,7 +434,7 @@ mod tests {
         for (v, name) in E::iter().zip(expected) {
             assert_eq!((v.as_ref(), v.to_string().as_str()), (*name, *name));
             assert_eq!(name.parse::<E>().ok().as_ref(), Some(&v));
-            let json = serde_json::to_value(&v).expect("serialises");
+            let json = serde_json::to_value(v).expect("serialises");
             assert_eq!(json, serde_json::json!(name), "{v:?}");
             let back: E = serde_json::from_value(json).expect("deserialises");
             assert_eq!(back, v);

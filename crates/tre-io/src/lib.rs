@@ -2,7 +2,8 @@
 //! and the annotator's outputs (16-bit roughness PNG with mask, float `.npy`, previews).
 //!
 //! The everyday readers and writers are here at the root (camera JSON, depth maps and their
-//! check, image decoding and the PNG encodings, labels, normals, `.npy` and PLY output, poses).
+//! check, one frame's files, image decoding and the PNG encodings, labels, normals, `.npy` and
+//! PLY output, poses).
 //! Each other concern is a module of its own, named by its path: [`npy`] (the `.npy` format),
 //! [`colormap`], [`previews`] and [`sheet`] (pictures for people), [`outputs`] (a frame's result
 //! files), [`paths`], [`sequence`] (recorded sequence folders), [`map_files`] (the grid map's
@@ -11,6 +12,7 @@
 mod camera;
 pub mod colormap;
 mod depth;
+mod frame_files;
 mod images;
 pub mod map_files;
 mod maps;
@@ -35,6 +37,9 @@ pub use camera::{
 pub use depth::{
     check_depth, depth_from_luma16, npy_depth, read_depth, DepthError, MAX_MEDIAN_DEPTH_M,
     MIN_MEDIAN_DEPTH_M,
+};
+pub use frame_files::{
+    read_frame_files, FrameFiles, FrameFilesError, FrameRead, DEFAULT_DEPTH_SCALE,
 };
 pub use images::{
     decode_jpeg, decode_roughness_png16, depth_png16, encode_png, gray8, metres_png16, not_rgb,

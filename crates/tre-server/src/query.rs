@@ -113,7 +113,7 @@ choice_param!(
     NormalsMethod
 );
 
-fn choice_schema<E: IntoEnumIterator + EnumMessage>() -> ObjectBuilder {
+fn choice_schema<E: IntoEnumIterator + EnumMessage + Copy + Into<&'static str>>() -> ObjectBuilder {
     ObjectBuilder::new()
         .schema_type(Type::String)
         .enum_values(Some(names::<E>()))
@@ -153,7 +153,7 @@ impl ToSchema for DsacHypothesesParam {}
 /// `value`, when given, as a choice of `E` (400 `bad_request` naming `field` otherwise).
 fn choice<E>(field: &str, value: Option<&str>) -> Result<Option<E>, RequestError>
 where
-    E: IntoEnumIterator + EnumMessage + FromStr + Copy + Into<&'static str>,
+    E: IntoEnumIterator + FromStr + Copy + Into<&'static str>,
 {
     value
         .map(|v| parse_choice(field, v))

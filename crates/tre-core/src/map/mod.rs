@@ -56,6 +56,26 @@ impl Default for MapConfig {
     }
 }
 
+impl MapConfig {
+    /// A square window `size_m` across in cells of `cell_m` (the cell count rounded), points
+    /// kept within `max_range_m`, the rest as the default (`tre map --cell-cm --size-m
+    /// --max-range-m`).
+    ///
+    /// ```
+    /// let cfg = tre_core::map::MapConfig::square(0.04, 8.0, 3.0);
+    /// assert_eq!((cfg.side, cfg.max_range_m), (200, 3.0));
+    /// ```
+    #[must_use]
+    pub fn square(cell_m: f64, size_m: f64, max_range_m: f64) -> Self {
+        Self {
+            cell_m,
+            side: (size_m / cell_m).round() as usize,
+            max_range_m,
+            ..Self::default()
+        }
+    }
+}
+
 /// Why a frame was not fused; the map keeps what it had.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MapError {
