@@ -1,10 +1,11 @@
-"""Read a recording of `tre ros2 --record` with the Python `mcap` and `mcap-ros2-support`
-packages (an independent reader) and check it: every channel's schema and encodings, the
-message counts, and the values (the roughness against a `tre infer` .npy, the Foxglove
-channels against the ROS 2 ones). With --render, draw what the recording holds as a PNG
-(docs/ros2.md's picture).
+"""Read a recording of `tre ros2 --record`, `tre map --record` or `tre client --record` with
+the Python `mcap` and `mcap-ros2-support` packages (an independent reader) and check it: every
+channel's schema and encodings, the message counts, and the values (the roughness against a
+`tre infer` .npy, the map against `tre map`'s layers, the Foxglove channels against the ROS 2
+ones). With --render, draw what a `tre ros2` recording holds as a PNG (docs/ros2.md's picture).
 
-    python scripts/check_mcap.py run.mcap --frames 5 [--roughness-npy f.npy] [--render out.png]
+    python scripts/check_mcap.py run.mcap --frames 5 [--kind ros2|map|client]
+        [--roughness-npy f.npy] [--map-dir DIR] [--render out.png]
 """
 
 from __future__ import annotations
@@ -33,6 +34,25 @@ INPUTS = {
     "/camera/depth/image_rect_raw": ("sensor_msgs/msg/Image", "ros2msg", "cdr"),
     "/camera/depth/camera_info": ("sensor_msgs/msg/CameraInfo", "ros2msg", "cdr"),
     "/odom": ("nav_msgs/msg/Odometry", "ros2msg", "cdr"),
+}
+# `tre map --record`: per frame its depth, intrinsics, pose and roughness; the map once.
+MAP_FRAMES = {
+    "/camera/depth/image_rect_raw": ("sensor_msgs/msg/Image", "ros2msg", "cdr"),
+    "/camera/depth/camera_info": ("sensor_msgs/msg/CameraInfo", "ros2msg", "cdr"),
+    "/tre/camera_pose": ("geometry_msgs/msg/PoseStamped", "ros2msg", "cdr"),
+    "/tre/roughness": OUTPUTS["/tre/roughness"],
+    "/tre/roughness/foxglove": OUTPUTS["/tre/roughness/foxglove"],
+}
+MAP_ONCE = {t: OUTPUTS[t] for t in ("/tre/grid_map", "/tre/grid/foxglove", "/tre/occupancy")}
+# `tre client --record`: per frame the colour as sent (when one was), the depth in metres and
+# the answer.
+CLIENT_COLOUR = {
+    "/camera/color/image_raw/compressed": ("sensor_msgs/msg/CompressedImage", "ros2msg", "cdr"),
+}
+CLIENT_FRAMES = {
+    "/camera/depth/image_rect_raw": ("sensor_msgs/msg/Image", "ros2msg", "cdr"),
+    "/tre/roughness": OUTPUTS["/tre/roughness"],
+    "/tre/roughness/foxglove": OUTPUTS["/tre/roughness/foxglove"],
 }
 
 
@@ -96,17 +116,28 @@ def same(a: np.ndarray, b: np.ndarray) -> bool:
     return a.shape == b.shape and bool(np.all((a == b) | (np.isnan(a) & np.isnan(b))))
 
 
-def check(path: Path, frames: int, roughness_npy: Path | None) -> dict[str, list]:
-    channels, messages = read(path)
-    for topic, want in {**INPUTS, **OUTPUTS}.items():
+def expect(channels: dict, messages: dict, topics: dict, count: int, at_least: bool) -> None:
+    """Each topic's channel as `topics` says, with `count` messages (or at least `count`)."""
+    for topic, want in topics.items():
         if channels.get(topic) != want:
             fail(f"{topic}: channel {channels.get(topic)}, expected {want}")
-    for topic in OUTPUTS:
-        if len(messages[topic]) != frames:
-            fail(f"{topic}: {len(messages[topic])} messages, expected {frames}")
-    for topic in INPUTS:
-        if len(messages[topic]) < frames:
-            fail(f"{topic}: {len(messages[topic])} messages, expected at least {frames}")
+        n = len(messages[topic])
+        if n < count or (n > count and not at_least):
+            fail(f"{topic}: {n} messages, expected {'at least ' if at_least else ''}{count}")
+
+
+def check(path: Path, frames: int, kind: str, roughness_npy: Path | None) -> dict[str, list]:
+    channels, messages = read(path)
+    if kind == "ros2":
+        expect(channels, messages, OUTPUTS, frames, at_least=False)
+        expect(channels, messages, INPUTS, frames, at_least=True)
+    elif kind == "map":
+        expect(channels, messages, MAP_FRAMES, frames, at_least=False)
+        expect(channels, messages, MAP_ONCE, 1, at_least=False)
+    else:
+        expect(channels, messages, CLIENT_FRAMES, frames, at_least=False)
+        if any(t in channels for t in CLIENT_COLOUR):
+            expect(channels, messages, CLIENT_COLOUR, frames, at_least=False)
     rough = float_image(messages["/tre/roughness"][-1])
     fox = messages["/tre/roughness/foxglove"][-1]
     fox_img = np.frombuffer(base64.b64decode(fox["data"]), "<f4").reshape(
@@ -118,6 +149,20 @@ def check(path: Path, frames: int, roughness_npy: Path | None) -> dict[str, list
         want = np.load(roughness_npy).astype(np.float32)
         if not same(rough, want):
             fail(f"the recorded roughness differs from {roughness_npy}")
+    if kind != "client":
+        check_grid(messages)
+    counts = {t: len(m) for t, m in sorted(messages.items())}
+    print(
+        json.dumps(
+            {"channels": {t: list(c) for t, c in sorted(channels.items())}, "messages": counts},
+            indent=1,
+        )
+    )
+    return messages
+
+
+def check_grid(messages: dict[str, list]) -> None:
+    """The last map: foxglove.Grid equal to the GridMap, the occupancy its traversal layer."""
     grid = messages["/tre/grid_map"][-1]
     fgrid = messages["/tre/grid/foxglove"][-1]
     for name in grid.layers:
@@ -130,14 +175,15 @@ def check(path: Path, frames: int, roughness_npy: Path | None) -> dict[str, list
     want_occ = np.where(trav == 1, 0, np.where(trav == 2, 100, -1))
     if not np.array_equal(occ, want_occ):
         fail("occupancy differs from the grid map's traversal layer")
-    counts = {t: len(m) for t, m in sorted(messages.items())}
-    print(
-        json.dumps(
-            {"channels": {t: list(c) for t, c in sorted(channels.items())}, "messages": counts},
-            indent=1,
-        )
-    )
-    return messages
+
+
+def check_map_dir(messages: dict[str, list], map_dir: Path) -> None:
+    """The recorded map's layers equal to `tre map`'s `<layer>.npy` files."""
+    grid = messages["/tre/grid_map"][-1]
+    for name in grid.layers:
+        want = np.load(map_dir / f"{name}.npy").astype(np.float32)
+        if not same(grid_layer(grid, name), want):
+            fail(f"layer {name}: the recorded map differs from {map_dir / name}.npy")
 
 
 def render(messages: dict[str, list], out: Path) -> None:
@@ -195,10 +241,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("mcap", type=Path)
     ap.add_argument("--frames", type=int, required=True, help="frames the node published")
+    ap.add_argument("--kind", choices=["ros2", "map", "client"], default="ros2")
     ap.add_argument("--roughness-npy", type=Path, help="tre infer's roughness of the last frame")
+    ap.add_argument("--map-dir", type=Path, help="tre map's output folder (the map's layers)")
     ap.add_argument("--render", type=Path, help="write a picture of the recording")
     args = ap.parse_args()
-    messages = check(args.mcap, args.frames, args.roughness_npy)
+    messages = check(args.mcap, args.frames, args.kind, args.roughness_npy)
+    if args.map_dir is not None:
+        check_map_dir(messages, args.map_dir)
     if args.render:
         render(messages, args.render)
 

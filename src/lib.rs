@@ -7,7 +7,7 @@
 //! makes synthetic scenes; [`model`] (`tre-model`) owns ONNX Runtime and the manifest;
 //! [`pipeline`] (`tre-pipeline`) runs one frame through every stage; [`server`] (`tre-server`)
 //! serves it over HTTP and a WebSocket stream whose messages are [`proto`] (`tre-proto`);
-//! [`client`] (`tre-client`) is the robot's end of that stream and [`loadtest`]
+//! [`client`] (`tre-client`) is the robot's end of that stream; [`record`] (`tre-record`) writes ROS 2 messages and MCAP recordings, and `ros2` (`tre-ros2`) is the ROS 2 node and [`loadtest`]
 //! (`tre-loadtest`) measures a running service; [`eval`] (`tre-eval`) scores the modes on real and synthetic frames.
 pub use tre_client as client;
 pub use tre_core::{geometry, kinds, map, roughness};
@@ -17,7 +17,8 @@ pub use tre_loadtest as loadtest;
 pub use tre_model as model;
 pub use tre_pipeline as pipeline;
 pub use tre_proto as proto;
-/// The ROS 2 node and its MCAP recordings (`tre-ros2`; cargo feature `ros2`, on by default).
+pub use tre_record as record;
+/// The ROS 2 node (`tre-ros2`; cargo feature `ros2`, on by default).
 #[cfg(feature = "ros2")]
 pub use tre_ros2 as ros2;
 pub use tre_server as server;

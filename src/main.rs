@@ -5,7 +5,9 @@ mod cli;
 // The layers, as the subcommands name them (`crate::io`, `crate::pipeline`, ...).
 #[cfg(feature = "ros2")]
 use tre::ros2;
-use tre::{client, geometry, io, kinds, loadtest, map, model, pipeline, roughness, server, synth};
+use tre::{
+    client, geometry, io, kinds, loadtest, map, model, pipeline, record, roughness, server, synth,
+};
 
 use clap::Parser;
 use cli::Cli;

@@ -36,5 +36,8 @@ pub(crate) fn run(cfg: RecorderConfig) -> anyhow::Result<()> {
         let _ = tokio::signal::ctrl_c().await;
     };
     runtime.block_on(record(&cfg, stop, |notice| eprintln!("{notice}")))?;
+    if let Some(path) = &cfg.mcap {
+        eprintln!("recorded {}", path.display());
+    }
     Ok(())
 }

@@ -12,6 +12,8 @@ use crate::io::sequence::{read_gravity, sequence_frames, FrameSelection, Sequenc
 use crate::io::{self, CameraFile};
 use crate::map::{GridMap, MapConfig, MapFrame, MapLimits, Pose};
 use crate::pipeline::{FrameInput, Mode, StageArgs};
+use crate::record::msgs::{Header, Time};
+use crate::record::{now_ns, Colour, FrameRecord, Recorder};
 use crate::roughness::noise::SensorNoise;
 
 /// Fuse a sequence of depth frames into a gravity-aligned roughness grid map.
@@ -43,6 +45,11 @@ pub(crate) struct Map {
     /// grows with the square of the distance).
     #[arg(long, default_value_t = 3.0)]
     pub max_range_m: f64,
+    /// Record each frame's depth, pose and roughness and the final map to this MCAP file
+    /// (ROS 2 messages and Foxglove schemas, docs/ros2.md); frames are stamped at 30 frames/s
+    /// from the number their name ends with.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
     /// Which frames, in which order.
     #[command(flatten)]
     pub select: FrameSelection,
@@ -68,6 +75,7 @@ impl Map {
         let mut pipeline = self.stages.pipeline(&[pcfg])?;
         let mut map: Option<GridMap> = None;
         let mut run = MapRun::default();
+        let mut recorder = self.record.as_deref().map(Recorder::create).transpose()?;
         for (i, f) in frames.iter().enumerate() {
             let depth_m = io::read_depth(&f.depth, scale)?;
             let pose = match frame_pose(f) {
@@ -88,6 +96,9 @@ impl Map {
             };
             let input = self.input(f, depth_m, k)?;
             let out = pipeline.run(&input, &pcfg)?;
+            if let Some(r) = &mut recorder {
+                record_frame(r, f, i, &input, &pose, &out.roughness_m)?;
+            }
             let start = Instant::now();
             let result = m.fuse(&points, Some(&out.roughness_m), &pose, i as f64, |z| {
                 sensor.sigma_z_m(z)
@@ -100,9 +111,36 @@ impl Map {
             }
         }
         let map = map.context("no frame could start the map")?;
+        let last = frames.len().checked_sub(1).map(|i| stamp(&frames[i], i));
+        self.finish(&map, &run, recorder, last.unwrap_or_default())
+    }
+
+    /// Records the map (stamped `last`, the last frame's stamp), writes its layers, and prints
+    /// the summary and the frames skipped.
+    fn finish(
+        &self,
+        map: &GridMap,
+        run: &MapRun,
+        recorder: Option<Recorder>,
+        last: Time,
+    ) -> anyhow::Result<()> {
         let layers = map.layers(&MapLimits::default());
-        let s = write_map(&self.out, &map, &layers, &run)?;
-        print_summary(&map, &run, &s);
+        let recorded = match recorder {
+            Some(mut r) => {
+                let header = Header {
+                    stamp: last,
+                    frame_id: "map".into(),
+                };
+                r.map(&header, map, &layers, now_ns())?;
+                Some(r.finish()?)
+            }
+            None => None,
+        };
+        let s = write_map(&self.out, map, &layers, run)?;
+        print_summary(map, run, &s);
+        if let Some(path) = recorded {
+            println!("recorded {}", path.display());
+        }
         for s in &run.skipped {
             eprintln!("skipped {s}");
         }
@@ -173,6 +211,41 @@ fn print_summary(map: &GridMap, run: &MapRun, s: &MapSummary) {
         100.0 * cfg.cell_m,
         map.memory_bytes() as f64 / f64::from(1 << 20)
     );
+}
+
+/// A frame's stamp: the number its name ends with (else its place `i`) at 30 frames/s.
+fn stamp(f: &SequenceFrame, i: usize) -> Time {
+    let digits = f.stem.len() - f.stem.trim_end_matches(|c: char| c.is_ascii_digit()).len();
+    let n = f.stem[f.stem.len() - digits..]
+        .parse::<i64>()
+        .unwrap_or(i as i64);
+    Time::from_nanos(n.saturating_mul(1_000_000_000) / 30)
+}
+
+/// Records frame `f` (the `i`-th): its depth, colour, intrinsics and pose in, its roughness out.
+fn record_frame(
+    r: &mut Recorder,
+    f: &SequenceFrame,
+    i: usize,
+    input: &FrameInput,
+    pose: &Pose,
+    roughness_m: &crate::geometry::Grid<f64>,
+) -> anyhow::Result<()> {
+    let size = roughness_m.size();
+    let record = FrameRecord {
+        header: Header {
+            stamp: stamp(f, i),
+            frame_id: "camera".into(),
+        },
+        depth_m: input.depth_m.as_ref(),
+        colour: input.rgb.as_ref().map(Colour::Raw),
+        intrinsics: input.intrinsics.as_ref().map(|k| (k, size)),
+        pose: Some((pose, "world")),
+        roughness_m: Some(roughness_m),
+        ..FrameRecord::default()
+    };
+    r.frame(&record, now_ns())?;
+    Ok(())
 }
 
 /// A frame's pose: its pose file read and checked rigid, the identity without one.

@@ -1,12 +1,13 @@
 //! `tre map` on real kitchen frames with their poses: every layer written in both encodings with
 //! the geometry stated, the PNG decoding to the `.npy` by `map.json`'s scale, and a pose that is
-//! not a rigid transform skipped with a message while the map keeps the other frames.
+//! not a rigid transform skipped with a message while the map keeps the other frames; its
+//! `--record` file read by an independent MCAP reader, the map in it equal to the layers.
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use std::path::Path;
 use std::process::Command;
 
-use crate::common::shared_data;
+use crate::common::{check_mcap, shared_data};
 
 /// Six kitchen frames of `src` (`../shared/data/real-rgbd-2/sevenscenes_redkitchen`) in a
 /// sequence folder of the layout `tre map` reads, the fourth pose broken (a scaled rotation).
@@ -77,11 +78,14 @@ fn tre_map_writes_every_layer_and_skips_a_broken_pose() {
     let seq = dir.path().join("seq");
     sequence(&kitchen, &seq);
     let out = dir.path().join("map");
+    let record = dir.path().join("map.mcap");
     let o = Command::new(env!("CARGO_BIN_EXE_tre"))
         .arg("map")
         .arg(&seq)
         .arg("-o")
         .arg(&out)
+        .arg("--record")
+        .arg(&record)
         .output()
         .unwrap();
     let (stdout, stderr) = (
@@ -112,4 +116,11 @@ fn tre_map_writes_every_layer_and_skips_a_broken_pose() {
         .zip(&elevation)
         .all(|(c, e)| (*c > 0.0) == e.is_finite()));
     assert!(out.join("layers.png").is_file());
+    // The recording: the five fused frames, and the map equal to the layers written.
+    assert!(stdout.contains("recorded "), "{stdout}");
+    let map_dir = out.to_str().unwrap();
+    check_mcap(
+        &record,
+        &["--kind", "map", "--frames", "5", "--map-dir", map_dir],
+    );
 }

@@ -18,12 +18,12 @@ use ros2_client::{
     Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
     QosProfile, Subscription,
 };
-use tre::ros2::msgs::{
+use tre::record::msgs::{
     CameraInfo, GridMap, Header, Image, OccupancyGrid, Odometry, Point, Pose, PoseWithCovariance,
     Quaternion, RosMessage, Time,
 };
 
-use crate::common::shared_data;
+use crate::common::{check_mcap, shared_data};
 
 /// A domain id of this test process and test (RustDDS's ports follow the id; 0 to 232).
 fn domain_id(test: u16) -> u16 {
@@ -589,47 +589,11 @@ fn kitchen_frames_through_the_node_equal_infer_and_map() {
 /// The recording decoded by the Python `mcap` and `mcap-ros2-support` packages
 /// (scripts/check_mcap.py): schemas, counts and the roughness values against `tre infer`'s.
 fn check_recording(record: &Path, dir: &Path) {
-    let Some(python) = mcap_python() else { return };
-    let o = Command::new(python)
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/check_mcap.py"))
-        .arg(record)
-        .arg("--frames")
-        .arg("5")
-        .arg("--roughness-npy")
-        .arg(dir.join("frame-000020.npy"))
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "check_mcap.py: {}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
+    let npy = dir.join("frame-000020.npy");
+    check_mcap(
+        record,
+        &["--frames", "5", "--roughness-npy", npy.to_str().unwrap()],
     );
-}
-
-/// A Python with `mcap` and `mcap_ros2`: `$TRE_MCAP_PYTHON`, else CI's virtualenv. Without one
-/// the check is skipped, saying so, unless `TRE_REQUIRE_SHARED=1` (as in CI).
-fn mcap_python() -> Option<PathBuf> {
-    let candidates = [
-        std::env::var_os("TRE_MCAP_PYTHON").map(PathBuf::from),
-        Some(Path::new(env!("CARGO_MANIFEST_DIR")).join(".ci/.venv-py/bin/python")),
-    ];
-    for p in candidates.into_iter().flatten() {
-        let ok = Command::new(&p)
-            .args(["-c", "import mcap, mcap_ros2, numpy"])
-            .status()
-            .is_ok_and(|s| s.success());
-        if ok {
-            return Some(p);
-        }
-    }
-    assert!(
-        std::env::var("TRE_REQUIRE_SHARED").map_or(true, |v| v != "1"),
-        "TRE_REQUIRE_SHARED=1: the recording check needs a Python with mcap, mcap-ros2-support \
-         and numpy (TRE_MCAP_PYTHON, or .ci/.venv-py as .ci/run makes it)"
-    );
-    eprintln!("skipped the recording check: no Python with mcap and mcap-ros2-support");
-    None
 }
 
 #[test]

@@ -50,6 +50,10 @@ pub struct ClientArgs {
     /// Output folder: SEQ_NAME.png per result (NAME: the frame's file stem) and frames.csv.
     #[arg(long, short, env = "TRE_CLIENT_OUT")]
     pub out: PathBuf,
+    /// Also record every frame sent and every answer to this MCAP file (ROS 2 messages and
+    /// Foxglove schemas, docs/ros2.md).
+    #[arg(long, env = "TRE_CLIENT_RECORD")]
+    pub record: Option<PathBuf>,
 }
 
 /// Options that make no run.
@@ -112,6 +116,7 @@ impl ClientArgs {
             out: self.out.clone(),
             limit: self.limit,
             repeat: self.repeat,
+            mcap: self.record.clone(),
         })
     }
 }

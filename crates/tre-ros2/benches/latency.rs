@@ -16,7 +16,7 @@ use ros2_client::{
 };
 use tre_core::roughness::noise::{SensorNoise, SensorPreset};
 use tre_pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
-use tre_ros2::msgs::{CameraInfo, Header, Image, RosMessage, Time};
+use tre_record::msgs::{CameraInfo, Header, Image, RosMessage, Time};
 use tre_ros2::{FrameMsgs, NodeConfig, Processor};
 
 fn shared() -> PathBuf {

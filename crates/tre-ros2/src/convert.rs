@@ -1,19 +1,13 @@
-//! Topic messages to the pipeline's inputs, and its outputs to messages: depth per REP 118,
-//! colour, the intrinsics of `CameraInfo`, poses; roughness and uncertainty as `32FC1`, the
-//! three-state map as `mono8`, the fused map as `grid_map_msgs/GridMap` and
-//! `nav_msgs/OccupancyGrid`.
+//! Topic messages to the pipeline's inputs: depth per REP 118, colour, the intrinsics of
+//! `CameraInfo`, poses (the outputs to messages: `tre_record::encode`).
 
 use image::RgbImage;
 use nalgebra::{Matrix3, Quaternion as NaQuaternion, UnitQuaternion};
 use tre_core::geometry::{Grid, Intrinsics, Vec3};
-use tre_core::map::{GridMap as Map, Layers, Pose as MapPose, LAYER_NAMES};
-use tre_core::roughness::traversal::Traversal;
+use tre_core::map::Pose as MapPose;
 
 use crate::error::InputError;
-use crate::msgs::{
-    CameraInfo, Float32MultiArray, GridMap, GridMapInfo, Header, Image, MapMetaData,
-    MultiArrayDimension, MultiArrayLayout, OccupancyGrid, Point, Pose, Quaternion,
-};
+use tre_record::msgs::{CameraInfo, Image, Pose};
 
 /// Bytes per row an image of `width` pixels of `bytes_per_pixel` needs, checked against the
 /// message's `step`, `height` and data length.
@@ -150,147 +144,10 @@ pub fn map_pose(pose: &Pose, camera_in_body: &MapPose) -> Result<MapPose, InputE
     })
 }
 
-/// A `32FC1` image (little-endian) of `values` in metres, NaN where there is none.
-pub fn float_image(header: &Header, values: &Grid<f64>) -> Image {
-    let (w, h) = values.size();
-    let mut data = Vec::with_capacity(4 * w * h);
-    for v in values.as_slice() {
-        data.extend((*v as f32).to_le_bytes());
-    }
-    Image {
-        header: header.clone(),
-        height: h as u32,
-        width: w as u32,
-        encoding: "32FC1".into(),
-        is_bigendian: 0,
-        step: 4 * w as u32,
-        data,
-    }
-}
-
-/// A `mono8` image of the three-state map: 0 unknown, 1 traversable, 2 hazard (the service's
-/// 8-bit values).
-pub fn traversal_image(header: &Header, t: &Grid<Traversal>) -> Image {
-    let (w, h) = t.size();
-    Image {
-        header: header.clone(),
-        height: h as u32,
-        width: w as u32,
-        encoding: "mono8".into(),
-        is_bigendian: 0,
-        step: w as u32,
-        data: t.as_slice().iter().map(|&v| v as u8).collect(),
-    }
-}
-
-/// The window's lower-left corner and side in the map frame, metres.
-fn window(map: &Map) -> ((f64, f64), f64) {
-    let cfg = map.config();
-    let (ox, oy) = map.origin();
-    let corner = (ox as f64 * cfg.cell_m, oy as f64 * cfg.cell_m);
-    (corner, cfg.side as f64 * cfg.cell_m)
-}
-
-/// The map as grid_map publishes it: every layer of [`LAYER_NAMES`], column-major with the
-/// dimension labels grid_map checks (`column_index`, then `row_index`), cell (0, 0) at the
-/// window's largest x and y, no circular-buffer offset; `info.pose` the window's centre.
-pub fn grid_map(header: &Header, map: &Map, layers: &Layers) -> GridMap {
-    let side = map.config().side;
-    let ((x0, y0), len) = window(map);
-    let data = layers
-        .all()
-        .iter()
-        .map(|layer| {
-            // Layers: row-major, column = +x from the smallest x, row 0 at the largest y.
-            // grid_map: (r, c) with r along -x from the largest x, c along -y from the largest
-            // y, stored column-major (index c * side + r).
-            let src = layer.as_slice();
-            let mut out = Vec::with_capacity(side * side);
-            for c in 0..side {
-                let row = &src[c * side..(c + 1) * side];
-                out.extend(row.iter().rev());
-            }
-            Float32MultiArray {
-                layout: MultiArrayLayout {
-                    dim: vec![
-                        MultiArrayDimension {
-                            label: "column_index".into(),
-                            size: side as u32,
-                            stride: (side * side) as u32,
-                        },
-                        MultiArrayDimension {
-                            label: "row_index".into(),
-                            size: side as u32,
-                            stride: side as u32,
-                        },
-                    ],
-                    data_offset: 0,
-                },
-                data: out,
-            }
-        })
-        .collect();
-    GridMap {
-        header: header.clone(),
-        info: GridMapInfo {
-            resolution: map.config().cell_m,
-            length_x: len,
-            length_y: len,
-            pose: Pose {
-                position: Point {
-                    x: x0 + len / 2.0,
-                    y: y0 + len / 2.0,
-                    z: 0.0,
-                },
-                orientation: Quaternion::default(),
-            },
-        },
-        layers: LAYER_NAMES.iter().map(|s| (*s).to_owned()).collect(),
-        basic_layers: vec!["elevation".into()],
-        data,
-        outer_start_index: 0,
-        inner_start_index: 0,
-    }
-}
-
-/// The map's three-state layer as an occupancy grid for Nav2: unknown −1, traversable 0,
-/// hazard 100; row-major from the window's lower-left corner, x along a row.
-pub fn occupancy(header: &Header, map: &Map, layers: &Layers) -> OccupancyGrid {
-    let side = map.config().side;
-    let ((x0, y0), _) = window(map);
-    let src = layers.traversal.as_slice();
-    let mut data = Vec::with_capacity(side * side);
-    for iy in 0..side {
-        let row = &src[(side - 1 - iy) * side..(side - iy) * side];
-        data.extend(row.iter().map(|&v| match v as u8 {
-            1 => 0i8,
-            2 => 100,
-            _ => -1,
-        }));
-    }
-    OccupancyGrid {
-        header: header.clone(),
-        info: MapMetaData {
-            map_load_time: header.stamp,
-            resolution: map.config().cell_m as f32,
-            width: side as u32,
-            height: side as u32,
-            origin: Pose {
-                position: Point {
-                    x: x0,
-                    y: y0,
-                    z: 0.0,
-                },
-                orientation: Quaternion::default(),
-            },
-        },
-        data,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use tre_record::msgs::{Point, Quaternion};
 
     fn depth_image(encoding: &str, w: u32, h: u32, bytes_per: u32, data: Vec<u8>) -> Image {
         Image {

@@ -108,14 +108,12 @@ pub enum Ros2Error {
     /// Options that do not go together.
     #[error("{0}")]
     Config(ConfigProblem),
+    /// The pipeline could not be made (its models did not load).
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
     /// The MCAP recording could not be written.
-    #[error("recording {path}: {message}")]
-    Record {
-        /// The file.
-        path: String,
-        /// The writer's message.
-        message: String,
-    },
+    #[error(transparent)]
+    Record(#[from] tre_record::RecordError),
 }
 
 /// Options of the node that do not go together.

@@ -1,4 +1,4 @@
-//! The ROS 2 node of tre and its MCAP recordings (docs/ros2.md).
+//! The ROS 2 node of tre (docs/ros2.md); its messages and recordings are `tre-record`'s.
 //!
 //! The node speaks DDS through `ros2-client` (pure Rust, over RustDDS): no ROS installation is
 //! needed to build or run it. It subscribes to a depth image (`16UC1` millimetres or `32FC1`
@@ -8,22 +8,22 @@
 //! (`mono8`), and with a pose the fused map as `grid_map_msgs/GridMap` and
 //! `nav_msgs/OccupancyGrid` (transient-local, for Nav2's static layer).
 //!
-//! - [`msgs`]: the message types, their CDR and their definitions;
-//! - [`convert`]: messages to the pipeline's inputs and its outputs to messages;
+//! - [`convert`]: messages to the pipeline's inputs (the way back is `tre_record::encode`);
 //! - [`Processor`]: one frame through the pipeline and the map, without DDS;
-//! - [`start`]: the node; [`Recorder`]: MCAP files.
+//! - [`start`]: the node, which records with `tre_record::Recorder`.
 
+#[cfg(feature = "cli")]
+mod cli;
 pub mod convert;
 mod error;
 mod limiter;
-pub mod msgs;
 mod node;
 mod process;
-mod record;
 
+#[cfg(feature = "cli")]
+pub use cli::{InputReliability, Ros2Args};
 pub use error::{ConfigProblem, InputError, Ros2Error};
 pub use node::{start, NodeConfig, NodeStats, PoseSource, Reliability, RunningNode};
 pub use process::{FrameMsgs, MapSettings, Outputs, Processor};
-pub use record::Recorder;
 /// The ROS 2 distribution the node was built for (cargo feature `jazzy` or `humble`).
 pub use ros2_client::COMPILED_ROS_DISTRO;

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 use futures::{FutureExt, StreamExt};
 use ros2_client::qos::{Durability, History, Reliability as DdsReliability, WhenFull};
@@ -23,15 +23,15 @@ use ros2_client::{
 };
 use tre_core::map::Pose as MapPose;
 use tre_pipeline::Mode;
+use tre_record::msgs::{
+    CameraInfo, GridMap, Image, OccupancyGrid, Odometry, PoseStamped, RosMessage, Time,
+};
+use tre_record::{now_ns, Recorder};
 
 use crate::convert;
 use crate::error::Ros2Error;
 use crate::limiter::Limiter;
-use crate::msgs::{
-    CameraInfo, GridMap, Image, OccupancyGrid, Odometry, PoseStamped, RosMessage, Time,
-};
 use crate::process::{FrameMsgs, Outputs, Processor};
-use crate::record::Recorder;
 
 /// Reliability of the input subscriptions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -160,12 +160,6 @@ impl Shared {
     fn lock(&self) -> MutexGuard<'_, Inbox> {
         self.inbox.lock().unwrap_or_else(|e| e.into_inner())
     }
-}
-
-fn now_ns() -> u64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos() as u64)
 }
 
 fn dds<E: std::fmt::Debug>(what: &'static str) -> impl Fn(E) -> Ros2Error {
@@ -397,7 +391,7 @@ fn pose_topic(c: &NodeConfig) -> String {
     }
 }
 
-fn on_pose(sh: &Shared, c: &NodeConfig, stamp: &Time, pose: &crate::msgs::Pose) {
+fn on_pose(sh: &Shared, c: &NodeConfig, stamp: &Time, pose: &tre_record::msgs::Pose) {
     match convert::map_pose(pose, &c.camera_in_body) {
         Ok(p) => {
             let mut inbox = sh.lock();
@@ -619,7 +613,7 @@ fn work(
             }
         }
     }
-    recorder.map(Recorder::finish).transpose()
+    Ok(recorder.map(Recorder::finish).transpose()?)
 }
 
 /// The pose for a frame: one already within the tolerance, else the first to arrive within

@@ -7,10 +7,11 @@ use tre_core::map::{
 };
 use tre_core::roughness::noise::SensorNoise;
 use tre_pipeline::{FrameInput, Pipeline, PipelineConfig, PipelineError};
+use tre_record::encode;
+use tre_record::msgs::{CameraInfo, GridMap, Header, Image, OccupancyGrid};
 
 use crate::convert;
 use crate::error::InputError;
-use crate::msgs::{CameraInfo, GridMap, Header, Image, OccupancyGrid};
 
 /// The messages of one frame.
 #[derive(Debug, Clone)]
@@ -139,8 +140,8 @@ impl MapState {
             frame_id: self.settings.frame_id.clone(),
         };
         Ok((
-            convert::grid_map(&h, m, &layers),
-            convert::occupancy(&h, m, &layers),
+            encode::grid_map(&h, m, &layers),
+            encode::occupancy(&h, m, &layers),
             layers,
         ))
     }
@@ -190,7 +191,7 @@ impl Processor {
             .pipeline
             .run(&input, &self.cfg)
             .map_err(InputError::Pipeline)?;
-        let roughness = convert::float_image(&header, &out.roughness_m);
+        let roughness = encode::float_image(&header, &out.roughness_m);
         let table = self.pipeline.interval_table_for(&self.cfg);
         let maps = match out.sensor_maps(&input, self.cfg.mode, self.sensor.as_ref(), None, table) {
             Ok(maps) => Some(maps),
@@ -201,10 +202,10 @@ impl Processor {
             roughness,
             uncertainty: maps
                 .as_ref()
-                .map(|m| convert::float_image(&header, &m.uncertainty_m)),
+                .map(|m| encode::float_image(&header, &m.uncertainty_m)),
             traversal: maps
                 .as_ref()
-                .map(|m| convert::traversal_image(&header, &m.traversal)),
+                .map(|m| encode::traversal_image(&header, &m.traversal)),
             grid: None,
             occupancy: None,
             layers: None,

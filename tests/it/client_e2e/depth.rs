@@ -1,5 +1,6 @@
 //! The depth modes end to end: `tre client` sends depth with a camera and a sensor, says once
-//! what the server ran and assumed, and writes `.npy` for `--format f32`; `tre loadtest` drives
+//! what the server ran and assumed, and writes `.npy` for `--format f32` (and with `--record`
+//! an MCAP file that an independent reader checks against them); `tre loadtest` drives
 //! the depth-only mode over HTTP and the stream.
 
 use super::*;
@@ -37,6 +38,16 @@ fn client(url: &str, (frames, depth): (&Path, &Path), more: &[&str], out: &Path)
     stderr
 }
 
+/// The recording of two frames: both in and out, the last roughness equal to its `.npy`.
+fn check_client_recording(record: &Path, out: &Path) {
+    let last = out.join("2_b.npy");
+    let last = last.to_str().unwrap();
+    check_mcap(
+        record,
+        &["--kind", "client", "--frames", "2", "--roughness-npy", last],
+    );
+}
+
 #[test]
 fn the_client_sends_depth_and_says_once_what_the_server_ran_and_assumed() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
@@ -48,6 +59,7 @@ fn the_client_sends_depth_and_says_once_what_the_server_ran_and_assumed() {
 
     // The client: geometric with the sample's camera and a sensor given on the command line.
     let out = dir.path().join("client");
+    let record = dir.path().join("client.mcap");
     let o = Command::new(env!("CARGO_BIN_EXE_tre"))
         .args(["client", "--server", &url, "--frames"])
         .arg(&frames)
@@ -55,6 +67,8 @@ fn the_client_sends_depth_and_says_once_what_the_server_ran_and_assumed() {
         .arg(&depth)
         .arg("--camera")
         .arg(&camera)
+        .arg("--record")
+        .arg(&record)
         .args([
             "--mode",
             "geometric",
@@ -85,6 +99,7 @@ fn the_client_sends_depth_and_says_once_what_the_server_ran_and_assumed() {
         assert!(npy.starts_with(b"\x93NUMPY"), "{stem}.npy is not a .npy");
         assert!(out.join(format!("{stem}_traversal.png")).is_file());
     }
+    check_client_recording(&record, &out);
 
     // Without the camera the server assumes intrinsics and the depth scale: said once.
     let stderr = client(

@@ -15,7 +15,7 @@ use std::process::{Child, ChildStdout, Command, Stdio};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use common::{get, infer_png16, png16_values, real};
+use common::{check_mcap, get, infer_png16, png16_values, real};
 use image::DynamicImage;
 use tre::client::{ClientConfig, Event, Frame, LostReason, Rate, Session};
 use tre::pipeline::{Mode, NormalsMethod};

@@ -345,3 +345,47 @@ pub(crate) fn spec(
     )
     .unwrap()
 }
+
+/// `scripts/check_mcap.py RECORD ARGS…` (the Python `mcap` and `mcap-ros2-support` packages
+/// reading a recording): it must pass. Skipped, saying so, without such a Python unless
+/// `TRE_REQUIRE_SHARED=1`.
+pub(crate) fn check_mcap(record: &Path, args: &[&str]) {
+    let Some(python) = mcap_python() else { return };
+    let o = Command::new(python)
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/check_mcap.py"))
+        .arg(record)
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "check_mcap.py {args:?}: {}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// A Python with `mcap` and `mcap_ros2`: `$TRE_MCAP_PYTHON`, else CI's virtualenv. Without one
+/// the check is skipped, saying so, unless `TRE_REQUIRE_SHARED=1` (as in CI).
+fn mcap_python() -> Option<PathBuf> {
+    let candidates = [
+        std::env::var_os("TRE_MCAP_PYTHON").map(PathBuf::from),
+        Some(Path::new(env!("CARGO_MANIFEST_DIR")).join(".ci/.venv-py/bin/python")),
+    ];
+    for p in candidates.into_iter().flatten() {
+        let ok = Command::new(&p)
+            .args(["-c", "import mcap, mcap_ros2, numpy"])
+            .status()
+            .is_ok_and(|s| s.success());
+        if ok {
+            return Some(p);
+        }
+    }
+    assert!(
+        std::env::var("TRE_REQUIRE_SHARED").map_or(true, |v| v != "1"),
+        "TRE_REQUIRE_SHARED=1: the recording check needs a Python with mcap, mcap-ros2-support \
+         and numpy (TRE_MCAP_PYTHON, or .ci/.venv-py as .ci/run makes it)"
+    );
+    eprintln!("skipped the recording check: no Python with mcap and mcap-ros2-support");
+    None
+}

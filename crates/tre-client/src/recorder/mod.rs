@@ -70,6 +70,9 @@ pub struct RecorderConfig {
     pub limit: Option<u64>,
     /// Start the source over at its end (until `limit` or the stop signal; not for a camera).
     pub repeat: bool,
+    /// Also record every frame sent and every answer to this MCAP file (ROS 2 messages and
+    /// Foxglove schemas; `tre_record::topics`).
+    pub mcap: Option<PathBuf>,
 }
 
 impl Default for RecorderConfig {
@@ -83,6 +86,7 @@ impl Default for RecorderConfig {
             out: PathBuf::from("out"),
             limit: None,
             repeat: false,
+            mcap: None,
         }
     }
 }
@@ -269,6 +273,9 @@ pub enum RecordError {
     /// A map cannot be encoded or written.
     #[error(transparent)]
     Map(#[from] tre_io::IoError),
+    /// The MCAP recording could not be written.
+    #[error(transparent)]
+    Mcap(#[from] tre_record::RecordError),
     /// A thread of the recording cannot be started.
     #[error("starting the {what}")]
     Spawn {
@@ -337,13 +344,14 @@ pub async fn record<N: FnMut(Notice)>(
     let (sender, mut events) = session.split();
     let (frames_tx, frames_rx) = mpsc::channel(2);
     let reader = start_reader(source, cfg, frames_tx)?;
-    let (jobs, writer) = start_writer(&cfg.out)?;
+    let (jobs, writer) = start_writer(&cfg.out, cfg.mcap.as_deref(), cfg.session.camera.as_ref())?;
     let mut sink = Sink::new(&cfg.out, jobs, &mut notify);
     let sending = tokio::spawn(send_frames(
         sender,
         frames_rx,
         sink.log.clone(),
         sink.sent.clone(),
+        cfg.mcap.is_some(),
     ));
     sink.drain(&mut events, &sending, stop).await?;
     let sent_outcome = sending.await;

@@ -15,7 +15,27 @@ use crate::source::{FrameSource, SourceFrame, SourceSpec};
 use crate::{ClientError, Frame, FrameSender};
 
 /// Name and send time of each frame sent, by sequence number (entries leave as answers come).
-pub(super) type SentLog = Arc<Mutex<HashMap<u64, (String, Option<SystemTime>)>>>;
+pub(super) type SentLog = Arc<Mutex<HashMap<u64, Sent>>>;
+
+/// A frame sent: its name, when it left, and its bytes when the recording keeps them.
+#[derive(Debug, Default)]
+pub(super) struct Sent {
+    /// The frame's file stem.
+    pub name: String,
+    /// When it was sent.
+    pub at: Option<SystemTime>,
+    /// Its bytes, for an MCAP recording.
+    pub input: Option<Box<SentInput>>,
+}
+
+/// A frame's bytes as sent (kept for the MCAP recording until its answer comes).
+#[derive(Debug)]
+pub(super) struct SentInput {
+    /// PNG or JPEG colour (may be empty).
+    pub image: Vec<u8>,
+    /// 16-bit PNG or `.npy` depth.
+    pub depth: Option<Vec<u8>>,
+}
 
 /// Frames read from the source, or why reading failed.
 type Frames = mpsc::Sender<Result<SourceFrame, ClientError>>;
@@ -72,18 +92,29 @@ fn read_frames(
     }
 }
 
-/// The sending task: each frame through the session, its name logged under its sequence.
+/// The sending task: each frame through the session, its name (and with `keep_inputs` its
+/// bytes) logged under its sequence.
 pub(super) async fn send_frames(
     mut sender: FrameSender,
     mut frames: mpsc::Receiver<Result<SourceFrame, ClientError>>,
     log: SentLog,
     sent: Arc<AtomicU64>,
+    keep_inputs: bool,
 ) -> Result<(), ClientError> {
     while let Some(item) = frames.recv().await {
         let f = item?;
         let sequence = sender.next_sequence();
-        let name = f.name.clone();
-        log_entry(&log, sequence, Some((name, None)));
+        let entry = Sent {
+            name: f.name.clone(),
+            at: None,
+            input: keep_inputs.then(|| {
+                Box::new(SentInput {
+                    image: f.image.clone(),
+                    depth: f.depth.clone(),
+                })
+            }),
+        };
+        log_entry(&log, sequence, Some(entry));
         let frame = Frame {
             image: f.image,
             depth: f.depth,
@@ -97,7 +128,7 @@ pub(super) async fn send_frames(
                     .unwrap_or_else(PoisonError::into_inner)
                     .get_mut(&sequence)
                 {
-                    e.1 = Some(SystemTime::now());
+                    e.at = Some(SystemTime::now());
                 }
             }
             Err(e @ ClientError::FrameTooLarge { .. }) => {
@@ -111,7 +142,7 @@ pub(super) async fn send_frames(
 }
 
 /// Sets (`Some`) or removes (`None`) a frame's log entry.
-fn log_entry(log: &SentLog, sequence: u64, entry: Option<(String, Option<SystemTime>)>) {
+fn log_entry(log: &SentLog, sequence: u64, entry: Option<Sent>) {
     let mut log = log.lock().unwrap_or_else(PoisonError::into_inner);
     match entry {
         Some(e) => log.insert(sequence, e),

@@ -9,7 +9,7 @@ use std::time::{Duration, SystemTime};
 
 use tokio::sync::mpsc;
 
-use super::send::SentLog;
+use super::send::{Sent, SentLog};
 use super::stats::Stats;
 use super::writer::Job;
 use super::{Notice, RecordError};
@@ -149,15 +149,19 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
             }
         };
         let received_us = unix_us(SystemTime::now());
-        let (name, sent) = self.take_entry(sequence);
-        let row = csv_row(sequence, &name, sent.map(unix_us), received_us, &rest);
-        Some(Job::Row(row))
+        let sent = self.take_entry(sequence);
+        let send_us = sent.at.map(unix_us);
+        let line = csv_row(sequence, &sent.name, send_us, received_us, &rest);
+        Some(Job::Row {
+            line,
+            input: sent.input.map(|i| (i, send_us.unwrap_or(received_us))),
+        })
     }
 
     /// A result's map and row, with the send and receive times its latency runs between.
     fn result_job(&mut self, r: Box<FrameResult>) -> Job {
         self.tell_answering(&r);
-        let (name, _) = self.take_entry(r.sequence);
+        let Sent { name, input, .. } = self.take_entry(r.sequence);
         self.stats.result(&r);
         let rest = format!(
             "{:.3},{:.3},{},ok",
@@ -179,6 +183,7 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
             path,
             result: r,
             line,
+            input,
         }
     }
 
@@ -203,8 +208,8 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
         }
     }
 
-    /// Takes a settled frame's log entry: its name and send time.
-    fn take_entry(&self, sequence: u64) -> (String, Option<SystemTime>) {
+    /// Takes a settled frame's log entry: its name, send time and kept bytes.
+    fn take_entry(&self, sequence: u64) -> Sent {
         self.log
             .lock()
             .unwrap_or_else(PoisonError::into_inner)

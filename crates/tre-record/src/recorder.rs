@@ -9,10 +9,13 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
 use base64::Engine as _;
+use image::RgbImage;
 use serde_json::json;
-use tre_core::map::{GridMap as Map, Layers, LAYER_NAMES};
+use tre_core::geometry::{Grid, Intrinsics};
+use tre_core::map::{GridMap as Map, Layers, Pose as MapPose, LAYER_NAMES};
+use tre_core::roughness::traversal::Traversal;
 
-use crate::error::Ros2Error;
+use crate::encode;
 use crate::msgs::{to_cdr, Header, Image, RosMessage, Time};
 
 /// JSON Schema of `foxglove.RawImage` (the fields this writer fills).
@@ -48,7 +51,7 @@ fn nanos(t: &Time) -> u64 {
 
 impl Recorder {
     /// A new recording at `path` (an existing file is replaced).
-    pub fn create(path: &Path) -> Result<Self, Ros2Error> {
+    pub fn create(path: &Path) -> Result<Self, RecordError> {
         let file = File::create(path).map_err(|e| record_error(path, e))?;
         let writer = mcap::WriteOptions::new()
             .profile("ros2")
@@ -68,7 +71,7 @@ impl Recorder {
         topic: &str,
         schema: (&str, &str, &[u8]),
         encoding: &str,
-    ) -> Result<u16, Ros2Error> {
+    ) -> Result<u16, RecordError> {
         if let Some(&id) = self.channels.get(topic) {
             return Ok(id);
         }
@@ -92,7 +95,7 @@ impl Recorder {
         stamp: &Time,
         log_ns: u64,
         data: &[u8],
-    ) -> Result<(), Ros2Error> {
+    ) -> Result<(), RecordError> {
         self.sequence = self.sequence.wrapping_add(1);
         let header = mcap::records::MessageHeader {
             channel_id,
@@ -114,7 +117,7 @@ impl Recorder {
         msg: &M,
         stamp: &Time,
         log_ns: u64,
-    ) -> Result<(), Ros2Error> {
+    ) -> Result<(), RecordError> {
         let definition = M::definition();
         let name = M::schema_name();
         let id = self.channel(topic, (&name, "ros2msg", definition.as_bytes()), "cdr")?;
@@ -123,7 +126,7 @@ impl Recorder {
     }
 
     /// Records an image again as `foxglove.RawImage` (JSON) on `topic`.
-    pub fn raw_image(&mut self, topic: &str, img: &Image, log_ns: u64) -> Result<(), Ros2Error> {
+    pub fn raw_image(&mut self, topic: &str, img: &Image, log_ns: u64) -> Result<(), RecordError> {
         let id = self.channel(
             topic,
             (
@@ -155,7 +158,7 @@ impl Recorder {
         map: &Map,
         layers: &Layers,
         log_ns: u64,
-    ) -> Result<(), Ros2Error> {
+    ) -> Result<(), RecordError> {
         let id = self.channel(
             topic,
             ("foxglove.Grid", "jsonschema", GRID_SCHEMA.as_bytes()),
@@ -197,21 +200,161 @@ impl Recorder {
         self.write(id, &header.stamp, log_ns, body.to_string().as_bytes())
     }
 
+    /// Records one frame's inputs and outputs under the [`topics`] of `tre ros2`'s defaults
+    /// (prefix `/tre`), each stamped with `f.header`; `log_ns`: when it was received or made.
+    pub fn frame(&mut self, f: &FrameRecord<'_>, log_ns: u64) -> Result<(), RecordError> {
+        let h = &f.header;
+        let stamp = h.stamp;
+        if let Some(d) = f.depth_m {
+            self.ros(topics::DEPTH, &encode::float_image(h, d), &stamp, log_ns)?;
+        }
+        match f.colour {
+            Some(Colour::Raw(rgb)) => {
+                self.ros(topics::COLOUR, &encode::rgb_image(h, rgb), &stamp, log_ns)?;
+            }
+            Some(Colour::Encoded(bytes)) => {
+                let msg = encode::compressed_image(h, bytes);
+                self.ros(topics::COLOUR_COMPRESSED, &msg, &stamp, log_ns)?;
+            }
+            None => {}
+        }
+        if let Some((k, (w, hgt))) = f.intrinsics {
+            let info = encode::camera_info(h, k, w, hgt);
+            self.ros(topics::CAMERA_INFO, &info, &stamp, log_ns)?;
+        }
+        if let Some((pose, world)) = f.pose {
+            let header = Header {
+                stamp,
+                frame_id: world.to_owned(),
+            };
+            let msg = encode::pose_stamped(&header, pose);
+            self.ros(topics::CAMERA_POSE, &msg, &stamp, log_ns)?;
+        }
+        if let Some(r) = f.roughness_m {
+            let img = encode::float_image(h, r);
+            self.ros(topics::ROUGHNESS, &img, &stamp, log_ns)?;
+            self.raw_image(topics::ROUGHNESS_FOXGLOVE, &img, log_ns)?;
+        }
+        if let Some(u) = f.uncertainty_m {
+            let img = encode::float_image(h, u);
+            self.ros(topics::UNCERTAINTY, &img, &stamp, log_ns)?;
+        }
+        if let Some(t) = f.traversal {
+            let img = encode::traversal_image(h, t);
+            self.ros(topics::TRAVERSAL, &img, &stamp, log_ns)?;
+        }
+        Ok(())
+    }
+
+    /// Records the map as `grid_map_msgs/GridMap`, `nav_msgs/OccupancyGrid` and
+    /// `foxglove.Grid`, under the [`topics`] of `tre ros2`'s defaults.
+    pub fn map(
+        &mut self,
+        header: &Header,
+        map: &Map,
+        layers: &Layers,
+        log_ns: u64,
+    ) -> Result<(), RecordError> {
+        let stamp = header.stamp;
+        let grid = encode::grid_map(header, map, layers);
+        self.ros(topics::GRID_MAP, &grid, &stamp, log_ns)?;
+        self.grid(topics::GRID_FOXGLOVE, header, map, layers, log_ns)?;
+        let occupancy = encode::occupancy(header, map, layers);
+        self.ros(topics::OCCUPANCY, &occupancy, &stamp, log_ns)
+    }
+
     /// Writes the summary and closes the file.
-    pub fn finish(mut self) -> Result<PathBuf, Ros2Error> {
+    pub fn finish(mut self) -> Result<PathBuf, RecordError> {
         let path = self.path.clone();
         self.writer.finish().map_err(|e| record_error(&path, e))?;
         Ok(path)
     }
 }
 
+/// The topics of a recording, as `tre ros2` names them by default: its input topics, and its
+/// outputs under the prefix `/tre`.
+pub mod topics {
+    /// Depth in, `32FC1` metres (`16UC1` millimetres from `tre ros2` when the camera sends it).
+    pub const DEPTH: &str = "/camera/depth/image_rect_raw";
+    /// Colour in, `rgb8`.
+    pub const COLOUR: &str = "/camera/color/image_raw";
+    /// Colour in as it was sent (PNG or JPEG): `sensor_msgs/CompressedImage`.
+    pub const COLOUR_COMPRESSED: &str = "/camera/color/image_raw/compressed";
+    /// The intrinsics of the depth (the colour's in the rgb mode).
+    pub const CAMERA_INFO: &str = "/camera/depth/camera_info";
+    /// The camera's pose in the world, `geometry_msgs/PoseStamped`.
+    pub const CAMERA_POSE: &str = "/tre/camera_pose";
+    /// Roughness, `32FC1` metres, NaN where there is none.
+    pub const ROUGHNESS: &str = "/tre/roughness";
+    /// The roughness again as `foxglove.RawImage`.
+    pub const ROUGHNESS_FOXGLOVE: &str = "/tre/roughness/foxglove";
+    /// Uncertainty, `32FC1` metres.
+    pub const UNCERTAINTY: &str = "/tre/uncertainty";
+    /// The three-state map, `mono8`: 0 unknown, 1 traversable, 2 hazard.
+    pub const TRAVERSAL: &str = "/tre/traversal";
+    /// The map, `grid_map_msgs/GridMap`.
+    pub const GRID_MAP: &str = "/tre/grid_map";
+    /// The map again as `foxglove.Grid`.
+    pub const GRID_FOXGLOVE: &str = "/tre/grid/foxglove";
+    /// The map's three states, `nav_msgs/OccupancyGrid`.
+    pub const OCCUPANCY: &str = "/tre/occupancy";
+}
+
+/// A frame's colour as it is recorded.
+#[derive(Debug, Clone, Copy)]
+pub enum Colour<'a> {
+    /// Decoded pixels: `sensor_msgs/Image` `rgb8` on [`topics::COLOUR`].
+    Raw(&'a RgbImage),
+    /// PNG or JPEG bytes as sent: `sensor_msgs/CompressedImage` on
+    /// [`topics::COLOUR_COMPRESSED`].
+    Encoded(&'a [u8]),
+}
+
+/// One frame's inputs and outputs for [`Recorder::frame`]; what is `None` is not recorded.
+#[derive(Debug, Clone, Default)]
+pub struct FrameRecord<'a> {
+    /// Stamp (the frame's capture time) and the camera's optical frame.
+    pub header: Header,
+    /// Depth in, metres.
+    pub depth_m: Option<&'a Grid<f64>>,
+    /// Colour in.
+    pub colour: Option<Colour<'a>>,
+    /// The pinhole and the image's `(width, height)`.
+    pub intrinsics: Option<(&'a Intrinsics, (usize, usize))>,
+    /// The camera-to-world pose and the world's frame id.
+    pub pose: Option<(&'a MapPose, &'a str)>,
+    /// Roughness out, metres.
+    pub roughness_m: Option<&'a Grid<f64>>,
+    /// Uncertainty out, metres.
+    pub uncertainty_m: Option<&'a Grid<f64>>,
+    /// The three-state map out.
+    pub traversal: Option<&'a Grid<Traversal>>,
+}
+
+/// Now, in nanoseconds since the Unix epoch: a message's log time.
+pub fn now_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
 fn stamp_json(h: &Header) -> serde_json::Value {
     json!({"sec": h.stamp.sec, "nsec": h.stamp.nanosec})
 }
 
-fn record_error(path: &Path, e: impl std::fmt::Display) -> Ros2Error {
-    Ros2Error::Record {
-        path: path.display().to_string(),
+fn record_error(path: &Path, e: impl std::fmt::Display) -> RecordError {
+    RecordError {
+        path: path.to_owned(),
         message: e.to_string(),
     }
+}
+
+/// The MCAP file could not be made or written.
+#[derive(Debug, thiserror::Error)]
+#[error("recording {}: {message}", path.display())]
+pub struct RecordError {
+    /// The file.
+    pub path: PathBuf,
+    /// The writer's message.
+    pub message: String,
 }

@@ -1,4 +1,4 @@
-//! The ROS 2 messages the node reads and writes, as serde types in CDR field order, each with
+//! The ROS 2 messages tre reads and writes, as serde types in CDR field order, each with
 //! its ROS type name and its `.msg` definition (dependencies included, in the `ros2msg` form
 //! that MCAP readers and `ros2 bag` take).
 //!
@@ -63,6 +63,17 @@ pub struct Image {
     /// Bytes per row.
     pub step: u32,
     /// The pixels, `step × height` bytes.
+    pub data: Vec<u8>,
+}
+
+/// `sensor_msgs/CompressedImage`: an encoded image (`png` or `jpeg`) as it was sent.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CompressedImage {
+    /// Stamp and optical frame.
+    pub header: Header,
+    /// The encoding: `png` or `jpeg`.
+    pub format: String,
+    /// The encoded bytes.
     pub data: Vec<u8>,
 }
 
@@ -435,6 +446,17 @@ impl RosMessage for Image {
     }
 }
 
+impl RosMessage for CompressedImage {
+    const PACKAGE: &'static str = "sensor_msgs";
+    const NAME: &'static str = "CompressedImage";
+    fn definition() -> String {
+        with_deps(
+            "std_msgs/Header header\nstring format\nuint8[] data\n",
+            &[HEADER, TIME],
+        )
+    }
+}
+
 impl RosMessage for CameraInfo {
     const PACKAGE: &'static str = "sensor_msgs";
     const NAME: &'static str = "CameraInfo";
@@ -526,9 +548,12 @@ pub fn from_cdr<M: for<'de> Deserialize<'de>>(bytes: &[u8]) -> Result<M, cdr_enc
     Ok(msg)
 }
 
+/// The types DDS topics carry (the `dds` feature): ros2-client's marker trait.
+#[cfg(feature = "dds")]
 macro_rules! ros2_message {
     ($($t:ty),*) => { $(impl ros2_client::Message for $t {})* };
 }
+#[cfg(feature = "dds")]
 ros2_message!(
     Image,
     CameraInfo,

@@ -1,0 +1,208 @@
+//! The options of `tre ros2` (the `cli` feature): topics, QoS, the pose source, the map and the
+//! recording, checked into a [`NodeConfig`] and the [`Processor`]'s settings.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::{Args, ValueEnum};
+use tre_core::geometry::Vec3;
+use tre_core::map::{MapConfig, MapLimits, Pose};
+use tre_core::roughness::noise::SensorNoise;
+use tre_pipeline::{Mode, StageArgs};
+
+use crate::{
+    ConfigProblem, MapSettings, NodeConfig, PoseSource, Processor, Reliability, Ros2Error,
+};
+
+/// Reliability of the input subscriptions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum InputReliability {
+    /// Best effort (ROS's sensor-data profile): matches every publisher.
+    BestEffort,
+    /// Reliable: matches reliable publishers only.
+    Reliable,
+}
+
+/// Run the ROS 2 node: roughness, uncertainty and three-state images for every frame, and
+/// with a pose topic the fused map as grid_map_msgs/GridMap and nav_msgs/OccupancyGrid.
+#[derive(Debug, Args)]
+pub struct Ros2Args {
+    /// DDS domain.
+    #[arg(long, env = "ROS_DOMAIN_ID", default_value_t = 0)]
+    pub domain_id: u16,
+    /// Node name, with its namespace.
+    #[arg(long, default_value = "/tre")]
+    pub node_name: String,
+    /// Input mode: geometric (depth alone), rgbd (colour and depth of the same stamp), rgb.
+    #[arg(long, value_enum, default_value = "geometric")]
+    pub mode: Mode,
+    /// Depth image topic: 16UC1 millimetres or 32FC1 metres (REP 118).
+    #[arg(long, default_value = "/camera/depth/image_rect_raw")]
+    pub depth_topic: String,
+    /// Colour image topic (rgb8 or bgr8), read in the rgb and rgbd modes.
+    #[arg(long, default_value = "/camera/color/image_raw")]
+    pub colour_topic: String,
+    /// camera_info of the image the mode reads (the depth's; the colour's in rgb mode).
+    #[arg(long, default_value = "/camera/depth/camera_info")]
+    pub info_topic: String,
+    /// Pose source for the map: a nav_msgs/Odometry topic. Without a pose topic, no map.
+    #[arg(long, conflicts_with = "pose_topic")]
+    pub odom_topic: Option<String>,
+    /// Pose source for the map: a geometry_msgs/PoseStamped topic.
+    #[arg(long)]
+    pub pose_topic: Option<String>,
+    /// The camera's optical frame in the frame the pose places (base_link for odometry):
+    /// x,y,z,qx,qy,qz,qw. Default: the pose is the camera's.
+    #[arg(long, value_parser = parse_pose, allow_hyphen_values = true)]
+    pub camera_in_body: Option<Pose>,
+    /// Largest gap between a frame's stamp and its pose's, milliseconds.
+    #[arg(long, default_value_t = 50)]
+    pub pose_tolerance_ms: u64,
+    /// Gravity (down) in the pose's frame: x,y,z (ROS frames have z up, REP 103).
+    #[arg(long, value_parser = parse_vec3, default_value = "0,0,-1", allow_hyphen_values = true)]
+    pub gravity: Vec3,
+    /// frame_id of the published map (the pose's frame, levelled by --gravity).
+    #[arg(long, default_value = "odom")]
+    pub map_frame: String,
+    /// Map cell side, centimetres.
+    #[arg(long, default_value_t = 4.0)]
+    pub cell_cm: f64,
+    /// Map side, metres (the window follows the camera).
+    #[arg(long, default_value_t = 8.0)]
+    pub size_m: f64,
+    /// Points farther than this from the camera are left out of the map, metres.
+    #[arg(long, default_value_t = 3.0)]
+    pub max_range_m: f64,
+    /// Depth sensor noise model (kinect_v1, realsense_d435, azure_kinect, lidar, exact, or
+    /// a,b,c with σ_z = a + b·z + c·z² mm): the uncertainty and three-state images, and the
+    /// map's height variance. Without it, neither is published and no map is made.
+    #[arg(long, env = "TRE_SENSOR")]
+    pub sensor: Option<SensorNoise>,
+    /// Prefix of the output topics (roughness, uncertainty, traversal, grid_map, occupancy).
+    #[arg(long, default_value = "/tre")]
+    pub output_prefix: String,
+    /// Reliability of the input subscriptions.
+    #[arg(long, value_enum, default_value = "best-effort")]
+    pub input_reliability: InputReliability,
+    /// Record inputs and outputs to this MCAP file (ROS 2 messages and Foxglove schemas).
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Stop after this many seconds (default: at Ctrl-C or SIGTERM).
+    #[arg(long)]
+    pub duration_s: Option<f64>,
+    /// Pipeline switches and models.
+    #[command(flatten)]
+    pub stages: StageArgs,
+}
+
+fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let v = numbers(s, 3)?;
+    let d = Vec3::new(v[0], v[1], v[2]);
+    if !(d.norm().is_finite() && d.norm() > 0.0) {
+        return Err("a direction of zero length".into());
+    }
+    Ok(d)
+}
+
+fn parse_pose(s: &str) -> Result<Pose, String> {
+    let v = numbers(s, 7)?;
+    let msg = tre_record::msgs::Pose {
+        position: tre_record::msgs::Point {
+            x: v[0],
+            y: v[1],
+            z: v[2],
+        },
+        orientation: tre_record::msgs::Quaternion {
+            x: v[3],
+            y: v[4],
+            z: v[5],
+            w: v[6],
+        },
+    };
+    crate::convert::map_pose(&msg, &Pose::identity()).map_err(|e| e.to_string())
+}
+
+fn numbers(s: &str, n: usize) -> Result<Vec<f64>, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>().map_err(|e| format!("{p:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    if v.len() != n || !v.iter().all(|x| x.is_finite()) {
+        return Err(format!("{n} finite numbers separated by commas, got {s:?}"));
+    }
+    Ok(v)
+}
+
+impl Ros2Args {
+    /// The pipeline and the map the node runs, the options checked.
+    ///
+    /// # Errors
+    ///
+    /// [`Ros2Error::Config`] for options that do not go together; the pipeline's error when its
+    /// models do not load.
+    pub fn processor(&self) -> Result<Processor, Ros2Error> {
+        if self.domain_id > 232 {
+            return Err(Ros2Error::Config(ConfigProblem::DomainId(self.domain_id)));
+        }
+        let cfg = self.stages.config(self.mode);
+        let map = self.map_settings().map_err(Ros2Error::Config)?;
+        let pipeline = self.stages.pipeline(&[cfg])?;
+        Ok(Processor::new(pipeline, cfg, self.sensor, map))
+    }
+
+    /// The input topic the mode reads.
+    pub fn input_topic(&self) -> &str {
+        match self.mode {
+            Mode::Rgb => &self.colour_topic,
+            _ => &self.depth_topic,
+        }
+    }
+
+    fn pose_source(&self) -> Option<PoseSource> {
+        match (&self.odom_topic, &self.pose_topic) {
+            (Some(t), _) => Some(PoseSource::Odometry(t.clone())),
+            (None, Some(t)) => Some(PoseSource::PoseStamped(t.clone())),
+            (None, None) => None,
+        }
+    }
+
+    /// The map's settings: `None` without a pose topic.
+    pub fn map_settings(&self) -> Result<Option<MapSettings>, ConfigProblem> {
+        if self.pose_source().is_none() {
+            return Ok(None);
+        }
+        if self.sensor.is_none() {
+            return Err(ConfigProblem::MapWithoutSensor);
+        }
+        if self.mode == Mode::Rgb {
+            return Err(ConfigProblem::MapWithoutDepth);
+        }
+        Ok(Some(MapSettings {
+            config: MapConfig::square(self.cell_cm / 100.0, self.size_m, self.max_range_m),
+            limits: MapLimits::default(),
+            down: self.gravity,
+            frame_id: self.map_frame.clone(),
+        }))
+    }
+
+    /// The node's topics, QoS and recording.
+    pub fn node_config(&self) -> NodeConfig {
+        NodeConfig {
+            domain_id: self.domain_id,
+            node_name: self.node_name.clone(),
+            depth_topic: self.depth_topic.clone(),
+            colour_topic: self.colour_topic.clone(),
+            info_topic: self.info_topic.clone(),
+            pose: self.pose_source(),
+            camera_in_body: self.camera_in_body.unwrap_or_else(Pose::identity),
+            pose_tolerance: Duration::from_millis(self.pose_tolerance_ms),
+            output_prefix: self.output_prefix.clone(),
+            input_reliability: match self.input_reliability {
+                InputReliability::BestEffort => Reliability::BestEffort,
+                InputReliability::Reliable => Reliability::Reliable,
+            },
+            record: self.record.clone(),
+            ..NodeConfig::default()
+        }
+    }
+}
