@@ -127,11 +127,7 @@ impl Map {
         let layers = map.layers(&MapLimits::default());
         let recorded = match recorder {
             Some(mut r) => {
-                let header = Header {
-                    stamp: last,
-                    frame_id: "map".into(),
-                };
-                r.map(&header, map, &layers, now_ns())?;
+                r.map(&Header::new(last, "map"), map, &layers, now_ns())?;
                 Some(r.finish()?)
             }
             None => None,
@@ -215,10 +211,7 @@ fn print_summary(map: &GridMap, run: &MapRun, s: &MapSummary) {
 
 /// A frame's stamp: the number its name ends with (else its place `i`) at 30 frames/s.
 fn stamp(f: &SequenceFrame, i: usize) -> Time {
-    let digits = f.stem.len() - f.stem.trim_end_matches(|c: char| c.is_ascii_digit()).len();
-    let n = f.stem[f.stem.len() - digits..]
-        .parse::<i64>()
-        .unwrap_or(i as i64);
+    let n = f.number().unwrap_or(i as u64) as i64;
     Time::from_nanos(n.saturating_mul(1_000_000_000) / 30)
 }
 
@@ -231,21 +224,16 @@ fn record_frame(
     pose: &Pose,
     roughness_m: &crate::geometry::Grid<f64>,
 ) -> anyhow::Result<()> {
-    let size = roughness_m.size();
     let record = FrameRecord {
-        header: Header {
-            stamp: stamp(f, i),
-            frame_id: "camera".into(),
-        },
+        header: Header::new(stamp(f, i), "camera"),
         depth_m: input.depth_m.as_ref(),
         colour: input.rgb.as_ref().map(Colour::Raw),
-        intrinsics: input.intrinsics.as_ref().map(|k| (k, size)),
+        intrinsics: input.intrinsics.as_ref().map(|k| (k, roughness_m.size())),
         pose: Some((pose, "world")),
         roughness_m: Some(roughness_m),
         ..FrameRecord::default()
     };
-    r.frame(&record, now_ns())?;
-    Ok(())
+    Ok(r.frame(&record, now_ns())?)
 }
 
 /// A frame's pose: its pose file read and checked rigid, the identity without one.

@@ -22,6 +22,14 @@ pub struct SequenceFrame {
     pub pose: Option<PathBuf>,
 }
 
+impl SequenceFrame {
+    /// The number the frame's name ends with (`frame-000020`: 20), if it ends with one.
+    pub fn number(&self) -> Option<u64> {
+        let head = self.stem.trim_end_matches(|c: char| c.is_ascii_digit());
+        self.stem[head.len()..].parse().ok()
+    }
+}
+
 /// Which frames of a sequence to take, in which order (options of `tre map`, clap's behind the
 /// `cli` feature).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -107,6 +115,19 @@ pub fn read_gravity(dir: &Path) -> Result<Option<Vec3>, IoError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_frame_is_numbered_by_the_digits_its_name_ends_with() {
+        let frame = |stem: &str| SequenceFrame {
+            stem: stem.into(),
+            depth: PathBuf::new(),
+            rgb: None,
+            pose: None,
+        };
+        assert_eq!(frame("frame-000020").number(), Some(20));
+        assert_eq!(frame("7").number(), Some(7));
+        assert_eq!(frame("left").number(), None);
+    }
 
     #[test]
     fn frames_pair_their_pose_and_colour_and_the_selection_applies() {

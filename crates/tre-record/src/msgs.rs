@@ -47,6 +47,16 @@ pub struct Header {
     pub frame_id: String,
 }
 
+impl Header {
+    /// A header of `stamp` in frame `frame_id`.
+    pub fn new(stamp: Time, frame_id: &str) -> Self {
+        Self {
+            stamp,
+            frame_id: frame_id.to_owned(),
+        }
+    }
+}
+
 /// `sensor_msgs/Image`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Image {

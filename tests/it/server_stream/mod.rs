@@ -1,7 +1,7 @@
 //! `GET /v1/stream` on a real `tre serve` over loopback: results equal `tre infer`, latest
 //! frame wins with drops reported, garbage and oversize messages are errors that keep the
-//! stream open, vanishing clients do not hurt the server, and memory stays flat over thousands
-//! of frames.
+//! stream open, and vanishing clients do not hurt the server (memory over a sustained stream:
+//! `benches/stream_memory.rs`).
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use crate::common;
