@@ -90,8 +90,7 @@ impl Map {
                 Some(m) => m,
                 None => {
                     let frame = MapFrame::levelled(gravity, up_in_cam, &points, &pose)?;
-                    let c = frame.map_from_world * pose.translation;
-                    map.insert(GridMap::new(cfg, frame, (c.x, c.y))?)
+                    map.insert(GridMap::under(cfg, frame, &pose)?)
                 }
             };
             let input = self.input(f, depth_m, k)?;

@@ -126,9 +126,8 @@ impl MapState {
             Some(m) => m,
             None => {
                 let frame = MapFrame::levelled(Some(self.settings.down), None, points, pose)?;
-                let c = frame.map_from_world * pose.translation;
                 self.map
-                    .insert(Map::new(self.settings.config, frame, (c.x, c.y))?)
+                    .insert(Map::under(self.settings.config, frame, pose)?)
             }
         };
         m.fuse(points, Some(roughness_m), pose, t_s, |z| {

@@ -143,8 +143,7 @@ impl SessionMap {
                     }
                 };
                 let frame = MapFrame::from_gravity(&down).map_err(|e| e.to_string())?;
-                let c = frame.map_from_world * pose.translation;
-                let m = GridMap::new(self.settings.config, frame, (c.x, c.y))
+                let m = GridMap::under(self.settings.config, frame, &pose)
                     .map_err(|e| e.to_string())?;
                 self.map.insert(m)
             }

@@ -423,6 +423,13 @@ impl GridMap {
         Ok(map)
     }
 
+    /// An empty map in `frame` whose window is centred under the camera at `pose` (how a map
+    /// starts at its first frame).
+    pub fn under(cfg: MapConfig, frame: MapFrame, pose: &Pose) -> Result<Self, MapError> {
+        let c = frame.map_from_world * pose.translation;
+        Self::new(cfg, frame, (c.x, c.y))
+    }
+
     /// The configuration.
     pub fn config(&self) -> &MapConfig {
         &self.cfg
