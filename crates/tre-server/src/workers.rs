@@ -281,9 +281,11 @@ fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, met
             continue;
         }
         metrics.batch(1);
-        let result = guarded(i, || run_job(&mut pipeline, &job.request, cfg));
-        if let Ok(reply) = &result {
+        let mut result = guarded(i, || run_job(&mut pipeline, &job.request, cfg));
+        if let Ok(reply) = &mut result {
             metrics.frame(&reply.timings, queued);
+            // The wait for a worker, before the job's own stages (`Server-Timing`'s first).
+            reply.timings.add_first("queue", queued);
         }
         // A closed receiver means the client left; nothing to do with the answer.
         let _ = job.reply.send((result, queued));

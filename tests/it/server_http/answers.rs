@@ -67,7 +67,7 @@ fn answers_equal_tre_infer_in_rgb_and_rgbd() {
 }
 
 /// The headers of a 640×480 frame's map: scale, image and working size, and the worker's stages
-/// in `Server-Timing`, decoding first and encoding last.
+/// in `Server-Timing`, the wait for a worker and decoding first, encoding last.
 fn assert_map_headers(h: &reqwest::header::HeaderMap) {
     assert_eq!(h["x-roughness-scale-m"], "0.0001");
     assert_eq!(
@@ -82,14 +82,15 @@ fn assert_map_headers(h: &reqwest::header::HeaderMap) {
     for stage in ["depth;dur=", "normals;dur=", "refine;dur=", "centroid;dur="] {
         assert!(timing.contains(stage), "{timing}");
     }
-    // The worker's whole job: decoding first, encoding (and any extra maps) last.
+    // The wait for a worker, then the worker's whole job: decoding first, encoding (and any
+    // extra maps) last.
     let stages: Vec<&str> = timing
         .split(", ")
         .map(|s| s.split(';').next().unwrap())
         .collect();
     assert_eq!(
-        (stages.first(), stages.last()),
-        (Some(&"decode"), Some(&"encode")),
+        (stages.first(), stages.get(1), stages.last()),
+        (Some(&"queue"), Some(&"decode"), Some(&"encode")),
         "{timing}"
     );
 }
