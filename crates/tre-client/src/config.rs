@@ -13,8 +13,10 @@ use tre_io::CameraFile;
 /// How fast frames go out.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Rate {
-    /// At most this many frames per second: `send` waits for the next tick. Frames sent while
-    /// the connection is down are reported lost at once, so the robot keeps its cadence.
+    /// At most this many frames per second: `send` waits for the next tick. Ticks keep their
+    /// phase (a late frame does not delay the next ones; missed ticks are skipped, not sent in
+    /// a burst). Frames sent while the connection is down are reported lost at once, so the
+    /// robot keeps its cadence.
     Fixed(f64),
     /// One frame at a time: `send` waits until the previous frame has its answer (result,
     /// drop, error, timeout or loss) and the connection is up. Nothing is dropped by the server.

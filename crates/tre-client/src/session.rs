@@ -110,7 +110,10 @@ impl FrameSender {
         let ticker = match rate {
             Rate::Fixed(fps) => {
                 let mut t = tokio::time::interval(Duration::from_secs_f64(1.0 / fps));
-                t.set_missed_tick_behavior(MissedTickBehavior::Delay);
+                // Ticks keep their phase, as a camera's frames do: a late frame does not push
+                // the next ones back (that lowered the rate), and ticks missed by a slower
+                // source are skipped, never sent in a burst.
+                t.set_missed_tick_behavior(MissedTickBehavior::Skip);
                 Some(t)
             }
             Rate::AsFastAsResults => None,
