@@ -12,49 +12,14 @@
 #[path = "../tests/it/common/mod.rs"]
 mod common;
 
-use std::time::Duration;
-
+use common::stream::{connect, frame, handshake, next, rt, send, Ws};
 use common::Server;
-use futures_util::{SinkExt, StreamExt};
-use prost::Message as _;
-use tokio_tungstenite::tungstenite::Message;
 use tre::proto::v1 as pb;
-
-type Ws =
-    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
-
-fn encode(msg: pb::client_message::Msg) -> Message {
-    Message::Binary(pb::ClientMessage { msg: Some(msg) }.encode_to_vec().into())
-}
-
-/// The next server message (pings skipped).
-async fn next(ws: &mut Ws) -> pb::server_message::Msg {
-    loop {
-        let msg = tokio::time::timeout(Duration::from_secs(60), ws.next())
-            .await
-            .expect("no message within 60 s")
-            .expect("stream ended")
-            .expect("stream failed");
-        match msg {
-            Message::Binary(b) => return pb::ServerMessage::decode(&b[..]).unwrap().msg.unwrap(),
-            Message::Ping(_) | Message::Pong(_) => continue,
-            other => panic!("unexpected {other:?}"),
-        }
-    }
-}
 
 /// Sends frames `from..to` one at a time, each answered before the next.
 async fn run(ws: &mut Ws, image: &[u8], from: u64, to: u64) {
     for sequence in from..to {
-        let frame = pb::Frame {
-            sequence,
-            timestamp_us: 1_000 + sequence as i64,
-            image: image.to_vec(),
-            ..Default::default()
-        };
-        ws.send(encode(pb::client_message::Msg::Frame(frame)))
-            .await
-            .unwrap();
+        send(ws, frame(sequence, image.to_vec())).await;
         match next(ws).await {
             pb::server_message::Msg::Result(r) => assert_eq!(r.sequence, sequence),
             other => panic!("frame {sequence}: {other:?}"),
@@ -69,25 +34,9 @@ fn main() -> std::process::ExitCode {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(1000);
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .unwrap();
-    let (before, after) = rt.block_on(async {
-        let url = format!("ws://{}/v1/stream", server.addr);
-        let mut ws = tokio_tungstenite::connect_async(url).await.unwrap().0;
-        let hello = pb::Hello {
-            format: pb::Format::Png16 as i32,
-            mode: pb::Mode::Rgb as i32,
-            ..Default::default()
-        };
-        ws.send(encode(pb::client_message::Msg::Hello(hello)))
-            .await
-            .unwrap();
-        match next(&mut ws).await {
-            pb::server_message::Msg::Ready(_) => {}
-            other => panic!("expected Ready, got {other:?}"),
-        }
+    let (before, after) = rt().block_on(async {
+        let mut ws = connect(&server).await;
+        handshake(&mut ws, pb::Format::Png16, pb::Mode::Rgb).await;
         run(&mut ws, &image, 0, 200).await;
         let before = server.rss_kib();
         run(&mut ws, &image, 200, 200 + frames).await;

@@ -21,6 +21,25 @@ def nice_step(span: float, ticks: int = 6) -> float:
     return 10 * power
 
 
+def y_grid(box: tuple[float, float, float, float], y_min: float, y_max: float, sy) -> list[str]:
+    """The horizontal grid lines and their labels from `y_min` to `y_max` (`sy`: value to SVG
+    y), then the frame of the plot area `box` = (left, top, width, height)."""
+    left, top, w, h = box
+    out = []
+    step = nice_step(y_max - y_min, 5)
+    for i in range(int((y_max - y_min) / step) + 1):
+        v = y_min + i * step
+        out.append(
+            f'<line x1="{left}" y1="{sy(v):.1f}" x2="{left + w}" y2="{sy(v):.1f}" stroke="#eee"/>'
+        )
+        out.append(
+            f'<text x="{left - 6}" y="{sy(v) + 4:.1f}" font-size="11" '
+            f'text-anchor="end">{v:g}</text>'
+        )
+    out.append(f'<rect x="{left}" y="{top}" width="{w}" height="{h}" fill="none" stroke="#444"/>')
+    return out
+
+
 def panel(
     y0: float, title: str, xs, ys, y_label: str, colour: str, x_max: float, y_min: float = 0.0
 ) -> str:
@@ -46,19 +65,7 @@ def panel(
             f'<text x="{sx(t):.1f}" y="{y0 + TOP + h + 16}" font-size="11" '
             f'text-anchor="middle">{t / 60:g}</text>'
         )
-    step = nice_step(y_max - y_min, 5)
-    for i in range(int((y_max - y_min) / step) + 1):
-        v = y_min + i * step
-        out.append(
-            f'<line x1="{LEFT}" y1="{sy(v):.1f}" x2="{LEFT + w}" y2="{sy(v):.1f}" stroke="#eee"/>'
-        )
-        out.append(
-            f'<text x="{LEFT - 6}" y="{sy(v) + 4:.1f}" font-size="11" '
-            f'text-anchor="end">{v:g}</text>'
-        )
-    out.append(
-        f'<rect x="{LEFT}" y="{y0 + TOP}" width="{w}" height="{h}" fill="none" stroke="#444"/>'
-    )
+    out += y_grid((LEFT, y0 + TOP, w, h), y_min, y_max, sy)
     points = " ".join(f"{sx(x):.1f},{sy(y):.1f}" for x, y in zip(xs, ys, strict=True))
     out.append(f'<polyline points="{points}" fill="none" stroke="{colour}" stroke-width="1.6"/>')
     out.append(

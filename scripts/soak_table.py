@@ -26,7 +26,7 @@ import math
 import statistics
 from dataclasses import dataclass, field
 
-from plot_soak import nice_step
+from plot_soak import y_grid
 
 RATE_TOLERANCE = 0.05
 RSS_TOLERANCE_MB = 20.0
@@ -310,19 +310,7 @@ def panel(y0: float, title: str, x_max: int, series, y_label: str) -> str:
             f'<text x="{sx(i):.1f}" y="{y0 + TOP + h + 16}" font-size="11" '
             f'text-anchor="middle">{i}</text>'
         )
-    step = nice_step(y_max, 5)
-    for i in range(int(y_max / step) + 1):
-        v = i * step
-        out.append(
-            f'<line x1="{LEFT}" y1="{sy(v):.1f}" x2="{LEFT + w}" y2="{sy(v):.1f}" stroke="#eee"/>'
-        )
-        out.append(
-            f'<text x="{LEFT - 6}" y="{sy(v) + 4:.1f}" font-size="11" '
-            f'text-anchor="end">{v:g}</text>'
-        )
-    out.append(
-        f'<rect x="{LEFT}" y="{y0 + TOP}" width="{w}" height="{h}" fill="none" stroke="#444"/>'
-    )
+    out += y_grid((LEFT, y0 + TOP, w, h), 0.0, y_max, sy)
     for n, (name, colour, xs, ys) in enumerate(series):
         points = " ".join(f"{sx(x):.1f},{sy(y):.1f}" for x, y in zip(xs, ys, strict=True))
         out.append(

@@ -2,6 +2,8 @@
 //! stopped on drop, and the `tre infer` reference a service answer must equal.
 #![allow(dead_code, clippy::unwrap_used)] // Not every test file uses every helper.
 
+pub(crate) mod stream;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::path::{Path, PathBuf};

@@ -8,6 +8,7 @@ use crate::common;
 
 use std::time::Duration;
 
+use common::stream::{connect, frame, handshake, next, rt, send, Ws};
 use common::{get, infer_png16, png16_values, real, Server};
 use futures_util::{SinkExt, StreamExt};
 use prost::Message as _;
@@ -19,69 +20,3 @@ mod hello;
 mod lifecycle;
 mod limits;
 mod map;
-
-type Ws =
-    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
-
-fn rt() -> tokio::runtime::Runtime {
-    tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .unwrap()
-}
-
-async fn connect(server: &Server) -> Ws {
-    let url = format!("ws://{}/v1/stream", server.addr);
-    tokio_tungstenite::connect_async(url).await.unwrap().0
-}
-
-fn hello(format: pb::Format, mode: pb::Mode) -> Vec<u8> {
-    pb::ClientMessage {
-        msg: Some(pb::client_message::Msg::Hello(pb::Hello {
-            format: format as i32,
-            mode: mode as i32,
-            ..Default::default()
-        })),
-    }
-    .encode_to_vec()
-}
-
-fn frame(sequence: u64, image: Vec<u8>) -> Vec<u8> {
-    pb::ClientMessage {
-        msg: Some(pb::client_message::Msg::Frame(pb::Frame {
-            sequence,
-            timestamp_us: 1_000 + sequence as i64,
-            image,
-            ..Default::default()
-        })),
-    }
-    .encode_to_vec()
-}
-
-async fn send(ws: &mut Ws, bytes: Vec<u8>) {
-    ws.send(Message::Binary(bytes.into())).await.unwrap();
-}
-
-/// The next server message (pings skipped).
-async fn next(ws: &mut Ws) -> pb::server_message::Msg {
-    loop {
-        let msg = tokio::time::timeout(Duration::from_secs(60), ws.next())
-            .await
-            .expect("no message within 60 s")
-            .expect("stream ended")
-            .expect("stream failed");
-        match msg {
-            Message::Binary(b) => return pb::ServerMessage::decode(&b[..]).unwrap().msg.unwrap(),
-            Message::Ping(_) | Message::Pong(_) => continue,
-            other => panic!("unexpected {other:?}"),
-        }
-    }
-}
-
-async fn handshake(ws: &mut Ws, format: pb::Format, mode: pb::Mode) {
-    send(ws, hello(format, mode)).await;
-    match next(ws).await {
-        pb::server_message::Msg::Ready(r) => assert!(r.models.iter().any(|m| m == "depth_net")),
-        other => panic!("expected Ready, got {other:?}"),
-    }
-}
