@@ -565,3 +565,82 @@ fn bad_settings_are_clear_errors() -> TestResult {
     );
     Ok(())
 }
+
+/// FNV-1a over the bits of a map's values, every NaN read as one NaN (a digest of outputs that
+/// must stay the same to the bit).
+fn digest<T>(grid: &Grid<T>, bits: impl Fn(&T) -> u64) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for v in grid.as_slice() {
+        for b in bits(v).to_le_bytes() {
+            h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    format!("{h:016x}")
+}
+
+/// An f64's bits, one NaN for all.
+fn f64_bits(v: &f64) -> u64 {
+    if v.is_nan() {
+        f64::NAN.to_bits()
+    } else {
+        v.to_bits()
+    }
+}
+
+/// The geometric mode's outputs on the real frames, the roughness, the LS normals, and the
+/// Kinect v1 sensor maps (uncertainty and three-state), bit for bit as in
+/// `tests/fixtures/geometric_digests.json`: a change made for speed must not move one bit
+/// (`TRE_WRITE_DIGESTS=1` writes the file anew, for a change that means to change outputs).
+/// The ten frames of `real-rgbd` and the first of each set of `real-rgbd-2` (Kinect, LiDAR,
+/// tunnel), at their own sizes.
+#[test]
+fn geometric_outputs_keep_their_committed_digests() -> TestResult {
+    crate::common::skip_unless_shared!("data/real-rgbd", Ok(()));
+    crate::common::skip_unless_shared!("data/real-rgbd-2", Ok(()));
+    let mut frames = tre::eval::real::find_frames(&real(""), None)?;
+    let second = crate::common::shared_root().join("data/real-rgbd-2");
+    let mut sets: Vec<PathBuf> = std::fs::read_dir(&second)?
+        .map(|e| e.map(|e| e.path()))
+        .collect::<Result<_, _>>()?;
+    sets.retain(|p| p.join("intrinsics.json").is_file());
+    sets.sort();
+    for set in &sets {
+        frames.extend(tre::eval::real::find_frames(set, Some(1))?);
+    }
+    assert!(frames.len() >= 20, "{} frames", frames.len());
+    let mut pipeline = Pipeline::new(None);
+    let cfg = PipelineConfig::for_mode(Mode::Geometric);
+    let kinect =
+        tre::roughness::noise::SensorNoise::Preset(tre::roughness::noise::SensorPreset::KinectV1);
+    let mut got = serde_json::Map::new();
+    for frame in &frames {
+        let loaded = tre::eval::real::load_frame(frame)?;
+        let input = FrameInput {
+            rgb: None,
+            ..loaded.input
+        };
+        let out = pipeline.run(&input, &cfg)?;
+        let maps = out.sensor_maps(&input, Mode::Geometric, Some(&kinect), None, None)?;
+        let normals = out.normals().ok_or("the geometric mode has normals")?;
+        let entry = serde_json::json!({
+            "roughness": digest(&out.roughness_m, f64_bits),
+            "normals": digest(&normals, |n| n.iter().fold(0, |a, v| a.rotate_left(21) ^ f64_bits(v))),
+            "uncertainty": digest(&maps.uncertainty_m, f64_bits),
+            "traversal": digest(&maps.traversal, |t| *t as u64),
+        });
+        got.insert(frame.name(), entry);
+    }
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/geometric_digests.json");
+    if std::env::var("TRE_WRITE_DIGESTS").is_ok_and(|v| v == "1") {
+        let text = serde_json::to_string_pretty(&serde_json::Value::Object(got))?;
+        std::fs::write(&path, text + "\n")?;
+        return Ok(());
+    }
+    let want: serde_json::Map<String, serde_json::Value> =
+        serde_json::from_slice(&std::fs::read(&path)?)?;
+    for (name, digests) in &got {
+        assert_eq!(Some(digests), want.get(name), "{name}: outputs moved");
+    }
+    assert_eq!(got.len(), want.len(), "frames digested");
+    Ok(())
+}

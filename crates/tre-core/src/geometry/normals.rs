@@ -202,26 +202,51 @@ impl PackedPoints {
         // largest squared distance kept: r² inside the lane's window, −1 (nothing) outside it.
         let limit: [[f32; GROUP]; MAX_PACKED_HALF + 1] =
             from_fn(|c| from_fn(|l| if c <= half[l] { r2 } else { -1.0 }));
+        // Where every lane with a point has the group's reach (most groups: all pixels of the
+        // group are nearer than radius · fx / 7), every offset's limit is r² in every lane;
+        // else the limits of each row of the window, by column offset, are built per row. Either
+        // way the offsets' loop runs over iterators alone, with no index to check.
+        let uniform = (0..GROUP).all(|l| half[l] == reach || p[2][l].is_nan());
+        let same = [r2; GROUP];
+        let mut row_limit = [same; 2 * MAX_PACKED_HALF + 1];
         for yy in y.saturating_sub(reach)..(y + reach + 1).min(self.height) {
             let dy = yy.abs_diff(y);
+            if !uniform {
+                for (dx, lim) in row_limit[..=2 * reach].iter_mut().enumerate() {
+                    *lim = limit[dy.max(dx.abs_diff(reach))];
+                }
+            }
             // Columns x0 − reach … x0 + reach + 7 of row yy, inside the padding.
             let first = self.stride * yy + PAD_LEFT + x0 - reach;
             let span = 2 * reach + GROUP;
-            let rows = [0, 1, 2].map(|c| &self.xyz[c][first..first + span]);
-            for dx in 0..=2 * reach {
-                let q = [0, 1, 2].map(|c| lanes(rows[c], dx));
-                accumulate(
-                    &mut count,
-                    &mut acc,
-                    q,
-                    &p,
-                    &limit[dy.max(dx.abs_diff(reach))],
-                );
+            let [xs, ys, zs] = [0, 1, 2].map(|c| &self.xyz[c][first..first + span]);
+            let offsets = xs
+                .windows(GROUP)
+                .zip(ys.windows(GROUP))
+                .zip(zs.windows(GROUP));
+            if uniform {
+                for ((qx, qy), qz) in offsets {
+                    let q = [as_lanes(qx), as_lanes(qy), as_lanes(qz)];
+                    accumulate(&mut count, &mut acc, q, &p, &same);
+                }
+            } else {
+                for (((qx, qy), qz), lim) in offsets.zip(&row_limit[..=2 * reach]) {
+                    let q = [as_lanes(qx), as_lanes(qy), as_lanes(qz)];
+                    accumulate(&mut count, &mut acc, q, &p, lim);
+                }
             }
         }
         acc[0] = count.map(|c| c as f32);
         acc
     }
+}
+
+/// A window of [`GROUP`] values as an array (the windows' length is known, so nothing is
+/// checked at run time).
+#[inline(always)]
+fn as_lanes(v: &[f32]) -> &[f32; GROUP] {
+    v.first_chunk::<GROUP>()
+        .expect("windows hold whole groups; this is a bug")
 }
 
 /// The 8 values of `v` from `start`.
@@ -460,18 +485,21 @@ mod tests {
         let mut full_lanes = 0;
         for x0 in [0, 3, 16, w - 5, w - 1] {
             for y in [0, 2, 10, h - 1] {
-                let half: [usize; GROUP] = std::array::from_fn(|l| (l + x0 + y) % GROUP);
-                let group = packed.group_moments(x0, y, &half, 0.05);
-                for (l, &hl) in half.iter().enumerate() {
-                    let a = lane_moments(&group, l);
-                    let x = x0 + l;
-                    // Half-width 0 is the pixel's own point only; past the row, nothing.
-                    let b = match x < w {
-                        true => window_moments(&pts, x, y, hl, 0.05 * 0.05),
-                        false => Moments::default(),
-                    };
-                    full_lanes += usize::from(b.count > 200);
-                    assert_close(&a, &b, &format!("({x}, {y}) h {hl}"));
+                // Mixed half-widths, then one for all lanes (the kernel's uniform path).
+                let mixed: [usize; GROUP] = std::array::from_fn(|l| (l + x0 + y) % GROUP);
+                for half in [mixed, [7; GROUP], [(x0 + y) % 7 + 1; GROUP]] {
+                    let group = packed.group_moments(x0, y, &half, 0.05);
+                    for (l, &hl) in half.iter().enumerate() {
+                        let a = lane_moments(&group, l);
+                        let x = x0 + l;
+                        // Half-width 0 is the pixel's own point only; past the row, nothing.
+                        let b = match x < w {
+                            true => window_moments(&pts, x, y, hl, 0.05 * 0.05),
+                            false => Moments::default(),
+                        };
+                        full_lanes += usize::from(b.count > 200);
+                        assert_close(&a, &b, &format!("({x}, {y}) h {hl}"));
+                    }
                 }
             }
         }

@@ -4,9 +4,11 @@
 use std::fmt;
 use std::str::FromStr;
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::annotate::{edge_term, AnnotateConfig};
+use crate::geometry::neighbours::{neighbour_counts_into, PackedPoints64};
 use crate::geometry::{is_valid_point, PointMap};
 use crate::geometry::{Grid, Intrinsics, Vec3};
 
@@ -260,8 +262,24 @@ pub fn uncertainty_map(
     sensor: &SensorNoise,
     cfg: &AnnotateConfig,
 ) -> Grid<f64> {
-    pixel_noise_map(depth_m, intrinsics, normals, sensor, cfg)
-        .map(|n| n.map_or(f64::NAN, |n| n.uncertainty_m()))
+    with_counts(depth_m, intrinsics, cfg, |points, counts| {
+        let mut out = Grid::new(points.width(), points.height(), f64::NAN);
+        out.par_rows_mut().for_each(|(y, row)| {
+            for (x, u) in row.iter_mut().enumerate() {
+                let at = At {
+                    points,
+                    counts,
+                    normals,
+                    k: intrinsics,
+                    xy: (x, y),
+                };
+                if let Some(n) = noise_at(&at, sensor, cfg) {
+                    *u = n.uncertainty_m();
+                }
+            }
+        });
+        out
+    })
 }
 
 /// [`PixelNoise`] at every pixel (`None` where there is no depth).
@@ -272,37 +290,108 @@ pub fn pixel_noise_map(
     sensor: &SensorNoise,
     cfg: &AnnotateConfig,
 ) -> Grid<Option<PixelNoise>> {
-    let points = intrinsics.back_project_map(depth_m);
-    let (w, h) = points.size();
-    Grid::par_from_fn(w, h, |x, y| {
-        let p = points[(x, y)];
-        if !is_valid_point(&p) {
-            return None;
-        }
-        let n = normals
-            .get(x, y)
-            .copied()
-            .filter(|n| n.norm().is_finite() && n.norm() > 0.0);
-        let n = n.map_or(-p / p.norm(), |n| n / n.norm());
-        Some(pixel_noise(&points, intrinsics, (x, y), &n, sensor, cfg))
+    with_counts(depth_m, intrinsics, cfg, |points, counts| {
+        let (w, h) = points.size();
+        Grid::par_from_fn(w, h, |x, y| {
+            let at = At {
+                points,
+                counts,
+                normals,
+                k: intrinsics,
+                xy: (x, y),
+            };
+            noise_at(&at, sensor, cfg)
+        })
     })
 }
 
-/// The noise statistics of pixel `xy` (valid) with unit normal `n`.
+/// The buffers of [`with_counts`], kept per thread from frame to frame: a 640×480 frame's
+/// points, packed points and counts are 16 MB, which the allocator would otherwise map and
+/// fault in afresh for every frame.
+#[derive(Default)]
+struct CountScratch {
+    points: PointMap,
+    packed: PackedPoints64,
+    counts: Grid<u32>,
+}
+
+thread_local! {
+    static COUNT_SCRATCH: std::cell::RefCell<CountScratch> = Default::default();
+}
+
+/// Runs `f` on the points of `depth_m` and their neighbour counts (spec neighbourhood of
+/// `cfg`), in this thread's buffers (fresh ones where they are in use, as when a rayon task
+/// started inside `f` on this thread computes another frame's maps).
+fn with_counts<T>(
+    depth_m: &Grid<f64>,
+    k: &Intrinsics,
+    cfg: &AnnotateConfig,
+    f: impl FnOnce(&PointMap, &Grid<u32>) -> T,
+) -> T {
+    let run = |s: &mut CountScratch| {
+        k.back_project_map_into(depth_m, &mut s.points);
+        neighbour_counts_into(&s.points, k.fx_px, &cfg.hood, &mut s.packed, &mut s.counts);
+        f(&s.points, &s.counts)
+    };
+    COUNT_SCRATCH.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut s) => run(&mut s),
+        Err(_) => run(&mut CountScratch::default()),
+    })
+}
+
+/// One pixel of a frame: its points, their neighbour counts and normals, the intrinsics.
+struct At<'a> {
+    points: &'a PointMap,
+    counts: &'a Grid<u32>,
+    normals: &'a Grid<Vec3>,
+    k: &'a Intrinsics,
+    xy: (usize, usize),
+}
+
+/// The noise statistics at `at` (`None` where there is no depth); a missing or zero normal
+/// reads as facing the camera.
+fn noise_at(at: &At<'_>, sensor: &SensorNoise, cfg: &AnnotateConfig) -> Option<PixelNoise> {
+    let (x, y) = at.xy;
+    let p = at.points[(x, y)];
+    if !is_valid_point(&p) {
+        return None;
+    }
+    let n = at
+        .normals
+        .get(x, y)
+        .copied()
+        .filter(|n| n.norm().is_finite() && n.norm() > 0.0);
+    let n = n.map_or(-p / p.norm(), |n| n / n.norm());
+    let pixel = Pixel {
+        xy: (x, y),
+        neighbours: at.counts[(x, y)] as usize,
+    };
+    Some(pixel_noise(at.points, at.k, &pixel, &n, sensor, cfg))
+}
+
+/// A valid pixel and its neighbour count ([`crate::geometry::neighbours::count_within`] in its
+/// window).
+struct Pixel {
+    xy: (usize, usize),
+    neighbours: usize,
+}
+
+/// The noise statistics of `pixel` (valid) with unit normal `n`.
 fn pixel_noise(
     points: &PointMap,
     k: &Intrinsics,
-    (x, y): (usize, usize),
+    pixel: &Pixel,
     n: &Vec3,
     sensor: &SensorNoise,
     cfg: &AnnotateConfig,
 ) -> PixelNoise {
+    let (x, y) = pixel.xy;
     let p = points[(x, y)];
     let sigma_z = sensor.sigma_z_m(p.z).max(0.0);
     // Depth noise δz moves the point along its ray by δz·p/z: along the normal by δz·(n·p)/z.
     let sigma_normal_m = sigma_z * n.dot(&p).abs() / p.z;
     let half = cfg.hood.half_width(k.fx_px, p.z);
-    let neighbours = count_within(points, x, y, half, cfg.hood.radius_m);
+    let neighbours = pixel.neighbours;
     let residual = (1.0 - 1.0 / neighbours.max(1) as f64).sqrt();
     let surface_p95_m = HALF_NORMAL_P95 * sigma_normal_m * residual;
     let sigma_ray_m = sigma_z * p.norm() / p.z;
@@ -346,21 +435,6 @@ fn joins_broken(
     } else {
         (0.0, false)
     }
-}
-
-/// Valid points within `radius_m` of pixel `(x, y)`'s point in its window of half-width `half`.
-fn count_within(points: &PointMap, x: usize, y: usize, half: usize, radius_m: f64) -> usize {
-    let (w, h) = points.size();
-    let p = points[(x, y)];
-    let r2 = radius_m * radius_m;
-    (y.saturating_sub(half)..(y + half + 1).min(h))
-        .map(|yy| {
-            points.row(yy)[x.saturating_sub(half)..(x + half + 1).min(w)]
-                .iter()
-                .filter(|q| (*q - p).norm_squared() <= r2)
-                .count()
-        })
-        .sum()
 }
 
 /// The largest distance from `p` (pixel `(x, y)`) to its 8 neighbours' rays where they meet
