@@ -1,11 +1,15 @@
 //! Neighbour counts: at each valid pixel, the valid points within a radius of its point in its
-//! pixel window, in f64 as the per-point definition ([`count_within`]) computes them, eight
+//! pixel window, exactly as the per-point definition ([`count_within`], f64) counts them, eight
 //! pixels at a time.
 //!
 //! The counts feed the uncertainty map (the surface term's residual), so they must be the
-//! definition's exactly: each lane computes `(q − p)·(q − p)` with the same f64 operations in
-//! the same order as `nalgebra`'s `norm_squared` (`(dx² + dy²) + dz²`, no fused multiply-add),
-//! and compares it with r² as the definition does. Only the order of the pixels changes.
+//! definition's to the last point. The kernel tests each point in f32 lanes against a band
+//! around r² that is wider than any error f32 can make ([`band_margin`]): a squared distance
+//! below the band's lower end is within the radius in f64 too, one above its upper end is not.
+//! A pixel with a point inside the band (rare: a point within a few micrometres of the radius)
+//! is counted again by the definition. So every count is the definition's; a unit test checks
+//! every pixel of surfaces whose points sit at all distances around the radius, and the real
+//! frames' uncertainty maps are checked bit for bit (`tests/it/pipeline.rs`).
 
 use multiversion::multiversion;
 use rayon::prelude::*;
@@ -13,9 +17,9 @@ use rayon::prelude::*;
 use super::camera::{is_valid_point, PointMap};
 use super::normals::Neighbourhood;
 use super::simd::from_fn;
-use super::Grid;
+use super::{Grid, Vec3};
 
-/// Pixels per group: one lane each (two AVX2 registers of f64).
+/// Pixels per group: one f32 lane each (one AVX2 register).
 const GROUP: usize = 8;
 /// Widest half-width the packed kernel handles; wider windows take [`count_within`].
 const MAX_PACKED_HALF: usize = 7;
@@ -25,53 +29,66 @@ const PAD_LEFT: usize = 8;
 /// reaches, rounded up.
 const PAD_RIGHT: usize = 16;
 
-/// Points as f64 structure-of-arrays rows padded with NaN columns (invalid points are NaN too),
+/// Points as f32 structure-of-arrays rows padded with NaN columns (invalid points are NaN too),
 /// so that the count kernel reads whole 8-lane chunks with no border cases.
 #[derive(Debug, Clone, Default)]
-pub struct PackedPoints64 {
+pub struct PackedPoints32 {
     width: usize,
     height: usize,
     stride: usize,
-    xyz: [Vec<f64>; 3],
+    xyz: [Vec<f32>; 3],
 }
 
-impl PackedPoints64 {
-    /// Packs `points` (reusing this buffer's allocations).
+/// Per lane, the lower and upper ends of the band around r² ([`band_margin`]).
+type Band = [[f32; GROUP]; 2];
+
+impl PackedPoints32 {
+    /// Packs `points`, each coordinate rounded to the nearest f32 (reusing this buffer's
+    /// allocations).
     pub fn pack(&mut self, points: &PointMap) {
         let (w, h) = points.size();
         (self.width, self.height, self.stride) = (w, h, PAD_LEFT + w + PAD_RIGHT);
         for (c, buf) in self.xyz.iter_mut().enumerate() {
             buf.clear();
-            buf.resize(self.stride * h, f64::NAN);
+            buf.resize(self.stride * h, f32::NAN);
             buf.par_chunks_mut(self.stride.max(1))
                 .enumerate()
                 .for_each(|(y, row)| {
                     for (dst, p) in row[PAD_LEFT..PAD_LEFT + w].iter_mut().zip(points.row(y)) {
-                        *dst = if is_valid_point(p) { p[c] } else { f64::NAN };
+                        *dst = if is_valid_point(p) {
+                            p[c] as f32
+                        } else {
+                            f32::NAN
+                        };
                     }
                 });
         }
     }
 
-    /// The counts of the pixels `(x0 + l, y)`: the points within `sqrt(r2)` in the window of
-    /// half-width `half[l]` (at most 7), the pixel's own included; 0 for invalid pixels and
-    /// lanes past the row's end.
+    /// For the pixels `(x0 + l, y)` with windows of half-width `half[l]` (at most 7): the
+    /// points whose f32 squared distance is at most the band's lower end (sure), and at most
+    /// its upper end (sure or in the band). Invalid pixels and lanes past the row's end count
+    /// nothing.
     #[inline(always)]
-    fn group_counts(&self, x0: usize, y: usize, half: &[usize; GROUP], r2: f64) -> [u64; GROUP] {
-        // In 64-bit lanes, as wide as the f64 comparisons' masks: no packing per offset.
-        let mut count = [0u64; GROUP];
+    fn group_counts(
+        &self,
+        x0: usize,
+        y: usize,
+        half: &[usize; GROUP],
+        band: &Band,
+    ) -> [[u32; GROUP]; 2] {
+        let (mut sure, mut maybe) = ([0u32; GROUP], [0u32; GROUP]);
         let reach = half.iter().copied().max().unwrap_or(0).min(MAX_PACKED_HALF);
         let centre = self.stride * y + PAD_LEFT + x0;
-        let p: [[f64; GROUP]; 3] = from_fn(|c| *lanes(&self.xyz[c][centre..]));
-        // Per ring of offsets (Chebyshev distance) and lane: r² inside the lane's window, −1
-        // (nothing passes) outside it.
-        let limit: [[f64; GROUP]; MAX_PACKED_HALF + 1] =
-            from_fn(|c| from_fn(|l| if c <= half[l] { r2 } else { -1.0 }));
-        // As in the LS kernel: one limit for all offsets where every lane with a point has the
-        // group's reach, else the limits of each row built per row.
+        let p: [[f32; GROUP]; 3] = from_fn(|c| *lanes(&self.xyz[c][centre..]));
+        // Per ring of offsets (Chebyshev distance) and lane: the band inside the lane's window,
+        // −1 (nothing passes) outside it.
+        let limit: [Band; MAX_PACKED_HALF + 1] =
+            from_fn(|c| from_fn(|e| from_fn(|l| if c <= half[l] { band[e][l] } else { -1.0 })));
+        // Where every lane with a point has the group's reach, the band holds at every offset
+        // and the table below stays as it starts; else each row's bands are built per row.
         let uniform = (0..GROUP).all(|l| half[l] == reach || p[2][l].is_nan());
-        let same = [r2; GROUP];
-        let mut row_limit = [same; 2 * MAX_PACKED_HALF + 1];
+        let mut row_limit = [*band; 2 * MAX_PACKED_HALF + 1];
         for yy in y.saturating_sub(reach)..(y + reach + 1).min(self.height) {
             let dy = yy.abs_diff(y);
             if !uniform {
@@ -86,43 +103,67 @@ impl PackedPoints64 {
                 .windows(GROUP)
                 .zip(ys.windows(GROUP))
                 .zip(zs.windows(GROUP));
-            if uniform {
-                for ((qx, qy), qz) in offsets {
-                    add_within(&mut count, [lanes(qx), lanes(qy), lanes(qz)], &p, &same);
-                }
-            } else {
-                for (((qx, qy), qz), lim) in offsets.zip(&row_limit[..=2 * reach]) {
-                    add_within(&mut count, [lanes(qx), lanes(qy), lanes(qz)], &p, lim);
-                }
+            // One loop for both cases, the band read from the table in the uniform case too: a
+            // loop of its own with the band in registers came out unrolled across offsets with
+            // spills, slower.
+            for (((qx, qy), qz), lim) in offsets.zip(&row_limit[..=2 * reach]) {
+                let q = [lanes(qx), lanes(qy), lanes(qz)];
+                add_within((&mut sure, &mut maybe), q, &p, lim);
             }
         }
-        count
+        [sure, maybe]
     }
 }
 
-/// Counts, in each lane `l`, the point `q[l]` if its squared distance from `p[l]` is at most
-/// `limit[l]`.
+/// Counts, in each lane `l`, the point `q[l]` if its f32 squared distance from `p[l]` is at
+/// most `lo[l]` (into `sure`) and at most `hi[l]` (into `maybe`).
 #[inline(always)]
 fn add_within(
-    count: &mut [u64; GROUP],
-    q: [&[f64; GROUP]; 3],
-    p: &[[f64; GROUP]; 3],
-    limit: &[f64; GROUP],
+    (sure, maybe): (&mut [u32; GROUP], &mut [u32; GROUP]),
+    q: [&[f32; GROUP]; 3],
+    p: &[[f32; GROUP]; 3],
+    [lo, hi]: &Band,
 ) {
+    let mut d2 = [0f32; GROUP];
     for l in 0..GROUP {
         let (dx, dy, dz) = (q[0][l] - p[0][l], q[1][l] - p[1][l], q[2][l] - p[2][l]);
-        // nalgebra's norm_squared: (dx·dx + dy·dy) + dz·dz. NaN fails the test.
-        let d2 = dx * dx + dy * dy + dz * dz;
-        // The comparison's mask (all ones where kept) subtracted: a count in 64-bit lanes.
-        count[l] = count[l].wrapping_sub(u64::from(d2 <= limit[l]).wrapping_neg());
+        // Multiplies and adds, never fused: the same bits on every CPU. NaN passes nothing.
+        d2[l] = dx * dx + dy * dy + dz * dz;
+    }
+    // The comparisons' masks (all ones where passed) subtracted: counts in integer lanes.
+    for l in 0..GROUP {
+        sure[l] = sure[l].wrapping_sub(u32::from(d2[l] <= lo[l]).wrapping_neg());
+    }
+    for l in 0..GROUP {
+        maybe[l] = maybe[l].wrapping_sub(u32::from(d2[l] <= hi[l]).wrapping_neg());
     }
 }
 
 /// The first [`GROUP`] values of `v` as an array.
 #[inline(always)]
-fn lanes(v: &[f64]) -> &[f64; GROUP] {
+fn lanes(v: &[f32]) -> &[f32; GROUP] {
     v.first_chunk::<GROUP>()
         .expect("padded rows hold whole groups; this is a bug")
+}
+
+/// Half the width of the band around r² within which the f32 test of a point near `p` may
+/// disagree with the f64 definition: twice the largest error, so that the band's ends rounded
+/// to f32 still hold.
+///
+/// With u = 2⁻²⁴ and M the largest coordinate of `p` (in magnitude): rounding the coordinates to
+/// f32 and subtracting them moves each component of a difference d by at most
+/// δ = 2.1·u·(M + ρ), where ρ = 1.05·r + 3·u·M bounds |d| of any point the test can count; so
+/// the exact sum of the f32 components' squares is within E = 3·δ·(2ρ + δ) of |d|². The f32
+/// squares and sums add at most 3.1·u of it, and the f64 definition's own rounding 6·2⁻⁵³.
+/// Hence a point whose f32 value is at most r² − m lies within r in f64, and one above r² + m
+/// does not, for m ≥ E + 3.1·u·r² plus second-order terms; this returns 2·(E + 4·u·r²).
+/// At 5 m from the camera with r = 5 cm, m ≈ 4·10⁻⁷ m², 0.016% of r².
+fn band_margin(p: &Vec3, radius_m: f64) -> f64 {
+    let u = f64::from(f32::EPSILON) / 2.0;
+    let m = p.x.abs().max(p.y.abs()).max(p.z.abs());
+    let rho = 1.05 * radius_m + 3.0 * u * m;
+    let delta = 2.1 * u * (m + rho);
+    2.0 * (3.0 * delta * (2.0 * rho + delta) + 4.0 * u * radius_m * radius_m)
 }
 
 /// Valid points within `radius_m` of pixel `(x, y)`'s point in its window of half-width `half`
@@ -155,14 +196,14 @@ pub fn count_within(points: &PointMap, x: usize, y: usize, half: usize, radius_m
 /// their buffers from call to call.
 ///
 /// ```
-/// use tre_core::geometry::neighbours::{count_within, neighbour_counts_into, PackedPoints64};
+/// use tre_core::geometry::neighbours::{count_within, neighbour_counts_into, PackedPoints32};
 /// use tre_core::geometry::normals::Neighbourhood;
 /// use tre_core::geometry::{Grid, Intrinsics};
 /// let k = Intrinsics::from_hfov(21, 13, 60.0).unwrap();
 /// let points = k.back_project_map(&Grid::from_fn(21, 13, |x, y| 0.5 + 0.01 * (x * y) as f64));
 /// let hood = Neighbourhood::default();
 /// let mut counts = Grid::new(0, 0, 0);
-/// neighbour_counts_into(&points, k.fx_px, &hood, &mut PackedPoints64::default(), &mut counts);
+/// neighbour_counts_into(&points, k.fx_px, &hood, &mut PackedPoints32::default(), &mut counts);
 /// let h = hood.half_width(k.fx_px, points[(20, 7)].z);
 /// assert_eq!(counts[(20, 7)] as usize, count_within(&points, 20, 7, h, hood.radius_m));
 /// ```
@@ -170,7 +211,7 @@ pub fn neighbour_counts_into(
     points: &PointMap,
     fx_px: f64,
     hood: &Neighbourhood,
-    packed: &mut PackedPoints64,
+    packed: &mut PackedPoints32,
     out: &mut Grid<u32>,
 ) {
     let (w, h) = points.size();
@@ -185,7 +226,7 @@ pub fn neighbour_counts_into(
 /// and for AVX2 + FMA, chosen at run time ([`super::simd`]), both with the same results.
 #[multiversion(targets("x86_64+avx2+fma"))]
 fn counts_row(
-    packed: &PackedPoints64,
+    packed: &PackedPoints32,
     points: &PointMap,
     fx_px: f64,
     hood: &Neighbourhood,
@@ -195,17 +236,22 @@ fn counts_row(
     let cells = points.row(y);
     for x0 in (0..row.len()).step_by(GROUP) {
         let mut half = [0; GROUP];
-        for (h, p) in half.iter_mut().zip(&cells[x0..]) {
+        let mut band: Band = [[-1.0; GROUP]; 2];
+        for (l, p) in cells[x0..].iter().take(GROUP).enumerate() {
             if is_valid_point(p) {
-                *h = hood.half_width(fx_px, p.z);
+                half[l] = hood.half_width(fx_px, p.z);
+                let m = band_margin(p, hood.radius_m);
+                band[0][l] = (r2 - m) as f32;
+                band[1][l] = (r2 + m) as f32;
             }
         }
         let packed_half = half.map(|h| if h <= MAX_PACKED_HALF { h } else { 0 });
-        let counts = packed.group_counts(x0, y, &packed_half, r2);
+        let [sure, maybe] = packed.group_counts(x0, y, &packed_half, &band);
         for (l, (out, h)) in row[x0..].iter_mut().zip(half).enumerate() {
             *out = match h {
                 0 => 0,
-                h if h <= MAX_PACKED_HALF => counts[l] as u32,
+                // No point in the band: every point's test agreed with f64.
+                h if h <= MAX_PACKED_HALF && sure[l] == maybe[l] => sure[l],
                 h => count_within(points, x0 + l, y, h, hood.radius_m) as u32,
             };
         }
@@ -215,7 +261,7 @@ fn counts_row(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{Vec3, INVALID_POINT};
+    use crate::geometry::INVALID_POINT;
 
     /// Every pixel's count against the definition, on a bumpy surface with holes whose points
     /// sit at all distances around the radius, with every half-width from 1 to 9 (8 and 9 take
@@ -235,7 +281,7 @@ mod tests {
                 )
             }
         });
-        let mut packed = PackedPoints64::default();
+        let mut packed = PackedPoints32::default();
         let mut counts = Grid::new(0, 0, 0);
         let mut seen = std::collections::BTreeSet::new();
         for max_half_width in [1, 3, 7, 9] {
@@ -262,5 +308,43 @@ mod tests {
             }
         }
         assert!(seen.len() > 30, "counts spread over {} values", seen.len());
+    }
+
+    /// Points at the radius to the last bits of f64: the f32 test cannot tell them, so they
+    /// fall in the band, and the definition's count is the answer (one point nudged out by one
+    /// ulp of its distance is left out, as f64 leaves it out).
+    #[test]
+    fn points_at_the_radius_fall_in_the_band_and_count_as_in_f64() {
+        let r = 0.05;
+        let p = Vec3::new(0.31, -0.17, 2.3);
+        let (w, h) = (9, 3);
+        let mut points = Grid::new(w, h, INVALID_POINT);
+        points[(4, 1)] = p;
+        // Neighbours along x at exactly r (as f64 rounds p.x + r), and one ulp beyond.
+        points[(5, 1)] = Vec3::new(p.x + r, p.y, p.z);
+        points[(3, 1)] = Vec3::new((p.x - r).next_down(), p.y, p.z);
+        points[(4, 0)] = Vec3::new(p.x, p.y, p.z - r);
+        let mut packed = PackedPoints32::default();
+        packed.pack(&points);
+        let hood = Neighbourhood {
+            radius_m: r,
+            max_half_width: 7,
+        };
+        let m = band_margin(&p, r);
+        let band = [[(r * r - m) as f32; GROUP], [(r * r + m) as f32; GROUP]];
+        let mut half = [0; GROUP];
+        half[0] = 1;
+        let [sure, maybe] = packed.group_counts(4, 1, &half, &band);
+        assert!(sure[0] < maybe[0], "sure {sure:?}, maybe {maybe:?}");
+        let mut counts = Grid::new(0, 0, 0);
+        neighbour_counts_into(&points, 1e3, &hood, &mut packed, &mut counts);
+        let want = count_within(&points, 4, 1, 7, r);
+        assert_eq!(counts[(4, 1)] as usize, want);
+        // The pixel itself, and whichever of the three at r f64 keeps.
+        let kept = [(5, 1), (3, 1), (4, 0)]
+            .iter()
+            .filter(|&&xy| (points[xy] - p).norm_squared() <= r * r)
+            .count();
+        assert_eq!(want, 1 + kept);
     }
 }

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::annotate::{edge_term, AnnotateConfig};
-use crate::geometry::neighbours::{neighbour_counts_into, PackedPoints64};
+use crate::geometry::neighbours::{neighbour_counts_into, PackedPoints32};
 use crate::geometry::{is_valid_point, PointMap};
 use crate::geometry::{Grid, Intrinsics, Vec3};
 
@@ -311,7 +311,7 @@ pub fn pixel_noise_map(
 #[derive(Default)]
 struct CountScratch {
     points: PointMap,
-    packed: PackedPoints64,
+    packed: PackedPoints32,
     counts: Grid<u32>,
 }
 
