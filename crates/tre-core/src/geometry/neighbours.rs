@@ -4,8 +4,9 @@
 //!
 //! The counts feed the uncertainty map (the surface term's residual), so they must be the
 //! definition's to the last point. The kernel tests each point in f32 lanes against a band
-//! around r² that is wider than any error f32 can make ([`band_margin`]): a squared distance
-//! below the band's lower end is within the radius in f64 too, one above its upper end is not.
+//! around r² that is wider than any error f32 can make (`band_margin` in this file derives the
+//! bound): a squared distance below the band's lower end is within the radius in f64 too, one
+//! above its upper end is not.
 //! A pixel with a point inside the band (rare: a point within a few micrometres of the radius)
 //! is counted again by the definition. So every count is the definition's; a unit test checks
 //! every pixel of surfaces whose points sit at all distances around the radius, and the real
