@@ -323,3 +323,44 @@ fn best_is_the_first_largest_score() {
     assert_eq!(hyp.scores[best], max);
     assert!(hyp.scores[..best].iter().all(|&s| s < max));
 }
+
+/// DSAC normals of a bumpy 70 × 45 frame with holes and pseudo-random logits, to the bit: a
+/// change meant for speed only must keep this digest (both compiled versions of the row kernel
+/// give these bits). It held for a row kernel that read its logits pixel-major.
+#[test]
+fn dsac_normals_keep_their_digest() {
+    let (w, h) = (70, 45);
+    let k = crate::geometry::Intrinsics::from_hfov(w, h, 60.0).unwrap();
+    let depth = Grid::from_fn(w, h, |x, y| {
+        let (u, v) = (x as f64 / w as f64, y as f64 / h as f64);
+        match (x * 7 + y * 11) % 23 {
+            0 => 0.0,
+            _ => 1.5 + 0.4 * v + 0.02 * (u * 40.0).sin() * (v * 25.0).cos(),
+        }
+    });
+    let points = k.back_project_map(&depth);
+    let logits: Vec<f32> = (0..CANDIDATES * w * h)
+        .map(|i| (uniform(7, i as u64, 0, 0) * 8.0 - 4.0) as f32)
+        .collect();
+    let out = dsac_normals(&points, &logits, &DsacConfig::default()).unwrap();
+    let mut digest: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut found = 0;
+    for n in out.as_slice() {
+        found += usize::from(n.x.is_finite());
+        for v in n.iter() {
+            let bits = if v.is_nan() {
+                f64::NAN.to_bits()
+            } else {
+                v.to_bits()
+            };
+            for b in bits.to_le_bytes() {
+                digest = (digest ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+    }
+    assert!(found > w * h * 3 / 4, "{found} normals");
+    if std::env::var("TRE_PRINT_DIGEST").is_ok() {
+        eprintln!("dsac digest {digest:016x}");
+    }
+    assert_eq!(format!("{digest:016x}"), "4193aa64fd31358c");
+}
