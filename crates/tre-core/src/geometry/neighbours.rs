@@ -16,56 +16,16 @@ use multiversion::multiversion;
 use rayon::prelude::*;
 
 use super::camera::{is_valid_point, PointMap};
-use super::normals::Neighbourhood;
+use super::normals::{ring_limits, Neighbourhood, PackedPoints, GROUP, MAX_PACKED_HALF, PAD_LEFT};
 use super::simd::from_fn;
 use super::{Grid, Vec3};
-
-/// Pixels per group: one f32 lane each (one AVX2 register).
-const GROUP: usize = 8;
-/// Widest half-width the packed kernel handles; wider windows take [`count_within`].
-const MAX_PACKED_HALF: usize = 7;
-/// Invalid columns left of each packed row: a window reaches 7 columns left.
-const PAD_LEFT: usize = 8;
-/// Invalid columns right of each packed row: a group's last pixel plus the 7 columns its window
-/// reaches, rounded up.
-const PAD_RIGHT: usize = 16;
-
-/// Points as f32 structure-of-arrays rows padded with NaN columns (invalid points are NaN too),
-/// so that the count kernel reads whole 8-lane chunks with no border cases.
-#[derive(Debug, Clone, Default)]
-pub struct PackedPoints32 {
-    width: usize,
-    height: usize,
-    stride: usize,
-    xyz: [Vec<f32>; 3],
-}
 
 /// Per lane, the lower and upper ends of the band around r² ([`band_margin`]).
 type Band = [[f32; GROUP]; 2];
 
-impl PackedPoints32 {
-    /// Packs `points`, each coordinate rounded to the nearest f32 (reusing this buffer's
-    /// allocations).
-    pub fn pack(&mut self, points: &PointMap) {
-        let (w, h) = points.size();
-        (self.width, self.height, self.stride) = (w, h, PAD_LEFT + w + PAD_RIGHT);
-        for (c, buf) in self.xyz.iter_mut().enumerate() {
-            buf.clear();
-            buf.resize(self.stride * h, f32::NAN);
-            buf.par_chunks_mut(self.stride.max(1))
-                .enumerate()
-                .for_each(|(y, row)| {
-                    for (dst, p) in row[PAD_LEFT..PAD_LEFT + w].iter_mut().zip(points.row(y)) {
-                        *dst = if is_valid_point(p) {
-                            p[c] as f32
-                        } else {
-                            f32::NAN
-                        };
-                    }
-                });
-        }
-    }
-
+/// The count kernel over the LS kernel's packed points (f32 structure-of-arrays rows padded
+/// with NaN columns, each coordinate rounded to the nearest f32).
+impl PackedPoints {
     /// For the pixels `(x0 + l, y)` with windows of half-width `half[l]` (at most 7): the
     /// points whose f32 squared distance is at most the band's lower end (sure), and at most
     /// its upper end (sure or in the band). Invalid pixels and lanes past the row's end count
@@ -91,24 +51,16 @@ impl PackedPoints32 {
         let uniform = (0..GROUP).all(|l| half[l] == reach || p[2][l].is_nan());
         let mut row_limit = [*band; 2 * MAX_PACKED_HALF + 1];
         for yy in y.saturating_sub(reach)..(y + reach + 1).min(self.height) {
-            let dy = yy.abs_diff(y);
             if !uniform {
-                for (dx, lim) in row_limit[..=2 * reach].iter_mut().enumerate() {
-                    *lim = limit[dy.max(dx.abs_diff(reach))];
-                }
+                ring_limits(&limit, yy.abs_diff(y), reach, &mut row_limit);
             }
-            let first = self.stride * yy + PAD_LEFT + x0 - reach;
-            let span = 2 * reach + GROUP;
-            let [xs, ys, zs] = [0, 1, 2].map(|c| &self.xyz[c][first..first + span]);
-            let offsets = xs
-                .windows(GROUP)
-                .zip(ys.windows(GROUP))
-                .zip(zs.windows(GROUP));
             // One loop for both cases, the band read from the table in the uniform case too: a
             // loop of its own with the band in registers came out unrolled across offsets with
             // spills, slower.
-            for (((qx, qy), qz), lim) in offsets.zip(&row_limit[..=2 * reach]) {
-                let q = [lanes(qx), lanes(qy), lanes(qz)];
+            for (q, lim) in self
+                .row_windows(x0, yy, reach)
+                .zip(&row_limit[..=2 * reach])
+            {
                 add_within((&mut sure, &mut maybe), q, &p, lim);
             }
         }
@@ -197,14 +149,14 @@ pub fn count_within(points: &PointMap, x: usize, y: usize, half: usize, radius_m
 /// their buffers from call to call.
 ///
 /// ```
-/// use tre_core::geometry::neighbours::{count_within, neighbour_counts_into, PackedPoints32};
-/// use tre_core::geometry::normals::Neighbourhood;
+/// use tre_core::geometry::neighbours::{count_within, neighbour_counts_into};
+/// use tre_core::geometry::normals::{Neighbourhood, PackedPoints};
 /// use tre_core::geometry::{Grid, Intrinsics};
 /// let k = Intrinsics::from_hfov(21, 13, 60.0).unwrap();
 /// let points = k.back_project_map(&Grid::from_fn(21, 13, |x, y| 0.5 + 0.01 * (x * y) as f64));
 /// let hood = Neighbourhood::default();
 /// let mut counts = Grid::new(0, 0, 0);
-/// neighbour_counts_into(&points, k.fx_px, &hood, &mut PackedPoints32::default(), &mut counts);
+/// neighbour_counts_into(&points, k.fx_px, &hood, &mut PackedPoints::default(), &mut counts);
 /// let h = hood.half_width(k.fx_px, points[(20, 7)].z);
 /// assert_eq!(counts[(20, 7)] as usize, count_within(&points, 20, 7, h, hood.radius_m));
 /// ```
@@ -212,7 +164,7 @@ pub fn neighbour_counts_into(
     points: &PointMap,
     fx_px: f64,
     hood: &Neighbourhood,
-    packed: &mut PackedPoints32,
+    packed: &mut PackedPoints,
     out: &mut Grid<u32>,
 ) {
     let (w, h) = points.size();
@@ -227,7 +179,7 @@ pub fn neighbour_counts_into(
 /// and for AVX2 + FMA, chosen at run time ([`super::simd`]), both with the same results.
 #[multiversion(targets("x86_64+avx2+fma"))]
 fn counts_row(
-    packed: &PackedPoints32,
+    packed: &PackedPoints,
     points: &PointMap,
     fx_px: f64,
     hood: &Neighbourhood,
@@ -282,7 +234,7 @@ mod tests {
                 )
             }
         });
-        let mut packed = PackedPoints32::default();
+        let mut packed = PackedPoints::default();
         let mut counts = Grid::new(0, 0, 0);
         let mut seen = std::collections::BTreeSet::new();
         for max_half_width in [1, 3, 7, 9] {
@@ -325,7 +277,7 @@ mod tests {
         points[(5, 1)] = Vec3::new(p.x + r, p.y, p.z);
         points[(3, 1)] = Vec3::new((p.x - r).next_down(), p.y, p.z);
         points[(4, 0)] = Vec3::new(p.x, p.y, p.z - r);
-        let mut packed = PackedPoints32::default();
+        let mut packed = PackedPoints::default();
         packed.pack(&points);
         let hood = Neighbourhood {
             radius_m: r,

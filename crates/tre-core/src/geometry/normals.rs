@@ -131,21 +131,21 @@ fn window_moments(points: &PointMap, x: usize, y: usize, h: usize, r2: f64) -> M
 /// Pixels per group of the window kernel: one lane per pixel.
 pub const GROUP: usize = 8;
 /// Columns of invalid padding left of each packed row: a window reaches 7 columns left.
-const PAD_LEFT: usize = 8;
+pub(super) const PAD_LEFT: usize = 8;
 /// Columns of invalid padding right of each packed row: a group's last pixel (7 columns after
 /// its first) plus the 7 columns its window reaches, rounded up.
 const PAD_RIGHT: usize = 16;
 /// Widest half-width the packed kernel handles; wider windows take the f64 path.
-const MAX_PACKED_HALF: usize = 7;
+pub(super) const MAX_PACKED_HALF: usize = 7;
 
 /// Points as f32 structure-of-arrays rows padded with invalid (NaN) columns, so that the window
 /// kernel reads fixed 8-lane chunks that LLVM vectorises, with no bounds special cases.
 #[derive(Debug, Clone, Default)]
 pub struct PackedPoints {
-    width: usize,
-    height: usize,
-    stride: usize,
-    xyz: [Vec<f32>; 3],
+    pub(super) width: usize,
+    pub(super) height: usize,
+    pub(super) stride: usize,
+    pub(super) xyz: [Vec<f32>; 3],
 }
 
 /// The moments of [`GROUP`] neighbourhoods in f32 lanes, one pixel per lane: count, Σd (x, y,
@@ -210,34 +210,57 @@ impl PackedPoints {
         let same = [r2; GROUP];
         let mut row_limit = [same; 2 * MAX_PACKED_HALF + 1];
         for yy in y.saturating_sub(reach)..(y + reach + 1).min(self.height) {
-            let dy = yy.abs_diff(y);
             if !uniform {
-                for (dx, lim) in row_limit[..=2 * reach].iter_mut().enumerate() {
-                    *lim = limit[dy.max(dx.abs_diff(reach))];
-                }
+                ring_limits(&limit, yy.abs_diff(y), reach, &mut row_limit);
             }
-            // Columns x0 − reach … x0 + reach + 7 of row yy, inside the padding.
-            let first = self.stride * yy + PAD_LEFT + x0 - reach;
-            let span = 2 * reach + GROUP;
-            let [xs, ys, zs] = [0, 1, 2].map(|c| &self.xyz[c][first..first + span]);
-            let offsets = xs
-                .windows(GROUP)
-                .zip(ys.windows(GROUP))
-                .zip(zs.windows(GROUP));
+            let offsets = self.row_windows(x0, yy, reach);
             if uniform {
-                for ((qx, qy), qz) in offsets {
-                    let q = [as_lanes(qx), as_lanes(qy), as_lanes(qz)];
+                for q in offsets {
                     accumulate(&mut count, &mut acc, q, &p, &same);
                 }
             } else {
-                for (((qx, qy), qz), lim) in offsets.zip(&row_limit[..=2 * reach]) {
-                    let q = [as_lanes(qx), as_lanes(qy), as_lanes(qz)];
+                for (q, lim) in offsets.zip(&row_limit[..=2 * reach]) {
                     accumulate(&mut count, &mut acc, q, &p, lim);
                 }
             }
         }
         acc[0] = count.map(|c| c as f32);
         acc
+    }
+}
+
+impl PackedPoints {
+    /// Row `yy` of the window of the group at `x0` with reach `reach` (columns x0 − reach …
+    /// x0 + reach + 7, inside the padding): for each column offset, the 8 lanes' points' x, y
+    /// and z, by iterators alone (no index to check).
+    #[inline(always)]
+    pub(super) fn row_windows(
+        &self,
+        x0: usize,
+        yy: usize,
+        reach: usize,
+    ) -> impl Iterator<Item = [&[f32; GROUP]; 3]> {
+        let first = self.stride * yy + PAD_LEFT + x0 - reach;
+        let span = 2 * reach + GROUP;
+        let [xs, ys, zs] = [0, 1, 2].map(|c| &self.xyz[c][first..first + span]);
+        xs.windows(GROUP)
+            .zip(ys.windows(GROUP))
+            .zip(zs.windows(GROUP))
+            .map(|((qx, qy), qz)| [as_lanes(qx), as_lanes(qy), as_lanes(qz)])
+    }
+}
+
+/// The limits of a window row `dy` from the centre, by column offset `dx` (`0 ..= 2·reach`):
+/// the limit of the ring (Chebyshev distance) the offset lies on.
+#[inline(always)]
+pub(super) fn ring_limits<L: Copy>(
+    rings: &[L; MAX_PACKED_HALF + 1],
+    dy: usize,
+    reach: usize,
+    out: &mut [L; 2 * MAX_PACKED_HALF + 1],
+) {
+    for (dx, lim) in out[..=2 * reach].iter_mut().enumerate() {
+        *lim = rings[dy.max(dx.abs_diff(reach))];
     }
 }
 

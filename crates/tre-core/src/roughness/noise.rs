@@ -8,7 +8,8 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::annotate::{edge_term, AnnotateConfig};
-use crate::geometry::neighbours::{neighbour_counts_into, PackedPoints32};
+use crate::geometry::neighbours::neighbour_counts_into;
+use crate::geometry::normals::PackedPoints;
 use crate::geometry::{is_valid_point, PointMap};
 use crate::geometry::{Grid, Intrinsics, Vec3};
 
@@ -262,18 +263,11 @@ pub fn uncertainty_map(
     sensor: &SensorNoise,
     cfg: &AnnotateConfig,
 ) -> Grid<f64> {
-    with_counts(depth_m, intrinsics, cfg, |points, counts| {
-        let mut out = Grid::new(points.width(), points.height(), f64::NAN);
+    with_counts(depth_m, intrinsics, normals, cfg, |frame| {
+        let mut out = Grid::new(frame.points.width(), frame.points.height(), f64::NAN);
         out.par_rows_mut().for_each(|(y, row)| {
             for (x, u) in row.iter_mut().enumerate() {
-                let at = At {
-                    points,
-                    counts,
-                    normals,
-                    k: intrinsics,
-                    xy: (x, y),
-                };
-                if let Some(n) = noise_at(&at, sensor, cfg) {
+                if let Some(n) = frame.noise_at((x, y), sensor, cfg) {
                     *u = n.uncertainty_m();
                 }
             }
@@ -290,18 +284,9 @@ pub fn pixel_noise_map(
     sensor: &SensorNoise,
     cfg: &AnnotateConfig,
 ) -> Grid<Option<PixelNoise>> {
-    with_counts(depth_m, intrinsics, cfg, |points, counts| {
-        let (w, h) = points.size();
-        Grid::par_from_fn(w, h, |x, y| {
-            let at = At {
-                points,
-                counts,
-                normals,
-                k: intrinsics,
-                xy: (x, y),
-            };
-            noise_at(&at, sensor, cfg)
-        })
+    with_counts(depth_m, intrinsics, normals, cfg, |frame| {
+        let (w, h) = frame.points.size();
+        Grid::par_from_fn(w, h, |x, y| frame.noise_at((x, y), sensor, cfg))
     })
 }
 
@@ -311,7 +296,7 @@ pub fn pixel_noise_map(
 #[derive(Default)]
 struct CountScratch {
     points: PointMap,
-    packed: PackedPoints32,
+    packed: PackedPoints,
     counts: Grid<u32>,
 }
 
@@ -319,19 +304,26 @@ thread_local! {
     static COUNT_SCRATCH: std::cell::RefCell<CountScratch> = Default::default();
 }
 
-/// Runs `f` on the points of `depth_m` and their neighbour counts (spec neighbourhood of
-/// `cfg`), in this thread's buffers (fresh ones where they are in use, as when a rayon task
-/// started inside `f` on this thread computes another frame's maps).
+/// Runs `f` on the frame of `depth_m`: its points and their neighbour counts (spec
+/// neighbourhood of `cfg`) in this thread's buffers (fresh ones where they are in use, as when
+/// a rayon task started inside `f` on this thread computes another frame's maps), `normals`
+/// and `k`.
 fn with_counts<T>(
     depth_m: &Grid<f64>,
     k: &Intrinsics,
+    normals: &Grid<Vec3>,
     cfg: &AnnotateConfig,
-    f: impl FnOnce(&PointMap, &Grid<u32>) -> T,
+    f: impl FnOnce(&NoiseFrame<'_>) -> T,
 ) -> T {
     let run = |s: &mut CountScratch| {
         k.back_project_map_into(depth_m, &mut s.points);
         neighbour_counts_into(&s.points, k.fx_px, &cfg.hood, &mut s.packed, &mut s.counts);
-        f(&s.points, &s.counts)
+        f(&NoiseFrame {
+            points: &s.points,
+            counts: &s.counts,
+            normals,
+            k,
+        })
     };
     COUNT_SCRATCH.with(|cell| match cell.try_borrow_mut() {
         Ok(mut s) => run(&mut s),
@@ -339,34 +331,39 @@ fn with_counts<T>(
     })
 }
 
-/// One pixel of a frame: its points, their neighbour counts and normals, the intrinsics.
-struct At<'a> {
+/// A frame's points, their neighbour counts and normals, and its intrinsics.
+struct NoiseFrame<'a> {
     points: &'a PointMap,
     counts: &'a Grid<u32>,
     normals: &'a Grid<Vec3>,
     k: &'a Intrinsics,
-    xy: (usize, usize),
 }
 
-/// The noise statistics at `at` (`None` where there is no depth); a missing or zero normal
-/// reads as facing the camera.
-fn noise_at(at: &At<'_>, sensor: &SensorNoise, cfg: &AnnotateConfig) -> Option<PixelNoise> {
-    let (x, y) = at.xy;
-    let p = at.points[(x, y)];
-    if !is_valid_point(&p) {
-        return None;
+impl NoiseFrame<'_> {
+    /// The noise statistics at pixel `(x, y)` (`None` where there is no depth); a missing or
+    /// zero normal reads as facing the camera.
+    fn noise_at(
+        &self,
+        (x, y): (usize, usize),
+        sensor: &SensorNoise,
+        cfg: &AnnotateConfig,
+    ) -> Option<PixelNoise> {
+        let p = self.points[(x, y)];
+        if !is_valid_point(&p) {
+            return None;
+        }
+        let n = self
+            .normals
+            .get(x, y)
+            .copied()
+            .filter(|n| n.norm().is_finite() && n.norm() > 0.0);
+        let n = n.map_or(-p / p.norm(), |n| n / n.norm());
+        let pixel = Pixel {
+            xy: (x, y),
+            neighbours: self.counts[(x, y)] as usize,
+        };
+        Some(pixel_noise(self.points, self.k, &pixel, &n, sensor, cfg))
     }
-    let n = at
-        .normals
-        .get(x, y)
-        .copied()
-        .filter(|n| n.norm().is_finite() && n.norm() > 0.0);
-    let n = n.map_or(-p / p.norm(), |n| n / n.norm());
-    let pixel = Pixel {
-        xy: (x, y),
-        neighbours: at.counts[(x, y)] as usize,
-    };
-    Some(pixel_noise(at.points, at.k, &pixel, &n, sensor, cfg))
 }
 
 /// A valid pixel and its neighbour count ([`crate::geometry::neighbours::count_within`] in its
