@@ -566,25 +566,15 @@ fn bad_settings_are_clear_errors() -> TestResult {
     Ok(())
 }
 
-/// FNV-1a over the bits of a map's values, every NaN read as one NaN (a digest of outputs that
-/// must stay the same to the bit).
+/// The digest (`tre::geometry::hash::digest`) of a map's values as `bits` gives them, in hex.
 fn digest<T>(grid: &Grid<T>, bits: impl Fn(&T) -> u64) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for v in grid.as_slice() {
-        for b in bits(v).to_le_bytes() {
-            h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
-        }
-    }
+    let h = tre::geometry::hash::digest(grid.as_slice().iter().map(bits));
     format!("{h:016x}")
 }
 
-/// An f64's bits, one NaN for all.
+/// An f64's bits, one NaN for all (`tre::geometry::hash::f64_bits`).
 fn f64_bits(v: &f64) -> u64 {
-    if v.is_nan() {
-        f64::NAN.to_bits()
-    } else {
-        v.to_bits()
-    }
+    tre::geometry::hash::f64_bits(*v)
 }
 
 /// The geometric mode's outputs on the real frames, the roughness, the LS normals, and the

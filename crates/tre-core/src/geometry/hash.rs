@@ -1,6 +1,35 @@
 //! Counter-based random numbers: SplitMix64 of (seed, pixel, hypothesis, draw). Written
 //! bit-identically in `models/training` (Python) so that training and serving draw the same
-//! hypotheses on any number of threads.
+//! hypotheses on any number of threads. Also the digest with which tests hold outputs to the
+//! bit ([`digest`]).
+
+/// FNV-1a (64-bit) over the little-endian bytes of `words`: a digest of outputs that must stay
+/// the same to the bit (map values as [`f64_bits`]).
+///
+/// ```
+/// use tre_core::geometry::hash::{digest, f64_bits};
+/// assert_eq!(digest([]), 0xcbf2_9ce4_8422_2325);
+/// assert_eq!(digest([f64_bits(f64::NAN)]), digest([f64_bits(-f64::NAN)]));
+/// assert_ne!(digest([f64_bits(0.0)]), digest([f64_bits(-0.0)]));
+/// ```
+pub fn digest(words: impl IntoIterator<Item = u64>) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for w in words {
+        for b in w.to_le_bytes() {
+            h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    h
+}
+
+/// An f64's bits, every NaN read as one NaN (NaN payloads carry no output).
+pub fn f64_bits(v: f64) -> u64 {
+    if v.is_nan() {
+        f64::NAN.to_bits()
+    } else {
+        v.to_bits()
+    }
+}
 
 /// One SplitMix64 step (Steele, Lea and Flood 2014) as a mixing function.
 ///

@@ -16,7 +16,8 @@ use multiversion::multiversion;
 use rayon::prelude::*;
 
 use super::camera::{is_valid_point, PointMap};
-use super::normals::{ring_limits, Neighbourhood, PackedPoints, GROUP, MAX_PACKED_HALF, PAD_LEFT};
+use super::normals::{lanes, ring_limits, Neighbourhood, PackedPoints};
+use super::normals::{GROUP, MAX_PACKED_HALF, PAD_LEFT};
 use super::simd::from_fn;
 use super::{Grid, Vec3};
 
@@ -41,7 +42,7 @@ impl PackedPoints {
         let (mut sure, mut maybe) = ([0u32; GROUP], [0u32; GROUP]);
         let reach = half.iter().copied().max().unwrap_or(0).min(MAX_PACKED_HALF);
         let centre = self.stride * y + PAD_LEFT + x0;
-        let p: [[f32; GROUP]; 3] = from_fn(|c| *lanes(&self.xyz[c][centre..]));
+        let p: [[f32; GROUP]; 3] = from_fn(|c| *lanes(&self.xyz[c], centre));
         // Per ring of offsets (Chebyshev distance) and lane: the band inside the lane's window,
         // −1 (nothing passes) outside it.
         let limit: [Band; MAX_PACKED_HALF + 1] =
@@ -90,13 +91,6 @@ fn add_within(
     for l in 0..GROUP {
         maybe[l] = maybe[l].wrapping_sub(u32::from(d2[l] <= hi[l]).wrapping_neg());
     }
-}
-
-/// The first [`GROUP`] values of `v` as an array.
-#[inline(always)]
-fn lanes(v: &[f32]) -> &[f32; GROUP] {
-    v.first_chunk::<GROUP>()
-        .expect("padded rows hold whole groups; this is a bug")
 }
 
 /// Half the width of the band around r² within which the f32 test of a point near `p` may

@@ -139,7 +139,8 @@ const PAD_RIGHT: usize = 16;
 pub(super) const MAX_PACKED_HALF: usize = 7;
 
 /// Points as f32 structure-of-arrays rows padded with invalid (NaN) columns, so that the window
-/// kernel reads fixed 8-lane chunks that LLVM vectorises, with no bounds special cases.
+/// kernels (these moments, and the neighbour counts of [`super::neighbours`]) read fixed 8-lane
+/// chunks that LLVM vectorises, with no bounds special cases.
 #[derive(Debug, Clone, Default)]
 pub struct PackedPoints {
     pub(super) width: usize,
@@ -267,14 +268,14 @@ pub(super) fn ring_limits<L: Copy>(
 /// A window of [`GROUP`] values as an array (the windows' length is known, so nothing is
 /// checked at run time).
 #[inline(always)]
-fn as_lanes(v: &[f32]) -> &[f32; GROUP] {
+pub(super) fn as_lanes(v: &[f32]) -> &[f32; GROUP] {
     v.first_chunk::<GROUP>()
         .expect("windows hold whole groups; this is a bug")
 }
 
 /// The 8 values of `v` from `start`.
 #[inline(always)]
-fn lanes(v: &[f32], start: usize) -> &[f32; GROUP] {
+pub(super) fn lanes(v: &[f32], start: usize) -> &[f32; GROUP] {
     v[start..]
         .first_chunk::<GROUP>()
         .expect("padded rows hold whole groups; this is a bug")

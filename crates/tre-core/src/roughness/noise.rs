@@ -291,8 +291,8 @@ pub fn pixel_noise_map(
 }
 
 /// The buffers of [`with_counts`], kept per thread from frame to frame: a 640×480 frame's
-/// points, packed points and counts are 16 MB, which the allocator would otherwise map and
-/// fault in afresh for every frame.
+/// points, packed points and counts are about 12 MB, which the allocator would otherwise map
+/// and fault in afresh for every frame.
 #[derive(Default)]
 struct CountScratch {
     points: PointMap,

@@ -343,21 +343,12 @@ fn dsac_normals_keep_their_digest() {
         .map(|i| (uniform(7, i as u64, 0, 0) * 8.0 - 4.0) as f32)
         .collect();
     let out = dsac_normals(&points, &logits, &DsacConfig::default()).unwrap();
-    let mut digest: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut found = 0;
-    for n in out.as_slice() {
-        found += usize::from(n.x.is_finite());
-        for v in n.iter() {
-            let bits = if v.is_nan() {
-                f64::NAN.to_bits()
-            } else {
-                v.to_bits()
-            };
-            for b in bits.to_le_bytes() {
-                digest = (digest ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
-            }
-        }
-    }
+    let found = out.as_slice().iter().filter(|n| n.x.is_finite()).count();
+    let digest = crate::geometry::hash::digest(
+        out.as_slice()
+            .iter()
+            .flat_map(|n| n.iter().map(|&v| crate::geometry::hash::f64_bits(v))),
+    );
     assert!(found > w * h * 3 / 4, "{found} normals");
     if std::env::var("TRE_PRINT_DIGEST").is_ok() {
         eprintln!("dsac digest {digest:016x}");
