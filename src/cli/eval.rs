@@ -74,6 +74,18 @@ fn run_real(a: &EvalArgs, dirs: &[PathBuf]) -> anyhow::Result<()> {
         refuse_overwriting(&[json], &inputs)?;
     }
     let frames = a.real_frames(dirs)?;
+    if let Some(path) = &a.regions {
+        let file = real::RegionFile::read(path)?;
+        let rows = a.region_rows();
+        let configs: Vec<PipelineConfig> = rows.iter().map(|(_, c)| *c).collect();
+        let mut pipeline = a.stages.pipeline(&configs)?;
+        let report = real::score_regions(&frames, &file, &rows, &mut pipeline, &a.sensor)?;
+        println!("{}", real::regions_markdown(&report));
+        if let Some(path) = &a.json {
+            write_text(path, &serde_json::to_string_pretty(&report)?)?;
+        }
+        return Ok(());
+    }
     let floors = match &a.floors {
         Some(path) => real::read_floors(path)?,
         None => real::Floors::new(),

@@ -83,7 +83,10 @@ impl Infer {
             traversability,
             ..self.stages.config(mode)
         };
-        let (frame, described, scale_stated) = self.read_frame()?;
+        let (mut frame, described, scale_stated) = self.read_frame()?;
+        frame.sensor = self
+            .sensor
+            .or(described.as_ref().and_then(io::SensorSpec::noise));
         crate::pipeline::check_input(&frame, &cfg)?;
         let mut pipeline = self.stages.pipeline(&[cfg])?;
         let out = pipeline.run(&frame, &cfg)?;
@@ -239,6 +242,7 @@ impl Infer {
             depth_m: read.depth_m,
             intrinsics: read.camera.as_ref().map(|&(_, k)| k),
             mounting: read.mounting,
+            sensor: None,
         };
         let sensor = read.camera.and_then(|(c, _)| c.sensor);
         Ok((frame, sensor, read.scale_stated))

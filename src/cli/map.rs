@@ -93,7 +93,8 @@ impl Map {
                     map.insert(GridMap::under(cfg, frame, &pose)?)
                 }
             };
-            let input = self.input(f, depth_m, k)?;
+            let mut input = self.input(f, depth_m, k)?;
+            input.sensor = Some(sensor);
             let out = pipeline.run(&input, &pcfg)?;
             if let Some(r) = &mut recorder {
                 record_frame(r, f, i, &input, &pose, &out.roughness_m)?;
@@ -185,6 +186,7 @@ impl Map {
             depth_m: Some(depth_m),
             intrinsics: Some(k),
             mounting: None,
+            sensor: None,
         })
     }
 }

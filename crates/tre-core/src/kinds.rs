@@ -98,9 +98,20 @@ choice! {
 #[serde(rename_all = "kebab-case")]
 #[strum(serialize_all = "kebab-case")]
 pub enum GeometricMethod {
-    /// The whole of annotation spec v1: surface term and edge term with its transient, so
-    /// drops and steps read as hazards. Equal to `tre annotate` on the same depth.
+    /// The terrain estimate (docs/terrain.md): the spec's surface and step terms read through
+    /// the sensor's noise model, with supports in metres that need points on both sides of a
+    /// step, so holes, scan-line gaps, disparity steps and range noise are not hazards.
     #[default]
+    #[cfg_attr(
+        feature = "cli",
+        value(
+            help = "The terrain estimate: surface and step terms through the sensor's noise model (holes, scan-line gaps and noise are not hazards)"
+        )
+    )]
+    Terrain,
+    /// The whole of annotation spec v1 on the depth as given: surface term and edge term with
+    /// its transient, so drops and steps read as hazards, and so do a sensor's holes and
+    /// noise. Equal to `tre annotate` on the same depth.
     #[cfg_attr(
         feature = "cli",
         value(

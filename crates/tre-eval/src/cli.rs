@@ -40,6 +40,12 @@ pub struct EvalArgs {
     /// and p90 per frame.
     #[arg(long, requires = "real")]
     pub floors: Option<PathBuf>,
+    /// Known-flat and known-hazard regions of the real frames (JSON, as
+    /// tests/fixtures/real_regions.json, with each set's sensor class): instead of the
+    /// benchmark against the spec, scores the geometric mode (terrain estimate and spec) and
+    /// the other modes of --mode against these regions, per sensor class.
+    #[arg(long, requires = "real")]
+    pub regions: Option<PathBuf>,
     /// Modes, comma-separated: the real-frame benchmark runs each (default: rgb, rgbd and
     /// geometric); the synthetic split scores one (default: geometric).
     #[arg(long, alias = "modes", value_enum, value_delimiter = ',')]
@@ -129,6 +135,32 @@ impl EvalArgs {
             self.mode.clone()
         };
         real::real_rows(&modes, &self.stages.config(Mode::Rgb))
+    }
+
+    /// The rows of the region scoring: the geometric mode as the terrain estimate and as the
+    /// spec, and each other mode of `--mode` (default: rgbd), with the default traversability
+    /// thresholds (slope included).
+    pub fn region_rows(&self) -> Vec<(String, PipelineConfig)> {
+        let base = self.stages.config(Mode::Rgb);
+        let mut rows = Vec::new();
+        for geometric in [GeometricMethod::Terrain, GeometricMethod::Spec] {
+            let cfg = PipelineConfig {
+                mode: Mode::Geometric,
+                geometric,
+                ..base
+            };
+            rows.push((format!("geometric:{}", cfg.label()), cfg));
+        }
+        let others = if self.mode.is_empty() {
+            vec![Mode::Rgbd]
+        } else {
+            self.mode.clone()
+        };
+        for mode in others.into_iter().filter(|&m| m != Mode::Geometric) {
+            let cfg = PipelineConfig { mode, ..base };
+            rows.push((format!("{mode}:{}", cfg.label()), cfg));
+        }
+        rows
     }
 
     /// The real frames of the split (`--real-splits`) in `dirs`, read as if their cameras

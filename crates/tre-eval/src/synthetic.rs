@@ -170,6 +170,7 @@ fn read_frame(dir: &Path, source: DepthSource) -> anyhow::Result<Frame> {
         depth_m: input_depth_m,
         intrinsics: Some(k),
         mounting: cam.mounting()?,
+        sensor: cam.sensor.as_ref().and_then(io::SensorSpec::noise),
     };
     Ok(Frame {
         input,

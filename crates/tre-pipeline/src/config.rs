@@ -64,7 +64,7 @@ pub struct PipelineConfig {
     pub centroid: CentroidMethod,
     /// What the geometric mode computes (ignored in the other modes).
     #[serde(default)]
-    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "spec"))]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "terrain"))]
     pub geometric: GeometricMethod,
     /// Seed of the DSAC sampler: the same seed gives the same output.
     #[cfg_attr(feature = "cli", arg(long, env = "TRE_SEED", default_value_t = 0))]
@@ -102,7 +102,7 @@ impl Default for PipelineConfig {
             normals: NormalsMethod::Dsac,
             refine: true,
             centroid: CentroidMethod::Net,
-            geometric: GeometricMethod::Spec,
+            geometric: GeometricMethod::Terrain,
             seed: 0,
             dsac_hypotheses: DEFAULT_DSAC_HYPOTHESES,
             working_size: None,
@@ -120,6 +120,12 @@ impl PipelineConfig {
             mode,
             ..Self::default()
         }
+    }
+
+    /// True where the geometric mode runs the terrain estimate (no LS normals, no window
+    /// centroids: its own supports).
+    pub fn is_terrain(&self) -> bool {
+        self.mode == Mode::Geometric && self.geometric == GeometricMethod::Terrain
     }
 
     /// The stages that actually run: geometric mode forces LS normals, no refiner and window
@@ -189,6 +195,9 @@ impl PipelineConfig {
     pub fn label(&self) -> String {
         if self.method == Method::EndToEnd {
             return "E2E".to_owned();
+        }
+        if self.is_terrain() {
+            return "terrain".to_owned();
         }
         let (normals, refine, centroid) = self.effective();
         let mut parts = Vec::new();

@@ -35,6 +35,9 @@ pub struct FrameInput {
     /// from the depth's ground plane ([`Gravity`]), unknown without depth; the `rgb` depth
     /// prior assumes 60° down and 1 m ([`Mounting::default`]).
     pub mounting: Option<Mounting>,
+    /// The depth sensor's noise model, if known: the `geometric` mode's terrain estimate sizes
+    /// its supports and noise margins by it (`None`: read as exact depth).
+    pub sensor: Option<SensorNoise>,
 }
 
 impl FrameInput {
@@ -74,6 +77,9 @@ struct WorkingMaps {
     /// Gravity's up axis in the camera frame; `None`: unknown.
     up_in_cam: Option<Vec3>,
     limits: Traversability,
+    /// The terrain estimate's noise margin at the working size (geometric mode, terrain
+    /// method): its uncertainty map, in place of the spec's noise model.
+    terrain_uncertainty_m: Option<Grid<f64>>,
 }
 
 /// The staged pipeline's depth, points and final normals at the working size.
@@ -115,6 +121,7 @@ impl FrameOutput {
                 stages,
                 up_in_cam: gravity.up_in_cam(),
                 limits,
+                terrain_uncertainty_m: None,
             },
         }
     }
@@ -137,16 +144,30 @@ impl FrameOutput {
             });
     }
 
+    /// Keeps the terrain estimate's uncertainty (at the working size) for [`Self::sensor_maps`].
+    pub(crate) fn set_terrain_uncertainty(&mut self, u: Grid<f64>) {
+        self.working.terrain_uncertainty_m = Some(u);
+    }
+
+    /// True when the roughness is the terrain estimate's (its own uncertainty map).
+    pub fn is_terrain(&self) -> bool {
+        self.working.terrain_uncertainty_m.is_some()
+    }
+
     /// Hands every map of this output to `spares`, for the next frames.
     pub(crate) fn give_maps(self, spares: &mut Spares) {
         spares.keep(self.roughness_m);
         let WorkingMaps {
             roughness_m,
             stages,
+            terrain_uncertainty_m,
             ..
         } = self.working;
         if let Some(r) = roughness_m {
             spares.keep(r);
+        }
+        if let Some(u) = terrain_uncertainty_m {
+            spares.keep(u);
         }
         if let Some(m) = stages {
             spares.keep(m.depth_m);
@@ -296,8 +317,15 @@ impl FrameOutput {
             Some(k) => k,
             None => Intrinsics::from_hfov(w, h, DEFAULT_HFOV_DEG)?,
         };
-        let mut uncertainty_m =
-            uncertainty_map(depth_m, &k, &normals, sensor, &AnnotateConfig::default());
+        // The terrain estimate's margin is its uncertainty; its calibration is its noise model
+        // (a table fitted on the spec's readings does not apply to it).
+        let (mut uncertainty_m, table) = match &self.working.terrain_uncertainty_m {
+            Some(u) => (self.full_size(u, f64::NAN), None),
+            None => (
+                uncertainty_map(depth_m, &k, &normals, sensor, &AnnotateConfig::default()),
+                table,
+            ),
+        };
         for (u, r) in uncertainty_m
             .as_mut_slice()
             .iter_mut()

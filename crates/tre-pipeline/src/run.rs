@@ -21,12 +21,14 @@ use super::{
 use tre_core::geometry::dsac::DsacScratch;
 use tre_core::geometry::floor::{fit_floor, FloorFitConfig};
 use tre_core::geometry::normals::{window_centroids_into, PackedPoints};
+use tre_core::geometry::sums::SummedMoments;
 use tre_core::geometry::{
     dsac::DsacConfig, normals::LocalPlanes, Grid, Intrinsics, PointMap, Vec3,
 };
 use tre_core::roughness::annotate::AnnotateConfig;
 use tre_core::roughness::annotate::{spec_roughness_into, surface_term_into, SpecMaps, SpecPlanes};
 use tre_core::roughness::interval::{Calibration, IntervalTable};
+use tre_core::roughness::terrain::{terrain_into, TerrainConfig, TerrainMaps};
 use tre_model::Models;
 
 /// A frame's gravity: its stated mounting, else (with sensor depth) a confident fit of the
@@ -85,6 +87,7 @@ struct Scratch {
     packed: PackedPoints,
     dsac: DsacScratch,
     spec: SpecMaps,
+    sums: SummedMoments,
     spares: Spares,
 }
 
@@ -129,6 +132,9 @@ impl Pipeline {
     /// rule of `tre infer` and the service.
     pub fn interval_table_for(&self, cfg: &PipelineConfig) -> Option<&IntervalTable> {
         match cfg.method {
+            // The terrain estimate reads its own noise margins (the table was fitted on the
+            // spec's readings).
+            Method::Pipeline if cfg.is_terrain() => None,
             Method::Pipeline => self.interval_table(cfg.mode),
             Method::EndToEnd => None,
         }
@@ -213,17 +219,24 @@ impl Pipeline {
             }
             points
         });
-        let (normals, centroids) = self.normals_and_centroids(cfg, &work, &points, &mut timings)?;
-        let mut roughness_m = self.scratch.spares.take();
-        timings.time("roughness", || {
-            let planes = SpecPlanes {
-                points: &points,
-                normals: &normals,
-                centroids: &centroids,
-            };
-            self.roughness_into(cfg, work.size, &planes, &mut roughness_m);
-        });
-        self.scratch.spares.keep(centroids);
+        let (normals, roughness_m, terrain_u) = if cfg.is_terrain() {
+            let maps = timings.time("terrain", || self.terrain(input, &work, &points));
+            (maps.normals, maps.roughness_m, Some(maps.uncertainty_m))
+        } else {
+            let (normals, centroids) =
+                self.normals_and_centroids(cfg, &work, &points, &mut timings)?;
+            let mut roughness_m = self.scratch.spares.take();
+            timings.time("roughness", || {
+                let planes = SpecPlanes {
+                    points: &points,
+                    normals: &normals,
+                    centroids: &centroids,
+                };
+                self.roughness_into(cfg, work.size, &planes, &mut roughness_m);
+            });
+            self.scratch.spares.keep(centroids);
+            (normals, roughness_m, None)
+        };
         let maps = StageMaps {
             depth_m,
             points,
@@ -236,10 +249,27 @@ impl Pipeline {
             if let (Mode::Rgbd | Mode::Geometric, Some(given)) = (cfg.mode, &input.depth_m) {
                 out.keep_holes(given);
             }
+            if let Some(u) = terrain_u {
+                out.set_terrain_uncertainty(u);
+            }
             out
         });
         out.timings = timings;
         Ok(out)
+    }
+
+    /// The terrain estimate of the working-size points, through the frame's noise model.
+    fn terrain(&mut self, input: &FrameInput, work: &Working, points: &PointMap) -> TerrainMaps {
+        let spares = &mut self.scratch.spares;
+        let mut maps = TerrainMaps {
+            roughness_m: spares.take(),
+            normals: spares.take(),
+            uncertainty_m: spares.take(),
+        };
+        let (noise, sums) = (input.sensor.as_ref(), &mut self.scratch.sums);
+        let cfg = TerrainConfig::default();
+        terrain_into(points, work.k.fx_px, noise, &cfg, sums, &mut maps);
+        maps
     }
 
     /// The roughness stage at the working `size`, into `roughness_m`: spec v1's plane fit for

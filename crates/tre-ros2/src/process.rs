@@ -104,6 +104,7 @@ fn frame_input(f: &FrameMsgs) -> Result<(FrameInput, Intrinsics), InputError> {
         depth_m,
         intrinsics: Some(k),
         mounting: None,
+        sensor: None,
     };
     Ok((input, k))
 }
@@ -184,7 +185,8 @@ impl Processor {
     /// The frame's outputs, or why it was skipped.
     pub fn process(&mut self, f: &FrameMsgs) -> Result<Outputs, InputError> {
         let header = f.header();
-        let (input, k) = frame_input(f)?;
+        let (mut input, k) = frame_input(f)?;
+        input.sensor = self.sensor;
         tre_pipeline::check_input(&input, &self.cfg).map_err(InputError::Pipeline)?;
         let out = self
             .pipeline

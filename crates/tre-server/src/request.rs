@@ -346,6 +346,7 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
         depth_m,
         intrinsics,
         mounting,
+        sensor: req.noise_model(),
     };
     let Some(size) = frame.size() else {
         return Err(RequestError::NoInput);

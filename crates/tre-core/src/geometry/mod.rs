@@ -13,6 +13,7 @@ pub mod normals;
 mod plane;
 pub mod raycast;
 pub mod simd;
+pub mod sums;
 
 pub use camera::{
     depth_of, is_valid_point, Intrinsics, PointMap, INVALID_POINT, MAX_FOV_DEG, MIN_FOV_DEG,
@@ -20,6 +21,7 @@ pub use camera::{
 pub use gravity::{slope_from_up, Mounting};
 pub use grid::{Grid, NEIGHBOURS_8};
 pub(crate) use plane::orient_towards_camera;
+pub(crate) use plane::{covariance_lanes, eigen_plane, SymLanes};
 pub use plane::{Moments, Plane};
 
 /// A 3-D vector or point in metres (f64: geometry where precision matters).

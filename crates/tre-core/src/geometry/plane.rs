@@ -148,6 +148,21 @@ pub(crate) fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
     eigenvectors_for(&a, &[l_min], &[l_mid])[0]
 }
 
+/// The least-squares plane of a covariance (one lane, as [`covariance_lanes`] gives it): the
+/// unit eigenvector of its smallest eigenvalue, and its two smallest eigenvalues (ascending, in
+/// the covariance's units, clamped at 0). `None` for a zero or non-finite matrix, or where
+/// the two smallest eigenvalues are not separated (no unique plane).
+pub(crate) fn eigen_plane(cov: &SymLanes<1>) -> Option<(Vec3, f64, f64)> {
+    let scale = cov.iter().fold(0.0f64, |s, e| s.max(e[0].abs()));
+    if !(scale > 0.0) || !scale.is_finite() {
+        return None;
+    }
+    let a: SymLanes<1> = from_fn(|e| [cov[e][0] / scale]);
+    let (l_min, l_mid) = smallest_two_eigenvalues(&a);
+    let v = eigenvectors_for(&a, &[l_min], &[l_mid])[0]?;
+    Some((v, l_min.max(0.0) * scale, l_mid.max(0.0) * scale))
+}
+
 /// Symmetric 3×3 matrices in lanes (structure of arrays): the entries xx, xy, xz, yy, yz, zz,
 /// each an array over the lanes.
 pub(crate) type SymLanes<const N: usize> = [[f64; N]; 6];

@@ -7,6 +7,7 @@ pub mod hazard;
 pub mod interval;
 pub mod metrics;
 pub mod noise;
+pub mod terrain;
 pub mod traversal;
 
 /// Errors of the roughness layer.

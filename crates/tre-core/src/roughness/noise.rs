@@ -24,19 +24,30 @@ pub enum SensorPreset {
     RealsenseD435,
     /// Time of flight, Azure Kinect DK: constant 17 mm (the hardware spec's random-error bound).
     AzureKinect,
-    /// Spinning LiDAR (HDL-64E class, ±2 cm): constant 20 mm.
+    /// Spinning LiDAR (HDL-64E class, ±2 cm), one sweep: constant 20 mm.
     Lidar,
+    /// Accumulated (semi-dense) LiDAR: several sweeps moved into one frame by the poses. The
+    /// range noise of one sweep (20 mm) plus the sweeps' registration error, an angle of
+    /// [`REGISTRATION_DEG`] that offsets whole scan lines (correlated, so averaging does not
+    /// remove it): [`SensorNoise::registration_m`].
+    LidarAccumulated,
+    /// Passive stereo (a ZED-class rig: baseline 120 mm, focal length 700 px at 1280×720, the
+    /// matcher's sub-pixel step 0.25 px): σ_z = z²·step/(f·b). Another rig: explicit
+    /// coefficients `[0, 0, 1000·step/(f·b)]` mm (docs/sensor-noise.md).
+    PassiveStereo,
     /// Exact depth (synthetic data): no noise.
     Exact,
 }
 
 impl SensorPreset {
     /// Every preset, in the order the docs list them.
-    pub const ALL: [Self; 5] = [
+    pub const ALL: [Self; 7] = [
         Self::KinectV1,
         Self::RealsenseD435,
         Self::AzureKinect,
         Self::Lidar,
+        Self::LidarAccumulated,
+        Self::PassiveStereo,
         Self::Exact,
     ];
 
@@ -47,6 +58,8 @@ impl SensorPreset {
             Self::RealsenseD435 => "realsense_d435",
             Self::AzureKinect => "azure_kinect",
             Self::Lidar => "lidar",
+            Self::LidarAccumulated => "lidar_accumulated",
+            Self::PassiveStereo => "passive_stereo",
             Self::Exact => "exact",
         }
     }
@@ -62,11 +75,24 @@ impl SensorPreset {
             Self::KinectV1 => 0.0012 + 0.0019 * (z_m - 0.4).powi(2),
             Self::RealsenseD435 => z_m * z_m * D435_SUBPIXEL_PX / (D435_FOCAL_PX * D435_BASELINE_M),
             Self::AzureKinect => 0.017,
-            Self::Lidar => 0.02,
+            Self::Lidar | Self::LidarAccumulated => 0.02,
+            Self::PassiveStereo => {
+                z_m * z_m * STEREO_SUBPIXEL_PX / (STEREO_FOCAL_PX * STEREO_BASELINE_M)
+            }
             Self::Exact => 0.0,
         }
     }
 }
+
+/// Registration error of accumulated LiDAR sweeps, degrees: at 10 m it offsets a sweep's scan
+/// lines by 5 cm. The one semi-dense set here (real-rgbd-3) shows layers of about this size.
+pub const REGISTRATION_DEG: f64 = 0.3;
+/// Passive stereo preset: the matcher's sub-pixel step, pixels.
+const STEREO_SUBPIXEL_PX: f64 = 0.25;
+/// Passive stereo preset: focal length, pixels (ZED class at 1280×720).
+const STEREO_FOCAL_PX: f64 = 700.0;
+/// Passive stereo preset: baseline, metres.
+const STEREO_BASELINE_M: f64 = 0.12;
 
 /// RealSense D435 sub-pixel disparity accuracy σ_d, pixels (Intel's typical figure).
 const D435_SUBPIXEL_PX: f64 = 0.08;
@@ -148,6 +174,18 @@ impl SensorNoise {
             Self::Coefficients {
                 sigma_mm: [a, b, c],
             } => (a + b * z_m + c * z_m * z_m) * 1e-3,
+        }
+    }
+
+    /// The correlated part of the noise at range `z_m`, metres: an offset shared by many
+    /// neighbouring points (a sweep's scan lines, for accumulated LiDAR), which averaging over
+    /// a window does not reduce. 0 for every sensor but accumulated LiDAR.
+    pub fn registration_m(&self, z_m: f64) -> f64 {
+        match self {
+            Self::Preset(SensorPreset::LidarAccumulated) => {
+                z_m * REGISTRATION_DEG.to_radians().tan()
+            }
+            _ => 0.0,
         }
     }
 

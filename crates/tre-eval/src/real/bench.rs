@@ -248,7 +248,11 @@ pub fn real_rows(modes: &[Mode], base: &PipelineConfig) -> Vec<(String, Pipeline
     let mut cfgs = Vec::new();
     for &mode in modes {
         if mode == Mode::Geometric {
-            for geometric in [GeometricMethod::Spec, GeometricMethod::SurfaceOnly] {
+            for geometric in [
+                GeometricMethod::Terrain,
+                GeometricMethod::Spec,
+                GeometricMethod::SurfaceOnly,
+            ] {
                 cfgs.push(PipelineConfig {
                     mode,
                     geometric,
@@ -339,7 +343,8 @@ pub fn run_benchmark(
     let any_floor = frames.iter().any(|f| floors.contains_key(&key(f)));
     let mut prev: Option<PrevView> = None;
     for (i, frame) in frames.iter().enumerate() {
-        let loaded = load_frame(frame).with_context(|| frame.name())?;
+        let mut loaded = load_frame(frame).with_context(|| frame.name())?;
+        loaded.input.sensor = Some(frame_sensor(frame, sensor));
         let pose = Pose::of(frame)?;
         let other = shared_with(prev.as_ref(), frame, pose, &loaded);
         let floor_box = floors.get(&key(frame)).copied();

@@ -269,6 +269,7 @@ pub fn load_frame(frame: &RealFrame) -> anyhow::Result<LoadedFrame> {
         depth_m: Some(depth_m),
         intrinsics: Some(frame.intrinsics),
         mounting: frame.camera.mounting()?,
+        sensor: frame.camera.sensor.as_ref().and_then(|s| s.noise()),
     };
     Ok(LoadedFrame {
         input,
@@ -288,6 +289,7 @@ pub fn frame_sensor(frame: &RealFrame, default: &SensorNoise) -> SensorNoise {
 }
 
 mod bench;
+mod regions;
 mod report;
 mod safety;
 mod sheet;
@@ -295,6 +297,7 @@ mod splits;
 mod views;
 
 pub use bench::*;
+pub use regions::{regions_markdown, score_regions, RegionFile, RegionReport};
 pub use report::markdown;
 pub use safety::{Safety, SafetyAcc, SafetyFigures};
 pub use sheet::{sheet_panels, write_sheet, SHEET_MAX_M};

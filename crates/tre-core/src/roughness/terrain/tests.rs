@@ -1,0 +1,197 @@
+use super::*;
+use crate::geometry::hash::uniform;
+use crate::geometry::{Grid, Intrinsics};
+use crate::roughness::annotate::{annotate, AnnotateConfig, AnnotateInput};
+use crate::roughness::noise::SensorPreset;
+
+/// Ground seen by a camera `height_m` up, pitched `pitch_deg` down: the depth of each pixel's
+/// ray where it meets the ground, the ground `drop_m` lower in rows above `drop_row` (a drop
+/// edge across the image), `keep` choosing the pixels with a return, `noise_m(z, x, y)` added.
+fn ground(
+    k: &Intrinsics,
+    (w, h): (usize, usize),
+    (height_m, pitch_deg): (f64, f64),
+    (drop_row, drop_m): (usize, f64),
+    keep: impl Fn(usize, usize) -> bool,
+    noise_m: impl Fn(f64, usize, usize) -> f64,
+) -> Grid<f64> {
+    let b = pitch_deg.to_radians();
+    let down = Vec3::new(0.0, b.cos(), b.sin());
+    Grid::from_fn(w, h, |x, y| {
+        let ray = Vec3::new(
+            (x as f64 - k.cx_px) / k.fx_px,
+            (y as f64 - k.cy_px) / k.fy_px,
+            1.0,
+        );
+        let level = if y < drop_row {
+            height_m + drop_m
+        } else {
+            height_m
+        };
+        let t = level / ray.dot(&down);
+        if t > 0.0 && keep(x, y) {
+            t + noise_m(t, x, y)
+        } else {
+            0.0
+        }
+    })
+}
+
+/// A normal deviate from the counter-based hash (Box–Muller).
+fn gauss(x: usize, y: usize) -> f64 {
+    let i = (y * 10_000 + x) as u64;
+    let (u1, u2) = (uniform(7, i, 0, 0).max(1e-12), uniform(7, i, 0, 1));
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+fn share_at_least(r: &Grid<f64>, rows: std::ops::Range<usize>, t: f64) -> (f64, usize) {
+    let (mut n, mut hit) = (0usize, 0usize);
+    for y in rows {
+        for &v in r.row(y) {
+            if v.is_finite() {
+                n += 1;
+                hit += usize::from(v >= t);
+            }
+        }
+    }
+    (hit as f64 / n.max(1) as f64, n)
+}
+
+#[test]
+fn scan_line_gaps_are_no_steps_but_a_drop_is() {
+    // KITTI-like: 1242 x 375 cropped, camera 1.65 m up, level; a return on every 5th row.
+    let k = Intrinsics::new(721.5, 721.5, 300.0, 40.0).unwrap();
+    let lidar = SensorNoise::Preset(SensorPreset::Lidar);
+    let noise = |z: f64, x: usize, y: usize| lidar.sigma_z_m(z) * gauss(x, y);
+    let flat = ground(
+        &k,
+        (600, 120),
+        (1.65, 0.0),
+        (0, 0.0),
+        |_, y| y % 5 == 0,
+        noise,
+    );
+    let pts = k.back_project_map(&flat);
+    let t = terrain(&pts, k.fx_px, Some(&lidar), &TerrainConfig::default());
+    let (share, n) = share_at_least(&t.roughness_m, 60..120, 0.05);
+    assert!(n > 1000, "{n} estimates");
+    assert!(
+        share < 0.01,
+        "flat ground with scan-line gaps: {share} read >= 5 cm"
+    );
+    // The spec reads the gaps as edges.
+    let spec = annotate(&AnnotateInput::depth(&flat, &k), &AnnotateConfig::default()).unwrap();
+    let (spec_share, _) = share_at_least(&spec.roughness_m, 60..120, 0.05);
+    assert!(spec_share > 0.3, "the spec on the same depth: {spec_share}");
+    // A 20 cm drop 9-10 m ahead reads as a hazard along its edge.
+    let edge_row = 92;
+    let drop = ground(
+        &k,
+        (600, 120),
+        (1.65, 0.0),
+        (edge_row, 0.2),
+        |_, y| y % 5 == 0,
+        noise,
+    );
+    let t = terrain(
+        &k.back_project_map(&drop),
+        k.fx_px,
+        Some(&lidar),
+        &TerrainConfig::default(),
+    );
+    let (hit, n) = share_at_least(&t.roughness_m, edge_row - 3..edge_row + 3, 0.05);
+    assert!(
+        n > 100 && hit > 0.9,
+        "the drop's edge: {hit} of {n} read >= 5 cm"
+    );
+}
+
+#[test]
+fn dense_noisy_floor_is_flat_and_holes_are_not_steps() {
+    let k = Intrinsics::new(525.0, 525.0, 160.0, 120.0).unwrap();
+    let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
+    let hole = |x: usize, y: usize| !((100..140).contains(&x) && (150..170).contains(&y));
+    let noise = |z: f64, x: usize, y: usize| kinect.sigma_z_m(z) * gauss(x, y);
+    let floor = ground(&k, (320, 240), (1.0, 45.0), (0, 0.0), hole, noise);
+    let t = terrain(
+        &k.back_project_map(&floor),
+        k.fx_px,
+        Some(&kinect),
+        &TerrainConfig::default(),
+    );
+    let (share, n) = share_at_least(&t.roughness_m, 0..240, 0.01);
+    assert!(n > 50_000 && share < 0.001, "{share} of {n} read >= 1 cm");
+    assert!(t.roughness_m[(120, 160)].is_nan(), "a hole has no estimate");
+    // The normals face the camera and are the floor's within 3 degrees.
+    let up = Vec3::new(
+        0.0,
+        -(45f64.to_radians().cos()),
+        -(45f64.to_radians().sin()),
+    );
+    let n = t.normals[(60, 200)];
+    assert!(n.dot(&up) > 3f64.to_radians().cos(), "{n:?}");
+    // The uncertainty is the noise margin: millimetres at these ranges.
+    assert!(
+        t.uncertainty_m[(60, 200)] < 0.005,
+        "{}",
+        t.uncertainty_m[(60, 200)]
+    );
+}
+
+#[test]
+fn a_step_on_dense_depth_reads_as_a_hazard_and_exact_depth_stays_exact() {
+    let k = Intrinsics::new(525.0, 525.0, 160.0, 120.0).unwrap();
+    let depth = ground(
+        &k,
+        (320, 240),
+        (1.0, 45.0),
+        (120, 0.1),
+        |_, _| true,
+        |_, _, _| 0.0,
+    );
+    let t = terrain(
+        &k.back_project_map(&depth),
+        k.fx_px,
+        None,
+        &TerrainConfig::default(),
+    );
+    let (hit, _) = share_at_least(&t.roughness_m, 119..122, 0.05);
+    assert!(hit > 0.95, "the step's edge: {hit}");
+    let (far, n) = share_at_least(&t.roughness_m, 200..240, 1e-6);
+    assert!(
+        n > 0 && far == 0.0,
+        "exact flat ground away from the step: {far}"
+    );
+}
+
+#[test]
+fn registration_layers_are_flat_but_uncertain() {
+    // Accumulated LiDAR: each scan line offset by a sweep's registration error.
+    let k = Intrinsics::new(721.5, 721.5, 300.0, 40.0).unwrap();
+    let acc = SensorNoise::Preset(SensorPreset::LidarAccumulated);
+    let layer = |z: f64, x: usize, y: usize| {
+        let sweep = (y % 3) as f64 - 1.0;
+        acc.registration_m(z) * sweep * 8.0 + 0.02 * gauss(x, y)
+    };
+    let d = ground(
+        &k,
+        (600, 120),
+        (1.65, 0.0),
+        (0, 0.0),
+        |x, y| (x + y) % 2 == 0,
+        layer,
+    );
+    let t = terrain(
+        &k.back_project_map(&d),
+        k.fx_px,
+        Some(&acc),
+        &TerrainConfig::default(),
+    );
+    let (share, n) = share_at_least(&t.roughness_m, 60..120, 0.05);
+    assert!(n > 1000 && share < 0.02, "{share} of {n}");
+    let u = t.uncertainty_m[(300, 100)];
+    assert!(
+        u > 0.05,
+        "registration makes 5 cm unresolvable at 10 m: {u}"
+    );
+}
