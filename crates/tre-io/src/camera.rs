@@ -6,7 +6,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use tre_core::geometry::{GeometryError, Intrinsics, Mounting};
-use tre_core::roughness::noise::{CoefficientsError, SensorNoise, SensorPreset};
+use tre_core::roughness::noise::{CoefficientsError, SensorNoise, SensorPreset, StereoRig};
 
 use super::IoError;
 
@@ -118,6 +118,12 @@ impl SensorSpec {
                     Self::Model(SensorNoise::Preset(p))
                 }))
             }
+            serde_json::Value::Object(o) if o.contains_key("stereo") && o.len() == 1 => {
+                let rig: StereoRig = serde_json::from_value(o["stereo"].clone())
+                    .map_err(|e| SensorSpecError::Stereo(e.to_string()))?;
+                let stereo = rig.checked().map_err(SensorSpecError::Stereo)?;
+                Ok(Self::Model(SensorNoise::Stereo { stereo }))
+            }
             serde_json::Value::Object(o) => {
                 let keys: Vec<String> = o.keys().cloned().collect();
                 let Some(sigma_mm) = o
@@ -141,8 +147,9 @@ impl SensorSpec {
 pub enum SensorSpecError {
     /// Neither text nor `{"sigma_mm": [a, b, c]}` (`keys`: an object's keys, if it was one).
     #[error(
-        "sensor: expected a preset name ({}), other text (a description: no noise model) or \
-         {{\"sigma_mm\": [a, b, c]}} (σ_z = a + b·z + c·z² mm, z in metres){}",
+        "sensor: expected a preset name ({}), other text (a description: no noise model), \
+         {{\"sigma_mm\": [a, b, c]}} (σ_z = a + b·z + c·z² mm, z in metres) or {{\"stereo\": \
+         {{\"baseline_m\", \"focal_px\", \"step_px\", \"block_px\"}}}}{}",
         SensorPreset::names(),
         keys.as_ref().map_or(String::new(), |k| format!("; got keys {k:?}"))
     )]
@@ -160,6 +167,9 @@ pub enum SensorSpecError {
         /// The check that failed; its message names `sensor.sigma_mm`.
         reason: CoefficientsError,
     },
+    /// A stereo rig that does not read or check (its message names the field).
+    #[error("sensor.stereo: {0}")]
+    Stereo(String),
 }
 
 impl<'de> Deserialize<'de> for SensorSpec {

@@ -137,6 +137,59 @@ pub enum SensorNoise {
         /// `[a, b, c]`: σ_z = a + b·z + c·z² mm, z in metres.
         sigma_mm: [f64; 3],
     },
+    /// A passive stereo rig: `{"stereo": {"baseline_m", "focal_px", "step_px", "block_px"}}`.
+    Stereo {
+        /// The rig.
+        stereo: StereoRig,
+    },
+}
+
+/// A passive stereo rig's noise: σ_z = z²·step/(f·b) (the matcher's sub-pixel step as the
+/// disparity's σ), errors shared over the matcher's block.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StereoRig {
+    /// Baseline b, metres.
+    pub baseline_m: f64,
+    /// Focal length f of the rectified pair, pixels.
+    pub focal_px: f64,
+    /// The matcher's sub-pixel disparity step, pixels (0.25 for a quarter-pixel matcher).
+    pub step_px: f64,
+    /// Side of the matcher's block, pixels (errors are shared within it).
+    #[serde(default = "default_block_px")]
+    pub block_px: f64,
+}
+
+fn default_block_px() -> f64 {
+    5.0
+}
+
+impl StereoRig {
+    /// The rig checked: every field a positive, finite number, else what is wrong.
+    ///
+    /// # Errors
+    ///
+    /// A message naming the field.
+    pub fn checked(self) -> Result<Self, String> {
+        for (name, v) in [
+            ("baseline_m", self.baseline_m),
+            ("focal_px", self.focal_px),
+            ("step_px", self.step_px),
+            ("block_px", self.block_px),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!(
+                    "sensor.stereo.{name} must be a positive number, got {v}"
+                ));
+            }
+        }
+        Ok(self)
+    }
+
+    /// σ_z(z), metres.
+    pub fn sigma_z_m(&self, z_m: f64) -> f64 {
+        z_m * z_m * self.step_px / (self.focal_px * self.baseline_m)
+    }
 }
 
 impl SensorNoise {
@@ -174,7 +227,30 @@ impl SensorNoise {
             Self::Coefficients {
                 sigma_mm: [a, b, c],
             } => (a + b * z_m + c * z_m * z_m) * 1e-3,
+            Self::Stereo { stereo } => stereo.sigma_z_m(z_m),
         }
+    }
+
+    /// How the noise is shared between neighbouring pixels: `(side, share)`, the side in
+    /// pixels of the patches within which a `share` of the variance is common (a triangulating
+    /// sensor's correlation window, as the synthetic sensor models render it: docs/synth.md),
+    /// `(1, 0)` for independent pixels.
+    pub fn correlation(&self) -> (f64, f64) {
+        match self {
+            Self::Preset(SensorPreset::KinectV1) => (9.0, 0.9),
+            Self::Preset(SensorPreset::RealsenseD435) => (7.0, 0.8),
+            Self::Preset(SensorPreset::PassiveStereo) => (5.0, 0.5),
+            Self::Stereo { stereo } => (stereo.block_px, 0.5),
+            _ => (1.0, 0.0),
+        }
+    }
+
+    /// The variance of the mean of `n` neighbouring points' noise, in units of one point's:
+    /// `(1 − s)/n + s·min(1, c²/n)` for side `c` and share `s` ([`Self::correlation`]).
+    pub fn mean_variance(&self, n: f64) -> f64 {
+        let (c, s) = self.correlation();
+        let n = n.max(1.0);
+        (1.0 - s) / n + s * (c * c / n).min(1.0)
     }
 
     /// The correlated part of the noise at range `z_m`, metres: an offset shared by many
@@ -194,6 +270,10 @@ impl SensorNoise {
         match self {
             Self::Preset(p) => p.name().to_string(),
             Self::Coefficients { sigma_mm } => format!("sigma_mm {sigma_mm:?}"),
+            Self::Stereo { stereo } => format!(
+                "stereo b {} m, f {} px, step {} px",
+                stereo.baseline_m, stereo.focal_px, stereo.step_px
+            ),
         }
     }
 }

@@ -6,7 +6,8 @@
 //! 1. **Support in metres, with evidence.** Each pixel's plane is fitted over the smallest
 //!    square window whose half-width reaches `max(R, k·σ_z)` at the pixel's range and that
 //!    holds at least `min_points` valid points spread in two directions (the plane's second
-//!    eigenvalue `conditioning` times its smallest); windows grow along a ladder up to
+//!    eigenvalue `conditioning` times the noise variance along its normal, twice its smallest,
+//!    and over half the radius); windows grow along a ladder up to
 //!    [`MAX_HALF_PX`] pixels, so sparse LiDAR finds its neighbours across scan-line gaps.
 //!    No such window: where the largest window's points scatter off their plane by more than
 //!    the noise explains, the ground there is rough (an obstacle, a rock field) and reads that
@@ -45,8 +46,8 @@ pub struct TerrainConfig {
     pub noise_radii: f64,
     /// Fewest valid points in a support window.
     pub min_points: u32,
-    /// The plane's second eigenvalue must be this many times its smallest (points spread in two
-    /// directions, more than along the normal).
+    /// The plane's second eigenvalue must be this many times the noise variance along its
+    /// normal (points spread in two directions, well beyond the noise).
     pub conditioning: f64,
     /// Noise margins are this many σ.
     pub debias: f64,
@@ -90,6 +91,8 @@ struct Support {
     sigma_n: f64,
     /// Registration offset σ at this range, metres.
     sigma_c: f64,
+    /// The plane's smaller in-plane variance, m².
+    l_mid: f64,
 }
 
 /// The terrain estimate of `points` (camera frame, metres) seen with focal length `fx_px` and
@@ -197,6 +200,12 @@ struct Frame<'a> {
 }
 
 impl Frame<'_> {
+    /// The variance of the mean of `n` neighbours' noise, in units of one point's
+    /// ([`SensorNoise::mean_variance`]; independent points without a noise model).
+    fn mean_var(&self, n: f64) -> f64 {
+        self.noise.map_or(1.0 / n.max(1.0), |s| s.mean_variance(n))
+    }
+
     /// `(surface term, step of the seams right of and below, uncertainty, normal)` at a pixel;
     /// NaN surface term (and normal) where it has no point or no support.
     fn pixel(&self, xy: (usize, usize)) -> (f64, f64, f64, Vec3) {
@@ -216,7 +225,7 @@ impl Frame<'_> {
         let n_in = f64::from(inner.count.max(1));
         let q = self.origin + inner.sum / n_in;
         let d = s.normal.dot(&(q - s.centroid)).abs();
-        let e_s = s.sigma_n * (1.0 / n_in + 1.0 / s.count).sqrt();
+        let e_s = s.sigma_n * (self.mean_var(n_in) + self.mean_var(s.count)).sqrt();
         let surface = (d * d - (k * e_s).powi(2)).max(0.0).sqrt();
         // Step terms of the two seams.
         let (x, y) = (xy.0 as isize, xy.1 as isize);
@@ -244,7 +253,9 @@ impl Frame<'_> {
                 continue;
             }
             let extent = s.half as f64 * p.z / self.fx_px;
-            let Some((jump, e)) = pooled_step(&a, &b, &s, (self.cfg.conditioning, extent)) else {
+            let var = |n: f64| self.mean_var(n);
+            let Some((jump, e)) = pooled_step((&a, &b), &var, &s, (self.cfg.conditioning, extent))
+            else {
                 continue;
             };
             e_j = e_j.max(e);
@@ -263,7 +274,7 @@ impl Frame<'_> {
         let radius = self.cfg.radius_m.max(self.cfg.noise_radii * sigma_z);
         let need = ((radius * self.fx_px / z).ceil() as usize).clamp(1, MAX_HALF_PX);
         let halves = std::iter::once(need).chain(LADDER.into_iter().filter(|&l| l > need));
-        let mut largest = None;
+        let mut smallest = None;
         for half in halves {
             let m = self.sums.window(xy, half);
             if m.count < self.cfg.min_points {
@@ -274,12 +285,19 @@ impl Frame<'_> {
             };
             let count = f64::from(m.count);
             let normal = if normal.dot(p) > 0.0 { -normal } else { normal };
-            largest = Some((normal, l_min, count));
+            smallest.get_or_insert((normal, l_min, count));
+            // The points must spread along the plane: over half the metric radius, by more
+            // than the noise along the normal (registration included) by `conditioning`,
+            // and more than across it (a rough patch still has a plane; a line has none).
+            let sigma_n = sigma_z * normal.dot(p).abs() / z;
             let extent = radius.min(half as f64 * z / self.fx_px);
-            if l_mid < self.cfg.conditioning * l_min || l_mid.sqrt() < 0.5 * extent {
+            let noise2 = sigma_n * sigma_n + sigma_c * sigma_c;
+            let spread = l_mid >= self.cfg.conditioning * noise2
+                && l_mid >= 2.0 * l_min
+                && l_mid.sqrt() >= 0.5 * extent;
+            if !spread {
                 continue;
             }
-            let sigma_n = sigma_z * normal.dot(p).abs() / z;
             return Found::Plane(Support {
                 half,
                 count,
@@ -287,11 +305,12 @@ impl Frame<'_> {
                 normal,
                 sigma_n,
                 sigma_c,
+                l_mid,
             });
         }
-        // No plane: rough where the scatter off the best plane exceeds what the noise (as if
-        // the surface faced the camera, its largest) explains by the margin.
-        let Some((normal, l_min, count)) = largest else {
+        // No plane: rough where the scatter off the smallest window's plane exceeds what the
+        // noise (as if the surface faced the camera, its largest) explains by the margin.
+        let Some((normal, l_min, count)) = smallest else {
             return Found::Nothing;
         };
         let noise = sigma_z.hypot(sigma_c);
@@ -316,13 +335,19 @@ enum Found {
     Nothing,
 }
 
+/// The largest angle between the pooled normal of a step's two sides and the support's: a
+/// real step tilts the support's plane by less; two sides that are each a fronto-parallel
+/// terrace of quantised disparity (passive stereo) pool to the viewing axis, far more.
+const MAX_POOLED_TILT_DEG: f64 = 30.0;
+
 /// The offset between two sides' centroids along their pooled normal, and its noise σ. Where
 /// the pooled scatter is not spread in two directions (each side one scan line, say: then any
-/// direction across the lines fits), the support's normal stands in; `(conditioning, extent)`
+/// direction across the lines fits) or tilts from the support's normal by more than
+/// [`MAX_POOLED_TILT_DEG`], the support's normal stands in; `(conditioning, extent)`
 /// as the support's test, `extent` the support's half-width in metres.
 fn pooled_step(
-    a: &Moments,
-    b: &Moments,
+    (a, b): (&Moments, &Moments),
+    mean_var: &dyn Fn(f64) -> f64,
     s: &Support,
     (conditioning, extent): (f64, f64),
 ) -> Option<(f64, f64)> {
@@ -330,16 +355,25 @@ fn pooled_step(
     let covs = covariance_lanes(&[*a, *b]);
     let pooled: SymLanes<1> =
         std::array::from_fn(|e| [(na * covs[e][0] + nb * covs[e][1]) / (na + nb)]);
-    let normal = match eigen_plane(&pooled) {
+    let (normal, spread, count) = match eigen_plane(&pooled) {
         Some((n, l_min, l_mid))
-            if l_mid >= conditioning * l_min && l_mid.sqrt() >= 0.25 * extent =>
+            if l_mid >= conditioning * l_min
+                && l_mid.sqrt() >= 0.25 * extent
+                && n.dot(&s.normal).abs() >= MAX_POOLED_TILT_DEG.to_radians().cos() =>
         {
-            n
+            (n, l_mid, na + nb)
         }
-        _ => s.normal,
+        _ => (s.normal, s.l_mid, s.count),
     };
-    let offset = (b.sum / nb - a.sum / na).dot(&normal).abs();
-    let e = (s.sigma_n.powi(2) * (1.0 / na + 1.0 / nb) + 2.0 * s.sigma_c.powi(2)).sqrt();
+    let delta = b.sum / nb - a.sum / na;
+    let offset = delta.dot(&normal).abs();
+    // The normal's own error tilts the offset by its angle times the sides' distance along the
+    // plane (large at grazing views, where a window spans metres of ground).
+    let noise2 = s.sigma_n.powi(2) + s.sigma_c.powi(2);
+    let tilt2 = noise2 * mean_var(count) / spread.max(f64::MIN_POSITIVE);
+    let along2 = (delta.norm_squared() - offset * offset).max(0.0);
+    let sides = mean_var(na) + mean_var(nb);
+    let e = (s.sigma_n.powi(2) * sides + 2.0 * s.sigma_c.powi(2) + tilt2 * along2).sqrt();
     Some((offset, e))
 }
 
