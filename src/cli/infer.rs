@@ -83,7 +83,7 @@ impl Infer {
             traversability,
             ..self.stages.config(mode)
         };
-        let (mut frame, described, scale_stated) = self.read_frame()?;
+        let (mut frame, described, (scale_stated, scale)) = self.read_frame()?;
         frame.sensor = self
             .sensor
             .or(described.as_ref().and_then(io::SensorSpec::noise));
@@ -103,6 +103,9 @@ impl Infer {
         );
         for a in &assumed {
             eprintln!("warning: {a}");
+        }
+        if let Some(bad) = &out.implausible {
+            eprintln!("warning: {}", bad.message(scale));
         }
         out.summary(&cfg).iter().for_each(|l| println!("{l}"));
         let table = pipeline.interval_table_for(&cfg);
@@ -230,7 +233,7 @@ impl Infer {
 
     /// The frame, depth and camera from disk ([`io::read_frame_files`]), the camera's sensor,
     /// and whether a depth scale was given (`--depth-scale` or the camera's).
-    fn read_frame(&self) -> anyhow::Result<(FrameInput, Option<io::SensorSpec>, bool)> {
+    fn read_frame(&self) -> anyhow::Result<(FrameInput, Option<io::SensorSpec>, (bool, f64))> {
         let read = io::read_frame_files(&io::FrameFiles {
             rgb: self.frame.as_deref(),
             depth: self.depth.as_deref(),
@@ -245,7 +248,7 @@ impl Infer {
             sensor: None,
         };
         let sensor = read.camera.and_then(|(c, _)| c.sensor);
-        Ok((frame, sensor, read.scale_stated))
+        Ok((frame, sensor, (read.scale_stated, read.scale)))
     }
 
     /// A preview's title: `what`, the mode and the input's file name.

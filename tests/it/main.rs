@@ -21,6 +21,7 @@ mod loadtest;
 mod map;
 mod pipeline;
 mod readme;
+mod regions;
 #[cfg(feature = "ros2")]
 mod ros2;
 mod sensor;

@@ -61,6 +61,7 @@ fn read_synth(dir: &Path) -> Result<FrameInput, Box<dyn Error>> {
         depth_m: Some(tre::io::read_depth(&dir.join("depth.png"), 1000.0)?),
         intrinsics: Some(k),
         mounting: cam.mounting()?,
+        sensor: None,
     })
 }
 
@@ -75,6 +76,7 @@ fn real_frame() -> Result<FrameInput, Box<dyn Error>> {
         )?),
         intrinsics: Some(k),
         mounting: Some(Mounting::default()),
+        sensor: None,
     })
 }
 
@@ -188,7 +190,10 @@ fn geometric_mode_is_the_annotator_on_every_shared_real_frame() -> TestResult {
     let frames = tre::eval::real::find_frames(&real(""), None)?;
     assert_eq!(frames.len(), 10, "the shared real frames");
     let mut pipeline = Pipeline::new(None);
-    let cfg = PipelineConfig::for_mode(Mode::Geometric);
+    let cfg = PipelineConfig {
+        geometric: GeometricMethod::Spec,
+        ..PipelineConfig::for_mode(Mode::Geometric)
+    };
     assert_eq!(cfg.label(), "LS+window+edge");
     for frame in &frames {
         let loaded = tre::eval::real::load_frame(frame)?;
@@ -289,6 +294,7 @@ fn odd_sizes_work() -> TestResult {
             depth_m: Some(depth),
             intrinsics: None,
             mounting: Some(Mounting::default()),
+            sensor: None,
         };
         for mode in [Mode::Rgb, Mode::Rgbd, Mode::Geometric] {
             let out = pipeline.run(&frame, &small(mode))?;
@@ -313,6 +319,7 @@ fn a_twelve_megapixel_frame_runs_at_the_working_size() -> TestResult {
         depth_m: Some(Grid::from_fn(w, h, |_, y| 1.0 + 0.001 * y as f64)),
         intrinsics: None,
         mounting: Some(Mounting::default()),
+        sensor: None,
     };
     let mut pipeline = Pipeline::new(Some(models()?));
     for mode in [Mode::Rgb, Mode::Rgbd] {
@@ -599,7 +606,12 @@ fn geometric_outputs_keep_their_committed_digests() -> TestResult {
     }
     assert!(frames.len() >= 20, "{} frames", frames.len());
     let mut pipeline = Pipeline::new(None);
-    let cfg = PipelineConfig::for_mode(Mode::Geometric);
+    // The spec's path, which these digests hold still (the terrain estimate is scored against
+    // the regions in tests/it/regions.rs).
+    let cfg = PipelineConfig {
+        geometric: GeometricMethod::Spec,
+        ..PipelineConfig::for_mode(Mode::Geometric)
+    };
     let kinect =
         tre::roughness::noise::SensorNoise::Preset(tre::roughness::noise::SensorPreset::KinectV1);
     let mut got = serde_json::Map::new();

@@ -163,7 +163,7 @@ pub struct ClientConfig {
     #[cfg_attr(feature = "cli", arg(long, env = "TRE_CLIENT_MAX_SLOPE_DEG"))]
     pub max_slope_deg: Option<f64>,
     /// Depth sensor noise model, overriding the camera JSON's "sensor" (as `tre infer
-    /// --sensor`): a preset (kinect_v1, realsense_d435, azure_kinect, lidar, exact) or a,b,c.
+    /// --sensor`): a preset (kinect_v1, realsense_d435, azure_kinect, lidar, lidar_accumulated, passive_stereo, exact) or a,b,c.
     #[cfg_attr(feature = "cli", arg(long, env = "TRE_SENSOR"))]
     pub sensor: Option<SensorNoise>,
     /// How fast frames go out.

@@ -26,7 +26,7 @@ use super::IoError;
 /// ```
 /// use tre_io::CameraFile;
 /// let ok: CameraFile = serde_json::from_str(
-///     r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "pitch_deg": 30, "sensor": "Kinect"}"#,
+///     r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "pitch_deg": 30, "sensor": "Kinect v1"}"#,
 /// ).unwrap();
 /// assert_eq!(ok.pitch_deg, Some(30.0));
 /// let e = serde_json::from_str::<CameraFile>(
@@ -113,11 +113,13 @@ impl SensorSpec {
     /// `{"sigma_mm": [a, b, c]}`; for anything else, an error naming the field.
     pub fn from_json(v: serde_json::Value) -> Result<Self, SensorSpecError> {
         match v {
-            serde_json::Value::String(s) => {
-                Ok(s.parse::<SensorPreset>().map_or(Self::Description(s), |p| {
-                    Self::Model(SensorNoise::Preset(p))
-                }))
-            }
+            serde_json::Value::String(s) => match s.parse::<SensorPreset>() {
+                Ok(p) => Ok(Self::Model(SensorNoise::Preset(p))),
+                // One word is meant as a preset's name: a misspelt or unknown one would leave
+                // the frame without a noise model.
+                Err(_) if looks_like_a_name(&s) => Err(SensorSpecError::UnknownPreset { name: s }),
+                Err(_) => Ok(Self::Description(s)),
+            },
             serde_json::Value::Object(o) if o.contains_key("stereo") && o.len() == 1 => {
                 let rig: StereoRig = serde_json::from_value(o["stereo"].clone())
                     .map_err(|e| SensorSpecError::Stereo(e.to_string()))?;
@@ -140,6 +142,14 @@ impl SensorSpec {
             _ => Err(SensorSpecError::NotASensor { keys: None }),
         }
     }
+}
+
+/// True for text that reads as a name (one word of letters, digits, `_`, `-`, `.`), not a
+/// description.
+fn looks_like_a_name(s: &str) -> bool {
+    !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
 }
 
 /// Why a camera file's `sensor` names no sensor.
@@ -166,6 +176,16 @@ pub enum SensorSpecError {
         sigma_mm: [f64; 3],
         /// The check that failed; its message names `sensor.sigma_mm`.
         reason: CoefficientsError,
+    },
+    /// One word that is no preset's name.
+    #[error(
+        "sensor {name:?} is no preset: the presets are {}; give one of them, \
+         {{\"sigma_mm\": [a, b, c]}}, a stereo rig, or a description in words (no noise model)",
+        SensorPreset::names()
+    )]
+    UnknownPreset {
+        /// The name given.
+        name: String,
     },
     /// A stereo rig that does not read or check (its message names the field).
     #[error("sensor.stereo: {0}")]

@@ -38,6 +38,8 @@ pub struct FrameRead {
     pub mounting: Option<Mounting>,
     /// Whether a depth scale was stated (given, or the camera file's) rather than assumed.
     pub scale_stated: bool,
+    /// The depth scale the depth was read with, units per metre.
+    pub scale: f64,
 }
 
 /// Files of a frame that do not make one.
@@ -131,5 +133,6 @@ pub fn read_frame_files(files: &FrameFiles<'_>) -> Result<FrameRead, FrameFilesE
         camera,
         mounting,
         scale_stated: stated.is_some(),
+        scale: stated.unwrap_or(DEFAULT_DEPTH_SCALE),
     })
 }

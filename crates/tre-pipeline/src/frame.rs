@@ -64,6 +64,8 @@ pub struct FrameOutput {
     pub timings: StageTimings,
     /// Where gravity's up axis came from (slope and traversability use it).
     pub gravity: Gravity,
+    /// Whether the sensor depth looks wrongly scaled (depth modes).
+    pub implausible: Option<super::Implausible>,
     working: WorkingMaps,
 }
 
@@ -116,6 +118,7 @@ impl FrameOutput {
             working_size,
             timings: StageTimings::default(),
             gravity,
+            implausible: None,
             working: WorkingMaps {
                 roughness_m: working_roughness,
                 stages,

@@ -30,6 +30,7 @@ mod frame;
 mod gravity;
 mod load;
 pub mod normals;
+mod plausible;
 pub mod resize;
 mod run;
 mod spares;
@@ -47,6 +48,7 @@ pub use config::{
 pub use depth::{prior_depth, MAX_PRIOR_DEPTH_M};
 pub use frame::{FrameInput, FrameOutput, SensorMaps, StageTimings, DEFAULT_HFOV_DEG};
 pub use gravity::{Assumption, Gravity, GravityFigures, GravityUnknown};
+pub use plausible::{Implausible, MAX_GROUND_BELOW_M, MAX_MEDIAN_DEPTH_M};
 pub use run::{check_input, Pipeline, DEFAULT_WORKING_SIZE};
 
 use tre_core::geometry::GeometryError;

@@ -11,6 +11,7 @@ use super::depth::{prior_depth_into, MAX_PRIOR_DEPTH_M};
 use super::frame::{FrameInput, FrameOutput, StageMaps, StageTimings, DEFAULT_HFOV_DEG};
 use super::gravity::{Gravity, GravityUnknown};
 use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
+use super::plausible::Implausible;
 use super::resize::{resize_nearest_reusing, resize_rgb};
 use super::spares::Spares;
 use super::tensors::{depth_from_tensor_into, points_tensors, rgb_tensor, scalar_tensor};
@@ -251,6 +252,9 @@ impl Pipeline {
             }
             if let Some(u) = terrain_u {
                 out.set_terrain_uncertainty(u);
+            }
+            if let (Mode::Rgbd | Mode::Geometric, Some(given)) = (cfg.mode, &input.depth_m) {
+                out.implausible = Implausible::of(given, &gravity);
             }
             out
         });

@@ -103,6 +103,7 @@ fn in_process(frames: &[Image], k: &CameraInfo) -> (Vec<f64>, Vec<f64>) {
                 depth_m: Some(tre_ros2::convert::depth_m(f).unwrap()),
                 intrinsics: Some(tre_ros2::convert::intrinsics(k, f).unwrap()),
                 mounting: None,
+                sensor: None,
             };
             let t = Instant::now();
             let out = pipeline.run(&input, &cfg).unwrap();

@@ -73,7 +73,7 @@ pub struct Ros2Args {
     /// Points farther than this from the camera are left out of the map, metres.
     #[arg(long, default_value_t = 3.0)]
     pub max_range_m: f64,
-    /// Depth sensor noise model (kinect_v1, realsense_d435, azure_kinect, lidar, exact, or
+    /// Depth sensor noise model (kinect_v1, realsense_d435, azure_kinect, lidar, lidar_accumulated, passive_stereo, exact, or
     /// a,b,c with σ_z = a + b·z + c·z² mm): the uncertainty and three-state images, and the
     /// map's height variance. Without it, neither is published and no map is made.
     #[arg(long, env = "TRE_SENSOR")]

@@ -380,9 +380,11 @@ fn reply_headers(reply: &FrameReply) -> HeaderMap {
         let keys: Vec<&str> = reply.assumed.iter().map(|a| a.key()).collect();
         set(&mut headers, "x-tre-assumed", keys.join(", "));
     }
-    // RFC 7234's Warning header, one per assumption, in words (code 199: miscellaneous).
-    for a in &reply.assumed {
-        let words = header_text(&a.to_string()).replace('"', "'");
+    // RFC 7234's Warning header, one per assumption and one per implausible input, in words
+    // (code 199: miscellaneous).
+    let said = reply.assumed.iter().map(ToString::to_string);
+    for words in said.chain(reply.warnings.iter().cloned()) {
+        let words = header_text(&words).replace('"', "'");
         if let Ok(v) = HeaderValue::from_str(&format!("199 tre \"{words}\"")) {
             headers.append("warning", v);
         }

@@ -74,7 +74,7 @@ pub(crate) struct RoughnessForm {
     depth: Vec<u8>,
     /// JSON {fx, fy, cx, cy, width?, height?, pitch_deg?, height_m?, depth_scale?, sensor?};
     /// width and height, when given, must be the frame's size (422 bad_camera otherwise).
-    /// sensor: a preset name (kinect_v1, realsense_d435, azure_kinect, lidar, exact),
+    /// sensor: a preset name (kinect_v1, realsense_d435, azure_kinect, lidar, lidar_accumulated, passive_stereo, exact),
     /// {"sigma_mm": [a, b, c]}, or other text (a description: no noise model).
     #[schema(required = false)]
     camera: String,

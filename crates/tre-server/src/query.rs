@@ -81,7 +81,7 @@ pub(crate) struct RoughnessQuery {
     #[param(default = 1000)]
     depth_scale: Option<f64>,
     /// Depth sensor noise model for the uncertainty and traversal maps, overriding the
-    /// camera's sensor: a preset (kinect_v1, realsense_d435, azure_kinect, lidar, exact) or
+    /// camera's sensor: a preset (kinect_v1, realsense_d435, azure_kinect, lidar, lidar_accumulated, passive_stereo, exact) or
     /// coefficients a,b,c (sigma_z = a + b*z + c*z^2 mm, z in metres).
     sensor: Option<String>,
 }

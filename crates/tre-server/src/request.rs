@@ -143,6 +143,8 @@ pub struct FrameReply {
     pub assumed: Vec<Assumption>,
     /// Where gravity came from.
     pub gravity: Gravity,
+    /// What looks wrong with the input (an implausibly scaled depth), in words.
+    pub warnings: Vec<String>,
 }
 
 /// PNG and JPEG magic numbers.
@@ -549,6 +551,7 @@ pub fn encode_reply(
         mode,
         assumed,
         gravity: out.gravity,
+        warnings: Vec::new(),
     })
 }
 

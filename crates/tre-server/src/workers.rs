@@ -324,6 +324,16 @@ fn run_job(pipeline: &mut Pipeline, req: &FrameRequest, pool: &PoolConfig) -> Jo
     let facts = (cfg.mode, assumptions(req, &frame, cfg.mode));
     let reply = encode_reply(&out, &req.options, facts).and_then(|mut reply| {
         encode_sensor_maps(&out, &frame, (cfg.mode, table), req, &mut reply)?;
+        if let Some(bad) = &out.implausible {
+            let scale = req
+                .camera
+                .as_ref()
+                .and_then(|c| c.depth_scale)
+                .unwrap_or(1000.0);
+            let words = bad.message(scale);
+            tracing::warn!(warning = %words, "implausible depth");
+            reply.warnings.push(words);
+        }
         Ok(reply)
     });
     let encoded = started.elapsed();

@@ -1,0 +1,92 @@
+//! The geometric mode against truth that is not the same raw depth: the known-flat and
+//! known-hazard regions of every shared set's test frames (tests/fixtures/real_regions.json),
+//! per sensor class. The spec on the raw depth fails on LiDAR and stereo; the terrain
+//! estimate must not.
+
+use std::error::Error;
+use std::path::{Path, PathBuf};
+
+use tre::eval::real::{frames_of, score_regions, RegionFile};
+use tre::pipeline::{GeometricMethod, Mode, Pipeline, PipelineConfig};
+use tre::roughness::noise::{SensorNoise, SensorPreset};
+
+type TestResult = Result<(), Box<dyn Error>>;
+
+fn share(a: usize, b: usize) -> f64 {
+    a as f64 / b.max(1) as f64
+}
+
+#[test]
+fn flat_ground_reads_flat_and_hazards_are_seen_on_every_sensor_class() -> TestResult {
+    for corpus in ["data/real-rgbd", "data/real-rgbd-2", "data/real-rgbd-3"] {
+        crate::common::skip_unless_shared!(corpus, Ok(()));
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dirs: Vec<PathBuf> = ["data/real-rgbd", "data/real-rgbd-2", "data/real-rgbd-3"]
+        .iter()
+        .map(|c| crate::common::shared_root().join(c))
+        .collect();
+    let splits = root.join("models/real_splits.json");
+    let frames = frames_of(&dirs, Some(&splits), "test", None)?;
+    let file = RegionFile::read(&root.join("tests/fixtures/real_regions.json"))?;
+    let rows: Vec<(String, PipelineConfig)> = [GeometricMethod::Terrain, GeometricMethod::Spec]
+        .into_iter()
+        .map(|geometric| {
+            let cfg = PipelineConfig {
+                mode: Mode::Geometric,
+                geometric,
+                ..PipelineConfig::default()
+            };
+            (cfg.label(), cfg)
+        })
+        .collect();
+    let mut pipeline = Pipeline::new(None);
+    let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
+    let report = score_regions(&frames, &file, &rows, &mut pipeline, &kinect)?;
+    let (terrain, spec) = (&report.rows[0], &report.rows[1]);
+    for class in [
+        "kinect",
+        "lidar (one sweep)",
+        "lidar_accumulated",
+        "passive_stereo",
+    ] {
+        let (name, t) = terrain
+            .iter()
+            .find(|(c, _)| c.starts_with(class))
+            .ok_or_else(|| format!("no {class} regions"))?;
+        assert!(
+            t.flat_px > 5000 || class.starts_with("lidar ("),
+            "{name}: {} px",
+            t.flat_px
+        );
+        let rough = share(t.flat_rough, t.flat_read);
+        assert!(rough <= 0.02, "{name}: flat ground read >= 5 cm on {rough}");
+        let hazard = share(t.flat_states[1], t.flat_px);
+        assert!(
+            hazard <= 0.03,
+            "{name}: flat ground read hazard on {hazard}"
+        );
+        let (boxes, seen) = t.hazard_boxes;
+        assert!(
+            share(seen, boxes) >= 0.9,
+            "{name}: hazards seen {seen} of {boxes}"
+        );
+        // The spec on the same raw depth (the old geometric mode) fails where noted.
+        let s = &spec[name];
+        if class.starts_with("lidar_accumulated") || class.starts_with("passive") {
+            let spec_rough = share(s.flat_rough, s.flat_read);
+            assert!(spec_rough > 0.5, "{name}: the spec reads {spec_rough}");
+        }
+    }
+    // Where noise is small enough to tell, flat ground is traversable.
+    for class in ["lidar (one sweep)", "passive_stereo"] {
+        let t = terrain
+            .iter()
+            .find(|(c, _)| c.starts_with(class))
+            .ok_or(class)?
+            .1;
+        let ok = share(t.flat_states[0], t.flat_px);
+        assert!(ok >= 0.9, "{class}: flat ground traversable on {ok}");
+    }
+    Ok(())
+}
