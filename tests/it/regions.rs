@@ -85,7 +85,7 @@ fn flat_ground_reads_flat_and_hazards_are_seen_on_every_sensor_class() -> TestRe
             .find(|(c, _)| c.starts_with(class))
             .ok_or(class)?
             .1;
-        let ok = share(t.flat_states[0], t.flat_px);
+        let ok = share(t.flat_states[0], t.flat_px_gravity);
         assert!(ok >= 0.9, "{class}: flat ground traversable on {ok}");
     }
     Ok(())

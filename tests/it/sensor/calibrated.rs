@@ -43,6 +43,8 @@ fn config(mode: Mode) -> PipelineConfig {
             max_slope_rad: std::f64::consts::FRAC_PI_2,
             ..Traversability::default()
         },
+        // The spec's path (the terrain estimate reads no calibration table).
+        geometric: tre::pipeline::GeometricMethod::Spec,
         ..PipelineConfig::for_mode(mode)
     }
 }

@@ -4,20 +4,25 @@ use super::*;
 
 /// The TUM frame's depth and camera (whose `sensor` is free text, naming no preset).
 /// `tre annotate`'s roughness of the TUM frame's depth as the service's 16-bit PNG values.
-fn spec_png16() -> Vec<u16> {
+/// The geometric mode's map of the TUM frame under the Kinect v1 model, computed in process.
+fn terrain_png16() -> Vec<u16> {
+    use tre::pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
     let (depth, camera) = tum();
     let (cam, k) = tre::io::read_camera(&camera).unwrap();
     let depth_m = tre::io::read_depth(&depth, cam.depth_scale.unwrap()).unwrap();
-    let input = tre::roughness::annotate::AnnotateInput::depth(&depth_m, &k);
-    let spec = tre::roughness::annotate::annotate(&input, &Default::default()).unwrap();
-    let hazards = spec
-        .roughness_m
-        .as_slice()
-        .iter()
+    let input = FrameInput {
+        depth_m: Some(depth_m),
+        intrinsics: Some(k),
+        sensor: Some(SensorNoise::Preset(SensorPreset::KinectV1)),
+        ..FrameInput::default()
+    };
+    let cfg = PipelineConfig::for_mode(Mode::Geometric);
+    let out = Pipeline::new(None).run(&input, &cfg).unwrap();
+    let hazards = (out.roughness_m.as_slice().iter())
         .filter(|&&r| r >= 0.1)
         .count();
     assert!(hazards > 1000, "the frame has drops: {hazards}");
-    tre::io::roughness_png16(&spec.roughness_m).into_raw()
+    tre::io::roughness_png16(&out.roughness_m).into_raw()
 }
 
 fn tum() -> (PathBuf, PathBuf) {
@@ -174,13 +179,13 @@ fn http_and_stream_answer_the_sensor_maps() {
         assert_eq!(names, ["roughness", "uncertainty", "traversal"]);
         let (w, h, _) = common::png16_values(&parts[1].1);
         assert_eq!((w, h), (640, 480));
-        // The geometric mode served over HTTP is the spec: the same 16-bit map as the annotator
-        // on the same depth (drops included).
+        // The geometric mode served over HTTP is the terrain estimate under the sensor asked
+        // for: the same 16-bit map as the pipeline in process (drops included).
         let (_, _, served) = common::png16_values(&parts[0].1);
         assert_eq!(
             served,
-            spec_png16(),
-            "HTTP geometric map differs from the spec"
+            terrain_png16(),
+            "HTTP geometric map differs from the pipeline's"
         );
         let c = traversal_values(&parts[2].1);
         assert!(c.iter().all(|&n| n > 1000), "{c:?}");
@@ -223,12 +228,12 @@ async fn stream(server: &common::Server, depth: &[u8]) {
             pb::server_message::Msg::Result(r) => {
                 let n = (r.width * r.height) as usize;
                 assert_eq!((r.traversal.len(), r.uncertainty.len()), (n, 4 * n));
-                // The stream's geometric map is the spec too.
+                // The stream's geometric map is the pipeline's too.
                 let (_, _, served) = common::png16_values(&r.roughness);
                 assert_eq!(
                     served,
-                    spec_png16(),
-                    "stream geometric map differs from the spec"
+                    terrain_png16(),
+                    "stream geometric map differs from the pipeline's"
                 );
                 assert!(r.traversal.iter().all(|&t| t <= 2));
                 assert!(

@@ -73,7 +73,14 @@ fn answers_name_their_mode_gravity_and_assumptions() {
         assert_eq!(header(h, "x-tre-mode"), "rgbd");
         assert_eq!(header(h, "x-tre-assumed"), "intrinsics, depth_scale, mode");
         let warnings: Vec<_> = h.get_all("warning").iter().collect();
-        assert_eq!(warnings.len(), 3, "{warnings:?}");
+        // The three assumptions, and what the millimetres made of this TUM frame (5000 units
+        // per metre): the ground 7.4 m below the camera, with the scale that fits named.
+        assert_eq!(warnings.len(), 4, "{warnings:?}");
+        let implausible = warnings[3].to_str().unwrap();
+        assert!(
+            implausible.contains("below the camera") && implausible.contains("5000"),
+            "{warnings:?}"
+        );
         assert!(
             warnings[1].to_str().unwrap().contains("read as millimetres"),
             "{warnings:?}"

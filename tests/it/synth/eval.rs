@@ -49,6 +49,8 @@ fn eval_geometric(data: &Path, split: &str, args: &[&str]) -> (f64, String) {
             data.to_str().unwrap(),
             "--mode",
             "geometric",
+            "--geometric",
+            "spec",
         ])
         .args(["--split", split])
         .args(args)

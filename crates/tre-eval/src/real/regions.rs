@@ -83,20 +83,29 @@ impl RegionFile {
 pub struct RegionFigures {
     /// Frames with regions.
     pub frames: usize,
+    /// … of which with gravity known (stated, or a confident ground plane): the three-state
+    /// figures count these frames only, since without gravity no pixel can be traversable.
+    pub gravity_frames: usize,
     /// Flat pixels with depth.
     pub flat_px: usize,
     /// … of which with a roughness reading.
     pub flat_read: usize,
     /// … read ≥ 5 cm.
     pub flat_rough: usize,
-    /// Flat pixels with depth read traversable / hazard / unknown (three-state).
+    /// Flat pixels with depth in frames with gravity.
+    pub flat_px_gravity: usize,
+    /// … read traversable / hazard / unknown (three-state).
     pub flat_states: [usize; 3],
     /// Hazard pixels with depth.
     pub hazard_px: usize,
+    /// Hazard pixels with depth in frames with gravity.
+    pub hazard_px_gravity: usize,
     /// … read traversable / hazard / unknown (three-state).
     pub hazard_states: [usize; 3],
     /// Hazard boxes, and those where some pixel reads hazard (three-state) or ≥ 5 cm.
     pub hazard_boxes: (usize, usize),
+    /// The same, in frames with gravity.
+    pub hazard_boxes_gravity: (usize, usize),
 }
 
 /// Every row's figures per sensor class: `rows[row][class]`.
@@ -145,8 +154,11 @@ pub fn score_regions(
             let maps = out.sensor_maps(&loaded.input, cfg.mode, Some(&sensor), None, table)?;
             let fig = acc.entry(class.clone()).or_default();
             fig.frames += 1;
+            let gravity = out.gravity.up_in_cam().is_some();
+            fig.gravity_frames += usize::from(gravity);
             let before = fig.clone();
-            add_regions(fig, regions, depth, &out.roughness_m, &maps.traversal);
+            let maps_of = (&out.roughness_m, &maps.traversal, gravity);
+            add_regions(fig, regions, depth, maps_of);
             if std::env::var_os("TRE_REGIONS_DEBUG").is_some() {
                 eprintln!(
                     "{} {}: flat {} rough {} states {:?}; hazard {} states {:?}",
@@ -172,8 +184,7 @@ fn add_regions(
     fig: &mut RegionFigures,
     regions: &RegionFrame,
     depth: &Grid<f64>,
-    roughness_m: &Grid<f64>,
-    traversal: &Grid<Traversal>,
+    (roughness_m, traversal, gravity): (&Grid<f64>, &Grid<Traversal>, bool),
 ) {
     let state = |t: Traversal| match t {
         Traversal::Traversable => 0,
@@ -188,7 +199,10 @@ fn add_regions(
                 fig.flat_read += 1;
                 fig.flat_rough += usize::from(v >= 0.05);
             }
-            fig.flat_states[state(traversal[(x, y)])] += 1;
+            if gravity {
+                fig.flat_px_gravity += 1;
+                fig.flat_states[state(traversal[(x, y)])] += 1;
+            }
         }
     }
     for r in &regions.hazard {
@@ -196,11 +210,18 @@ fn add_regions(
         for (x, y) in pixels(r, depth) {
             fig.hazard_px += 1;
             let t = traversal[(x, y)];
-            fig.hazard_states[state(t)] += 1;
+            if gravity {
+                fig.hazard_px_gravity += 1;
+                fig.hazard_states[state(t)] += 1;
+            }
             seen |= t == Traversal::Hazard || roughness_m[(x, y)] >= 0.05;
         }
         fig.hazard_boxes.0 += 1;
         fig.hazard_boxes.1 += usize::from(seen);
+        if gravity {
+            fig.hazard_boxes_gravity.0 += 1;
+            fig.hazard_boxes_gravity.1 += usize::from(seen);
+        }
     }
 }
 
@@ -226,39 +247,45 @@ pub fn regions_markdown(report: &RegionReport) -> String {
         }
     };
     let mut s = String::from(
-        "Known-flat regions (truth: ground flat by eye; shares of the pixels with depth)\n\n\
-         | row | sensor class | frames | flat px | read | read >= 5 cm | traversable | hazard | unknown |\n\
+        "Known-flat regions (truth: ground flat by eye; shares of the pixels with depth; the \
+         three states in the frames with gravity)\n\n\
+         | row | sensor class | frames (with gravity) | flat px | read | read >= 5 cm | traversable | hazard | unknown |\n\
          | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
     );
     for (name, classes) in report.names.iter().zip(&report.rows) {
         for (class, f) in classes {
             let [t, h, u] = f.flat_states;
             s += &format!(
-                "| {name} | {class} | {} | {} | {} | {} | {} | {} | {} |\n",
+                "| {name} | {class} | {} ({}) | {} | {} | {} | {} | {} | {} |\n",
                 f.frames,
+                f.gravity_frames,
                 f.flat_px,
                 pct(f.flat_read, f.flat_px),
                 pct(f.flat_rough, f.flat_read),
-                pct(t, f.flat_px),
-                pct(h, f.flat_px),
-                pct(u, f.flat_px),
+                pct(t, f.flat_px_gravity),
+                pct(h, f.flat_px_gravity),
+                pct(u, f.flat_px_gravity),
             );
         }
     }
-    s += "\nKnown hazards (truth: bands across a step, a drop or an object's foot, by eye)\n\n\
-          | row | sensor class | hazard px | read traversable | hazard | unknown | boxes seen |\n\
-          | --- | --- | ---: | ---: | ---: | ---: | ---: |\n";
+    s += "\nKnown hazards (truth: bands across a step, a drop or an object's foot, by eye; the \
+          three states in the frames with gravity; a box is seen where a pixel reads hazard or \
+          >= 5 cm)\n\n\
+          | row | sensor class | hazard px | read traversable | hazard | unknown | boxes seen | seen, frames with gravity |\n\
+          | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |\n";
     for (name, classes) in report.names.iter().zip(&report.rows) {
         for (class, f) in classes {
             let [t, h, u] = f.hazard_states;
             let (boxes, seen) = f.hazard_boxes;
+            let (gboxes, gseen) = f.hazard_boxes_gravity;
             s += &format!(
-                "| {name} | {class} | {} | {} | {} | {} | {seen}/{boxes} ({}) |\n",
+                "| {name} | {class} | {} | {} | {} | {} | {seen}/{boxes} ({}) | {gseen}/{gboxes} ({}) |\n",
                 f.hazard_px,
-                pct(t, f.hazard_px),
-                pct(h, f.hazard_px),
-                pct(u, f.hazard_px),
+                pct(t, f.hazard_px_gravity),
+                pct(h, f.hazard_px_gravity),
+                pct(u, f.hazard_px_gravity),
                 pct(seen, boxes),
+                pct(gseen, gboxes),
             );
         }
     }
