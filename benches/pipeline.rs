@@ -48,6 +48,7 @@ fn frame(side: usize) -> FrameInput {
         depth_m: Some(f.depth_m),
         intrinsics: Some(view.intrinsics),
         mounting: Some(view.mounting),
+        sensor: None,
     }
 }
 
@@ -357,16 +358,22 @@ fn real_depth_frame(size: (usize, usize)) -> FrameInput {
     }
 }
 
-/// The geometric mode on a real Kinect frame at its own 640×480 and at 256×192: the whole
-/// annotation spec (`spec`, the default), the paper's surface-only baseline, and `tre
-/// annotate`'s library call on the same depth for comparison.
+/// The geometric mode on a real Kinect frame at its own 640×480 and at 256×192: the terrain
+/// estimate (`terrain`, the default, under the Kinect v1 model, its uncertainty included), the
+/// whole annotation spec (`spec`) and its sensor maps, the paper's surface-only baseline, and
+/// `tre annotate`'s library call on the same depth for comparison.
 fn geometric_real(c: &mut Criterion) {
     let mut pipeline = Pipeline::new(None);
     let mut group = c.benchmark_group("geometric_real");
     group.sample_size(30);
+    let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
     for (w, h) in [(640, 480), (256, 192)] {
-        let input = real_depth_frame((w, h));
+        let input = FrameInput {
+            sensor: Some(kinect),
+            ..real_depth_frame((w, h))
+        };
         for (name, geometric) in [
+            ("terrain", GeometricMethod::Terrain),
             ("spec", GeometricMethod::Spec),
             ("surface_only", GeometricMethod::SurfaceOnly),
         ] {
@@ -382,16 +389,24 @@ fn geometric_real(c: &mut Criterion) {
                 &cfg,
             );
         }
-        // The uncertainty and three-state maps (Kinect v1), on top of the mode's output.
-        let cfg = PipelineConfig::for_mode(Mode::Geometric);
-        let out = pipeline.run(&input, &cfg).expect("the frame runs");
-        let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
-        group.bench_function(format!("sensor_maps_{w}x{h}"), |b| {
-            b.iter(|| {
-                out.sensor_maps(&input, Mode::Geometric, Some(&kinect), None, None)
-                    .expect("maps")
-            })
-        });
+        // The uncertainty and three-state maps (Kinect v1), on top of the spec's output and of
+        // the terrain estimate's (whose uncertainty came with it).
+        for (name, geometric) in [
+            ("sensor_maps", GeometricMethod::Spec),
+            ("terrain_sensor_maps", GeometricMethod::Terrain),
+        ] {
+            let cfg = PipelineConfig {
+                geometric,
+                ..PipelineConfig::for_mode(Mode::Geometric)
+            };
+            let out = pipeline.run(&input, &cfg).expect("the frame runs");
+            group.bench_function(format!("{name}_{w}x{h}"), |b| {
+                b.iter(|| {
+                    out.sensor_maps(&input, Mode::Geometric, Some(&kinect), None, None)
+                        .expect("maps")
+                })
+            });
+        }
         let depth = input.depth_m.as_ref().expect("depth");
         let k = input.intrinsics.expect("intrinsics");
         let ann = AnnotateInput::depth(depth, &k);

@@ -28,11 +28,14 @@ use rayon::prelude::*;
 
 use super::noise::{SensorNoise, HALF_NORMAL_P95};
 use crate::geometry::sums::SummedMoments;
-use crate::geometry::{covariance_lanes, eigen_plane, SymLanes};
+use crate::geometry::{covariance_lanes, eigen_plane, eigen_plane_near, SymLanes};
 use crate::geometry::{is_valid_point, Grid, Moments, PointMap, Vec3};
 
 /// The largest half-width of a support window, pixels.
 pub const MAX_HALF_PX: usize = 64;
+
+/// Scatter off a support's plane, beyond the noise, below which it holds no step, metres.
+const PLANAR_M: f64 = 0.002;
 
 /// Half-widths tried above the one the metric radius asks for, pixels.
 const LADDER: [usize; 12] = [1, 2, 3, 4, 6, 8, 11, 16, 23, 32, 45, 64];
@@ -93,6 +96,10 @@ struct Support {
     sigma_c: f64,
     /// The plane's smaller in-plane variance, m².
     l_mid: f64,
+    /// The points' variance off the plane, m².
+    l_min: f64,
+    /// The larger in-plane variance, m².
+    l_max: f64,
 }
 
 /// The terrain estimate of `points` (camera frame, metres) seen with focal length `fx_px` and
@@ -122,7 +129,10 @@ pub fn terrain_into(
         .into_par_iter()
         .flat_map_iter(|y| {
             let frame = &frame;
-            (0..w).map(move |x| frame.pixel((x, y)))
+            // Each support's plane starts its solve from the left neighbour's (rows are
+            // independent, so the result does not depend on the threads).
+            let mut left = None;
+            (0..w).map(move |x| frame.pixel((x, y), &mut left))
         })
         .collect();
     // Pass 2: each step spreads over its band; roughness is the larger term.
@@ -208,13 +218,13 @@ impl Frame<'_> {
 
     /// `(surface term, step of the seams right of and below, uncertainty, normal)` at a pixel;
     /// NaN surface term (and normal) where it has no point or no support.
-    fn pixel(&self, xy: (usize, usize)) -> (f64, f64, f64, Vec3) {
+    fn pixel(&self, xy: (usize, usize), left: &mut Option<Vec3>) -> (f64, f64, f64, Vec3) {
         let none = (f64::NAN, 0.0, f64::NAN, Vec3::repeat(f64::NAN));
         let p = self.points[xy];
         if !is_valid_point(&p) {
             return none;
         }
-        let s = match self.support(xy, &p) {
+        let s = match self.support(xy, &p, left) {
             Found::Plane(s) => s,
             Found::Rough(r, normal, u) => return (r, 0.0, u, normal),
             Found::Nothing => return none,
@@ -245,9 +255,25 @@ impl Frame<'_> {
             ),
         ];
         let mut step: f64 = 0.0;
-        let mut e_j: f64 = 0.0;
+        // The step's noise as the support predicts it for two halves of itself (measured on
+        // the seams below where they are looked at): the margin a step must clear.
+        let half_n = 0.5 * s.count;
+        // Two halves' centroids lie √3·σ apart along the window's longer in-plane axis (a
+        // uniform spread), metres of ground at grazing views.
+        let reach = (3.0 * s.l_max).sqrt();
+        let tilt2 = (s.sigma_n.powi(2) + s.sigma_c.powi(2)) * self.mean_var(s.count)
+            / s.l_mid.max(f64::MIN_POSITIVE);
+        let mut e_j: f64 = (s.sigma_n.powi(2) * 2.0 * self.mean_var(half_n)
+            + 2.0 * s.sigma_c.powi(2)
+            + tilt2 * reach * reach)
+            .sqrt();
         let min_side = (self.cfg.min_points / 2).max(3);
-        for (a0, a1, b0, b1) in seams {
+        // A support whose points lie on its plane within twice the noise (and 2 mm) holds no
+        // step the margin would let through: its seams need no look.
+        let noise2 = s.sigma_n * s.sigma_n + s.sigma_c * s.sigma_c;
+        let planar = s.l_min <= 4.0 * noise2 + PLANAR_M * PLANAR_M;
+        let seams = if planar { &seams[..0] } else { &seams[..] };
+        for &(a0, a1, b0, b1) in seams {
             let (a, b) = (self.sums.rect(a0, a1), self.sums.rect(b0, b1));
             if a.count < min_side || b.count < min_side {
                 continue;
@@ -267,7 +293,7 @@ impl Frame<'_> {
 
     /// The smallest support window of pixel `xy` (point `p`) with enough points spread in two
     /// directions, and its plane; else what the largest window with enough points says.
-    fn support(&self, xy: (usize, usize), p: &Vec3) -> Found {
+    fn support(&self, xy: (usize, usize), p: &Vec3, left: &mut Option<Vec3>) -> Found {
         let z = p.z;
         let sigma_z = self.noise.map_or(0.0, |n| n.sigma_z_m(z).max(0.0));
         let sigma_c = self.noise.map_or(0.0, |n| n.registration_m(z));
@@ -280,15 +306,22 @@ impl Frame<'_> {
             if m.count < self.cfg.min_points {
                 continue;
             }
-            let Some((normal, l_min, l_mid)) = eigen_plane(&covariance_lanes(&[m])) else {
+            let cov = covariance_lanes(&[m]);
+            let plane = match left {
+                Some(guess) => eigen_plane_near(&cov, guess),
+                None => eigen_plane(&cov),
+            };
+            let Some((normal, l_min, l_mid)) = plane else {
                 continue;
             };
             let count = f64::from(m.count);
             let normal = if normal.dot(p) > 0.0 { -normal } else { normal };
             smallest.get_or_insert((normal, l_min, count));
+            let trace = cov[0][0] + cov[3][0] + cov[5][0];
             // The points must spread along the plane: over half the metric radius, by more
             // than the noise along the normal (registration included) by `conditioning`,
             // and more than across it (a rough patch still has a plane; a line has none).
+            *left = Some(normal);
             let sigma_n = sigma_z * normal.dot(p).abs() / z;
             let extent = radius.min(half as f64 * z / self.fx_px);
             let noise2 = sigma_n * sigma_n + sigma_c * sigma_c;
@@ -306,6 +339,8 @@ impl Frame<'_> {
                 sigma_n,
                 sigma_c,
                 l_mid,
+                l_min,
+                l_max: (trace - l_min - l_mid).max(l_mid),
             });
         }
         // No plane: rough where the scatter off the smallest window's plane exceeds what the
@@ -355,7 +390,7 @@ fn pooled_step(
     let covs = covariance_lanes(&[*a, *b]);
     let pooled: SymLanes<1> =
         std::array::from_fn(|e| [(na * covs[e][0] + nb * covs[e][1]) / (na + nb)]);
-    let (normal, spread, count) = match eigen_plane(&pooled) {
+    let (normal, spread, count) = match eigen_plane_near(&pooled, &s.normal) {
         Some((n, l_min, l_mid))
             if l_mid >= conditioning * l_min
                 && l_mid.sqrt() >= 0.25 * extent
