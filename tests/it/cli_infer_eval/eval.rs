@@ -183,9 +183,11 @@ fn assert_modes_compare(rows: &[serde_json::Value]) {
     assert_eq!(rows[3]["all"]["roughness"]["rmse_cm"], 0.0);
     // The surface-only baseline misses the drops.
     assert!(rows[4]["all"]["edge_recall"].as_f64().unwrap() < 0.2);
-    // The terrain estimate sees most of them (it is scored against its own truths in
-    // tests/it/regions.rs; against the spec it reads drops as bands, not lines).
-    assert!(rows[2]["all"]["edge_recall"].as_f64().unwrap() > 0.5);
+    // The terrain estimate is scored against truths of its own (tests/it/regions.rs): against
+    // the spec, whose hazards include its noise at range and a wider edge band, it reads a
+    // fifth of them on this frame (docs/terrain.md).
+    let recall = rows[2]["all"]["edge_recall"].as_f64().unwrap();
+    assert!(recall > 0.1 && recall < 1.0, "{recall}");
     // The three-state map of every row: the learned modes and the spec through the committed
     // calibrated intervals, the terrain estimate and the surface-only baseline under the
     // Kinect model alone; the spec's near floor traversable, its drops hazards.
