@@ -58,8 +58,8 @@ pub(crate) struct Infer {
     #[arg(long, default_value_t = 20.0)]
     pub max_slope_deg: f64,
     /// Depth sensor noise model, overriding the camera JSON's "sensor": a preset (kinect_v1,
-    /// realsense_d435, azure_kinect, lidar, exact) or coefficients a,b,c (σ_z = a + b·z + c·z²
-    /// mm). With one (rgbd and geometric modes), the uncertainty map and the three-state map
+    /// realsense_d435, azure_kinect, lidar, lidar_accumulated, passive_stereo, exact) or
+    /// coefficients a,b,c (σ_z = a + b·z + c·z² mm). With one (rgbd and geometric modes), the uncertainty map and the three-state map
     /// are written beside the output (docs/sensor-noise.md).
     #[arg(long, env = "TRE_SENSOR")]
     pub sensor: Option<SensorNoise>,

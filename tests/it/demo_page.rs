@@ -5,8 +5,8 @@
 //! JSON `cameras/real-rgbd_metric3d_nyu.json` as the `camera` part), what each answer says it did
 //! (mode, gravity, assumptions), and a bad file's error message.
 //!
-//! Needs `node`, Chromium (`CHROMIUM`, default `/usr/bin/chromium`) and
-//! `tests/browser/node_modules/playwright-core` (`tests/browser/setup.sh` installs them). Without
+//! Needs `node`, Chromium (`CHROMIUM`, default `/usr/bin/chromium`) and playwright-core in the
+//! browser test's `node_modules` (`tests/browser/setup.sh` installs them). Without
 //! them the test prints `skipped: ...` and passes, unless `TRE_REQUIRE_BROWSER=1` (as in CI).
 
 use crate::common;

@@ -456,16 +456,23 @@ fn recycled_maps_change_no_output_and_are_reused() -> TestResult {
         );
         recycling.recycle(a);
     }
-    // The same frame again: its roughness lands in the buffer handed back (the spec's path:
-    // the terrain estimate takes three maps off the shelf, in another order).
+    roughness_lands_in_the_buffer_handed_back(&mut recycling, &holed)
+}
+
+/// The same frame again: its roughness lands in the buffer handed back (the spec's path: the
+/// terrain estimate takes three maps off the shelf, in another order).
+fn roughness_lands_in_the_buffer_handed_back(
+    recycling: &mut Pipeline,
+    holed: &FrameInput,
+) -> TestResult {
     let cfg = PipelineConfig {
         geometric: GeometricMethod::Spec,
         ..PipelineConfig::for_mode(Mode::Geometric)
     };
-    let a = recycling.run(&holed, &cfg)?;
+    let a = recycling.run(holed, &cfg)?;
     let buffer = a.roughness_m.as_slice().as_ptr();
     recycling.recycle(a);
-    let b = recycling.run(&holed, &cfg)?;
+    let b = recycling.run(holed, &cfg)?;
     assert_eq!(b.roughness_m.as_slice().as_ptr(), buffer);
     Ok(())
 }

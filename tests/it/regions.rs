@@ -6,7 +6,7 @@
 use std::error::Error;
 use std::path::{Path, PathBuf};
 
-use tre::eval::real::{frames_of, score_regions, RegionFile};
+use tre::eval::real::{frames_of, score_regions, RegionFile, RegionReport};
 use tre::pipeline::{GeometricMethod, Mode, Pipeline, PipelineConfig};
 use tre::roughness::noise::{SensorNoise, SensorPreset};
 
@@ -16,11 +16,9 @@ fn share(a: usize, b: usize) -> f64 {
     a as f64 / b.max(1) as f64
 }
 
-#[test]
-fn flat_ground_reads_flat_and_hazards_are_seen_on_every_sensor_class() -> TestResult {
-    for corpus in ["data/real-rgbd", "data/real-rgbd-2", "data/real-rgbd-3"] {
-        crate::common::skip_unless_shared!(corpus, Ok(()));
-    }
+/// The terrain estimate's and the spec's region figures on the test frames of the three
+/// corpora.
+fn report() -> Result<RegionReport, Box<dyn Error>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let dirs: Vec<PathBuf> = ["data/real-rgbd", "data/real-rgbd-2", "data/real-rgbd-3"]
         .iter()
@@ -42,7 +40,21 @@ fn flat_ground_reads_flat_and_hazards_are_seen_on_every_sensor_class() -> TestRe
         .collect();
     let mut pipeline = Pipeline::new(None);
     let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
-    let report = score_regions(&frames, &file, &rows, &mut pipeline, &kinect)?;
+    Ok(score_regions(
+        &frames,
+        &file,
+        &rows,
+        &mut pipeline,
+        &kinect,
+    )?)
+}
+
+#[test]
+fn flat_ground_reads_flat_and_hazards_are_seen_on_every_sensor_class() -> TestResult {
+    for corpus in ["data/real-rgbd", "data/real-rgbd-2", "data/real-rgbd-3"] {
+        crate::common::skip_unless_shared!(corpus, Ok(()));
+    }
+    let report = report()?;
     let (terrain, spec) = (&report.rows[0], &report.rows[1]);
     for class in [
         "kinect",

@@ -455,7 +455,7 @@ mod tests {
     #[test]
     fn each_choice_has_one_spelling_everywhere() {
         one_spelling::<Mode>(&["rgb", "rgbd", "geometric"]);
-        one_spelling::<GeometricMethod>(&["spec", "surface-only"]);
+        one_spelling::<GeometricMethod>(&["terrain", "spec", "surface-only"]);
         one_spelling::<Method>(&["pipeline", "end-to-end"]);
         one_spelling::<NormalsMethod>(&["ls", "dsac"]);
         one_spelling::<CentroidMethod>(&["net", "window"]);

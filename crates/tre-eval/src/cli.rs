@@ -56,7 +56,8 @@ pub struct EvalArgs {
     pub sheets: Option<PathBuf>,
     /// Real-frame benchmark: the depth sensor's noise model for the uncertainty and
     /// three-state maps when a sequence's intrinsics.json names none (a preset: kinect_v1,
-    /// realsense_d435, azure_kinect, lidar, exact; or a,b,c for σ_z = a + b·z + c·z² mm).
+    /// realsense_d435, azure_kinect, lidar, lidar_accumulated, passive_stereo, exact; or a,b,c
+    /// for σ_z = a + b·z + c·z² mm).
     /// Unlike `tre infer --sensor` (no default), this has one: the shared real-rgbd frames are
     /// all Kinect v1 but name it in free text.
     #[arg(long, requires = "real", default_value = "kinect_v1")]

@@ -315,29 +315,15 @@ impl FrameOutput {
                 described: described.map(str::to_owned),
             });
         };
-        let (w, h) = depth_m.size();
-        let k = match frame.intrinsics {
-            Some(k) => k,
-            None => Intrinsics::from_hfov(w, h, DEFAULT_HFOV_DEG)?,
-        };
         // The terrain estimate's margin is its uncertainty; its calibration is its noise model
         // (a table fitted on the spec's readings does not apply to it).
-        let (mut uncertainty_m, table) = match &self.working.terrain_uncertainty_m {
+        let (uncertainty_m, table) = match &self.working.terrain_uncertainty_m {
             Some(u) => (self.full_size(u, f64::NAN), None),
             None => (
-                uncertainty_map(depth_m, &k, &normals, sensor, &AnnotateConfig::default()),
+                self.spec_uncertainty(frame, depth_m, &normals, sensor)?,
                 table,
             ),
         };
-        for (u, r) in uncertainty_m
-            .as_mut_slice()
-            .iter_mut()
-            .zip(self.roughness_m.as_slice())
-        {
-            if !r.is_finite() {
-                *u = f64::NAN;
-            }
-        }
         if let Some(table) = table {
             return Ok(self.interval_maps(table, Some(uncertainty_m), depth_m));
         }
@@ -361,6 +347,28 @@ impl FrameOutput {
             interval_m: None,
             traversal,
         })
+    }
+
+    /// The spec's noise model as an uncertainty map (NaN where there is no roughness).
+    fn spec_uncertainty(
+        &self,
+        frame: &FrameInput,
+        depth_m: &Grid<f64>,
+        normals: &Grid<Vec3>,
+        sensor: &SensorNoise,
+    ) -> Result<Grid<f64>, PipelineError> {
+        let (w, h) = depth_m.size();
+        let k = match frame.intrinsics {
+            Some(k) => k,
+            None => Intrinsics::from_hfov(w, h, DEFAULT_HFOV_DEG)?,
+        };
+        let mut u = uncertainty_map(depth_m, &k, normals, sensor, &AnnotateConfig::default());
+        for (u, r) in u.as_mut_slice().iter_mut().zip(self.roughness_m.as_slice()) {
+            if !r.is_finite() {
+                *u = f64::NAN;
+            }
+        }
+        Ok(u)
     }
 
     /// The maps of a calibration table: its second feature is `uncertainty_m` (depth modes)

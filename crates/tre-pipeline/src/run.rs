@@ -48,6 +48,10 @@ fn frame_gravity(input: &FrameInput, mode: Mode, points: &PointMap) -> Gravity {
     }
 }
 
+/// Normals, roughness and the terrain estimate's uncertainty (its method only), at the working
+/// size.
+type RoughnessMaps = (Grid<Vec3>, Grid<f64>, Option<Grid<f64>>);
+
 /// Working size when no models are loaded, `(width, height)`.
 pub const DEFAULT_WORKING_SIZE: (usize, usize) = (256, 256);
 /// Stride assumed for network inputs when no models are loaded.
@@ -220,24 +224,8 @@ impl Pipeline {
             }
             points
         });
-        let (normals, roughness_m, terrain_u) = if cfg.is_terrain() {
-            let maps = timings.time("terrain", || self.terrain(input, &work, &points));
-            (maps.normals, maps.roughness_m, Some(maps.uncertainty_m))
-        } else {
-            let (normals, centroids) =
-                self.normals_and_centroids(cfg, &work, &points, &mut timings)?;
-            let mut roughness_m = self.scratch.spares.take();
-            timings.time("roughness", || {
-                let planes = SpecPlanes {
-                    points: &points,
-                    normals: &normals,
-                    centroids: &centroids,
-                };
-                self.roughness_into(cfg, work.size, &planes, &mut roughness_m);
-            });
-            self.scratch.spares.keep(centroids);
-            (normals, roughness_m, None)
-        };
+        let (normals, roughness_m, terrain_u) =
+            self.roughness_stages(input, cfg, (&work, &points), &mut timings)?;
         let maps = StageMaps {
             depth_m,
             points,
@@ -249,17 +237,42 @@ impl Pipeline {
             let mut out = FrameOutput::new(size, roughness_m, Some(maps), gravity, limits, spares);
             if let (Mode::Rgbd | Mode::Geometric, Some(given)) = (cfg.mode, &input.depth_m) {
                 out.keep_holes(given);
+                out.implausible = Implausible::of(given, &gravity);
             }
             if let Some(u) = terrain_u {
                 out.set_terrain_uncertainty(u);
-            }
-            if let (Mode::Rgbd | Mode::Geometric, Some(given)) = (cfg.mode, &input.depth_m) {
-                out.implausible = Implausible::of(given, &gravity);
             }
             out
         });
         out.timings = timings;
         Ok(out)
+    }
+
+    /// Normals, roughness and (the terrain estimate's) uncertainty of the working-size points:
+    /// the terrain estimate, or the normal and centroid stages and the roughness stage.
+    fn roughness_stages(
+        &mut self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+        (work, points): (&Working, &PointMap),
+        timings: &mut StageTimings,
+    ) -> Result<RoughnessMaps, PipelineError> {
+        if cfg.is_terrain() {
+            let maps = timings.time("terrain", || self.terrain(input, work, points));
+            return Ok((maps.normals, maps.roughness_m, Some(maps.uncertainty_m)));
+        }
+        let (normals, centroids) = self.normals_and_centroids(cfg, work, points, timings)?;
+        let mut roughness_m = self.scratch.spares.take();
+        timings.time("roughness", || {
+            let planes = SpecPlanes {
+                points,
+                normals: &normals,
+                centroids: &centroids,
+            };
+            self.roughness_into(cfg, work.size, &planes, &mut roughness_m);
+        });
+        self.scratch.spares.keep(centroids);
+        Ok((normals, roughness_m, None))
     }
 
     /// The terrain estimate of the working-size points, through the frame's noise model.

@@ -136,38 +136,10 @@ pub fn terrain_into(
         })
         .collect();
     // Pass 2: each step spreads over its band; roughness is the larger term.
-    let band = cfg.band_px as isize;
+    let rows = band_max(&per_pixel, (w, h), cfg.band_px);
     out.roughness_m.reset(w, h, f64::NAN);
     out.uncertainty_m.reset(w, h, f64::NAN);
     out.normals.reset(w, h, Vec3::repeat(f64::NAN));
-    let rows: Vec<(usize, Vec<f64>)> = (0..h)
-        .into_par_iter()
-        .map(|y| {
-            let row = (0..w)
-                .map(|x| {
-                    let (surface, _, _, _) = per_pixel[y * w + x];
-                    if !surface.is_finite() {
-                        return f64::NAN;
-                    }
-                    let mut r = surface;
-                    for dy in -band..=band {
-                        for dx in -band..=band {
-                            let (xx, yy) = (x as isize + dx, y as isize + dy);
-                            if xx < 0 || yy < 0 || xx >= w as isize || yy >= h as isize {
-                                continue;
-                            }
-                            let step = per_pixel[yy as usize * w + xx as usize].1;
-                            if step > r {
-                                r = step;
-                            }
-                        }
-                    }
-                    r
-                })
-                .collect();
-            (y, row)
-        })
-        .collect();
     for (y, row) in rows {
         for (x, r) in row.into_iter().enumerate() {
             let (_, _, u, n) = per_pixel[y * w + x];
@@ -178,6 +150,38 @@ pub fn terrain_into(
             }
         }
     }
+}
+
+/// Per row, the larger of each pixel's surface term and the steps within `band` pixels of it
+/// (NaN where the pixel has no estimate).
+fn band_max(
+    per_pixel: &[(f64, f64, f64, Vec3)],
+    (w, h): (usize, usize),
+    band: usize,
+) -> Vec<(usize, Vec<f64>)> {
+    let band = band as isize;
+    let at = |x: isize, y: isize| {
+        let inside = x >= 0 && y >= 0 && x < w as isize && y < h as isize;
+        inside.then(|| per_pixel[y as usize * w + x as usize].1)
+    };
+    (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let row = (0..w)
+                .map(|x| {
+                    let surface = per_pixel[y * w + x].0;
+                    if !surface.is_finite() {
+                        return f64::NAN;
+                    }
+                    let (x, y) = (x as isize, y as isize);
+                    (-band..=band)
+                        .flat_map(|dy| (-band..=band).filter_map(move |dx| at(x + dx, y + dy)))
+                        .fold(surface, f64::max)
+                })
+                .collect();
+            (y, row)
+        })
+        .collect()
 }
 
 /// [`terrain_into`] into fresh maps.
@@ -237,7 +241,14 @@ impl Frame<'_> {
         let d = s.normal.dot(&(q - s.centroid)).abs();
         let e_s = s.sigma_n * (self.mean_var(n_in) + self.mean_var(s.count)).sqrt();
         let surface = (d * d - (k * e_s).powi(2)).max(0.0).sqrt();
-        // Step terms of the two seams.
+        let (step, e_j) = self.step_term(xy, &p, &s);
+        let uncertainty = k * e_s.max(e_j);
+        (surface, step, uncertainty, s.normal)
+    }
+
+    /// The step term of the seams right of and below pixel `xy` (point `p`, support `s`), and
+    /// its noise σ: the margin a step must clear.
+    fn step_term(&self, xy: (usize, usize), p: &Vec3, s: &Support) -> (f64, f64) {
         let (x, y) = (xy.0 as isize, xy.1 as isize);
         let r = s.half as isize;
         let seams = [
@@ -254,41 +265,38 @@ impl Frame<'_> {
                 (x + r + 1, y + r + 2),
             ),
         ];
-        let mut step: f64 = 0.0;
-        // The step's noise as the support predicts it for two halves of itself (measured on
-        // the seams below where they are looked at): the margin a step must clear.
-        let half_n = 0.5 * s.count;
-        // Two halves' centroids lie √3·σ apart along the window's longer in-plane axis (a
-        // uniform spread), metres of ground at grazing views.
+        // The noise as the support predicts it for two halves of itself (measured on the seams
+        // below where they are looked at). Two halves' centroids lie √3·σ apart along the
+        // window's longer in-plane axis (a uniform spread): metres of ground at grazing views.
         let reach = (3.0 * s.l_max).sqrt();
-        let tilt2 = (s.sigma_n.powi(2) + s.sigma_c.powi(2)) * self.mean_var(s.count)
-            / s.l_mid.max(f64::MIN_POSITIVE);
-        let mut e_j: f64 = (s.sigma_n.powi(2) * 2.0 * self.mean_var(half_n)
+        let noise2 = s.sigma_n * s.sigma_n + s.sigma_c * s.sigma_c;
+        let tilt2 = noise2 * self.mean_var(s.count) / s.l_mid.max(f64::MIN_POSITIVE);
+        let mut e_j: f64 = (s.sigma_n.powi(2) * 2.0 * self.mean_var(0.5 * s.count)
             + 2.0 * s.sigma_c.powi(2)
             + tilt2 * reach * reach)
             .sqrt();
-        let min_side = (self.cfg.min_points / 2).max(3);
         // A support whose points lie on its plane within twice the noise (and 2 mm) holds no
         // step the margin would let through: its seams need no look.
-        let noise2 = s.sigma_n * s.sigma_n + s.sigma_c * s.sigma_c;
-        let planar = s.l_min <= 4.0 * noise2 + PLANAR_M * PLANAR_M;
-        let seams = if planar { &seams[..0] } else { &seams[..] };
-        for &(a0, a1, b0, b1) in seams {
+        if s.l_min <= 4.0 * noise2 + PLANAR_M * PLANAR_M {
+            return (0.0, e_j);
+        }
+        let min_side = (self.cfg.min_points / 2).max(3);
+        let extent = s.half as f64 * p.z / self.fx_px;
+        let var = |n: f64| self.mean_var(n);
+        let mut step: f64 = 0.0;
+        for (a0, a1, b0, b1) in seams {
             let (a, b) = (self.sums.rect(a0, a1), self.sums.rect(b0, b1));
             if a.count < min_side || b.count < min_side {
                 continue;
             }
-            let extent = s.half as f64 * p.z / self.fx_px;
-            let var = |n: f64| self.mean_var(n);
-            let Some((jump, e)) = pooled_step((&a, &b), &var, &s, (self.cfg.conditioning, extent))
-            else {
+            let test = (self.cfg.conditioning, extent);
+            let Some((jump, e)) = pooled_step((&a, &b), &var, s, test) else {
                 continue;
             };
             e_j = e_j.max(e);
-            step = step.max(jump - k * e);
+            step = step.max(jump - self.cfg.debias * e);
         }
-        let uncertainty = k * e_s.max(e_j);
-        (surface, step.max(0.0), uncertainty, s.normal)
+        (step.max(0.0), e_j)
     }
 
     /// The smallest support window of pixel `xy` (point `p`) with enough points spread in two

@@ -318,6 +318,13 @@ impl RowAcc {
     }
 }
 
+/// A frame read, with its sensor's noise model in its input (the terrain estimate reads it).
+fn load_sensed(frame: &RealFrame, sensor: &SensorNoise) -> anyhow::Result<LoadedFrame> {
+    Ok(load_frame(frame)
+        .with_context(|| frame.name())?
+        .sensed(frame, sensor))
+}
+
 /// Runs the benchmark: every frame, every configuration; the modes that read sensor depth also
 /// get the uncertainty and three-state maps under `sensor`'s noise model (or the frame's camera
 /// file's, when it names one). Calls `on_frame` with each frame's maps (for the contact
@@ -343,8 +350,7 @@ pub fn run_benchmark(
     let any_floor = frames.iter().any(|f| floors.contains_key(&key(f)));
     let mut prev: Option<PrevView> = None;
     for (i, frame) in frames.iter().enumerate() {
-        let mut loaded = load_frame(frame).with_context(|| frame.name())?;
-        loaded.input.sensor = Some(frame_sensor(frame, sensor));
+        let loaded = load_sensed(frame, sensor)?;
         let pose = Pose::of(frame)?;
         let other = shared_with(prev.as_ref(), frame, pose, &loaded);
         let floor_box = floors.get(&key(frame)).copied();

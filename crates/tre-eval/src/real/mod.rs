@@ -278,6 +278,15 @@ pub fn load_frame(frame: &RealFrame) -> anyhow::Result<LoadedFrame> {
     })
 }
 
+impl LoadedFrame {
+    /// The frame with its sensor's noise model ([`frame_sensor`]) in its input.
+    #[must_use]
+    pub fn sensed(mut self, frame: &RealFrame, default: &SensorNoise) -> Self {
+        self.input.sensor = Some(frame_sensor(frame, default));
+        self
+    }
+}
+
 /// The noise model of a frame's sensor: the camera file's, when it names one, else `default`.
 pub fn frame_sensor(frame: &RealFrame, default: &SensorNoise) -> SensorNoise {
     frame

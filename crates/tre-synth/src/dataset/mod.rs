@@ -77,8 +77,9 @@ pub struct SynthConfig {
     #[cfg_attr(feature = "cli", arg(long = "no-ply", action = clap::ArgAction::SetFalse,
         help = "Skip the PLY point clouds (they are the largest files)"))]
     pub ply: bool,
-    /// Depth sensor(s) of `depth_sensor.png`: kinect_v1, realsense_d435, azure_kinect, lidar or
-    /// exact; a comma-separated list draws one per frame (docs/synth.md).
+    /// Depth sensor(s) of `depth_sensor.png`: kinect_v1, realsense_d435, azure_kinect, lidar,
+    /// lidar_accumulated, passive_stereo or exact; a comma-separated list draws one per frame
+    /// (docs/synth.md).
     // Drawn uniformly, from the frame's seed; `exact` copies the exact depth.
     #[serde(default = "default_sensors")]
     #[cfg_attr(

@@ -114,32 +114,41 @@ impl SensorModel {
                 lidar_azimuth_step_deg: 0.2,
                 ..off
             },
-            // Denser rings than one sweep; the sweeps' registration error is not rendered.
-            SensorPreset::LidarAccumulated => Self {
-                min_range_m: 0.5,
-                max_range_m: 120.0,
-                lidar_rings: 256,
-                lidar_azimuth_step_deg: 0.1,
-                ..off
-            },
-            // A ZED-class passive rig: quarter-pixel disparity steps, holes on weak texture.
-            SensorPreset::PassiveStereo => Self {
-                min_range_m: 0.3,
-                max_range_m: 20.0,
-                native_focal_px: 700.0,
-                baseline_m: 0.12,
-                disparity_step_px: 0.25,
-                correlation_native_px: 5.0,
-                correlated_share: 0.5,
-                grazing_start_deg: 80.0,
-                grazing_end_deg: 89.0,
-                min_texture: 0.003,
-                dropout_cell_native_px: 2.0,
-                left_band: true,
-                fatten_native_px: 2.0,
-                ..off
-            },
+            SensorPreset::LidarAccumulated => Self::lidar_accumulated(off),
+            SensorPreset::PassiveStereo => Self::passive_stereo(off),
             SensorPreset::Exact => off,
+        }
+    }
+
+    /// Accumulated LiDAR: denser rings than one sweep (the sweeps' registration error is not
+    /// rendered).
+    fn lidar_accumulated(off: Self) -> Self {
+        Self {
+            min_range_m: 0.5,
+            max_range_m: 120.0,
+            lidar_rings: 256,
+            lidar_azimuth_step_deg: 0.1,
+            ..off
+        }
+    }
+
+    /// A ZED-class passive rig: quarter-pixel disparity steps, holes on weak texture.
+    fn passive_stereo(off: Self) -> Self {
+        Self {
+            min_range_m: 0.3,
+            max_range_m: 20.0,
+            native_focal_px: 700.0,
+            baseline_m: 0.12,
+            disparity_step_px: 0.25,
+            correlation_native_px: 5.0,
+            correlated_share: 0.5,
+            grazing_start_deg: 80.0,
+            grazing_end_deg: 89.0,
+            min_texture: 0.003,
+            dropout_cell_native_px: 2.0,
+            left_band: true,
+            fatten_native_px: 2.0,
+            ..off
         }
     }
 
