@@ -131,9 +131,8 @@ impl Infer {
         if self.sensor.is_some() && cfg.mode == Mode::Rgb {
             bail!("--sensor: the rgb mode reads no sensor depth; its intervals come from models/uncertainty.json");
         }
-        let model = self
-            .sensor
-            .or(described.as_ref().and_then(io::SensorSpec::noise));
+        // The input's model: `--sensor`, else the camera's (set in `run`).
+        let model = frame.sensor;
         let text = match &described {
             Some(io::SensorSpec::Description(d)) => Some(d.as_str()),
             _ => None,

@@ -41,21 +41,11 @@ fn pb_camera(c: &CameraFile) -> pb::Camera {
                 sigma_mm.to_vec()
             }
             Some(io::SensorSpec::Model(SensorNoise::Stereo { stereo })) => {
-                stereo_sigma_mm(stereo).to_vec()
+                stereo.sigma_mm().to_vec()
             }
             _ => Vec::new(),
         },
     }
-}
-
-/// A stereo rig as the stream's coefficients (σ_z = c·z² mm): the wire has no stereo rig, so
-/// its block's correlation stays on this side.
-fn stereo_sigma_mm(rig: &tre_core::roughness::noise::StereoRig) -> [f64; 3] {
-    [
-        0.0,
-        0.0,
-        1e3 * rig.step_px / (rig.focal_px * rig.baseline_m),
-    ]
 }
 
 impl From<&ClientConfig> for pb::Hello {
@@ -80,7 +70,7 @@ impl From<&ClientConfig> for pb::Hello {
             },
             sensor_sigma_mm: match cfg.sensor {
                 Some(SensorNoise::Coefficients { sigma_mm }) => sigma_mm.to_vec(),
-                Some(SensorNoise::Stereo { stereo }) => stereo_sigma_mm(&stereo).to_vec(),
+                Some(SensorNoise::Stereo { stereo }) => stereo.sigma_mm().to_vec(),
                 _ => Vec::new(),
             },
         }

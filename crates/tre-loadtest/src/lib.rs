@@ -166,8 +166,8 @@ impl Ask {
             }
             // The query has no stereo rig: its σ_z as coefficients.
             Some(tre_core::roughness::noise::SensorNoise::Stereo { stereo }) => {
-                let c = 1e3 * stereo.step_px / (stereo.focal_px * stereo.baseline_m);
-                q.push(format!("sensor=0,0,{c}"));
+                let [a, b, c] = stereo.sigma_mm();
+                q.push(format!("sensor={a},{b},{c}"));
             }
             None => {}
         }

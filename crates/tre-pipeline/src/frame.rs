@@ -152,11 +152,6 @@ impl FrameOutput {
         self.working.terrain_uncertainty_m = Some(u);
     }
 
-    /// True when the roughness is the terrain estimate's (its own uncertainty map).
-    pub fn is_terrain(&self) -> bool {
-        self.working.terrain_uncertainty_m.is_some()
-    }
-
     /// Hands every map of this output to `spares`, for the next frames.
     pub(crate) fn give_maps(self, spares: &mut Spares) {
         spares.keep(self.roughness_m);

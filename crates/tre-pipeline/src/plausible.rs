@@ -42,27 +42,31 @@ pub enum Implausible {
 
 impl Implausible {
     /// The check of one frame's depth (metres) and the gravity found for it; stated mounting
-    /// is never questioned.
+    /// is never questioned. One counting pass per frame; the median is sorted out only for a
+    /// frame that fails.
     pub fn of(depth_m: &Grid<f64>, gravity: &Gravity) -> Option<Self> {
-        let mut valid: Vec<f64> = depth_m
-            .as_slice()
-            .iter()
-            .copied()
-            .filter(|d| d.is_finite() && *d > 0.0)
-            .collect();
-        if valid.is_empty() {
+        let (mut valid, mut far) = (0usize, 0usize);
+        for &d in depth_m.as_slice() {
+            if d.is_finite() && d > 0.0 {
+                valid += 1;
+                far += usize::from(d > MAX_MEDIAN_DEPTH_M);
+            }
+        }
+        // The median (the valid depth at `valid / 2` in order) is over the limit exactly when
+        // the `valid - valid / 2` largest are.
+        if valid == 0 {
             return None;
         }
-        let mid = valid.len() / 2;
-        let median_m = *valid.select_nth_unstable_by(mid, f64::total_cmp).1;
-        if median_m > MAX_MEDIAN_DEPTH_M {
-            return Some(Self::FarDepth { median_m });
+        if far >= valid - valid / 2 {
+            return Some(Self::FarDepth {
+                median_m: median(depth_m),
+            });
         }
         match gravity {
             Gravity::Estimated(fit) if fit.height_m > MAX_GROUND_BELOW_M => {
                 Some(Self::DeepGround {
                     height_m: fit.height_m,
-                    median_m,
+                    median_m: median(depth_m),
                 })
             }
             _ => None,
@@ -100,6 +104,18 @@ impl Implausible {
             None => format!("{what}: check the depth scale ({stated} units per metre)"),
         }
     }
+}
+
+/// The median of the valid depth (the element at `n / 2` in order), metres.
+fn median(depth_m: &Grid<f64>) -> f64 {
+    let mut valid: Vec<f64> = depth_m
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .collect();
+    let mid = valid.len() / 2;
+    *valid.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 impl fmt::Display for Implausible {

@@ -571,7 +571,8 @@ pub fn encode_sensor_maps(
         return Ok(());
     }
     let spec = req.camera.as_ref().and_then(|c| c.sensor.as_ref());
-    let model = req.noise_model();
+    // The frame's model, from `req.noise_model()` when it was decoded.
+    let model = frame.sensor;
     let described = match spec {
         Some(io::SensorSpec::Description(d)) => Some(d.as_str()),
         _ => None,

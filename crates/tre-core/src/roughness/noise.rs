@@ -188,7 +188,17 @@ impl StereoRig {
 
     /// σ_z(z), metres.
     pub fn sigma_z_m(&self, z_m: f64) -> f64 {
-        z_m * z_m * self.step_px / (self.focal_px * self.baseline_m)
+        z_m * z_m * self.sigma_mm()[2] * 1e-3
+    }
+
+    /// The rig's σ_z as coefficients `[a, b, c]` mm (σ_z = c·z²), as the stream and the query
+    /// carry it (without the block's correlation).
+    pub fn sigma_mm(&self) -> [f64; 3] {
+        [
+            0.0,
+            0.0,
+            1e3 * self.step_px / (self.focal_px * self.baseline_m),
+        ]
     }
 }
 

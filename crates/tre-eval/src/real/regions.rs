@@ -156,23 +156,8 @@ pub fn score_regions(
             fig.frames += 1;
             let gravity = out.gravity.up_in_cam().is_some();
             fig.gravity_frames += usize::from(gravity);
-            let before = fig.clone();
             let maps_of = (&out.roughness_m, &maps.traversal, gravity);
             add_regions(fig, regions, depth, maps_of);
-            if std::env::var_os("TRE_REGIONS_DEBUG").is_some() {
-                eprintln!(
-                    "{} {}: flat {} rough {} states {:?}; hazard {} states {:?}",
-                    cfg.label(),
-                    frame.name(),
-                    fig.flat_px - before.flat_px,
-                    fig.flat_rough - before.flat_rough,
-                    std::array::from_fn::<_, 3, _>(|i| fig.flat_states[i] - before.flat_states[i]),
-                    fig.hazard_px - before.hazard_px,
-                    std::array::from_fn::<_, 3, _>(
-                        |i| fig.hazard_states[i] - before.hazard_states[i]
-                    ),
-                );
-            }
             pipeline.recycle(out);
         }
     }

@@ -37,6 +37,16 @@ fn ground(
     })
 }
 
+/// The terrain estimate of `depth` with the default settings.
+fn estimate(k: &Intrinsics, depth: &Grid<f64>, noise: Option<&SensorNoise>) -> TerrainMaps {
+    terrain(
+        &k.back_project_map(depth),
+        k.fx_px,
+        noise,
+        &TerrainConfig::default(),
+    )
+}
+
 /// A normal deviate from the counter-based hash (Box–Muller).
 fn gauss(x: usize, y: usize) -> f64 {
     let i = (y * 10_000 + x) as u64;
@@ -71,8 +81,7 @@ fn scan_line_gaps_are_no_steps_but_a_drop_is() {
         |_, y| y % 5 == 0,
         noise,
     );
-    let pts = k.back_project_map(&flat);
-    let t = terrain(&pts, k.fx_px, Some(&lidar), &TerrainConfig::default());
+    let t = estimate(&k, &flat, Some(&lidar));
     let (share, n) = share_at_least(&t.roughness_m, 60..120, 0.05);
     assert!(n > 1000, "{n} estimates");
     assert!(
@@ -93,12 +102,7 @@ fn scan_line_gaps_are_no_steps_but_a_drop_is() {
         |_, y| y % 5 == 0,
         noise,
     );
-    let t = terrain(
-        &k.back_project_map(&drop),
-        k.fx_px,
-        Some(&lidar),
-        &TerrainConfig::default(),
-    );
+    let t = estimate(&k, &drop, Some(&lidar));
     let (hit, n) = share_at_least(&t.roughness_m, edge_row - 3..edge_row + 3, 0.05);
     assert!(
         n > 100 && hit > 0.9,
@@ -113,12 +117,7 @@ fn dense_noisy_floor_is_flat_and_holes_are_not_steps() {
     let hole = |x: usize, y: usize| !((100..140).contains(&x) && (150..170).contains(&y));
     let noise = |z: f64, x: usize, y: usize| kinect.sigma_z_m(z) * gauss(x, y);
     let floor = ground(&k, (320, 240), (1.0, 45.0), (0, 0.0), hole, noise);
-    let t = terrain(
-        &k.back_project_map(&floor),
-        k.fx_px,
-        Some(&kinect),
-        &TerrainConfig::default(),
-    );
+    let t = estimate(&k, &floor, Some(&kinect));
     let (share, n) = share_at_least(&t.roughness_m, 0..240, 0.01);
     assert!(n > 50_000 && share < 0.001, "{share} of {n} read >= 1 cm");
     assert!(t.roughness_m[(120, 160)].is_nan(), "a hole has no estimate");
@@ -149,12 +148,7 @@ fn a_step_on_dense_depth_reads_as_a_hazard_and_exact_depth_stays_exact() {
         |_, _| true,
         |_, _, _| 0.0,
     );
-    let t = terrain(
-        &k.back_project_map(&depth),
-        k.fx_px,
-        None,
-        &TerrainConfig::default(),
-    );
+    let t = estimate(&k, &depth, None);
     let (hit, _) = share_at_least(&t.roughness_m, 119..122, 0.05);
     assert!(hit > 0.95, "the step's edge: {hit}");
     let (far, n) = share_at_least(&t.roughness_m, 200..240, 1e-6);
@@ -181,12 +175,7 @@ fn registration_layers_are_flat_but_uncertain() {
         |x, y| (x + y) % 2 == 0,
         layer,
     );
-    let t = terrain(
-        &k.back_project_map(&d),
-        k.fx_px,
-        Some(&acc),
-        &TerrainConfig::default(),
-    );
+    let t = estimate(&k, &d, Some(&acc));
     let (share, n) = share_at_least(&t.roughness_m, 60..120, 0.05);
     assert!(n > 1000 && share < 0.02, "{share} of {n}");
     let u = t.uncertainty_m[(300, 100)];
