@@ -41,6 +41,13 @@ fn missing_prerequisite() -> Option<String> {
     None
 }
 
+/// The sensor presets the library knows, comma-separated in its order.
+fn sensor_presets() -> String {
+    tre_core::roughness::noise::SensorPreset::ALL
+        .map(tre_core::roughness::noise::SensorPreset::name)
+        .join(",")
+}
+
 fn image() -> PathBuf {
     real("slambook2_ch7/1.png")
 }
@@ -62,6 +69,8 @@ fn demo_page_renders_roughness_streams_and_shows_errors() {
         .arg(image())
         .arg(real("metric3d_nyu/depth/sync_depth_00000.png"))
         .arg(root().join("cameras/real-rgbd_metric3d_nyu.json"))
+        // The page's sensor choices must be the library's presets, in order.
+        .env("TRE_SENSOR_PRESETS", sensor_presets())
         .output()
         .expect("cannot run node");
     println!("{}", String::from_utf8_lossy(&out.stdout));
