@@ -54,3 +54,40 @@ pub fn traversal_preview(
     ]);
     titled(title, &image, &legend)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// docs/outputs.md states the preview's no-data colour, its rows beyond the map's and its
+    /// least width, and the colour map's no-data colour, as this code draws them.
+    #[test]
+    fn the_outputs_doc_states_the_previews_as_drawn() {
+        let doc = include_str!("../../../docs/outputs.md");
+        let h = 10;
+        let map = Grid::new(4, h, f64::NAN);
+        let preview = roughness_preview(&map, 0.05, "");
+        let extra = preview.height() - h as u32;
+        let [r, g, b] = crate::sheet::NO_DATA.0;
+        let stated = [
+            format!("H + {extra} rows"),
+            format!("width at least {}", preview.width()),
+            format!("no-data grey ({r}, {g}, {b})"),
+        ];
+        let [r, g, b] = crate::colormap::colourise(&map, 0.0, 0.05)
+            .get_pixel(0, 0)
+            .0;
+        let colour = format!("no data ({r}, {g}, {b})");
+        for said in stated.iter().chain([&colour]) {
+            assert!(
+                doc.contains(said.as_str()),
+                "docs/outputs.md does not say {said:?}"
+            );
+        }
+        // The no-data grey is the preview's: the map's pixels are all of it.
+        let title_rows =
+            preview.height() - h as u32 - crate::sheet::colour_bar_legend(4, 0.05, &[]).height();
+        let x = (preview.width() - 4) / 2;
+        assert_eq!(*preview.get_pixel(x, title_rows), crate::sheet::NO_DATA);
+    }
+}

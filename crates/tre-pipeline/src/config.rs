@@ -122,6 +122,21 @@ impl PipelineConfig {
         }
     }
 
+    /// Refuses depth given to a configuration that would not read it: the pipeline in `rgb`
+    /// mode predicts its own depth, so sensor depth sent with it would be dropped without a
+    /// word. (The end-to-end baseline reads no depth either; its callers refuse it with their
+    /// own fix.)
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError::UnusedDepth`] for depth in `rgb` mode.
+    pub fn check_depth_used(&self, has_depth: bool) -> Result<(), PipelineError> {
+        if has_depth && self.method == Method::Pipeline && self.mode == Mode::Rgb {
+            return Err(PipelineError::UnusedDepth);
+        }
+        Ok(())
+    }
+
     /// True where the geometric mode runs the terrain estimate (no LS normals, no window
     /// centroids: its own supports).
     pub fn is_terrain(&self) -> bool {
@@ -253,5 +268,18 @@ mod tests {
             ..fewer
         };
         assert_eq!(ls_fewer.label(), "DE+LS+NR+ESR");
+    }
+
+    #[test]
+    fn depth_in_rgb_mode_is_refused_with_the_modes_that_use_it() {
+        let rgb = PipelineConfig::for_mode(Mode::Rgb);
+        let e = rgb.check_depth_used(true).unwrap_err().to_string();
+        assert!(e.contains("rgbd") && e.contains("geometric"), "{e}");
+        assert!(rgb.check_depth_used(false).is_ok());
+        for mode in [Mode::Rgbd, Mode::Geometric] {
+            assert!(PipelineConfig::for_mode(mode)
+                .check_depth_used(true)
+                .is_ok());
+        }
     }
 }

@@ -50,6 +50,7 @@ pub use frame::{FrameInput, FrameOutput, SensorMaps, StageTimings, DEFAULT_HFOV_
 pub use gravity::{Assumption, Gravity, GravityFigures, GravityUnknown};
 pub use plausible::{Implausible, MAX_GROUND_BELOW_M, MAX_MEDIAN_DEPTH_M};
 pub use run::{check_input, Pipeline, DEFAULT_WORKING_SIZE};
+pub use summary::MOSTLY_UNKNOWN_SHARE;
 
 use tre_core::geometry::GeometryError;
 use tre_core::roughness::noise::SensorPreset;
@@ -114,6 +115,14 @@ pub enum PipelineError {
         /// The number asked for.
         got: u32,
     },
+    /// Depth given with the `rgb` mode, which predicts its own depth and would drop it: refused
+    /// rather than ignored ([`PipelineConfig::check_depth_used`]).
+    #[error(
+        "the rgb mode predicts depth from the RGB frame alone, so the depth given would be \
+         ignored; use mode rgbd (RGB with this depth) or geometric (the depth alone), or send no \
+         depth"
+    )]
+    UnusedDepth,
     /// Uncertainty or three-state maps asked for without sensor depth.
     #[error(
         "the uncertainty and three-state maps need sensor depth (modes rgbd and geometric) or the \

@@ -78,7 +78,25 @@ impl FrameOutput {
     }
 }
 
+/// The share of unknown pixels from which a three-state map is called mostly unknown
+/// ([`SensorMaps::mostly_unknown`]): its roughness map, however detailed it looks, answers
+/// almost nothing.
+pub const MOSTLY_UNKNOWN_SHARE: f64 = 0.9;
+
 impl SensorMaps {
+    /// The caveat of a three-state map at least [`MOSTLY_UNKNOWN_SHARE`] unknown, for a
+    /// preview's title and the console (`97.5% unknown: ...`); `None` for a map that answers.
+    #[must_use]
+    pub fn mostly_unknown(&self) -> Option<String> {
+        let (_, _, unknown) = shares(&self.traversal);
+        (unknown >= MOSTLY_UNKNOWN_SHARE).then(|| {
+            format!(
+                "{:.1}% unknown: the roughness is no answer here",
+                100.0 * unknown
+            )
+        })
+    }
+
     /// The three states' shares in one line, naming where they come from (`what`).
     #[must_use]
     pub fn shares_line(&self, what: &str) -> String {
@@ -89,5 +107,39 @@ impl SensorMaps {
             100.0 * h,
             100.0 * u
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tre_core::geometry::Grid;
+    use tre_core::roughness::traversal::Traversal;
+
+    /// Maps of 20 pixels, `unknown` of them unknown and the rest traversable.
+    fn maps(unknown: usize) -> SensorMaps {
+        let t = (0..20)
+            .map(|i| {
+                if i < unknown {
+                    Traversal::Unknown
+                } else {
+                    Traversal::Traversable
+                }
+            })
+            .collect();
+        SensorMaps {
+            uncertainty_m: Grid::new(20, 1, f64::NAN),
+            interval_m: None,
+            traversal: Grid::from_vec(20, 1, t).expect("20 pixels"),
+        }
+    }
+
+    #[test]
+    fn a_map_at_least_nine_tenths_unknown_says_so() {
+        assert_eq!(maps(17).mostly_unknown(), None);
+        let said = maps(18).mostly_unknown().expect("18 of 20 is 90%");
+        assert!(said.starts_with("90.0% unknown"), "{said}");
+        let said = maps(20).mostly_unknown().expect("all unknown");
+        assert!(said.starts_with("100.0% unknown"), "{said}");
     }
 }

@@ -730,7 +730,8 @@ fn pipeline_code(e: &PipelineError) -> ErrorCode {
         | PipelineError::ModelsRequired { .. }
         | PipelineError::BadWorkingSize { .. }
         | PipelineError::BadHypotheses { .. }
-        | PipelineError::NoSensorDepth { .. } => ErrorCode::BadInput,
+        | PipelineError::NoSensorDepth { .. }
+        | PipelineError::UnusedDepth => ErrorCode::BadInput,
         PipelineError::NoSensorModel { .. } => ErrorCode::BadCamera,
         // Intrinsics that pass the camera's own checks but not once scaled to the working
         // size (a focal length of 1e308 overflows): still the camera's fault.

@@ -47,6 +47,17 @@ use tre_proto::ErrorCode;
                 ("X-Image-Height" = u32),
                 ("X-Working-Size" = String, description = "WxH the stages ran at."),
                 ("Server-Timing" = String, description = "Wall time per stage, ms."),
+                ("X-Tre-Mode" = String, description = "The mode that ran: rgb, rgbd or \
+                    geometric."),
+                ("X-Tre-Gravity" = String, description = "Where gravity came from, with its \
+                    figures: `stated; pitch_deg=…; roll_deg=…; height_m=…`, `estimated; …; \
+                    support=…` or `unknown; reason=\"…\"`."),
+                ("X-Tre-Assumed" = String, description = "What stood in for what the request \
+                    did not give, comma-separated keys among intrinsics, depth_scale, mounting \
+                    and mode; absent when nothing was assumed."),
+                ("Warning" = String, description = "Repeated: one `199 tre \"…\"` (RFC 7234) \
+                    per assumption and per input that looks wrong or leaves the answer mostly \
+                    unknown, in words."),
             ),
             content(
                 (inline(Binary) = "image/png"),
@@ -365,7 +376,7 @@ fn set(headers: &mut HeaderMap, name: &'static str, value: String) {
 
 /// The headers of an answer: the map's scale and sizes, the stage times, and what ran and
 /// what it assumed ([`FrameReply::mode`], [`FrameReply::gravity`], [`FrameReply::assumed`]).
-fn reply_headers(reply: &FrameReply) -> HeaderMap {
+pub(crate) fn reply_headers(reply: &FrameReply) -> HeaderMap {
     let mut headers = HeaderMap::new();
     set(&mut headers, "x-roughness-scale-m", SCALE_M.to_string());
     set(&mut headers, "x-image-width", reply.size.0.to_string());

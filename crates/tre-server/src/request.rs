@@ -321,6 +321,10 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
     if !(scale.is_finite() && scale > 0.0) {
         return Err(RequestError::DepthScale { scale });
     }
+    // `mode=rgb` predicts its own depth: a depth part would be dropped, so it is refused.
+    if let Some(mode) = req.options.mode {
+        PipelineConfig::for_mode(mode).check_depth_used(req.depth.is_some())?;
+    }
     // The geometric mode uses no RGB: an image sent along is checked from its header (format,
     // limits, the depth's size) but not decoded.
     let geometric = req.options.mode == Some(Mode::Geometric) && req.depth.is_some();
@@ -558,7 +562,8 @@ pub fn encode_reply(
 /// Adds the sensor-noise maps the options ask for to `reply`: parts `uncertainty` and
 /// `traversal` and the stream's bytes. The noise model is the options' `sensor`, else the
 /// camera's; `table`: the mode's calibrated intervals, if the models have them (docs/uncertainty.md);
-/// an error names what is missing (a noise model, or sensor depth in this mode).
+/// an error names what is missing (a noise model, or sensor depth in this mode). A three-state
+/// map mostly unknown adds a warning saying so.
 pub fn encode_sensor_maps(
     out: &FrameOutput,
     frame: &FrameInput,
@@ -578,6 +583,13 @@ pub fn encode_sensor_maps(
         _ => None,
     };
     let maps = out.sensor_maps(frame, mode, model.as_ref(), described, table)?;
+    // A map almost all unknown: its roughness looks like an answer and is none; said in a
+    // `Warning` header, as `tre infer` says it.
+    if let Some(caveat) = maps.mostly_unknown() {
+        reply
+            .warnings
+            .push(format!("the three-state map is {caveat}"));
+    }
     if opts.extras.uncertainty {
         let image = DynamicImage::ImageLumaA16(io::roughness_png16(&maps.uncertainty_m));
         let part = png_part(OutputMap::Uncertainty, "uncertainty.png", &image)?;

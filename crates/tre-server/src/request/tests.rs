@@ -127,6 +127,33 @@ fn the_geometric_mode_checks_an_rgb_part_without_decoding_it() {
     }
 }
 
+/// `mode=rgb` predicts its own depth: a depth part sent with it is refused (422 `bad_input`,
+/// naming rgbd and geometric), not dropped; without a mode the same parts run rgbd.
+#[test]
+fn depth_sent_with_the_rgb_mode_is_refused_not_dropped() {
+    let request = |depth: Option<Vec<u8>>, mode| FrameRequest {
+        rgb: Some(png_bytes(64, 48)),
+        depth,
+        camera: None,
+        map: None,
+        options: FrameOptions {
+            mode,
+            ..FrameOptions::default()
+        },
+    };
+    let depth = npy_bytes(&[48, 64], &vec![1.5f32; 64 * 48]);
+    let e = decode_frame(&request(Some(depth.clone()), Some(Mode::Rgb)), LIMITS).unwrap_err();
+    assert_eq!(e.code(), ErrorCode::BadInput, "{e}");
+    let says = e.to_string();
+    assert!(
+        says.contains("rgbd") && says.contains("geometric"),
+        "{says}"
+    );
+    assert!(decode_frame(&request(None, Some(Mode::Rgb)), LIMITS).is_ok());
+    let frame = decode_frame(&request(Some(depth), None), LIMITS).unwrap();
+    assert!(frame.depth_m.is_some());
+}
+
 /// A file that declares a long thin image is refused from its header, naming the limit:
 /// the side first (413), then the pixels (413), then the aspect ratio (422); depth alike.
 #[test]
