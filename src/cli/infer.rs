@@ -1,6 +1,8 @@
 //! `tre infer`: roughness for one frame through the pipeline, written as a 16-bit PNG (or float
 //! `.npy`) with a colour preview beside it.
 
+mod record;
+
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
@@ -65,8 +67,21 @@ pub(crate) struct Infer {
     pub sensor: Option<SensorNoise>,
 }
 
+/// What one frame gave: the output, the maps beside it and what was said about them.
+struct Done {
+    /// The pipeline's output.
+    out: FrameOutput,
+    /// The uncertainty and three-state maps, where the frame has them.
+    maps: Option<SensorMaps>,
+    /// What stood in for what was not given.
+    assumed: Vec<Assumption>,
+    /// The other warnings, in words (an implausible depth, a map mostly unknown).
+    warnings: Vec<String>,
+}
+
 impl Infer {
-    /// Reads the frame, runs the pipeline and writes the roughness map and its preview.
+    /// Reads the frame, runs the pipeline and writes the roughness map, its preview, the
+    /// sensor maps where there are some, and the run's JSON record ([`record`]).
     pub(crate) fn run(self) -> anyhow::Result<()> {
         self.check_outputs()?;
         if self.stages.config.method == Method::EndToEnd && self.depth.is_some() {
@@ -83,6 +98,8 @@ impl Infer {
             traversability,
             ..self.stages.config(mode)
         };
+        cfg.check_depth_used(self.depth.is_some())
+            .context("--mode rgb with --depth")?;
         let (mut frame, described, (scale_stated, scale)) = self.read_frame()?;
         frame.sensor = self
             .sensor
@@ -90,29 +107,96 @@ impl Infer {
         crate::pipeline::check_input(&frame, &cfg)?;
         let mut pipeline = self.stages.pipeline(&[cfg])?;
         let out = pipeline.run(&frame, &cfg)?;
-        self.write(&out, &self.title("roughness", mode))?;
-        let depth_png = self
-            .depth
-            .as_ref()
-            .is_some_and(|d| !d.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy")));
         let assumed = Assumption::of_frame(
             frame.intrinsics.is_some(),
-            depth_png && !scale_stated,
+            self.depth_png() && !scale_stated,
             frame.mounting.is_some(),
             (mode, self.mode.is_some()),
         );
         for a in &assumed {
             eprintln!("warning: {a}");
         }
-        if let Some(bad) = &out.implausible {
-            eprintln!("warning: {}", bad.message(scale));
-        }
+        let mut warnings: Vec<String> = out.implausible.iter().map(|b| b.message(scale)).collect();
+        warnings.iter().for_each(|w| eprintln!("warning: {w}"));
         out.summary(&cfg).iter().for_each(|l| println!("{l}"));
         let table = pipeline.interval_table_for(&cfg);
-        if let Some(maps) = self.sensor_maps(&out, &frame, &cfg, described, table)? {
-            self.write_sensor_maps(&maps, &self.title("three-state", mode))?;
+        let text = match &described {
+            Some(io::SensorSpec::Description(d)) => Some(d.clone()),
+            _ => None,
+        };
+        let maps = self.sensor_maps(&out, &frame, &cfg, described, table)?;
+        if let Some(caveat) = maps.as_ref().and_then(SensorMaps::mostly_unknown) {
+            let words = format!("the three-state map is {caveat}");
+            eprintln!("warning: {words}");
+            warnings.push(words);
         }
+        let done = Done {
+            out,
+            maps,
+            assumed,
+            warnings,
+        };
+        let files = self.write_all(&done, mode)?;
+        let run = record::Run {
+            inputs: [&self.frame, &self.depth, &self.camera].map(|p| p.as_deref()),
+            cfg: (&cfg, self.mode.is_some()),
+            out: &done.out,
+            said: (&done.assumed, &done.warnings),
+            sensor: (frame.sensor.map(|s| s.label()), text.as_deref()),
+            depth_scale: self.depth_png().then_some((scale, scale_stated)),
+            models: pipeline.models().map(crate::model::Models::manifest),
+            maps: done.maps.as_ref(),
+            files: &files,
+        };
+        let path = record::record_path(&self.out);
+        let json = serde_json::to_string_pretty(&record::record(&run))?;
+        io::paths::write_text(&path, &(json + "\n"))?;
+        println!(
+            "wrote {} and its record {}",
+            self.out.display(),
+            path.display()
+        );
         Ok(())
+    }
+
+    /// Whether the depth is a PNG (read at a depth scale) rather than an `.npy` in metres.
+    fn depth_png(&self) -> bool {
+        self.depth
+            .as_ref()
+            .is_some_and(|d| !d.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy")))
+    }
+
+    /// Writes the roughness map and its preview, and the sensor maps where there are some, each
+    /// preview titled with the mode and the input and, for a map mostly unknown, saying so.
+    /// Returns the files written, each preview with its title.
+    fn write_all(&self, done: &Done, mode: Mode) -> anyhow::Result<Vec<(PathBuf, Option<String>)>> {
+        let caveat = done.maps.as_ref().and_then(SensorMaps::mostly_unknown);
+        let title = |what| {
+            let t = self.title(what, mode);
+            caveat
+                .as_ref()
+                .map_or(t.clone(), |c| format!("{t} - {}", c.to_uppercase()))
+        };
+        let rough_title = title("roughness");
+        self.write(&done.out, &rough_title)?;
+        let mut files = vec![
+            (self.out.clone(), None),
+            (outputs::preview_path(&self.out), Some(rough_title)),
+        ];
+        if let Some(maps) = &done.maps {
+            let map_title = title("three-state");
+            self.write_sensor_maps(maps, &map_title)?;
+            let ext = self.format.extension();
+            files.push((outputs::beside(&self.out, "uncertainty", ext), None));
+            if let ("npy", Some(_)) = (ext, &maps.interval_m) {
+                files.push((outputs::beside(&self.out, "lo", "npy"), None));
+                files.push((outputs::beside(&self.out, "hi", "npy"), None));
+            }
+            files.push((outputs::beside(&self.out, "traversal", "png"), None));
+            let preview = outputs::beside(&self.out, "traversal_preview", "png");
+            files.push((preview, Some(map_title)));
+        }
+        Ok(files)
     }
 
     /// The uncertainty and three-state maps by the service's rule
@@ -217,6 +301,7 @@ impl Infer {
             .collect();
         let mut outputs = vec![self.out.clone(), outputs::preview_path(&self.out)];
         outputs.extend(outputs::sensor_map_paths(&self.out));
+        outputs.push(record::record_path(&self.out));
         let outputs: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
         Ok(crate::io::paths::refuse_overwriting(&outputs, &inputs)?)
     }

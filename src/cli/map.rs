@@ -75,7 +75,7 @@ impl Map {
         let mut pipeline = self.stages.pipeline(&[pcfg])?;
         let mut map: Option<GridMap> = None;
         let mut run = MapRun::default();
-        let mut recorder = self.record.as_deref().map(Recorder::create).transpose()?;
+        let mut recorder = self.record.as_deref().map(create_recorder).transpose()?;
         for (i, f) in frames.iter().enumerate() {
             let depth_m = io::read_depth(&f.depth, scale)?;
             let pose = match frame_pose(f) {
@@ -214,6 +214,12 @@ fn print_summary(map: &GridMap, run: &MapRun, s: &MapSummary) {
 fn stamp(f: &SequenceFrame, i: usize) -> Time {
     let n = f.number().unwrap_or(i as u64) as i64;
     Time::from_nanos(n.saturating_mul(1_000_000_000) / 30)
+}
+
+/// A recorder writing `path`, its folder made first (as `-o` makes its own).
+fn create_recorder(path: &std::path::Path) -> anyhow::Result<Recorder> {
+    io::paths::create_parent(path)?;
+    Ok(Recorder::create(path)?)
 }
 
 /// Records frame `f` (the `i`-th): its depth, colour, intrinsics and pose in, its roughness out.

@@ -21,6 +21,10 @@ pub(crate) struct Ros2 {
 impl Ros2 {
     pub(crate) fn run(self) -> anyhow::Result<()> {
         let a = &self.args;
+        // The recording's folder, made as every output folder is.
+        if let Some(path) = &a.record {
+            crate::io::paths::create_parent(path)?;
+        }
         let processor = a.processor()?;
         let node = ros2::start(a.node_config(), processor)?;
         println!(

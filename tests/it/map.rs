@@ -1,7 +1,8 @@
 //! `tre map` on real kitchen frames with their poses: every layer written in both encodings with
 //! the geometry stated, the PNG decoding to the `.npy` by `map.json`'s scale, and a pose that is
 //! not a rigid transform skipped with a message while the map keeps the other frames; its
-//! `--record` file read by an independent MCAP reader, the map in it equal to the layers.
+//! `--record` file (in a folder it makes) read by an independent MCAP reader, the map in it
+//! equal to the layers.
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use std::path::Path;
@@ -78,7 +79,9 @@ fn tre_map_writes_every_layer_and_skips_a_broken_pose() {
     let seq = dir.path().join("seq");
     sequence(&kitchen, &seq);
     let out = dir.path().join("map");
-    let record = dir.path().join("map.mcap");
+    // A recording in a folder that does not exist yet: made, as `-o`'s is.
+    let record = dir.path().join("recordings/run 1/map.mcap");
+    assert!(!record.parent().unwrap().exists());
     let o = Command::new(env!("CARGO_BIN_EXE_tre"))
         .arg("map")
         .arg(&seq)

@@ -11,6 +11,7 @@ use std::process::{Command, Output};
 mod eval;
 mod infer;
 mod models;
+mod record;
 
 fn tre(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_tre"))
