@@ -6,7 +6,8 @@ use std::path::PathBuf;
 
 use crate::recorder::RecorderConfig;
 use crate::source::SourceSpec;
-use crate::{ClientConfig, ClientError, Rate};
+use crate::{ClientConfig, ClientError, MapRequest, Rate};
+use tre_core::kinds::Mode;
 
 /// Stream frames to `tre serve` and write the roughness maps it sends back.
 #[derive(Debug, Clone, clap::Args)]
@@ -15,14 +16,37 @@ pub struct ClientArgs {
     #[command(flatten)]
     pub session: ClientConfig,
     /// Folder of frames (PNG or JPEG), sent in file-name order as they are on disk.
-    #[arg(long, env = "TRE_CLIENT_FRAMES", required_unless_present_any = ["video", "device"],
+    #[arg(long, env = "TRE_CLIENT_FRAMES",
+          required_unless_present_any = ["video", "device", "depth"],
           conflicts_with_all = ["video", "device"])]
     pub frames: Option<PathBuf>,
-    /// Folder of registered depth frames: frame FRAMES/NAME.EXT takes DEPTH/NAME.png (16-bit,
-    /// the camera's depth_scale units per metre, default 1000) or DEPTH/NAME.npy (metres).
-    /// Every frame must have one.
-    #[arg(long, env = "TRE_CLIENT_DEPTH")]
+    /// Folder of depth frames: DEPTH/NAME.png (16-bit, the camera's depth_scale units per
+    /// metre, default 1000) or DEPTH/NAME.npy (metres). With --frames, frame FRAMES/NAME.EXT
+    /// takes DEPTH/NAME.* (every frame must have one); alone, every depth file is sent as a
+    /// depth-only frame in file-name order (the geometric mode, the default then).
+    #[arg(long, env = "TRE_CLIENT_DEPTH", conflicts_with_all = ["video", "device"])]
     pub depth: Option<PathBuf>,
+    /// Camera-to-world poses of the frames (for --map): a folder of NAME.txt (a 4×4 matrix row
+    /// by row, as `tre map`'s poses/), or a file with one pose a line in the frames' order:
+    /// 16 numbers (4×4 row by row), 12 (3×4) or 8 (TUM: t tx ty tz qx qy qz qw).
+    #[arg(long, env = "TRE_CLIENT_POSES", conflicts_with_all = ["video", "device"])]
+    pub poses: Option<PathBuf>,
+    /// Ask the server to keep the stream's grid map (docs/map.md) and write the last one into
+    /// this folder at the end, as `tre map` writes its map. Needs a sensor noise model (the
+    /// camera's "sensor" or --sensor); without --poses every frame restarts the map.
+    #[arg(long, env = "TRE_CLIENT_MAP")]
+    pub map: Option<PathBuf>,
+    /// The map's cell side, centimetres.
+    #[arg(long, env = "TRE_CLIENT_MAP_CELL_CM", default_value_t = 4.0)]
+    pub map_cell_cm: f64,
+    /// Side of the square map, metres.
+    #[arg(long, env = "TRE_CLIENT_MAP_SIZE_M", default_value_t = 8.0)]
+    pub map_size_m: f64,
+    /// The world's down direction in the poses' frame, for the map: X,Y,Z or a gravity.json
+    /// file ({"gravity": [x, y, z]}); default: from the first fused frame (its stated pitch,
+    /// or its depth's ground plane).
+    #[arg(long, env = "TRE_CLIENT_MAP_GRAVITY")]
+    pub map_gravity: Option<String>,
     /// Video file, decoded by ffmpeg (which must be on PATH).
     #[arg(long, env = "TRE_CLIENT_VIDEO", conflicts_with = "device")]
     pub video: Option<PathBuf>,
@@ -62,9 +86,15 @@ pub enum ArgsError {
     /// Not exactly one source of frames.
     #[error("give exactly one of --frames, --video and --device")]
     Source,
-    /// Depth without a folder of frames.
-    #[error("--depth goes with --frames (video and camera input have no depth)")]
-    DepthWithoutFrames,
+    /// The geometric mode without depth.
+    #[error("--mode geometric reads depth only: give --depth DIR (with or without --frames)")]
+    GeometricWithoutDepth,
+    /// Depth-only frames in a mode that reads colour.
+    #[error("--depth without --frames sends depth-only frames: the mode must be geometric")]
+    DepthOnlyNeedsGeometric,
+    /// Map settings that make no map.
+    #[error("--map: {0}")]
+    Map(String),
     /// `--limit 0`.
     #[error("--limit must be at least 1")]
     ZeroLimit,
@@ -84,18 +114,7 @@ impl ClientArgs {
     ///
     /// [`ArgsError`].
     pub fn config(&self) -> Result<RecorderConfig, ArgsError> {
-        let source = match (&self.frames, &self.video, &self.device) {
-            (Some(frames), None, None) => SourceSpec::Folder {
-                frames: frames.clone(),
-                depth: self.depth.clone(),
-            },
-            (None, Some(video), None) => SourceSpec::Video(video.clone()),
-            (None, None, Some(device)) => SourceSpec::Device(device.clone()),
-            _ => return Err(ArgsError::Source),
-        };
-        if self.depth.is_some() && self.frames.is_none() {
-            return Err(ArgsError::DepthWithoutFrames);
-        }
+        let (source, mode) = self.source()?;
         let camera = self
             .camera
             .as_deref()
@@ -104,6 +123,8 @@ impl ClientArgs {
         let session = ClientConfig {
             camera: camera.map(|(c, _)| c),
             rate: self.rate.map_or(Rate::AsFastAsResults, Rate::Fixed),
+            mode,
+            map: self.map.as_ref().map(|_| self.map_request()).transpose()?,
             ..self.session.clone()
         };
         session.validate()?;
@@ -117,8 +138,76 @@ impl ClientArgs {
             limit: self.limit,
             repeat: self.repeat,
             mcap: self.record.clone(),
+            map_out: self.map.clone(),
         })
     }
+
+    /// Where frames come from, and the mode (geometric by default for depth-only frames).
+    fn source(&self) -> Result<(SourceSpec, Option<Mode>), ArgsError> {
+        let mode = self.session.mode;
+        let source = match (&self.frames, &self.depth, &self.video, &self.device) {
+            (Some(frames), depth, None, None) => SourceSpec::Folder {
+                frames: frames.clone(),
+                depth: depth.clone(),
+                poses: self.poses.clone(),
+            },
+            (None, Some(depth), None, None) => {
+                if mode.is_some_and(|m| m != Mode::Geometric) {
+                    return Err(ArgsError::DepthOnlyNeedsGeometric);
+                }
+                let spec = SourceSpec::Depth {
+                    depth: depth.clone(),
+                    poses: self.poses.clone(),
+                };
+                return Ok((spec, Some(Mode::Geometric)));
+            }
+            (None, None, Some(video), None) => SourceSpec::Video(video.clone()),
+            (None, None, None, Some(device)) => SourceSpec::Device(device.clone()),
+            _ => return Err(ArgsError::Source),
+        };
+        if mode == Some(Mode::Geometric) && self.depth.is_none() {
+            return Err(ArgsError::GeometricWithoutDepth);
+        }
+        Ok((source, mode))
+    }
+
+    /// The map asked for by `--map-cell-cm`, `--map-size-m` and `--map-gravity`.
+    fn map_request(&self) -> Result<MapRequest, ArgsError> {
+        let cell_m = self.map_cell_cm / 100.0;
+        let cells = (self.map_size_m / cell_m).round();
+        if !(cell_m.is_finite()
+            && cell_m > 0.0
+            && cells.is_finite()
+            && (1.0..=1000.0).contains(&cells))
+        {
+            return Err(ArgsError::Map(format!(
+                "{} m at {} cm a cell is not 1 to 1000 cells a side",
+                self.map_size_m, self.map_cell_cm
+            )));
+        }
+        let gravity = self.map_gravity.as_deref().map(gravity).transpose()?;
+        Ok(MapRequest {
+            cell_m,
+            side: cells as u32,
+            gravity,
+        })
+    }
+}
+
+/// `--map-gravity`: `X,Y,Z`, or a gravity.json file.
+fn gravity(text: &str) -> Result<[f64; 3], ArgsError> {
+    let numbers: Result<Vec<f64>, _> = text.split(',').map(|t| t.trim().parse()).collect();
+    if let Ok(&[x, y, z]) = numbers.as_deref() {
+        return Ok([x, y, z]);
+    }
+    #[derive(serde::Deserialize)]
+    struct GravityFile {
+        gravity: [f64; 3],
+    }
+    let bad = |why: String| ArgsError::Map(format!("--map-gravity {text}: {why}"));
+    let bytes = std::fs::read(text).map_err(|e| bad(format!("not X,Y,Z, nor a file ({e})")))?;
+    let g: GravityFile = serde_json::from_slice(&bytes).map_err(|e| bad(e.to_string()))?;
+    Ok(g.gravity)
 }
 
 #[cfg(test)]
@@ -168,7 +257,8 @@ mod tests {
             run.source,
             SourceSpec::Folder {
                 frames: "f".into(),
-                depth: Some("d".into())
+                depth: Some("d".into()),
+                poses: None,
             }
         );
         assert_eq!(run.limit, Some(3));
@@ -179,6 +269,106 @@ mod tests {
             d.session.connect_timeout,
             ClientConfig::default().connect_timeout
         );
+    }
+
+    #[test]
+    fn depth_alone_is_a_depth_only_geometric_run_with_poses_and_a_map() {
+        let run = parse(&[
+            "--server",
+            "h:1",
+            "--depth",
+            "d",
+            "--poses",
+            "p.txt",
+            "--map",
+            "m",
+            "--map-cell-cm",
+            "5",
+            "--map-size-m",
+            "6",
+            "--map-gravity",
+            "0,1,0",
+            "-o",
+            "o",
+        ])
+        .unwrap();
+        assert_eq!(
+            run.source,
+            SourceSpec::Depth {
+                depth: "d".into(),
+                poses: Some("p.txt".into())
+            }
+        );
+        assert_eq!(run.session.mode, Some(Mode::Geometric));
+        assert_eq!(
+            run.session.map,
+            Some(MapRequest {
+                cell_m: 0.05,
+                side: 120,
+                gravity: Some([0.0, 1.0, 0.0])
+            })
+        );
+        assert_eq!(run.map_out, Some("m".into()));
+        let plain = parse(&["--server", "h:1", "--depth", "d", "-o", "o"]).unwrap();
+        assert_eq!(plain.session.map, None);
+    }
+
+    #[test]
+    fn depth_only_runs_refuse_colour_modes_and_bad_maps() {
+        for (args, why) in [
+            (
+                &[
+                    "--server", "h:1", "--depth", "d", "--mode", "rgbd", "-o", "o",
+                ][..],
+                "must be geometric",
+            ),
+            (
+                &[
+                    "--server",
+                    "h:1",
+                    "--frames",
+                    "f",
+                    "--mode",
+                    "geometric",
+                    "-o",
+                    "o",
+                ],
+                "give --depth",
+            ),
+            (
+                &[
+                    "--server",
+                    "h:1",
+                    "--depth",
+                    "d",
+                    "--map",
+                    "m",
+                    "--map-size-m",
+                    "100",
+                    "-o",
+                    "o",
+                ],
+                "1 to 1000 cells",
+            ),
+            (
+                &[
+                    "--server",
+                    "h:1",
+                    "--depth",
+                    "d",
+                    "--map",
+                    "m",
+                    "--map-gravity",
+                    "/nonexistent.json",
+                    "-o",
+                    "o",
+                ],
+                "--map-gravity",
+            ),
+        ] {
+            let e = parse(args).unwrap_err();
+            assert!(e.contains(why), "{args:?}: {e}");
+        }
     }
 
     #[test]

@@ -23,6 +23,29 @@ pub enum Rate {
     AsFastAsResults,
 }
 
+/// The grid map a session asks the server to keep (docs/map.md).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapRequest {
+    /// Cell side, metres (1 mm to 1 m).
+    pub cell_m: f64,
+    /// Cells along each side of the square window (1 to 1,000).
+    pub side: u32,
+    /// The world's down direction in the poses' frame; `None`: from the first fused frame's
+    /// gravity (its stated pitch, or its depth's ground plane).
+    pub gravity: Option<[f64; 3]>,
+}
+
+impl Default for MapRequest {
+    /// 4 cm cells, 200 a side (8 m), gravity from the first frame: as `tre map`.
+    fn default() -> Self {
+        Self {
+            cell_m: 0.04,
+            side: 200,
+            gravity: None,
+        }
+    }
+}
+
 /// Exponential back-off between connection attempts: the first attempt is immediate, attempt
 /// `k + 1` waits `initial · factor^(k−1)`, capped at `max`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -166,6 +189,11 @@ pub struct ClientConfig {
     /// --sensor`): a preset (kinect_v1, realsense_d435, azure_kinect, lidar, lidar_accumulated, passive_stereo, exact) or a,b,c.
     #[cfg_attr(feature = "cli", arg(long, env = "TRE_SENSOR"))]
     pub sensor: Option<SensorNoise>,
+    /// Keep a grid map of the stream's frames on the server (their poses, [`Frame::pose`]
+    /// (super::Frame::pose)) and send it after every answered frame ([`Event::Map`]
+    /// (super::Event::Map)); `None`: no map.
+    #[cfg_attr(feature = "cli", arg(skip))]
+    pub map: Option<MapRequest>,
     /// How fast frames go out.
     #[cfg_attr(feature = "cli", arg(skip = Rate::AsFastAsResults))]
     pub rate: Rate,
@@ -214,6 +242,7 @@ impl Default for ClientConfig {
             max_roughness_cm: None,
             max_slope_deg: None,
             sensor: None,
+            map: None,
             rate: Rate::AsFastAsResults,
             reconnect: Backoff::default(),
             frame_timeout: Duration::from_secs(30),
@@ -284,6 +313,14 @@ impl ClientConfig {
         if let Some(c) = &self.camera {
             if let Err(e) = c.intrinsics().and_then(|_| c.mounting()) {
                 return bad("camera", ConfigProblem::Camera(e));
+            }
+        }
+        if let Some(m) = &self.map {
+            let gravity_ok = m
+                .gravity
+                .is_none_or(|g| g.iter().all(|v| v.is_finite()) && g.iter().any(|&v| v != 0.0));
+            if !((0.001..=1.0).contains(&m.cell_m) && (1..=1000).contains(&m.side) && gravity_ok) {
+                return bad("map", ConfigProblem::Map);
             }
         }
         endpoints(&self.server)

@@ -206,6 +206,9 @@ pub enum ConfigProblem {
     /// Camera intrinsics or mounting that make no camera.
     #[error("{0}")]
     Camera(GeometryError),
+    /// Map settings out of range.
+    #[error("cells of 1 mm to 1 m, 1 to 1000 a side, gravity of 3 finite values not all zero")]
+    Map,
     /// An API key that cannot be sent in an HTTP header.
     #[error("not a valid header value")]
     HeaderValue(tungstenite::http::header::InvalidHeaderValue),
@@ -315,6 +318,9 @@ pub enum ProtocolProblem {
         /// What came (`Result`, `Dropped`, `Map`).
         got: &'static str,
     },
+    /// A MapUpdate whose layers do not make a map.
+    #[error("MapUpdate: {0}")]
+    BadMap(String),
 }
 
 /// What is wrong with a Result ([`ClientError::BadResult`]).

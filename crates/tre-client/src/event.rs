@@ -26,6 +26,10 @@ pub struct Frame {
     pub camera: Option<CameraFile>,
     /// Capture time, microseconds since the Unix epoch; `None`: the time of sending.
     pub timestamp_us: Option<i64>,
+    /// Camera-to-world pose, a 4×4 rigid transform row by row (16 values), for the stream's
+    /// map ([`ClientConfig::map`](super::ClientConfig::map)); `None`: the map is this frame
+    /// alone.
+    pub pose: Option<Vec<f64>>,
 }
 
 impl Frame {
@@ -109,6 +113,28 @@ impl FrameResult {
             Roughness::Colour(_) => None,
         }
     }
+}
+
+/// The stream's grid map as the server sent it (docs/map.md): square layers of `side` cells,
+/// row-major, column 0 at the window's smallest x, row 0 at its largest y, in the map frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamMap {
+    /// The last frame fused.
+    pub sequence: u64,
+    /// Cell side, metres.
+    pub cell_m: f64,
+    /// Cells along a side.
+    pub side: usize,
+    /// World cell index (x, y) of the window's lower-left cell.
+    pub origin: (i64, i64),
+    /// Rotation from the pose frame to the map frame, row by row.
+    pub map_from_world: [f64; 9],
+    /// The layers.
+    pub layers: tre_core::map::Layers,
+    /// Frames fused so far.
+    pub fused: u64,
+    /// Frames skipped so far (a pose too far, nothing seen, gravity unknown).
+    pub skipped: u64,
 }
 
 /// Why a frame will get no answer.
@@ -196,6 +222,9 @@ pub enum Event {
         /// The server's Ready.
         server: ServerInfo,
     },
+    /// The stream's grid map after a frame was answered (only when the session asks for a
+    /// map: [`ClientConfig::map`](super::ClientConfig::map)).
+    Map(Box<StreamMap>),
     /// Reconnecting failed as often as allowed, or a new connection was refused; the session
     /// has ended and this is its last event.
     GaveUp {
@@ -291,6 +320,7 @@ impl PartialEq for Event {
                 },
             ) => (a, x, m) == (b, y, n),
             (Self::GaveUp { reason: a }, Self::GaveUp { reason: b }) => Arc::ptr_eq(a, b),
+            (Self::Map(a), Self::Map(b)) => a == b,
             _ => false,
         }
     }

@@ -65,12 +65,13 @@ pub mod tls;
 #[cfg(feature = "cli")]
 pub use cli::{ArgsError, ClientArgs};
 pub use clock::unix_us;
-pub use config::{endpoints, Backoff, ClientConfig, Endpoints, Rate};
+pub use config::{endpoints, Backoff, ClientConfig, Endpoints, MapRequest, Rate};
 pub use error::{
     ClientError, ConfigProblem, ConnectProblem, MapProblem, ProtocolProblem, RejectProblem,
     ResultProblem, ServerSaid, UpgradeAnswer, UrlProblem,
 };
 pub use event::{
     DisconnectReason, ErrorKind, Event, Frame, FrameResult, LostReason, Roughness, ServerInfo,
+    StreamMap,
 };
 pub use session::{Events, FrameSender, Session};

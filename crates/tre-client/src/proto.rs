@@ -10,10 +10,11 @@ use prost::Message;
 use super::clock::Stamp;
 use super::config::ClientConfig;
 use super::error::{MapProblem, ProtocolProblem, ResultProblem};
-use super::event::{ErrorKind, Event, Frame, FrameResult, Roughness, ServerInfo};
+use super::event::{ErrorKind, Event, Frame, FrameResult, Roughness, ServerInfo, StreamMap};
 use super::ClientError;
 use tre_core::geometry::Grid;
 use tre_core::kinds::MapFormat;
+use tre_core::map::Layers;
 use tre_core::roughness::noise::SensorNoise;
 use tre_core::roughness::traversal::Traversal;
 use tre_io::{self as io, CameraFile, ROUGHNESS_PNG_SCALE_M};
@@ -63,7 +64,12 @@ impl From<&ClientConfig> for pb::Hello {
             dsac_hypotheses: cfg.dsac_hypotheses.unwrap_or(0),
             max_roughness_cm: cfg.max_roughness_cm,
             max_slope_deg: cfg.max_slope_deg,
-            map: None,
+            map: cfg.map.map(|m| pb::MapSettings {
+                cell_m: m.cell_m,
+                side: m.side,
+                send_hz: 0.0,
+                gravity: m.gravity.map(|g| g.to_vec()).unwrap_or_default(),
+            }),
             sensor: match cfg.sensor {
                 Some(SensorNoise::Preset(p)) => Some(p.to_string()),
                 _ => None,
@@ -131,7 +137,7 @@ pub(crate) fn frame(frame: Frame, sequence: u64, timestamp_us: i64) -> Vec<u8> {
         image: frame.image,
         depth: frame.depth.unwrap_or_default(),
         camera: frame.camera.as_ref().map(pb_camera),
-        pose: Vec::new(),
+        pose: frame.pose.unwrap_or_default(),
     });
     pb::ClientMessage { msg: Some(msg) }.encode_to_vec()
 }
@@ -152,10 +158,8 @@ impl WireResult {
 pub(crate) enum Incoming {
     Ready(ServerInfo),
     Result(WireResult),
-    /// [`Event::Dropped`] or [`Event::Error`], as the session reports it.
+    /// [`Event::Dropped`], [`Event::Error`] or [`Event::Map`], as the session reports it.
     Event(Event),
-    /// A message this client never asks for (a map update: its Hello asks for no map).
-    Ignored,
 }
 
 impl Incoming {
@@ -165,8 +169,8 @@ impl Incoming {
             Self::Ready(_) => "Ready",
             Self::Result(_) => "Result",
             Self::Event(Event::Dropped { .. }) => "Dropped",
+            Self::Event(Event::Map(_)) => "Map",
             Self::Event(_) => "Error",
-            Self::Ignored => "Map",
         }
     }
 }
@@ -191,10 +195,61 @@ impl TryFrom<pb::ServerMessage> for Incoming {
                 code: ErrorKind::from_wire(&e.code),
                 message: e.message,
             }),
-            Some(Msg::Map(_)) => Self::Ignored,
+            Some(Msg::Map(m)) => Self::Event(Event::Map(Box::new(stream_map(m)?))),
             None => return Err(ClientError::Protocol(ProtocolProblem::Empty)),
         })
     }
+}
+
+/// A MapUpdate in domain terms: its nine layers by name, each `side × side` float32.
+fn stream_map(m: pb::MapUpdate) -> Result<StreamMap, ClientError> {
+    let bad = |why: String| ClientError::Protocol(ProtocolProblem::BadMap(why));
+    let side = m.side as usize;
+    let map_from_world: [f64; 9] = m
+        .map_from_world
+        .as_slice()
+        .try_into()
+        .map_err(|_| bad(format!("{} map_from_world values", m.map_from_world.len())))?;
+    let layer = |name: &str| -> Result<Grid<f32>, ClientError> {
+        let l = m
+            .layers
+            .iter()
+            .find(|l| l.name == name)
+            .ok_or_else(|| bad(format!("no {name} layer")))?;
+        if l.data.len() != 4 * side * side {
+            return Err(bad(format!(
+                "{name}: {} bytes for {side}×{side} cells",
+                l.data.len()
+            )));
+        }
+        let cells = l
+            .data
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        Grid::from_vec(side, side, cells).map_err(|e| bad(format!("{name}: {e}")))
+    };
+    let layers = Layers {
+        elevation: layer("elevation")?,
+        variance: layer("variance")?,
+        count: layer("count")?,
+        roughness: layer("roughness")?,
+        slope: layer("slope")?,
+        step: layer("step")?,
+        score: layer("score")?,
+        traversal: layer("traversal")?,
+        last_update: layer("last_update")?,
+    };
+    Ok(StreamMap {
+        sequence: m.sequence,
+        cell_m: m.cell_m,
+        side,
+        origin: (m.origin_x, m.origin_y),
+        map_from_world,
+        layers,
+        fused: m.fused,
+        skipped: m.skipped,
+    })
 }
 
 /// Decodes one binary WebSocket message from the server.

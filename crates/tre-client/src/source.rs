@@ -1,6 +1,7 @@
 //! Frame sources for the client: a folder of images (with an optional folder of depth frames of
-//! the same stems), or a video file or V4L2 camera decoded by an `ffmpeg` process (spawned when
-//! `ffmpeg` is on `PATH`; no video library is linked in).
+//! the same stems), a folder of depth frames alone (the geometric mode), each with optional
+//! camera-to-world poses ([`poses`]), or a video file or V4L2 camera decoded by an `ffmpeg`
+//! process (spawned when `ffmpeg` is on `PATH`; no video library is linked in).
 //!
 //! Frames are sent as the encoded bytes they are read as (PNG or JPEG): nothing is decoded or
 //! re-encoded on the robot.
@@ -13,6 +14,9 @@ use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::JoinHandle;
 
 use super::ClientError;
+use poses::Poses;
+
+mod poses;
 
 /// Where frames come from.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -25,6 +29,17 @@ pub enum SourceSpec {
         frames: PathBuf,
         /// Depth frames with the same stems.
         depth: Option<PathBuf>,
+        /// Camera-to-world poses: a folder of `<stem>.txt`, or a file of one pose a line in
+        /// the frames' order ([`poses`]).
+        poses: Option<PathBuf>,
+    },
+    /// Every `.png` (16-bit) and `.npy` file of `depth`, in file-name order, sent as
+    /// depth-only frames (no colour: the geometric mode).
+    Depth {
+        /// The depth frames.
+        depth: PathBuf,
+        /// Camera-to-world poses, as for [`SourceSpec::Folder`].
+        poses: Option<PathBuf>,
     },
     /// A video file, decoded by `ffmpeg`; frames are named `<file stem>_<index>`.
     Video(PathBuf),
@@ -53,6 +68,34 @@ pub enum SourceProblem {
     /// A video path that is not a file.
     #[error("no such video file")]
     NoVideo,
+    /// A folder of depth frames without any.
+    #[error("no .png or .npy depth files")]
+    NoDepthFiles,
+    /// A frame without its pose file.
+    #[error("no pose for frame {stem}: expected {stem}.txt")]
+    NoPose {
+        /// The frame's file stem.
+        stem: String,
+    },
+    /// A pose file that is not a pose.
+    #[error("{0}")]
+    Pose(Box<tre_io::IoError>),
+    /// A line of a pose list that is not a pose.
+    #[error("line {line}: {reason}")]
+    PoseLine {
+        /// The line, from 1.
+        line: usize,
+        /// Why.
+        reason: String,
+    },
+    /// A pose list shorter than the frames.
+    #[error("{poses} poses for {frames} frames")]
+    TooFewPoses {
+        /// Poses in the list.
+        poses: usize,
+        /// Frames of the folder.
+        frames: usize,
+    },
 }
 
 /// What went wrong with `ffmpeg` ([`ClientError::Ffmpeg`]).
@@ -111,14 +154,16 @@ pub enum PngStreamError {
 }
 
 /// One frame from a source.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct SourceFrame {
     /// A name for outputs: the file stem, or `<video>_<index>`.
     pub name: String,
-    /// PNG or JPEG bytes.
+    /// PNG or JPEG bytes (empty for a depth-only frame).
     pub image: Vec<u8>,
     /// Depth bytes (16-bit PNG or `.npy`), if the source has depth.
     pub depth: Option<Vec<u8>>,
+    /// Camera-to-world pose, 4×4 row by row, if the source has poses.
+    pub pose: Option<Vec<f64>>,
 }
 
 /// An open frame source: an iterator of frames, ending at the end of the folder or video.
@@ -134,8 +179,17 @@ impl FrameSource {
     /// Opens `spec`: lists and pairs a folder, or starts `ffmpeg`.
     pub fn open(spec: &SourceSpec) -> Result<Self, ClientError> {
         Ok(match spec {
-            SourceSpec::Folder { frames, depth } => {
-                Self::Folder(FolderSource::open(frames, depth.as_deref())?)
+            SourceSpec::Folder {
+                frames,
+                depth,
+                poses,
+            } => Self::Folder(FolderSource::open(
+                frames,
+                depth.as_deref(),
+                poses.as_deref(),
+            )?),
+            SourceSpec::Depth { depth, poses } => {
+                Self::Folder(FolderSource::depth_only(depth, poses.as_deref())?)
             }
             SourceSpec::Video(path) => Self::Ffmpeg(FfmpegSource::video(path)?),
             SourceSpec::Device(path) => Self::Ffmpeg(FfmpegSource::device(path)?),
@@ -157,22 +211,74 @@ impl Iterator for FrameSource {
 /// The frames of a folder, read one at a time.
 #[derive(Debug)]
 pub struct FolderSource {
-    files: std::vec::IntoIter<(PathBuf, Option<PathBuf>)>,
+    files: std::vec::IntoIter<FolderEntry>,
+}
+
+/// One frame of a folder: its name, files and pose.
+#[derive(Debug)]
+struct FolderEntry {
+    name: String,
+    image: Option<PathBuf>,
+    depth: Option<PathBuf>,
+    pose: Option<Vec<f64>>,
 }
 
 impl FolderSource {
-    /// Lists `frames` and pairs each frame with its depth file in `depth`.
-    pub fn open(frames: &Path, depth: Option<&Path>) -> Result<Self, ClientError> {
-        let mut images = list_images(frames)?;
-        images.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
+    /// Lists `frames` and pairs each frame with its depth file in `depth` and its pose in
+    /// `poses`.
+    pub fn open(
+        frames: &Path,
+        depth: Option<&Path>,
+        poses: Option<&Path>,
+    ) -> Result<Self, ClientError> {
+        let images = sorted(list_images(frames)?);
         if images.is_empty() {
             return Err(source_err(frames, SourceProblem::NoImages));
         }
-        let files = images
+        let entries = images
             .into_iter()
             .map(|img| {
                 let d = depth.map(|dir| depth_for(&img, dir)).transpose()?;
-                Ok((img, d))
+                Ok((stem(&img), Some(img), d))
+            })
+            .collect::<Result<Vec<_>, ClientError>>()?;
+        Self::with_poses(entries, poses)
+    }
+
+    /// Lists the depth frames of `depth` (`.png`, `.npy`) as depth-only frames, each with its
+    /// pose in `poses`.
+    pub fn depth_only(depth: &Path, poses: Option<&Path>) -> Result<Self, ClientError> {
+        let files = sorted(list_files(depth, &["png", "npy"])?);
+        if files.is_empty() {
+            return Err(source_err(depth, SourceProblem::NoDepthFiles));
+        }
+        let entries = files.into_iter().map(|d| (stem(&d), None, Some(d)));
+        Self::with_poses(entries.collect(), poses)
+    }
+
+    fn with_poses(
+        entries: Vec<(String, Option<PathBuf>, Option<PathBuf>)>,
+        poses: Option<&Path>,
+    ) -> Result<Self, ClientError> {
+        let poses = match poses {
+            Some(p) => {
+                let list = Poses::open(p)?;
+                list.check_count(p, entries.len())?;
+                Some(list)
+            }
+            None => None,
+        };
+        let files = entries
+            .into_iter()
+            .enumerate()
+            .map(|(i, (name, image, depth))| {
+                let pose = poses.as_ref().map(|p| p.pose(i, &name)).transpose()?;
+                Ok(FolderEntry {
+                    name,
+                    image,
+                    depth,
+                    pose,
+                })
             })
             .collect::<Result<Vec<_>, ClientError>>()?;
         Ok(Self {
@@ -185,16 +291,28 @@ impl Iterator for FolderSource {
     type Item = Result<SourceFrame, ClientError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        let (image, depth) = self.files.next()?;
+        let e = self.files.next()?;
         let read = |p: &Path| std::fs::read(p).map_err(|e| source_err(p, SourceProblem::Io(e)));
         Some((|| {
             Ok(SourceFrame {
-                name: stem(&image),
-                image: read(&image)?,
-                depth: depth.as_deref().map(read).transpose()?,
+                name: e.name,
+                image: e
+                    .image
+                    .as_deref()
+                    .map(read)
+                    .transpose()?
+                    .unwrap_or_default(),
+                depth: e.depth.as_deref().map(read).transpose()?,
+                pose: e.pose,
             })
         })())
     }
+}
+
+/// `paths` in file-name order.
+fn sorted(mut paths: Vec<PathBuf>) -> Vec<PathBuf> {
+    paths.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
+    paths
 }
 
 fn source_err(path: &Path, reason: SourceProblem) -> ClientError {
@@ -211,17 +329,18 @@ fn stem(path: &Path) -> String {
 
 /// The image files (by extension) directly in `dir`.
 fn list_images(dir: &Path) -> Result<Vec<PathBuf>, ClientError> {
+    list_files(dir, &["png", "jpg", "jpeg"])
+}
+
+/// The files directly in `dir` whose extension is one of `exts` (any case).
+fn list_files(dir: &Path, exts: &[&str]) -> Result<Vec<PathBuf>, ClientError> {
     let io_err = |e| source_err(dir, SourceProblem::Io(e));
     let entries = std::fs::read_dir(dir).map_err(io_err)?;
     let mut out = Vec::new();
     for entry in entries {
         let path = entry.map_err(io_err)?.path();
         let ext = path.extension().and_then(OsStr::to_str).unwrap_or("");
-        if path.is_file()
-            && ["png", "jpg", "jpeg"]
-                .iter()
-                .any(|e| ext.eq_ignore_ascii_case(e))
-        {
+        if path.is_file() && exts.iter().any(|e| ext.eq_ignore_ascii_case(e)) {
             out.push(path);
         }
     }
@@ -374,6 +493,7 @@ impl Iterator for FfmpegSource {
                     name: format!("{}_{:06}", self.prefix, self.index),
                     image,
                     depth: None,
+                    pose: None,
                 }))
             }
             Ok(None) => {
@@ -622,7 +742,7 @@ mod tests {
         for name in ["a.png", "b.npy", "c.png"] {
             std::fs::write(depth.join(name), format!("depth of {name}")).unwrap();
         }
-        let frames: Vec<SourceFrame> = FolderSource::open(&rgb, Some(&depth))
+        let frames: Vec<SourceFrame> = FolderSource::open(&rgb, Some(&depth), None)
             .unwrap()
             .collect::<Result<_, _>>()
             .unwrap();
@@ -631,11 +751,11 @@ mod tests {
         assert_eq!(frames[1].image, b"b.png");
         assert_eq!(frames[1].depth.as_deref(), Some(&b"depth of b.npy"[..]));
         std::fs::remove_file(depth.join("c.png")).unwrap();
-        let e = FolderSource::open(&rgb, Some(&depth)).unwrap_err();
+        let e = FolderSource::open(&rgb, Some(&depth), None).unwrap_err();
         assert!(e.to_string().contains("no depth for frame c"), "{e}");
         let empty = dir.path().join("empty");
         std::fs::create_dir_all(&empty).unwrap();
-        assert!(FolderSource::open(&empty, None).is_err());
+        assert!(FolderSource::open(&empty, None, None).is_err());
     }
 
     #[test]

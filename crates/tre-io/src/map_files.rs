@@ -37,11 +37,65 @@ pub struct MapSummary {
     pub fuse_ms_median: f64,
 }
 
+/// Where a map's window lies, for `map.json`: as a [`GridMap`] states it, or as a stream's
+/// map update does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapWindow {
+    /// Cell side, metres.
+    pub cell_m: f64,
+    /// Cells along a side.
+    pub side: usize,
+    /// World cell index (x, y) of the window's lower-left cell.
+    pub origin: (i64, i64),
+    /// Rotation from the pose frame to the map frame, row by row.
+    pub map_from_world: [f64; 9],
+    /// Memory the map holds, bytes, when known.
+    pub memory_bytes: Option<usize>,
+}
+
+impl MapWindow {
+    /// The window of `map`.
+    pub fn of(map: &GridMap) -> Self {
+        let cfg = map.config();
+        let r = map.frame().map_from_world;
+        let mut rows = [0.0; 9];
+        for (k, v) in rows.iter_mut().enumerate() {
+            *v = r[(k / 3, k % 3)];
+        }
+        Self {
+            cell_m: cfg.cell_m,
+            side: cfg.side,
+            origin: map.origin(),
+            map_from_world: rows,
+            memory_bytes: Some(map.memory_bytes()),
+        }
+    }
+
+    /// The window's centre in the map frame, metres.
+    pub fn centre(&self) -> (f64, f64) {
+        let half = (self.side / 2) as f64;
+        (
+            (self.origin.0 as f64 + half) * self.cell_m,
+            (self.origin.1 as f64 + half) * self.cell_m,
+        )
+    }
+}
+
 /// Writes every layer of `map` (`layers`, read from it) into `dir` with `layers.png` and
 /// `map.json`, creating `dir`; what the map shows.
 pub fn write_map(
     dir: &Path,
     map: &GridMap,
+    layers: &Layers,
+    run: &MapRun,
+) -> Result<MapSummary, IoError> {
+    write_map_window(dir, &MapWindow::of(map), layers, run)
+}
+
+/// Writes `layers` of a map whose window is `window` into `dir` as [`write_map`] does.
+pub fn write_map_window(
+    dir: &Path,
+    window: &MapWindow,
     layers: &Layers,
     run: &MapRun,
 ) -> Result<MapSummary, IoError> {
@@ -54,23 +108,22 @@ pub fn write_map(
         &dir.join("layers.png"),
         &DynamicImage::ImageRgb8(picture(layers)),
     )?;
-    let cfg = map.config();
     let (traversable, hazard, unknown, seen) = shares(&layers.traversal, &layers.count);
     let mut fuse_ms = run.fuse_ms.clone();
     fuse_ms.sort_by(f64::total_cmp);
     let fuse_ms_median = fuse_ms.get(fuse_ms.len() / 2).copied().unwrap_or(f64::NAN);
     let geometry = json!({
-        "cell_m": cfg.cell_m,
-        "side_cells": cfg.side,
-        "origin_cell": [map.origin().0, map.origin().1],
-        "centre_m": [map.centre().0, map.centre().1],
-        "map_from_world": map.frame().map_from_world.transpose().as_slice(),
+        "cell_m": window.cell_m,
+        "side_cells": window.side,
+        "origin_cell": [window.origin.0, window.origin.1],
+        "centre_m": [window.centre().0, window.centre().1],
+        "map_from_world": window.map_from_world,
         "layout": "row-major (side, side) float32; column 0 at the smallest x, row 0 at the largest y; the cell of column c, row r spans x in [(origin_x + c)·cell, +cell), y in [(origin_y + side − 1 − r)·cell, +cell) of the map frame (z up)",
         "png": "16-bit grey: 0 = no data, else value = png_offset + (png − 1)·png_scale",
         "layers": meta,
         "frames_fused": run.fused,
         "frames_skipped": run.skipped,
-        "memory_bytes": map.memory_bytes(),
+        "memory_bytes": window.memory_bytes,
         "fuse_ms_median": fuse_ms_median,
     });
     let text = serde_json::to_string_pretty(&geometry).unwrap_or_default();

@@ -21,6 +21,7 @@ use tre::client::{ClientConfig, Event, Frame, LostReason, Rate, Session};
 use tre::pipeline::{Mode, NormalsMethod};
 
 mod depth;
+mod depth_only;
 mod frames;
 mod reconnect;
 mod tls;

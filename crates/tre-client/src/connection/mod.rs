@@ -78,7 +78,13 @@ pub(crate) struct Link {
     state: watch::Sender<LinkState>,
     /// Send time of each frame awaiting its answer, by sequence number (so also by age).
     pending: BTreeMap<u64, Stamp>,
+    /// With a map asked for: until when the map that follows the last Result is awaited
+    /// before the session may finish (`None`: it came, or no map is asked for).
+    map_due: Option<Instant>,
 }
+
+/// How long the map that follows a Result is awaited at the end of a session.
+const MAP_WAIT: std::time::Duration = std::time::Duration::from_secs(3);
 
 impl Link {
     /// A link for the checked `cfg`.
@@ -137,6 +143,7 @@ impl Link {
             events,
             state,
             pending: BTreeMap::new(),
+            map_due: None,
         })
     }
 
@@ -257,13 +264,13 @@ impl Link {
         let mut sink = Some(sink);
         let mut writing: Option<Write> = None;
         loop {
-            if !self.frames_open && self.pending.is_empty() && writing.is_none() {
+            if self.finished(writing.is_some()) {
                 if let Some(mut sink) = sink.take() {
                     let _ = sink.close().await;
                 }
                 return Ended::Finished;
             }
-            let expiry = self.next_expiry();
+            let expiry = self.wake_at();
             tokio::select! {
                 m = stream.next() => {
                     last_heard = Instant::now();
@@ -351,6 +358,10 @@ impl Link {
         };
         match incoming {
             Incoming::Result(wire) => self.on_result(wire).await,
+            Incoming::Event(event @ Event::Map(_)) => {
+                self.map_due = None;
+                self.emit(event).await;
+            }
             Incoming::Event(event) => {
                 // A Dropped or Error about a frame still awaited settles it; an Error about
                 // none (or one already settled) is reported, a late Dropped is not.
@@ -361,7 +372,6 @@ impl Link {
                 }
             }
             Incoming::Ready(_) => tracing::debug!("unexpected Ready ignored"),
-            Incoming::Ignored => {}
         }
     }
 
@@ -376,6 +386,9 @@ impl Link {
             );
             return;
         };
+        if self.shared.cfg.map.is_some() {
+            self.map_due = Some(Instant::now() + MAP_WAIT);
+        }
         let event = match FrameResult::try_from((wire, sent)) {
             Ok(r) => Event::Result(Box::new(r)),
             Err(e) => Event::Error {
@@ -385,6 +398,24 @@ impl Link {
             },
         };
         self.settle(event).await;
+    }
+
+    /// Whether the session is done: the sender gone, no frame awaiting its answer or being
+    /// written, and the map that follows the last Result in (or awaited long enough).
+    fn finished(&self, writing: bool) -> bool {
+        !self.frames_open
+            && self.pending.is_empty()
+            && !writing
+            && self.map_due.is_none_or(|t| t <= Instant::now())
+    }
+
+    /// When the pump must look again: the oldest frame's timeout, or the end of the wait for
+    /// the last map.
+    fn wake_at(&self) -> Option<Instant> {
+        match (self.next_expiry(), self.map_due) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
     }
 
     /// When the oldest frame awaiting an answer times out.

@@ -19,6 +19,7 @@
 //!     source: SourceSpec::Folder {
 //!         frames: "frames".into(),
 //!         depth: None,
+//!         poses: None,
 //!     },
 //!     out: "out".into(),
 //!     limit: Some(100),
@@ -41,7 +42,7 @@ mod writer;
 
 use std::fmt;
 use std::future::Future;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
@@ -49,10 +50,11 @@ use std::time::Duration;
 use tokio::sync::mpsc;
 
 use super::source::{FrameSource, SourceSpec};
-use super::{ClientConfig, ClientError, DisconnectReason, Session};
+use super::{ClientConfig, ClientError, DisconnectReason, Session, StreamMap};
 use send::{send_frames, start_reader};
 use sink::Sink;
 use stats::Stats;
+use tre_io::map_files::{write_map_window, MapRun, MapWindow};
 use writer::start_writer;
 
 pub use stats::Progress;
@@ -73,6 +75,9 @@ pub struct RecorderConfig {
     /// Also record every frame sent and every answer to this MCAP file (ROS 2 messages and
     /// Foxglove schemas; `tre_record::topics`).
     pub mcap: Option<PathBuf>,
+    /// Write the stream's grid map into this folder at the end, as `tre map` writes its map
+    /// (the session must ask for one: [`ClientConfig::map`]).
+    pub map_out: Option<PathBuf>,
 }
 
 impl Default for RecorderConfig {
@@ -82,11 +87,13 @@ impl Default for RecorderConfig {
             source: SourceSpec::Folder {
                 frames: PathBuf::from("frames"),
                 depth: None,
+                poses: None,
             },
             out: PathBuf::from("out"),
             limit: None,
             repeat: false,
             mcap: None,
+            map_out: None,
         }
     }
 }
@@ -136,6 +143,17 @@ pub enum Notice {
         /// Where gravity came from, as the server words it.
         gravity: String,
     },
+    /// The stream's grid map was written (`tre map`'s files).
+    MapWritten {
+        /// The folder.
+        dir: PathBuf,
+        /// Frames fused into it, and skipped.
+        fused: u64,
+        /// Frames the map skipped.
+        skipped: u64,
+    },
+    /// A map was asked for and none came back (no frame could start it).
+    NoMap,
     /// Where the maps and `frames.csv` are.
     Written {
         /// The output folder.
@@ -161,7 +179,19 @@ impl PartialEq for Notice {
             (Self::Progress(a), Self::Progress(b)) | (Self::Finished(a), Self::Finished(b)) => {
                 a == b
             }
-            (Self::Stopping, Self::Stopping) => true,
+            (Self::Stopping, Self::Stopping) | (Self::NoMap, Self::NoMap) => true,
+            (
+                Self::MapWritten {
+                    dir: a,
+                    fused: x,
+                    skipped: m,
+                },
+                Self::MapWritten {
+                    dir: b,
+                    fused: y,
+                    skipped: n,
+                },
+            ) => (a, x, m) == (b, y, n),
             (Self::Disconnected { reason: a }, Self::Disconnected { reason: b }) => a == b,
             (
                 Self::Reconnected {
@@ -225,6 +255,19 @@ impl fmt::Display for Notice {
                 }
                 Ok(())
             }
+            Self::MapWritten {
+                dir,
+                fused,
+                skipped,
+            } => write!(
+                f,
+                "map of {fused} fused frames ({skipped} skipped) in {}",
+                dir.display()
+            ),
+            Self::NoMap => f.write_str(
+                "warning: no map came back (no frame could start it: gravity unknown, or no \
+                 depth)",
+            ),
             Self::Written { out, maps: 0 } => write!(
                 f,
                 "frames.csv in {} (no maps: no frame was answered)",
@@ -365,8 +408,42 @@ pub async fn record<N: FnMut(Notice)>(
         maps: stats.results,
     });
     written?;
+    if let Some(dir) = &cfg.map_out {
+        notify(write_stream_map(dir, stats.map.take())?);
+    }
     verdict(&stats, sent_outcome, &cfg.session.server)?;
     Ok(done)
+}
+
+/// Writes the stream's last map into `dir` as `tre map` does; the notice that tells it.
+fn write_stream_map(dir: &Path, map: Option<Box<StreamMap>>) -> Result<Notice, RecordError> {
+    let Some(m) = map else {
+        return Ok(Notice::NoMap);
+    };
+    let window = MapWindow {
+        cell_m: m.cell_m,
+        side: m.side,
+        origin: m.origin,
+        map_from_world: m.map_from_world,
+        memory_bytes: None,
+    };
+    let skipped = match m.skipped {
+        0 => Vec::new(),
+        n => vec![format!(
+            "{n} frames skipped by the server's map (see its log)"
+        )],
+    };
+    let run = MapRun {
+        fused: usize::try_from(m.fused).unwrap_or(usize::MAX),
+        skipped,
+        fuse_ms: Vec::new(),
+    };
+    write_map_window(dir, &window, &m.layers, &run)?;
+    Ok(Notice::MapWritten {
+        dir: dir.to_owned(),
+        fused: m.fused,
+        skipped: m.skipped,
+    })
 }
 
 /// The recording's verdict: an error if the source failed, the session gave up or nothing came

@@ -118,6 +118,7 @@ pub(super) async fn send_frames(
         let frame = Frame {
             image: f.image,
             depth: f.depth,
+            pose: f.pose,
             ..Frame::default()
         };
         match sender.send(frame).await {

@@ -204,6 +204,7 @@ impl<'n, N: FnMut(Notice)> Sink<'n, N> {
                 });
                 self.stats.gave_up = Some(reason);
             }
+            Event::Map(m) => self.stats.map = Some(m),
             Event::Result(_) | Event::Dropped { .. } | Event::Lost { .. } => {}
         }
     }

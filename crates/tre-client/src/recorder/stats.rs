@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use hdrhistogram::Histogram;
 
-use crate::FrameResult;
+use crate::{FrameResult, StreamMap};
 
 /// The counts of a recording at one moment; displays as `tre client`'s progress line.
 #[derive(Debug, Clone, PartialEq)]
@@ -67,6 +67,8 @@ pub(super) struct Stats {
     last: (Instant, u64),
     /// Why the session gave up, if it did.
     pub gave_up: Option<std::sync::Arc<crate::ClientError>>,
+    /// The latest map the server sent, if the session asked for one.
+    pub map: Option<Box<StreamMap>>,
 }
 
 impl Stats {
@@ -83,6 +85,7 @@ impl Stats {
                 .expect("bounds and 3 significant figures are valid; this is a bug"),
             last: (now, 0),
             gave_up: None,
+            map: None,
         }
     }
 
