@@ -18,7 +18,9 @@ use clap::{Parser, Subcommand};
 #[derive(Debug, Parser)]
 #[command(name = "tre", version, about)]
 pub(crate) struct Cli {
-    /// Log filter (tracing's env-filter syntax), e.g. `info` or `tre=debug`.
+    /// Log filter (tracing's env-filter syntax), e.g. `info` or `tre=debug`; the DDS libraries
+    /// (`rustdds`, `ros2_client`) log errors only unless the filter names them (e.g.
+    /// `info,rustdds=warn`).
     #[arg(long, env = "TRE_LOG", default_value = "info,ort=warn", global = true)]
     pub log: String,
     /// Logs as JSON lines (one object per event) instead of text.

@@ -560,6 +560,19 @@ fn kitchen_frames_through_the_node_equal_infer_and_map() {
         &m.header
     })
     .unwrap();
+    // Quiet logs at the default level while running: nothing from the DDS libraries, at most
+    // a line a frame.
+    let running = tre.log.lock().unwrap().clone();
+    assert!(
+        !running.contains("rustdds") && !running.contains("ros2_client"),
+        "{running}"
+    );
+    assert!(
+        running.lines().count() <= k.stems.len(),
+        "{} log lines for {} frames: {running}",
+        running.lines().count(),
+        k.stems.len()
+    );
     let (ok, stdout, stderr) = stop_tre(tre);
     assert!(ok, "tre ros2 failed: {stderr}");
     assert!(stdout.contains("published 5"), "{stdout}");
