@@ -1,10 +1,13 @@
 """Read a recording of `tre ros2 --record`, `tre map --record` or `tre client --record` with
 the Python `mcap` and `mcap-ros2-support` packages (an independent reader) and check it: every
-channel's schema and encodings, the message counts, and the values (the roughness against a
-`tre infer` .npy, the map against `tre map`'s layers, the Foxglove channels against the ROS 2
-ones). With --render, draw what a `tre ros2` recording holds as a PNG (docs/ros2.md's picture).
+channel's schema and encodings (ROS 2 CDR only, unless --foxglove: then the Foxglove JSON
+channels too), `offered_qos_profiles` on every channel (transient-local for the occupancy
+grid), compressed chunks, every message of every channel decoded, the message counts, and the
+values (the roughness against a `tre infer` .npy, the map against `tre map`'s layers, the
+Foxglove channels against the ROS 2 ones). With --render, draw what a `tre ros2` recording
+holds as a PNG (docs/ros2.md's picture).
 
-    python scripts/check_mcap.py run.mcap --frames 5 [--kind ros2|map|client]
+    python scripts/check_mcap.py run.mcap --frames 5 [--kind ros2|map|client] [--foxglove]
         [--roughness-npy f.npy] [--map-dir DIR] [--render out.png]
 """
 
@@ -61,13 +64,31 @@ def fail(msg: str) -> None:
     sys.exit(1)
 
 
+def check_channel_metadata(summary) -> None:
+    """Every channel offers its QoS as rosbag2 reads it; the occupancy grid is transient-local.
+    Every chunk is compressed (zstd or lz4)."""
+    for ch in summary.channels.values():
+        qos = ch.metadata.get("offered_qos_profiles")
+        if not qos or "reliability:" not in qos or "durability:" not in qos:
+            fail(f"{ch.topic}: no offered_qos_profiles ({ch.metadata})")
+        durability = qos.split("durability:")[1].split()[0]
+        want = "1" if ch.topic.endswith("/occupancy") else "2"
+        if durability != want:
+            fail(f"{ch.topic}: durability {durability}, expected {want}: {qos}")
+    kinds = {c.compression for c in summary.chunk_indexes}
+    if not kinds or not kinds <= {"zstd", "lz4"}:
+        fail(f"chunk compression {kinds}, expected zstd or lz4")
+
+
 def read(path: Path) -> tuple[dict, dict[str, list]]:
-    """Channels by topic (schema name and encodings), and the messages of each topic, decoded."""
+    """Channels by topic (schema name and encodings), and the messages of each topic, decoded
+    (every message of every channel)."""
     with path.open("rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         summary = reader.get_summary()
         if summary is None:
             fail("no summary: the recording was not finished")
+        check_channel_metadata(summary)
         channels = {}
         for ch in summary.channels.values():
             schema = summary.schemas[ch.schema_id]
@@ -81,6 +102,9 @@ def read(path: Path) -> tuple[dict, dict[str, list]]:
         for _, channel, message in reader.iter_messages():
             if channel.message_encoding == "json":
                 messages[channel.topic].append(json.loads(message.data))
+        total = sum(s.message_count for s in [summary.statistics] if s is not None)
+        if total != sum(len(m) for m in messages.values()):
+            fail(f"{total} messages in the statistics, {sum(map(len, messages.values()))} decoded")
     return channels, messages
 
 
@@ -126,8 +150,25 @@ def expect(channels: dict, messages: dict, topics: dict, count: int, at_least: b
             fail(f"{topic}: {n} messages, expected {'at least ' if at_least else ''}{count}")
 
 
-def check(path: Path, frames: int, kind: str, roughness_npy: Path | None) -> dict[str, list]:
+FOXGLOVE = ("/tre/roughness/foxglove", "/tre/grid/foxglove")
+
+
+def without_foxglove(topics: dict) -> dict:
+    return {t: c for t, c in topics.items() if t not in FOXGLOVE}
+
+
+def check(
+    path: Path, frames: int, kind: str, roughness_npy: Path | None, foxglove: bool
+) -> dict[str, list]:
     channels, messages = read(path)
+    global OUTPUTS, MAP_FRAMES, MAP_ONCE, CLIENT_FRAMES
+    if not foxglove:
+        others = [t for t, c in channels.items() if c[1:] != ("ros2msg", "cdr")]
+        if others:
+            fail(f"channels other than ROS 2 CDR: {others}")
+        OUTPUTS, MAP_FRAMES, MAP_ONCE, CLIENT_FRAMES = map(
+            without_foxglove, (OUTPUTS, MAP_FRAMES, MAP_ONCE, CLIENT_FRAMES)
+        )
     if kind == "ros2":
         expect(channels, messages, OUTPUTS, frames, at_least=False)
         expect(channels, messages, INPUTS, frames, at_least=True)
@@ -139,18 +180,19 @@ def check(path: Path, frames: int, kind: str, roughness_npy: Path | None) -> dic
         if any(t in channels for t in CLIENT_COLOUR):
             expect(channels, messages, CLIENT_COLOUR, frames, at_least=False)
     rough = float_image(messages["/tre/roughness"][-1])
-    fox = messages["/tre/roughness/foxglove"][-1]
-    fox_img = np.frombuffer(base64.b64decode(fox["data"]), "<f4").reshape(
-        fox["height"], fox["width"]
-    )
-    if not same(rough, fox_img):
-        fail("the foxglove.RawImage roughness differs from the sensor_msgs/Image one")
+    if foxglove:
+        fox = messages["/tre/roughness/foxglove"][-1]
+        fox_img = np.frombuffer(base64.b64decode(fox["data"]), "<f4").reshape(
+            fox["height"], fox["width"]
+        )
+        if not same(rough, fox_img):
+            fail("the foxglove.RawImage roughness differs from the sensor_msgs/Image one")
     if roughness_npy is not None:
         want = np.load(roughness_npy).astype(np.float32)
         if not same(rough, want):
             fail(f"the recorded roughness differs from {roughness_npy}")
     if kind != "client":
-        check_grid(messages)
+        check_grid(messages, foxglove)
     counts = {t: len(m) for t, m in sorted(messages.items())}
     print(
         json.dumps(
@@ -161,11 +203,12 @@ def check(path: Path, frames: int, kind: str, roughness_npy: Path | None) -> dic
     return messages
 
 
-def check_grid(messages: dict[str, list]) -> None:
-    """The last map: foxglove.Grid equal to the GridMap, the occupancy its traversal layer."""
+def check_grid(messages: dict[str, list], foxglove: bool) -> None:
+    """The last map: foxglove.Grid (if recorded) equal to the GridMap, the occupancy its
+    traversal layer."""
     grid = messages["/tre/grid_map"][-1]
-    fgrid = messages["/tre/grid/foxglove"][-1]
-    for name in grid.layers:
+    for name in grid.layers if foxglove else []:
+        fgrid = messages["/tre/grid/foxglove"][-1]
         if not same(grid_layer(grid, name), foxglove_layer(fgrid, name)):
             fail(f"layer {name}: foxglove.Grid and grid_map_msgs/GridMap differ")
     occ = np.asarray(messages["/tre/occupancy"][-1].data, dtype=np.int8)
@@ -245,8 +288,11 @@ def main() -> None:
     ap.add_argument("--roughness-npy", type=Path, help="tre infer's roughness of the last frame")
     ap.add_argument("--map-dir", type=Path, help="tre map's output folder (the map's layers)")
     ap.add_argument("--render", type=Path, help="write a picture of the recording")
+    ap.add_argument(
+        "--foxglove", action="store_true", help="the Foxglove JSON channels were asked for"
+    )
     args = ap.parse_args()
-    messages = check(args.mcap, args.frames, args.kind, args.roughness_npy)
+    messages = check(args.mcap, args.frames, args.kind, args.roughness_npy, args.foxglove)
     if args.map_dir is not None:
         check_map_dir(messages, args.map_dir)
     if args.render:

@@ -74,10 +74,13 @@ pub struct ClientArgs {
     /// Output folder: SEQ_NAME.png per result (NAME: the frame's file stem) and frames.csv.
     #[arg(long, short, env = "TRE_CLIENT_OUT")]
     pub out: PathBuf,
-    /// Also record every frame sent and every answer to this MCAP file (ROS 2 messages and
-    /// Foxglove schemas, docs/ros2.md).
+    /// Also record every frame sent and every answer to this MCAP file (ROS 2 messages,
+    /// zstd chunks; docs/ros2.md).
     #[arg(long, env = "TRE_CLIENT_RECORD")]
     pub record: Option<PathBuf>,
+    /// Also record the outputs in Foxglove's JSON schemas (rosbag2 refuses such a file).
+    #[arg(long, env = "TRE_CLIENT_RECORD_FOXGLOVE", requires = "record")]
+    pub record_foxglove: bool,
 }
 
 /// Options that make no run.
@@ -138,6 +141,7 @@ impl ClientArgs {
             limit: self.limit,
             repeat: self.repeat,
             mcap: self.record.clone(),
+            mcap_foxglove: self.record_foxglove,
             map_out: self.map.clone(),
         })
     }

@@ -10,4 +10,4 @@ pub mod encode;
 pub mod msgs;
 mod recorder;
 
-pub use recorder::{now_ns, topics, Colour, FrameRecord, RecordError, Recorder};
+pub use recorder::{now_ns, topics, Colour, FrameRecord, RecordError, RecordOptions, Recorder};

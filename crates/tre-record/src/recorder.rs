@@ -1,7 +1,9 @@
 //! Recordings as MCAP: every message in its ROS 2 type (`ros2msg` schema, CDR), which
-//! `ros2 bag`, Foxglove and the `mcap` tools read, and the outputs again in Foxglove's own
-//! schemas (`foxglove.RawImage`, `foxglove.Grid`; JSON), which Foxglove shows with no
-//! extension (docs/ros2.md says which viewer shows which channel).
+//! `ros2 bag`, Foxglove and the `mcap` tools read, in zstd-compressed chunks, each channel
+//! with the `offered_qos_profiles` rosbag2 replays it with (transient-local for the occupancy
+//! grid). On request ([`RecordOptions::foxglove`]) the outputs again in Foxglove's own schemas
+//! (`foxglove.RawImage`, `foxglove.Grid`; JSON), which Foxglove shows with no extension but
+//! which rosbag2 refuses beside CDR (docs/ros2.md says which viewer shows which channel).
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -27,6 +29,27 @@ const GRID_SCHEMA: &str = r#"{"title":"foxglove.Grid","type":"object","propertie
 /// `foxglove.NumericType` of a float32 field.
 const FOXGLOVE_FLOAT32: u32 = 7;
 
+/// What a recording holds beyond the ROS 2 channels.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RecordOptions {
+    /// Also the Foxglove JSON-schema channels (the roughness as `foxglove.RawImage`, the map
+    /// as `foxglove.Grid`). Off by default: rosbag2 refuses a bag of mixed serialisations.
+    pub foxglove: bool,
+}
+
+/// `offered_qos_profiles` of a channel as rosbag2 writes it (one profile; the integers of the
+/// rmw enums: history 1 keep-last, reliability 1 reliable, durability 1 transient-local or
+/// 2 volatile, liveliness 1 automatic; zero durations: the default).
+fn offered_qos(transient_local: bool) -> String {
+    let durability = if transient_local { 1 } else { 2 };
+    let zero = "\n    sec: 0\n    nsec: 0";
+    format!(
+        "- history: 1\n  depth: 1\n  reliability: 1\n  durability: {durability}\n  \
+         deadline:{zero}\n  lifespan:{zero}\n  liveliness: 1\n  \
+         liveliness_lease_duration:{zero}\n  avoid_ros_namespace_conventions: false"
+    )
+}
+
 /// An MCAP file being written. Channels are made on first use; [`Recorder::finish`] writes the
 /// summary (a recording not finished is still readable up to its last chunk).
 pub struct Recorder {
@@ -34,6 +57,7 @@ pub struct Recorder {
     writer: mcap::Writer<BufWriter<File>>,
     channels: BTreeMap<String, u16>,
     sequence: u32,
+    options: RecordOptions,
 }
 
 impl std::fmt::Debug for Recorder {
@@ -50,12 +74,20 @@ fn nanos(t: &Time) -> u64 {
 }
 
 impl Recorder {
-    /// A new recording at `path` (an existing file is replaced).
+    /// A new recording at `path` (an existing file is replaced): ROS 2 channels only.
     pub fn create(path: &Path) -> Result<Self, RecordError> {
+        Self::create_with(path, RecordOptions::default())
+    }
+
+    /// A new recording at `path` with `options`.
+    pub fn create_with(path: &Path, options: RecordOptions) -> Result<Self, RecordError> {
         let file = File::create(path).map_err(|e| record_error(path, e))?;
         let writer = mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("tre ", env!("CARGO_PKG_VERSION")))
+            .compression(Some(mcap::Compression::Zstd))
+            // On the caller's thread: the robot's cores are the pipeline's.
+            .compression_threads(0)
             .create(BufWriter::new(file))
             .map_err(|e| record_error(path, e))?;
         Ok(Self {
@@ -63,6 +95,7 @@ impl Recorder {
             writer,
             channels: BTreeMap::new(),
             sequence: 0,
+            options,
         })
     }
 
@@ -81,9 +114,11 @@ impl Recorder {
             .writer
             .add_schema(name, schema_encoding, data)
             .map_err(|e| record_error(&path, e))?;
+        let latched = topic.ends_with("/occupancy");
+        let metadata = BTreeMap::from([("offered_qos_profiles".to_owned(), offered_qos(latched))]);
         let id = self
             .writer
-            .add_channel(schema_id, topic, encoding, &BTreeMap::new())
+            .add_channel(schema_id, topic, encoding, &metadata)
             .map_err(|e| record_error(&path, e))?;
         self.channels.insert(topic.to_owned(), id);
         Ok(id)
@@ -125,8 +160,12 @@ impl Recorder {
         self.write(id, stamp, log_ns, &data)
     }
 
-    /// Records an image again as `foxglove.RawImage` (JSON) on `topic`.
+    /// Records an image again as `foxglove.RawImage` (JSON) on `topic`, if the recording has
+    /// the Foxglove channels ([`RecordOptions::foxglove`]).
     pub fn raw_image(&mut self, topic: &str, img: &Image, log_ns: u64) -> Result<(), RecordError> {
+        if !self.options.foxglove {
+            return Ok(());
+        }
         let id = self.channel(
             topic,
             (
@@ -150,7 +189,8 @@ impl Recorder {
     }
 
     /// Records the map's layers as `foxglove.Grid` (JSON) on `topic`: one float32 field per
-    /// layer, cell (0, 0) at the window's lower-left corner, rows along +y.
+    /// layer, cell (0, 0) at the window's lower-left corner, rows along +y; if the recording
+    /// has the Foxglove channels ([`RecordOptions::foxglove`]).
     pub fn grid(
         &mut self,
         topic: &str,
@@ -159,6 +199,9 @@ impl Recorder {
         layers: &Layers,
         log_ns: u64,
     ) -> Result<(), RecordError> {
+        if !self.options.foxglove {
+            return Ok(());
+        }
         let id = self.channel(
             topic,
             ("foxglove.Grid", "jsonschema", GRID_SCHEMA.as_bytes()),

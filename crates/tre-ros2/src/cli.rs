@@ -84,9 +84,12 @@ pub struct Ros2Args {
     /// Reliability of the input subscriptions.
     #[arg(long, value_enum, default_value = "best-effort")]
     pub input_reliability: InputReliability,
-    /// Record inputs and outputs to this MCAP file (ROS 2 messages and Foxglove schemas).
+    /// Record inputs and outputs to this MCAP file (ROS 2 messages, zstd chunks).
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// Also record the outputs in Foxglove's JSON schemas (rosbag2 refuses such a file).
+    #[arg(long, requires = "record")]
+    pub record_foxglove: bool,
     /// Stop after this many seconds (default: at Ctrl-C or SIGTERM).
     #[arg(long)]
     pub duration_s: Option<f64>,
@@ -202,6 +205,7 @@ impl Ros2Args {
                 InputReliability::Reliable => Reliability::Reliable,
             },
             record: self.record.clone(),
+            record_foxglove: self.record_foxglove,
             ..NodeConfig::default()
         }
     }

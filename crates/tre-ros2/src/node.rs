@@ -26,7 +26,7 @@ use tre_pipeline::Mode;
 use tre_record::msgs::{
     CameraInfo, GridMap, Image, OccupancyGrid, Odometry, PoseStamped, RosMessage, Time,
 };
-use tre_record::{now_ns, Recorder};
+use tre_record::{now_ns, RecordOptions, Recorder};
 
 use crate::convert;
 use crate::error::Ros2Error;
@@ -82,6 +82,8 @@ pub struct NodeConfig {
     pub log_every: Duration,
     /// Record inputs and outputs to this MCAP file.
     pub record: Option<PathBuf>,
+    /// Also record the outputs in Foxglove's JSON schemas.
+    pub record_foxglove: bool,
 }
 
 impl Default for NodeConfig {
@@ -99,6 +101,7 @@ impl Default for NodeConfig {
             input_reliability: Reliability::BestEffort,
             log_every: Duration::from_secs(10),
             record: None,
+            record_foxglove: false,
         }
     }
 }
@@ -343,7 +346,14 @@ pub fn start(config: NodeConfig, processor: Processor) -> Result<RunningNode, Ro
     let mode = processor.config().mode;
     let subs = Subscriptions::new(&mut node, &config, mode)?;
     let publishers = Publishers::new(&mut node, &config)?;
-    let recorder = config.record.as_deref().map(Recorder::create).transpose()?;
+    let options = RecordOptions {
+        foxglove: config.record_foxglove,
+    };
+    let recorder = config
+        .record
+        .as_deref()
+        .map(|p| Recorder::create_with(p, options))
+        .transpose()?;
     let shared = Arc::new(Shared::default());
     shared
         .recording

@@ -72,9 +72,11 @@ pub struct RecorderConfig {
     pub limit: Option<u64>,
     /// Start the source over at its end (until `limit` or the stop signal; not for a camera).
     pub repeat: bool,
-    /// Also record every frame sent and every answer to this MCAP file (ROS 2 messages and
-    /// Foxglove schemas; `tre_record::topics`).
+    /// Also record every frame sent and every answer to this MCAP file (ROS 2 messages;
+    /// `tre_record::topics`).
     pub mcap: Option<PathBuf>,
+    /// Add the Foxglove JSON-schema channels to the MCAP file (rosbag2 then refuses it).
+    pub mcap_foxglove: bool,
     /// Write the stream's grid map into this folder at the end, as `tre map` writes its map
     /// (the session must ask for one: [`ClientConfig::map`]).
     pub map_out: Option<PathBuf>,
@@ -93,6 +95,7 @@ impl Default for RecorderConfig {
             limit: None,
             repeat: false,
             mcap: None,
+            mcap_foxglove: false,
             map_out: None,
         }
     }
@@ -387,7 +390,11 @@ pub async fn record<N: FnMut(Notice)>(
     let (sender, mut events) = session.split();
     let (frames_tx, frames_rx) = mpsc::channel(2);
     let reader = start_reader(source, cfg, frames_tx)?;
-    let (jobs, writer) = start_writer(&cfg.out, cfg.mcap.as_deref(), cfg.session.camera.as_ref())?;
+    let options = tre_record::RecordOptions {
+        foxglove: cfg.mcap_foxglove,
+    };
+    let mcap = cfg.mcap.as_deref().map(|p| (p, options));
+    let (jobs, writer) = start_writer(&cfg.out, mcap, cfg.session.camera.as_ref())?;
     let mut sink = Sink::new(&cfg.out, jobs, &mut notify);
     let sending = tokio::spawn(send_frames(
         sender,

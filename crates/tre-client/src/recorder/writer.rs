@@ -16,7 +16,7 @@ use tre_core::geometry::{Grid, Intrinsics};
 use tre_core::kinds::MapFormat;
 use tre_io::{self as io, CameraFile};
 use tre_record::msgs::{Header, Time};
-use tre_record::{Colour, FrameRecord, Recorder};
+use tre_record::{Colour, FrameRecord, RecordOptions, Recorder};
 
 /// The header of `frames.csv`.
 const CSV_HEADER: &[u8] =
@@ -54,11 +54,11 @@ type Written = Result<(), RecordError>;
 /// intrinsics).
 pub(super) fn start_writer(
     out: &Path,
-    mcap: Option<&Path>,
+    mcap: Option<(&Path, RecordOptions)>,
     camera: Option<&CameraFile>,
 ) -> Result<(mpsc::Sender<Job>, JoinHandle<Written>), RecordError> {
     let mut mcap = mcap
-        .map(|p| Recorder::create(p).map(|r| McapOut::new(r, camera)))
+        .map(|(p, o)| Recorder::create_with(p, o).map(|r| McapOut::new(r, camera)))
         .transpose()?;
     let csv_path = out.join("frames.csv");
     let file = std::fs::File::create(&csv_path).map_err(io_error("creating", &csv_path))?;
