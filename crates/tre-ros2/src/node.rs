@@ -327,6 +327,17 @@ fn thread_error(e: std::io::Error) -> Ros2Error {
     }
 }
 
+/// The recording `config` asks for, if any.
+fn recorder(config: &NodeConfig) -> Result<Option<Recorder>, Ros2Error> {
+    let options = RecordOptions {
+        foxglove: config.record_foxglove,
+    };
+    let path = config.record.as_deref();
+    Ok(path
+        .map(|p| Recorder::create_with(p, options))
+        .transpose()?)
+}
+
 /// Starts the node: joins the domain, subscribes and publishes, and returns at once; frames
 /// are processed on a thread of its own until [`RunningNode::stop`].
 pub fn start(config: NodeConfig, processor: Processor) -> Result<RunningNode, Ros2Error> {
@@ -346,14 +357,7 @@ pub fn start(config: NodeConfig, processor: Processor) -> Result<RunningNode, Ro
     let mode = processor.config().mode;
     let subs = Subscriptions::new(&mut node, &config, mode)?;
     let publishers = Publishers::new(&mut node, &config)?;
-    let options = RecordOptions {
-        foxglove: config.record_foxglove,
-    };
-    let recorder = config
-        .record
-        .as_deref()
-        .map(|p| Recorder::create_with(p, options))
-        .transpose()?;
+    let recorder = recorder(&config)?;
     let shared = Arc::new(Shared::default());
     shared
         .recording
