@@ -189,9 +189,9 @@ pub struct ClientConfig {
     /// --sensor`): a preset (kinect_v1, realsense_d435, azure_kinect, lidar, lidar_accumulated, passive_stereo, exact) or a,b,c.
     #[cfg_attr(feature = "cli", arg(long, env = "TRE_SENSOR"))]
     pub sensor: Option<SensorNoise>,
-    /// Keep a grid map of the stream's frames on the server (their poses, [`Frame::pose`]
-    /// (super::Frame::pose)) and send it after every answered frame ([`Event::Map`]
-    /// (super::Event::Map)); `None`: no map.
+    /// Keep a grid map of the stream's frames on the server (their poses:
+    /// [`super::Frame::pose`]) and send it after every answered frame
+    /// ([`super::Event::Map`]); `None`: no map.
     #[cfg_attr(feature = "cli", arg(skip))]
     pub map: Option<MapRequest>,
     /// How fast frames go out.

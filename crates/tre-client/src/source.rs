@@ -1,6 +1,6 @@
 //! Frame sources for the client: a folder of images (with an optional folder of depth frames of
 //! the same stems), a folder of depth frames alone (the geometric mode), each with optional
-//! camera-to-world poses ([`poses`]), or a video file or V4L2 camera decoded by an `ffmpeg`
+//! camera-to-world poses (a folder of `<stem>.txt` or a pose-a-line file), or a video file or V4L2 camera decoded by an `ffmpeg`
 //! process (spawned when `ffmpeg` is on `PATH`; no video library is linked in).
 //!
 //! Frames are sent as the encoded bytes they are read as (PNG or JPEG): nothing is decoded or
@@ -30,7 +30,7 @@ pub enum SourceSpec {
         /// Depth frames with the same stems.
         depth: Option<PathBuf>,
         /// Camera-to-world poses: a folder of `<stem>.txt`, or a file of one pose a line in
-        /// the frames' order ([`poses`]).
+        /// the frames' order (16, 12 or 8 numbers a line).
         poses: Option<PathBuf>,
     },
     /// Every `.png` (16-bit) and `.npy` file of `depth`, in file-name order, sent as
