@@ -84,22 +84,8 @@ impl Infer {
     /// sensor maps where there are some, and the run's JSON record ([`record`]).
     pub(crate) fn run(self) -> anyhow::Result<()> {
         self.check_outputs()?;
-        if self.stages.config.method == Method::EndToEnd && self.depth.is_some() {
-            bail!(
-                "the end-to-end baseline runs from RGB alone, so --depth would be ignored: drop \
-                 it, or use --method pipeline"
-            );
-        }
-        let mode = self.mode()?;
-        let traversability =
-            Traversability::from_cm_deg(Some(self.max_roughness_cm), Some(self.max_slope_deg))
-                .map_err(|e| anyhow::anyhow!("--{}", e.to_string().replace('_', "-")))?;
-        let cfg = PipelineConfig {
-            traversability,
-            ..self.stages.config(mode)
-        };
-        cfg.check_depth_used(self.depth.is_some())
-            .context("--mode rgb with --depth")?;
+        let cfg = self.config()?;
+        let mode = cfg.mode;
         let (mut frame, described, (scale_stated, scale)) = self.read_frame()?;
         frame.sensor = self
             .sensor
@@ -137,7 +123,7 @@ impl Infer {
             warnings,
         };
         let files = self.write_all(&done, mode)?;
-        let run = record::Run {
+        self.write_record(&record::Run {
             inputs: [&self.frame, &self.depth, &self.camera].map(|p| p.as_deref()),
             cfg: (&cfg, self.mode.is_some()),
             out: &done.out,
@@ -147,15 +133,35 @@ impl Infer {
             models: pipeline.models().map(crate::model::Models::manifest),
             maps: done.maps.as_ref(),
             files: &files,
+        })
+    }
+
+    /// The configuration to run: the mode asked for or implied, the stages, the
+    /// traversability thresholds; depth that the mode or method would drop is refused.
+    fn config(&self) -> anyhow::Result<PipelineConfig> {
+        if self.stages.config.method == Method::EndToEnd && self.depth.is_some() {
+            bail!(
+                "the end-to-end baseline runs from RGB alone, so --depth would be ignored: drop \
+                 it, or use --method pipeline"
+            );
+        }
+        let mode = self.mode()?;
+        let traversability =
+            Traversability::from_cm_deg(Some(self.max_roughness_cm), Some(self.max_slope_deg))
+                .map_err(|e| anyhow::anyhow!("--{}", e.to_string().replace('_', "-")))?;
+        let cfg = PipelineConfig {
+            traversability,
+            ..self.stages.config(mode)
         };
-        let path = record::record_path(&self.out);
-        let json = serde_json::to_string_pretty(&record::record(&run))?;
-        io::paths::write_text(&path, &(json + "\n"))?;
-        println!(
-            "wrote {} and its record {}",
-            self.out.display(),
-            path.display()
-        );
+        cfg.check_depth_used(self.depth.is_some())
+            .context("--mode rgb with --depth")?;
+        Ok(cfg)
+    }
+
+    /// Writes the run's record beside the map ([`record::record_path`]).
+    fn write_record(&self, run: &record::Run<'_>) -> anyhow::Result<()> {
+        let json = serde_json::to_string_pretty(&record::record(run))?;
+        io::paths::write_text(&record::record_path(&self.out), &(json + "\n"))?;
         Ok(())
     }
 

@@ -9,7 +9,8 @@
 // WebSocket until 3 results came back, sends the depth PNG through the three-state section
 // (first with the sensor alone: no camera part, intrinsics and depth scale assumed; then with
 // the camera JSON, which fills the Camera fields and goes as the `camera` part: nothing
-// assumed; unknown in its own colour, legend), then submits a text file and checks that the
+// assumed; unknown in its own colour, legend) and then with the picked image (RGB + depth: the
+// rgb part goes along and the answer names rgbd), then submits a text file and checks that the
 // server's error message is shown. Exits 0 when every check passes, 1 with the failed check
 // otherwise. TRE_SCREENSHOT=path saves a screenshot of the page.
 import { mkdtempSync, readFileSync, rmSync, writeFileSync } from "node:fs";
@@ -177,6 +178,9 @@ function depthRequests(page) {
  *  unknown among them, and the legend names the three states. */
 async function checkTraversal(page, depthPath, cameraPath) {
   await checkCameraFields(page);
+  // The depth alone first (the picked image is of another scene): geometric.
+  check(await page.isChecked("#depth-with-rgb"), "RGB + depth is the default once an image is picked");
+  await page.uncheck("#depth-with-rgb");
   const requests = depthRequests(page);
   let state = await depthRun(page, () => page.setInputFiles("#depth-file", depthPath));
   let error = (await page.textContent("#sensor-error")).trim();
@@ -248,6 +252,23 @@ async function checkTraversal(page, depthPath, cameraPath) {
   check(seen[0] > 0 && seen[1] + seen[2] > 0, "unknown shown in its own colour beside the others");
   const shares = (await page.textContent("#sensor-shares")).trim();
   check(/unknown \d/.test(shares), `shares shown (${shares})`);
+}
+
+/** RGB + depth: with the box ticked the depth goes with the picked image as its rgb part, the
+ *  page asks for the mode that works on both (rgbd), shows it, and the answer names it. */
+async function checkRgbWithDepth(page) {
+  const requests = depthRequests(page);
+  const state = await depthRun(page, () => page.check("#depth-with-rgb"));
+  const error = (await page.textContent("#sensor-error")).trim();
+  check(state === "done", `RGB + depth answered${error ? ` (${error})` : ""}`);
+  const sent = requests[requests.length - 1];
+  check(sent && /name="rgb"/.test(sent.body) && /name="depth"/.test(sent.body)
+    && sent.url.searchParams.get("mode") === "rgbd",
+    "the picked image goes with the depth as its rgb part, mode rgbd");
+  const answer = await answerShown(page, "#depth-answer");
+  check(answer.mode === "rgbd", `the RGB + depth answer names rgbd (${answer.mode})`);
+  const shown = (await page.textContent("#depth-mode-name")).trim();
+  check(shown === "rgbd", `the page shows the mode from its inputs (${shown})`);
 }
 
 /** Clear camera: the fields empty, no camera part; the image goes again without one. */
@@ -341,6 +362,7 @@ async function main() {
     await checkSingleImage(page, imagePath);
     await checkStream(page);
     await checkTraversal(page, depthPath, cameraPath);
+    await checkRgbWithDepth(page);
     await screenshot();
     await clearCamera(page);
     await checkBadInput(page, baseUrl);

@@ -19,6 +19,7 @@ mod jpeg_decode;
 mod links;
 mod loadtest;
 mod map;
+mod pictures;
 mod pipeline;
 mod readme;
 mod regions;

@@ -69,6 +69,7 @@ fn readme_command_one_runs_and_prints_what_the_readme_and_cli_docs_say() {
         "roughness_uncertainty.png",
         "roughness_traversal.png",
         "roughness_traversal_preview.png",
+        "roughness.json",
     ] {
         assert!(dir.path().join(f).is_file(), "{f} not written");
     }

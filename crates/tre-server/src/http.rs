@@ -376,7 +376,7 @@ fn set(headers: &mut HeaderMap, name: &'static str, value: String) {
 
 /// The headers of an answer: the map's scale and sizes, the stage times, and what ran and
 /// what it assumed ([`FrameReply::mode`], [`FrameReply::gravity`], [`FrameReply::assumed`]).
-pub(crate) fn reply_headers(reply: &FrameReply) -> HeaderMap {
+fn reply_headers(reply: &FrameReply) -> HeaderMap {
     let mut headers = HeaderMap::new();
     set(&mut headers, "x-roughness-scale-m", SCALE_M.to_string());
     set(&mut headers, "x-image-width", reply.size.0.to_string());

@@ -69,7 +69,6 @@ fn infer_sample(dir: &Path, mode: &str) -> (PathBuf, String, serde_json::Value) 
     let err = stderr(&o);
     assert!(o.status.success(), "{mode}: {err}");
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.contains("its record"), "{stdout}");
     (out.clone(), format!("{err}\n{stdout}"), record_of(&out))
 }
 
