@@ -1,5 +1,6 @@
 //! No silent guesses over HTTP: every answer names its mode and its gravity, says what stood in
-//! for what the request did not give, and depth sent as the RGB frame is refused.
+//! for what the request did not give, and depth sent as the RGB frame is refused; depth sent with
+//! `mode=rgb` is refused, and a three-state map at least 90% unknown says so.
 
 use super::*;
 
@@ -124,5 +125,47 @@ fn answers_name_their_mode_gravity_and_assumptions() {
         let (s, code, message) = error_of(post_form(&url, form).await).await;
         assert_eq!((s, code.as_str()), (422, "bad_camera"), "{message}");
         assert!(message.contains("pitch_deg"), "{message}");
+    });
+}
+
+/// Nothing dropped or passed off over HTTP: depth sent with `mode=rgb` is refused naming the
+/// modes that use it, and a three-state map at least 90% unknown says so in a `Warning`.
+#[test]
+fn depth_with_rgb_is_refused_and_a_mostly_unknown_map_says_so() {
+    let sample = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/tum_fr2_desk");
+    let rgb = std::fs::read(sample.join("rgb.png")).unwrap();
+    let depth = std::fs::read(sample.join("depth.png")).unwrap();
+    let camera = std::fs::read_to_string(sample.join("camera.json")).unwrap();
+    let server = Server::start(&["--workers", "1"]);
+    let url = format!("{}/v1/roughness", server.url());
+    rt().block_on(async {
+        let both = form(&rgb, Some(&depth), Some(&camera));
+        let (s, code, message) = error_of(post_form(&format!("{url}?mode=rgb"), both).await).await;
+        assert_eq!((s, code.as_str()), (422, "bad_input"), "{message}");
+        assert!(
+            message.contains("rgbd") && message.contains("geometric"),
+            "{message}"
+        );
+        let mut seen = Vec::new();
+        for (mode, depth) in [("rgb", None), ("rgbd", Some(depth.as_slice()))] {
+            let parts = form(&rgb, depth, Some(&camera));
+            let query = format!("{url}?mode={mode}&outputs=traversal");
+            let resp = post_form(&query, parts).await;
+            assert_eq!(resp.status().as_u16(), 200, "{mode}");
+            let warnings: Vec<String> = resp
+                .headers()
+                .get_all("warning")
+                .iter()
+                .map(|v| v.to_str().unwrap().to_owned())
+                .collect();
+            let t = traversal_values(resp).await;
+            let unknown = t.iter().filter(|&&v| v == 0).count() as f64 / t.len() as f64;
+            let said = warnings.iter().any(|w| w.contains("three-state map is"));
+            let mostly = unknown >= tre::pipeline::MOSTLY_UNKNOWN_SHARE;
+            assert_eq!(said, mostly, "{mode}: {unknown} unknown, {warnings:?}");
+            seen.push(mostly);
+        }
+        // The rgb mode's calibrated intervals leave this frame unknown; the sensor's depth does not.
+        assert_eq!(seen, [true, false]);
     });
 }
