@@ -101,7 +101,7 @@ fn run_real(a: &EvalArgs, dirs: &[PathBuf]) -> anyhow::Result<()> {
     let split = a.real_splits.as_ref().map(|_| a.split.as_str());
     let mut report = real::run_benchmark(
         (dirs, split),
-        &frames,
+        (&frames, a.reference),
         &floors,
         &rows,
         &mut pipeline,

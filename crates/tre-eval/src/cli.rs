@@ -46,6 +46,12 @@ pub struct EvalArgs {
     /// the other modes of --mode against these regions, per sensor class.
     #[arg(long, requires = "real")]
     pub regions: Option<PathBuf>,
+    /// Real-frame benchmark: what the modes are scored against: `raw`, the spec on each
+    /// frame's own sensor depth (a reference, not truth), or `fused`, the spec on depth fused
+    /// from the 8 neighbouring posed frames on each side among those scored (frames without a
+    /// pose are left out).
+    #[arg(long, requires = "real", value_enum, default_value = "raw")]
+    pub reference: real::Reference,
     /// Modes, comma-separated: the real-frame benchmark runs each (default: rgb, rgbd and
     /// geometric); the synthetic split scores one (default: geometric).
     #[arg(long, alias = "modes", value_enum, value_delimiter = ',')]

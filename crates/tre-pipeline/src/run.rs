@@ -29,7 +29,8 @@ use tre_core::geometry::{
 use tre_core::roughness::annotate::AnnotateConfig;
 use tre_core::roughness::annotate::{spec_roughness_into, surface_term_into, SpecMaps, SpecPlanes};
 use tre_core::roughness::interval::{Calibration, IntervalTable};
-use tre_core::roughness::terrain::{terrain_into, TerrainConfig, TerrainMaps};
+use tre_core::roughness::noise::SensorNoise;
+use tre_core::roughness::terrain::{clean_points_into, terrain_into, TerrainConfig, TerrainMaps};
 use tre_model::Models;
 
 /// A frame's gravity: its stated mounting, else (with sensor depth) a confident fit of the
@@ -219,6 +220,13 @@ impl Pipeline {
         let points = timings.time("back_project", || {
             let mut points = self.scratch.spares.take();
             work.k.back_project_map_into(&depth_m, &mut points);
+            points
+        });
+        let points = match (cfg.mode, input.sensor.as_ref()) {
+            (Mode::Rgbd, Some(noise)) => timings.time("clean", || self.clean(points, &work, noise)),
+            _ => points,
+        };
+        let points = timings.time("tensors", || {
             if has_rgb {
                 points_tensors(&points, &mut self.scratch.points, &mut self.scratch.valid);
             }
@@ -273,6 +281,16 @@ impl Pipeline {
         });
         self.scratch.spares.keep(centroids);
         Ok((normals, roughness_m, None))
+    }
+
+    /// The points read through the terrain supports under the sensor's noise model
+    /// ([`clean_points_into`]): what the learned `rgbd` mode reads of a sensor's depth.
+    fn clean(&mut self, points: PointMap, work: &Working, noise: &SensorNoise) -> PointMap {
+        let mut cleaned = self.scratch.spares.take();
+        let (cfg, sums) = (TerrainConfig::default(), &mut self.scratch.sums);
+        clean_points_into(&points, &work.k, Some(noise), &cfg, sums, &mut cleaned);
+        self.scratch.spares.keep(points);
+        cleaned
     }
 
     /// The terrain estimate of the working-size points, through the frame's noise model.

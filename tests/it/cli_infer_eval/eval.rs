@@ -292,6 +292,78 @@ fn eval_real_pools_folders_and_scores_only_the_split_asked_for() {
     assert!(stdout.contains("By sequence folder"), "{stdout}");
 }
 
+/// `--reference fused`: the kitchen's test frames scored against the spec on depth fused from
+/// their neighbours; a frame without a pose (TUM) is left out, and the spec on the raw depth is
+/// no longer its own reference (it was, with RMSE 0, under `--reference raw`).
+#[test]
+fn eval_real_against_the_fused_reference_leaves_out_unposed_frames() {
+    let Some(kitchen) = shared_data("data/real-rgbd")
+        .and_then(|_| shared_data("data/real-rgbd-2/sevenscenes_redkitchen"))
+    else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let run = |reference: &str| {
+        let json = dir.path().join(format!("{reference}.json"));
+        let o = tre(&[
+            "eval",
+            "--real",
+            s(&real("slambook2_ch7")),
+            "--real",
+            s(&kitchen),
+            "--real-splits",
+            "models/real_splits.json",
+            "--modes",
+            "geometric",
+            "--limit",
+            "6",
+            "--reference",
+            reference,
+            "--json",
+            s(&json),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = std::fs::read_to_string(&json).unwrap();
+        serde_json::from_str::<serde_json::Value>(&text).unwrap()
+    };
+    let spec_rmse = |report: &serde_json::Value| {
+        let row = report["pooled"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["key"] == "geometric:LS+window+edge")
+            .unwrap();
+        row["all"]["roughness"]["rmse_cm"].as_f64().unwrap()
+    };
+    let raw = run("raw");
+    assert_eq!(
+        (raw["reference"].as_str(), raw["frames"].as_u64()),
+        (Some("raw"), Some(6))
+    );
+    assert!(spec_rmse(&raw).abs() < 1e-9);
+    let fused = run("fused");
+    assert_eq!(fused["reference"], "fused");
+    // The two TUM frames have no pose: only the kitchen's four are scored.
+    assert_eq!(fused["frames"], 4);
+    let names: Vec<&str> = fused["per_frame"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["name"].as_str().unwrap())
+        .collect();
+    assert!(
+        names
+            .iter()
+            .all(|n| n.starts_with("sevenscenes_redkitchen/")),
+        "{names:?}"
+    );
+    let rmse = spec_rmse(&fused);
+    assert!(
+        rmse > 0.1,
+        "the spec on raw depth against the fused one: RMSE {rmse} cm"
+    );
+}
+
 #[test]
 fn unsplit_sequences_and_calibrating_on_the_test_split_are_refused() {
     let Some(kitchen) = shared_data("data/real-rgbd")

@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use super::noise::{SensorNoise, HALF_NORMAL_P95};
 use crate::geometry::sums::SummedMoments;
 use crate::geometry::{covariance_lanes, eigen_plane, eigen_plane_near, SymLanes};
-use crate::geometry::{is_valid_point, Grid, Moments, PointMap, Vec3};
+use crate::geometry::{is_valid_point, Grid, Intrinsics, Moments, PointMap, Vec3, INVALID_POINT};
 
 /// The largest half-width of a support window, pixels.
 pub const MAX_HALF_PX: usize = 64;
@@ -94,12 +94,25 @@ struct Support {
     sigma_n: f64,
     /// Registration offset σ at this range, metres.
     sigma_c: f64,
-    /// The plane's smaller in-plane variance, m².
-    l_mid: f64,
     /// The points' variance off the plane, m².
     l_min: f64,
+    /// The plane's smaller in-plane variance, m².
+    l_mid: f64,
     /// The larger in-plane variance, m².
     l_max: f64,
+}
+
+impl Support {
+    /// The variance of the plane's tilt (radians²), bounded by its smaller in-plane spread,
+    /// from white noise (`mean_var`: the mean of its points' noise, in units of one point's)
+    /// and the registration offsets, one per scan line (image row) of the window. Bounded: a
+    /// tilt along the larger spread is better known, but the bound also covers what the noise
+    /// model leaves out (docs/terrain.md).
+    fn tilt2(&self, mean_var: f64) -> f64 {
+        let lines = 2.0 * self.half as f64 + 1.0;
+        let noise2 = self.sigma_n.powi(2) * mean_var + self.sigma_c.powi(2) / lines;
+        noise2 / self.l_mid.max(f64::MIN_POSITIVE)
+    }
 }
 
 /// The terrain estimate of `points` (camera frame, metres) seen with focal length `fx_px` and
@@ -203,6 +216,49 @@ pub fn terrain(
     out
 }
 
+/// Holes of the depth are filled only where points lie within this many pixels around.
+pub const FILL_HALF_PX: usize = 8;
+
+/// The points read through the terrain supports, into `out` (the depth the learned `rgbd`
+/// mode reads): each point moved along its ray towards its support's plane by what the noise
+/// explains (its offset from the plane shrunk by `debias` σ, noise and registration: noise
+/// goes, a step or a rock beyond it stays), and each pixel without depth given the point
+/// where its ray meets the plane of a support around it (when one with enough points spread
+/// lies within [`FILL_HALF_PX`] pixels). A pixel whose support finds no plane (rough ground,
+/// an obstacle) keeps its point, or stays without one.
+pub fn clean_points_into(
+    points: &PointMap,
+    k: &Intrinsics,
+    noise: Option<&SensorNoise>,
+    cfg: &TerrainConfig,
+    sums: &mut SummedMoments,
+    out: &mut PointMap,
+) {
+    let (w, h) = points.size();
+    sums.build(points);
+    let frame = Frame {
+        points,
+        sums: &*sums,
+        origin: sums.origin(),
+        fx_px: k.fx_px,
+        noise,
+        cfg,
+    };
+    out.reset(w, h, INVALID_POINT);
+    out.par_rows_mut().for_each(|(y, row)| {
+        let mut left = None;
+        for (x, q) in row.iter_mut().enumerate() {
+            let p = points[(x, y)];
+            let ray = Vec3::new(
+                (x as f64 - k.cx_px) / k.fx_px,
+                (y as f64 - k.cy_px) / k.fy_px,
+                1.0,
+            );
+            *q = frame.on_support((x, y), p, &ray, &mut left).unwrap_or(p);
+        }
+    });
+}
+
 /// One frame's inputs to the per-pixel estimate.
 struct Frame<'a> {
     points: &'a PointMap,
@@ -251,29 +307,29 @@ impl Frame<'_> {
     fn step_term(&self, xy: (usize, usize), p: &Vec3, s: &Support) -> (f64, f64) {
         let (x, y) = (xy.0 as isize, xy.1 as isize);
         let r = s.half as isize;
+        // Each seam's two sides, and the image rows each side spans (the scan lines its
+        // registration offsets average over).
         let seams = [
             (
-                (x - r, y - r),
-                (x + 1, y + r + 1),
-                (x + 1, y - r),
-                (x + r + 2, y + r + 1),
+                ((x - r, y - r), (x + 1, y + r + 1)),
+                ((x + 1, y - r), (x + r + 2, y + r + 1)),
+                2.0 * r as f64 + 1.0,
             ),
             (
-                (x - r, y - r),
-                (x + r + 1, y + 1),
-                (x - r, y + 1),
-                (x + r + 1, y + r + 2),
+                ((x - r, y - r), (x + r + 1, y + 1)),
+                ((x - r, y + 1), (x + r + 1, y + r + 2)),
+                r as f64 + 1.0,
             ),
         ];
         // The noise as the support predicts it for two halves of itself (measured on the seams
         // below where they are looked at). Two halves' centroids lie √3·σ apart along the
         // window's longer in-plane axis (a uniform spread): metres of ground at grazing views.
-        let reach = (3.0 * s.l_max).sqrt();
+        let reach2 = 3.0 * s.l_max;
         let noise2 = s.sigma_n * s.sigma_n + s.sigma_c * s.sigma_c;
-        let tilt2 = noise2 * self.mean_var(s.count) / s.l_mid.max(f64::MIN_POSITIVE);
+        let lines = s.half as f64 + 1.0;
         let mut e_j: f64 = (s.sigma_n.powi(2) * 2.0 * self.mean_var(0.5 * s.count)
-            + 2.0 * s.sigma_c.powi(2)
-            + tilt2 * reach * reach)
+            + 2.0 * s.sigma_c.powi(2) / lines
+            + s.tilt2(self.mean_var(s.count)) * reach2)
             .sqrt();
         // A support whose points lie on its plane within twice the noise (and 2 mm) holds no
         // step the margin would let through: its seams need no look.
@@ -284,12 +340,12 @@ impl Frame<'_> {
         let extent = s.half as f64 * p.z / self.fx_px;
         let var = |n: f64| self.mean_var(n);
         let mut step: f64 = 0.0;
-        for (a0, a1, b0, b1) in seams {
+        for ((a0, a1), (b0, b1), lines) in seams {
             let (a, b) = (self.sums.rect(a0, a1), self.sums.rect(b0, b1));
             if a.count < min_side || b.count < min_side {
                 continue;
             }
-            let test = (self.cfg.conditioning, extent);
+            let test = (self.cfg.conditioning, extent, lines);
             let Some((jump, e)) = pooled_step((&a, &b), &var, s, test) else {
                 continue;
             };
@@ -297,6 +353,46 @@ impl Frame<'_> {
             step = step.max(jump - self.cfg.debias * e);
         }
         (step.max(0.0), e_j)
+    }
+
+    /// The point of pixel `xy` (point `p`, NaN where it has none) moved along its ray to its
+    /// support's plane by what noise explains ([`clean_points_into`]); `None` where it has no
+    /// support plane, or no point and no point near it.
+    fn on_support(
+        &self,
+        xy: (usize, usize),
+        p: Vec3,
+        ray: &Vec3,
+        left: &mut Option<Vec3>,
+    ) -> Option<Vec3> {
+        let valid = is_valid_point(&p);
+        let anchor = if valid {
+            p
+        } else {
+            let near = LADDER
+                .into_iter()
+                .take_while(|&l| l <= FILL_HALF_PX)
+                .map(|l| self.sums.window(xy, l))
+                .find(|m| m.count >= self.cfg.min_points)?;
+            let mean = self.origin + near.sum / f64::from(near.count);
+            ray * mean.z
+        };
+        let Found::Plane(s) = self.support(xy, &anchor, left) else {
+            return None;
+        };
+        // The offset from the plane, less what noise gives; then n·(X − c) = offset along
+        // X = t·ray. A ray nearly in the plane keeps its point.
+        let offset = if valid {
+            let d = s.normal.dot(&(p - s.centroid));
+            let noise = self.cfg.debias * s.sigma_n.hypot(s.sigma_c);
+            d.signum() * (d.abs() - noise).max(0.0)
+        } else {
+            0.0
+        };
+        let along = s.normal.dot(ray);
+        let t = (s.normal.dot(&s.centroid) + offset) / along;
+        let grazing = along.abs() < 0.05 * ray.norm();
+        (!grazing && t > 0.0).then(|| ray * t)
     }
 
     /// The smallest support window of pixel `xy` (point `p`) with enough points spread in two
@@ -325,7 +421,6 @@ impl Frame<'_> {
             let count = f64::from(m.count);
             let normal = if normal.dot(p) > 0.0 { -normal } else { normal };
             smallest.get_or_insert((normal, l_min, count));
-            let trace = cov[0][0] + cov[3][0] + cov[5][0];
             // The points must spread along the plane: over half the metric radius, by more
             // than the noise along the normal (registration included) by `conditioning`,
             // and more than across it (a rough patch still has a plane; a line has none).
@@ -348,7 +443,7 @@ impl Frame<'_> {
                 sigma_c,
                 l_mid,
                 l_min,
-                l_max: (trace - l_min - l_mid).max(l_mid),
+                l_max: (cov[0][0] + cov[3][0] + cov[5][0] - l_min - l_mid).max(l_mid),
             });
         }
         // No plane: rough where the scatter off the smallest window's plane exceeds what the
@@ -386,13 +481,15 @@ const MAX_POOLED_TILT_DEG: f64 = 30.0;
 /// The offset between two sides' centroids along their pooled normal, and its noise σ. Where
 /// the pooled scatter is not spread in two directions (each side one scan line, say: then any
 /// direction across the lines fits) or tilts from the support's normal by more than
-/// [`MAX_POOLED_TILT_DEG`], the support's normal stands in; `(conditioning, extent)`
-/// as the support's test, `extent` the support's half-width in metres.
+/// [`MAX_POOLED_TILT_DEG`], the support's normal stands in; `(conditioning, extent, lines)`:
+/// the support's test, `extent` the support's half-width in metres, and the image rows each
+/// side spans (a registration offset is shared by a scan line, so a side's mean averages the
+/// offsets of its lines).
 fn pooled_step(
     (a, b): (&Moments, &Moments),
     mean_var: &dyn Fn(f64) -> f64,
     s: &Support,
-    (conditioning, extent): (f64, f64),
+    (conditioning, extent, lines): (f64, f64, f64),
 ) -> Option<(f64, f64)> {
     let (na, nb) = (f64::from(a.count), f64::from(b.count));
     let covs = covariance_lanes(&[*a, *b]);
@@ -412,11 +509,11 @@ fn pooled_step(
     let offset = delta.dot(&normal).abs();
     // The normal's own error tilts the offset by its angle times the sides' distance along the
     // plane (large at grazing views, where a window spans metres of ground).
-    let noise2 = s.sigma_n.powi(2) + s.sigma_c.powi(2);
-    let tilt2 = noise2 * mean_var(count) / spread.max(f64::MIN_POSITIVE);
+    let tilt2 = s.tilt2(mean_var(count)) * s.l_mid / spread.max(f64::MIN_POSITIVE);
     let along2 = (delta.norm_squared() - offset * offset).max(0.0);
     let sides = mean_var(na) + mean_var(nb);
-    let e = (s.sigma_n.powi(2) * sides + 2.0 * s.sigma_c.powi(2) + tilt2 * along2).sqrt();
+    let registration2 = 2.0 * s.sigma_c.powi(2) / lines;
+    let e = (s.sigma_n.powi(2) * sides + registration2 + tilt2 * along2).sqrt();
     Some((offset, e))
 }
 

@@ -212,6 +212,8 @@ pub struct RealReport {
     pub data: Vec<PathBuf>,
     /// The split scored (`--real-splits`), if any.
     pub split: Option<String>,
+    /// What the modes are scored against.
+    pub reference: Reference,
     /// Whether the cameras' stated mountings were left out (`--no-mounting`).
     pub mounting_ignored: bool,
     /// Frames scored.
@@ -318,6 +320,32 @@ impl RowAcc {
     }
 }
 
+/// [`RANGE_BINS`] as the report writes them.
+fn range_bins() -> Vec<(String, f64, f64)> {
+    RANGE_BINS
+        .iter()
+        .map(|&(name, a, b)| (name.to_owned(), a, b))
+        .collect()
+}
+
+/// A frame read with its sensor's noise model, its spec on `reference`'s depth; `None` (and a
+/// log line) when the reference has none for it.
+fn load_referenced(
+    frame: &RealFrame,
+    (frames, reference): (&[RealFrame], Reference),
+    sensor: &SensorNoise,
+) -> anyhow::Result<Option<LoadedFrame>> {
+    let raw = load_sensed(frame, sensor)?;
+    let loaded = reference.apply(frame, frames, &FuseConfig::default(), raw)?;
+    if loaded.is_none() {
+        tracing::info!(
+            "{}: no pose or neighbour, left out of the reference",
+            frame.name()
+        );
+    }
+    Ok(loaded)
+}
+
 /// A frame read, with its sensor's noise model in its input (the terrain estimate reads it).
 fn load_sensed(frame: &RealFrame, sensor: &SensorNoise) -> anyhow::Result<LoadedFrame> {
     Ok(load_frame(frame)
@@ -335,7 +363,7 @@ fn load_sensed(frame: &RealFrame, sensor: &SensorNoise) -> anyhow::Result<Loaded
 /// When a frame does not read or a configuration fails on it.
 pub fn run_benchmark(
     (data, split): (&[PathBuf], Option<&str>),
-    frames: &[RealFrame],
+    (frames, reference): (&[RealFrame], Reference),
     floors: &Floors,
     rows: &[(String, PipelineConfig)],
     pipeline: &mut Pipeline,
@@ -350,7 +378,9 @@ pub fn run_benchmark(
     let any_floor = frames.iter().any(|f| floors.contains_key(&key(f)));
     let mut prev: Option<PrevView> = None;
     for (i, frame) in frames.iter().enumerate() {
-        let loaded = load_sensed(frame, sensor)?;
+        let Some(loaded) = load_referenced(frame, (frames, reference), sensor)? else {
+            continue;
+        };
         let pose = Pose::of(frame)?;
         let other = shared_with(prev.as_ref(), frame, pose, &loaded);
         let floor_box = floors.get(&key(frame)).copied();
@@ -381,18 +411,16 @@ pub fn run_benchmark(
         tracing::info!("{}/{} frames: {}", i + 1, frames.len(), frame.name());
         prev = pose.map(|pose| PrevView::new(frame, pose, loaded));
     }
-    let n = frames.len();
+    let n = per_frame.len();
     Ok(RealReport {
         data: data.to_owned(),
         split: split.map(str::to_owned),
+        reference,
         mounting_ignored: false,
         frames: n,
         hazard_m: HAZARD_M,
         flat_m: FLAT_M,
-        range_bins: RANGE_BINS
-            .iter()
-            .map(|&(name, a, b)| (name.to_owned(), a, b))
-            .collect(),
+        range_bins: range_bins(),
         spec: spec_acc.finish(any_floor, n),
         pooled: rows
             .iter()

@@ -298,6 +298,7 @@ pub fn frame_sensor(frame: &RealFrame, default: &SensorNoise) -> SensorNoise {
 }
 
 mod bench;
+mod fused;
 mod regions;
 mod report;
 mod safety;
@@ -306,6 +307,7 @@ mod splits;
 mod views;
 
 pub use bench::*;
+pub use fused::{fuse_depth, FuseConfig, Reference};
 pub use regions::{regions_markdown, score_regions, RegionFile, RegionReport};
 pub use report::markdown;
 pub use safety::{Safety, SafetyAcc, SafetyFigures};

@@ -26,9 +26,8 @@ pub fn markdown(report: &RealReport) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "Real frames: {} from {}; the spec is annotation spec v1 on the same sensor depth \
-         (`tre annotate`). Edge recall: spec ≥ {} cm read ≥ {} cm; false hazards: spec < {} cm \
-         read ≥ {} cm.\n",
+        "Real frames: {} from {}; the spec is annotation spec v1 {}. Edge recall: spec ≥ {} cm \
+         read ≥ {} cm; false hazards: spec < {} cm read ≥ {} cm.\n",
         report.frames,
         report
             .data
@@ -45,6 +44,13 @@ pub fn markdown(report: &RealReport) -> String {
             } else {
                 ""
             },
+        match report.reference {
+            Reference::Raw => "on the same sensor depth (`tre annotate`), a reference, not truth",
+            Reference::Fused => {
+                "on depth fused from the neighbouring posed frames (`--reference fused`; \
+                 frames without a pose left out)"
+            }
+        },
         100.0 * report.hazard_m,
         100.0 * report.hazard_m,
         100.0 * report.flat_m,

@@ -45,14 +45,19 @@ impl Pose {
         Ok(Some(Self(m)))
     }
 
+    /// The pose of a 4×4 camera-to-world matrix, by rows.
+    pub fn from_rows(m: [[f64; 4]; 4]) -> Self {
+        Self(m)
+    }
+
     /// Camera point to world.
-    fn to_world(self, p: [f64; 3]) -> [f64; 3] {
+    pub(super) fn to_world(self, p: [f64; 3]) -> [f64; 3] {
         let m = &self.0;
         std::array::from_fn(|r| m[r][0] * p[0] + m[r][1] * p[1] + m[r][2] * p[2] + m[r][3])
     }
 
     /// World point to camera (the rotation is orthonormal).
-    fn to_camera(self, w: [f64; 3]) -> [f64; 3] {
+    pub(super) fn to_camera(self, w: [f64; 3]) -> [f64; 3] {
         let m = &self.0;
         let d = [w[0] - m[0][3], w[1] - m[1][3], w[2] - m[2][3]];
         std::array::from_fn(|c| m[0][c] * d[0] + m[1][c] * d[1] + m[2][c] * d[2])
