@@ -54,7 +54,7 @@ pub(crate) enum Command {
     Serve(serve::Serve),
     /// Stream frames (a folder, a video or a camera) to `tre serve` over the WebSocket and
     /// write the roughness maps that come back.
-    Client(client::Client),
+    Client(Box<client::Client>),
     /// Load a running `tre serve` over HTTP or WebSocket and report throughput and latency.
     ///
     /// Open loop (`--rate`): requests at constant intended times, latency counted from the

@@ -292,6 +292,42 @@ fn eval_real_pools_folders_and_scores_only_the_split_asked_for() {
     assert!(stdout.contains("By sequence folder"), "{stdout}");
 }
 
+/// `tre eval --real` on the TUM pair and the kitchen's first test frames against
+/// `reference`: its JSON report.
+fn eval_against(kitchen: &Path, dir: &Path, reference: &str) -> serde_json::Value {
+    let json = dir.join(format!("{reference}.json"));
+    let o = tre(&[
+        "eval",
+        "--real",
+        s(&real("slambook2_ch7")),
+        "--real",
+        s(kitchen),
+        "--real-splits",
+        "models/real_splits.json",
+        "--modes",
+        "geometric",
+        "--limit",
+        "6",
+        "--reference",
+        reference,
+        "--json",
+        s(&json),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+}
+
+/// The pooled RMSE (cm) of the spec on raw depth in a report.
+fn spec_rmse(report: &serde_json::Value) -> f64 {
+    let row = report["pooled"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["key"] == "geometric:LS+window+edge")
+        .unwrap();
+    row["all"]["roughness"]["rmse_cm"].as_f64().unwrap()
+}
+
 /// `--reference fused`: the kitchen's test frames scored against the spec on depth fused from
 /// their neighbours; a frame without a pose (TUM) is left out, and the spec on the raw depth is
 /// no longer its own reference (it was, with RMSE 0, under `--reference raw`).
@@ -303,45 +339,13 @@ fn eval_real_against_the_fused_reference_leaves_out_unposed_frames() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let run = |reference: &str| {
-        let json = dir.path().join(format!("{reference}.json"));
-        let o = tre(&[
-            "eval",
-            "--real",
-            s(&real("slambook2_ch7")),
-            "--real",
-            s(&kitchen),
-            "--real-splits",
-            "models/real_splits.json",
-            "--modes",
-            "geometric",
-            "--limit",
-            "6",
-            "--reference",
-            reference,
-            "--json",
-            s(&json),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let text = std::fs::read_to_string(&json).unwrap();
-        serde_json::from_str::<serde_json::Value>(&text).unwrap()
-    };
-    let spec_rmse = |report: &serde_json::Value| {
-        let row = report["pooled"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|r| r["key"] == "geometric:LS+window+edge")
-            .unwrap();
-        row["all"]["roughness"]["rmse_cm"].as_f64().unwrap()
-    };
-    let raw = run("raw");
+    let raw = eval_against(&kitchen, dir.path(), "raw");
     assert_eq!(
         (raw["reference"].as_str(), raw["frames"].as_u64()),
         (Some("raw"), Some(6))
     );
     assert!(spec_rmse(&raw).abs() < 1e-9);
-    let fused = run("fused");
+    let fused = eval_against(&kitchen, dir.path(), "fused");
     assert_eq!(fused["reference"], "fused");
     // The two TUM frames have no pose: only the kitchen's four are scored.
     assert_eq!(fused["frames"], 4);

@@ -79,23 +79,7 @@ fn depth_with_poses_and_map_writes_the_streams_map_as_tre_map_does() {
     let kitchen = common::shared_root().join(KITCHEN);
     let dir = tempfile::tempdir().unwrap();
     let server = Server::start("127.0.0.1:0", &dir.path().join("serve.log"));
-    // Three depth frames, and their poses as one file of a pose a line.
-    let depth = dir.path().join("depth");
-    std::fs::create_dir_all(&depth).unwrap();
-    let mut poses = String::from("# 4x4 camera-to-world, row by row\n");
-    for i in [0, 5, 10] {
-        let name = format!("frame-{i:06}");
-        std::fs::copy(
-            kitchen.join(format!("depth/{name}.png")),
-            depth.join(format!("{name}.png")),
-        )
-        .unwrap();
-        let pose = std::fs::read_to_string(kitchen.join(format!("poses/{name}.txt"))).unwrap();
-        poses += &pose.split_whitespace().collect::<Vec<_>>().join(" ");
-        poses.push('\n');
-    }
-    let pose_file = dir.path().join("poses.txt");
-    std::fs::write(&pose_file, poses).unwrap();
+    let (depth, pose_file) = depth_and_poses(&kitchen, dir.path());
     let (out, map) = (dir.path().join("out"), dir.path().join("map"));
     let url = format!("http://{}", server.addr);
     let stderr = run_client(
@@ -123,7 +107,44 @@ fn depth_with_poses_and_map_writes_the_streams_map_as_tre_map_does() {
         stderr.contains("map of 3 fused frames (0 skipped) in"),
         "{stderr}"
     );
-    // tre map's files: every layer as .npy and .png, layers.png, map.json.
+    assert_tre_map_files(&map);
+    // Three posed views of the kitchen floor: hundreds of cells seen, some more than once.
+    let count = npy_f32(&map.join("count.npy"));
+    let seen = count.iter().filter(|&&c| c > 0.0).count();
+    assert!(seen > 500, "{seen} cells seen");
+    assert!(count.iter().any(|&c| c >= 2.0), "no cell seen twice");
+    assert!(
+        count.iter().all(|&c| c <= 3.0),
+        "more than 3 frames in a cell"
+    );
+}
+
+/// Three of the kitchen's depth frames copied into `dir/depth`, and their poses as one file
+/// of a pose a line: `(depth folder, pose file)`.
+fn depth_and_poses(kitchen: &Path, dir: &Path) -> (PathBuf, PathBuf) {
+    // Three depth frames, and their poses as one file of a pose a line.
+    let depth = dir.join("depth");
+    std::fs::create_dir_all(&depth).unwrap();
+    let mut poses = String::from("# 4x4 camera-to-world, row by row\n");
+    for i in [0, 5, 10] {
+        let name = format!("frame-{i:06}");
+        std::fs::copy(
+            kitchen.join(format!("depth/{name}.png")),
+            depth.join(format!("{name}.png")),
+        )
+        .unwrap();
+        let pose = std::fs::read_to_string(kitchen.join(format!("poses/{name}.txt"))).unwrap();
+        poses += &pose.split_whitespace().collect::<Vec<_>>().join(" ");
+        poses.push('\n');
+    }
+    let pose_file = dir.join("poses.txt");
+    std::fs::write(&pose_file, poses).unwrap();
+    (depth, pose_file)
+}
+
+/// `tre map`'s files in `map`: every layer as .npy and .png, layers.png, map.json (a 6 m map
+/// of 5 cm cells, three frames fused).
+fn assert_tre_map_files(map: &Path) {
     let layers = [
         "elevation",
         "variance",
@@ -147,13 +168,4 @@ fn depth_with_poses_and_map_writes_the_streams_map_as_tre_map_does() {
     assert!((meta["cell_m"].as_f64().unwrap() - 0.05).abs() < 1e-12);
     assert_eq!(meta["map_from_world"].as_array().unwrap().len(), 9);
     assert_eq!(meta["layers"]["count"]["unit"], "measurements");
-    // Three posed views of the kitchen floor: hundreds of cells seen, some more than once.
-    let count = npy_f32(&map.join("count.npy"));
-    let seen = count.iter().filter(|&&c| c > 0.0).count();
-    assert!(seen > 500, "{seen} cells seen");
-    assert!(count.iter().any(|&c| c >= 2.0), "no cell seen twice");
-    assert!(
-        count.iter().all(|&c| c <= 3.0),
-        "more than 3 frames in a cell"
-    );
 }
