@@ -26,6 +26,10 @@ impl Client {
 /// Records `cfg` on its own async runtime, printing the recorder's notices on stderr; Ctrl-C
 /// stops the sending. An error if no result came back.
 pub(crate) fn run(cfg: RecorderConfig) -> anyhow::Result<()> {
+    // The recording's folder, made as `--out` is.
+    if let Some(path) = &cfg.mcap {
+        crate::io::paths::create_parent(path)?;
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .thread_name("tre-client")
