@@ -1,9 +1,11 @@
-"""Pairs of modules that import each other, in every crate of the workspace.
+"""Circles of imports between modules, of any length, in every crate of the workspace.
 
 Reads each crate's `src/` tree, resolves its `use crate::…`, `use super::…` and `use self::…`
 paths (comments and `#[cfg(test)]` modules left out) to the module they name, lifts each import
-to the two sibling modules under their common parent, and prints every pair that imports both
-ways. Exits 1 when it finds one. Run from the repository root: `python3 scripts/import_cycles.py`.
+to the two sibling modules under their common parent, and prints every circle among siblings:
+each strongly connected set of two or more (a pair that imports both ways, or a ring
+a -> b -> c -> a). Exits 1 when it finds one. Run from the repository root:
+`python3 scripts/import_cycles.py`.
 """
 
 import os
@@ -52,8 +54,39 @@ def siblings(a, b):
     return a[: i + 1], b[: i + 1]
 
 
+def circles(graph):
+    """The strongly connected sets of two or more nodes of `graph` (Tarjan), each sorted."""
+    index, low, stack, on_stack, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            part = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                part.append(w)
+                if w == v:
+                    break
+            if len(part) > 1:
+                found.append(sorted(part))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return sorted(found)
+
+
 def cycles(src):
-    """Every pair of sibling modules of one crate that import each other."""
+    """Every circle of sibling modules of one crate that import each other."""
     mods = modules(src)
     graph = {}
     for mod, path in mods.items():
@@ -73,7 +106,7 @@ def cycles(src):
             a, b = siblings(mod, named)
             if a != b:
                 graph.setdefault(a, set()).add(b)
-    return sorted((a, b) for a in graph for b in graph[a] if a < b and a in graph.get(b, ()))
+    return circles(graph)
 
 
 def main():
@@ -84,8 +117,9 @@ def main():
     ]
     found = False
     for src in crates:
-        for a, b in cycles(src):
-            print(f"{os.path.relpath(src, ROOT)}: {'::'.join(a)} <-> {'::'.join(b)}")
+        for circle in cycles(src):
+            names = " -> ".join("::".join(m) for m in circle)
+            print(f"{os.path.relpath(src, ROOT)}: circle of {len(circle)}: {names}")
             found = True
     print("import circles:", "some" if found else "none")
     return 1 if found else 0

@@ -257,8 +257,8 @@ async fn read_within(
 }
 
 /// Window over which a body's rate is averaged (`--min-body-rate`); the first one is the grace
-/// a client has before its rate counts.
-pub(crate) const BODY_RATE_WINDOW: std::time::Duration = std::time::Duration::from_secs(5);
+/// a client has before its rate counts. One window for HTTP bodies and stream messages.
+pub(crate) use super::pace::PACE_WINDOW as BODY_RATE_WINDOW;
 
 /// The pace a body must keep: on average at least `--min-body-rate` bytes a second over each
 /// [`BODY_RATE_WINDOW`] from the headers on (a tumbling window: a body sent quickly and then

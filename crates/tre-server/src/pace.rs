@@ -12,9 +12,9 @@ use std::time::Duration;
 
 use tokio::time::Instant;
 
-/// Window over which a message's rate is averaged: the HTTP bodies' window
-/// ([`super::http::BODY_RATE_WINDOW`]).
-pub(crate) const PACE_WINDOW: Duration = super::http::BODY_RATE_WINDOW;
+/// Window over which a message's rate is averaged, stream messages and HTTP bodies alike
+/// (`--min-body-rate`); the first one is the grace a client has before its rate counts.
+pub(crate) const PACE_WINDOW: Duration = Duration::from_secs(5);
 
 /// Bytes a connection has read so far, counted where the socket is read; a request extension of
 /// every request the accept loop serves.
