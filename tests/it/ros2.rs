@@ -377,6 +377,22 @@ fn stop_tre(mut tre: Tre) -> (bool, String, String) {
     (status.success(), stdout, stderr)
 }
 
+/// A clean stop logs nothing at error level: the node takes its publishers, subscriptions,
+/// node, spinner and participant down in the order the DDS libraries need (else they print
+/// "Cannot remove Reader/Writer" and "Cannot notify spin task" errors).
+fn assert_no_errors_at_stop(stderr: &str) {
+    let errors: Vec<&str> = stderr
+        .lines()
+        .filter(|l| {
+            l.contains("ERROR") || l.contains("Cannot remove") || l.contains("Cannot notify")
+        })
+        .collect();
+    assert!(
+        errors.is_empty(),
+        "errors logged: {errors:#?}\nin: {stderr}"
+    );
+}
+
 fn f32_values(img: &Image) -> Vec<f32> {
     assert_eq!(img.encoding, "32FC1");
     img.data
@@ -525,6 +541,22 @@ fn assert_occupancy_is_traversal(occupancy: &OccupancyGrid, traversal: &[f32]) {
     assert!(occupancy.data.contains(&0) && occupancy.data.contains(&-1));
 }
 
+/// Quiet logs at the default level while running: nothing from the DDS libraries, at most a
+/// line a frame.
+fn assert_quiet_while_running(tre: &Tre, frames: usize) {
+    let running = tre.log.lock().unwrap().clone();
+    assert!(
+        !running.contains("rustdds") && !running.contains("ros2_client"),
+        "{running}"
+    );
+    assert!(
+        running.lines().count() <= frames,
+        "{} log lines for {} frames: {running}",
+        running.lines().count(),
+        frames
+    );
+}
+
 #[test]
 fn kitchen_frames_through_the_node_equal_infer_and_map() {
     let Some(k) = kitchen(5) else { return };
@@ -542,11 +574,14 @@ fn kitchen_frames_through_the_node_equal_infer_and_map() {
         "/odom",
         "--sensor",
         "kinect_v1",
+        "--publish-traversal",
+        "--publish-uncertainty",
         &gravity,
         "--map-frame",
         "world",
         "--record",
         record.to_str().unwrap(),
+        "--record-bag",
     ]);
     let peer = Peer::new(domain_id(0));
     peer.wait_for_tre(true);
@@ -560,22 +595,11 @@ fn kitchen_frames_through_the_node_equal_infer_and_map() {
         &m.header
     })
     .unwrap();
-    // Quiet logs at the default level while running: nothing from the DDS libraries, at most
-    // a line a frame.
-    let running = tre.log.lock().unwrap().clone();
-    assert!(
-        !running.contains("rustdds") && !running.contains("ros2_client"),
-        "{running}"
-    );
-    assert!(
-        running.lines().count() <= k.stems.len(),
-        "{} log lines for {} frames: {running}",
-        running.lines().count(),
-        k.stems.len()
-    );
+    assert_quiet_while_running(&tre, k.stems.len());
     let (ok, stdout, stderr) = stop_tre(tre);
     assert!(ok, "tre ros2 failed: {stderr}");
     assert!(stdout.contains("published 5"), "{stdout}");
+    assert_no_errors_at_stop(&stderr);
     // The same frames through `tre map`.
     let out = dir.path().join("map");
     run_tre_map(&seq, &out);
@@ -593,6 +617,7 @@ fn kitchen_frames_through_the_node_equal_infer_and_map() {
     }
     assert_occupancy_is_traversal(&occupancy, &npy_f32(&out.join("traversal.npy")));
     check_recording(&record, dir.path());
+    check_bag_metadata(dir.path());
     // `TRE_ROS2_RECORDING_OUT=FILE` keeps the recording (docs/ros2.md's picture is drawn from it).
     if let Some(keep) = std::env::var_os("TRE_ROS2_RECORDING_OUT") {
         std::fs::copy(&record, keep).unwrap();
@@ -607,6 +632,50 @@ fn check_recording(record: &Path, dir: &Path) {
         record,
         &["--frames", "5", "--roughness-npy", npy.to_str().unwrap()],
     );
+}
+
+/// `--record-bag`: the folder's `metadata.yaml` lists the recording and every CDR topic with
+/// its type hash, its QoS and as many messages as the MCAP holds (counted by the Python
+/// `mcap` reader when there is one).
+fn check_bag_metadata(dir: &Path) {
+    let text = std::fs::read_to_string(dir.join("metadata.yaml")).unwrap();
+    let y: serde_yaml_ng::Value = serde_yaml_ng::from_str(&text).unwrap();
+    let info = &y["rosbag2_bagfile_information"];
+    assert_eq!(info["version"].as_u64(), Some(8), "{text}");
+    assert_eq!(info["storage_identifier"].as_str(), Some("mcap"), "{text}");
+    assert_eq!(info["relative_file_paths"][0].as_str(), Some("run.mcap"));
+    let mut listed = std::collections::BTreeMap::new();
+    for t in info["topics_with_message_count"].as_sequence().unwrap() {
+        let m = &t["topic_metadata"];
+        assert_eq!(m["serialization_format"].as_str(), Some("cdr"));
+        assert!(m["type_description_hash"]
+            .as_str()
+            .is_some_and(|h| h.starts_with("RIHS01_") && h.len() == 71));
+        assert!(m["offered_qos_profiles"]
+            .as_str()
+            .is_some_and(|q| q.contains("reliability: 1")));
+        let name = m["name"].as_str().unwrap().to_owned();
+        listed.insert(name, t["message_count"].as_u64().unwrap());
+    }
+    assert!(listed.contains_key("/tre/roughness") && listed.contains_key("/odom"));
+    let total: u64 = listed.values().sum();
+    assert_eq!(info["message_count"].as_u64(), Some(total));
+    assert_eq!(listed["/tre/roughness"], 5, "{text}");
+    let Ok(python) = std::env::var("TRE_MCAP_PYTHON") else {
+        return;
+    };
+    let script = "import sys, json\nfrom mcap.reader import make_reader\nc = {}\n\
+                  for _, ch, _ in make_reader(open(sys.argv[1], 'rb')).iter_messages():\n    \
+                  c[ch.topic] = c.get(ch.topic, 0) + 1\nprint(json.dumps(c))\n";
+    let o = Command::new(python)
+        .args(["-c", script])
+        .arg(dir.join("run.mcap"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let counted: std::collections::BTreeMap<String, u64> =
+        serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(listed, counted, "metadata.yaml against the MCAP file");
 }
 
 #[test]
@@ -663,6 +732,7 @@ fn bad_input_is_skipped_and_the_node_recovers() {
     let (exit_ok, stdout, stderr) = stop_tre(tre);
     assert!(exit_ok, "{stderr}");
     assert!(stdout.contains("skipped (bad input) 4"), "{stdout}");
+    assert_no_errors_at_stop(&stderr);
     for why in [
         "no camera_info received yet",
         "camera_info is 320×480 but the image is 640×480",

@@ -15,6 +15,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use futures::future::FusedFuture;
 use futures::{FutureExt, StreamExt};
 use ros2_client::qos::{Durability, History, Reliability as DdsReliability, WhenFull};
 use ros2_client::{
@@ -84,6 +85,8 @@ pub struct NodeConfig {
     pub record: Option<PathBuf>,
     /// Also record the outputs in Foxglove's JSON schemas.
     pub record_foxglove: bool,
+    /// Make the recording's folder a rosbag2 bag (`metadata.yaml` beside the file).
+    pub record_bag: bool,
 }
 
 impl Default for NodeConfig {
@@ -102,6 +105,7 @@ impl Default for NodeConfig {
             log_every: Duration::from_secs(10),
             record: None,
             record_foxglove: false,
+            record_bag: false,
         }
     }
 }
@@ -126,8 +130,8 @@ pub struct NodeStats {
 pub struct RunningNode {
     shared: Arc<Shared>,
     stop_dds: Option<futures::channel::oneshot::Sender<()>>,
-    dds: Option<JoinHandle<Result<(), Ros2Error>>>,
-    worker: Option<JoinHandle<Result<Option<PathBuf>, Ros2Error>>>,
+    /// The DDS thread; it joins the worker when it stops, and returns the worker's result.
+    dds: Option<JoinHandle<WorkerResult>>,
 }
 
 #[derive(Debug, Default)]
@@ -364,38 +368,93 @@ pub fn start(config: NodeConfig, processor: Processor) -> Result<RunningNode, Ro
         .store(recorder.is_some(), Ordering::Relaxed);
     let (stop_tx, stop_rx) = futures::channel::oneshot::channel::<()>();
     let spinner = node.spinner().map_err(dds("spinner"))?;
-    let dds_shared = Arc::clone(&shared);
+    let worker_shared = Arc::clone(&shared);
     let topics = config.clone();
+    let worker = std::thread::Builder::new()
+        .name("tre-ros2-worker".into())
+        .spawn(move || work(&worker_shared, &config, processor, publishers, recorder))
+        .map_err(thread_error)?;
+    let dds_shared = Arc::clone(&shared);
     let dds = std::thread::Builder::new()
         .name("tre-ros2-dds".into())
         .spawn(move || {
-            let _alive = (context, node); // the participant and node live while the thread runs
-            let spin = spinner.spin().map(|r| {
-                if let Err(e) = r {
-                    tracing::error!("ROS 2 spinner stopped: {e:?}");
-                }
-            });
-            futures::executor::block_on(async {
-                futures::select! {
-                    () = subs.receive(&dds_shared, &topics, mode).fuse() => {},
-                    () = spin.fuse() => {},
-                    _ = stop_rx.fuse() => {},
-                }
-            });
-            Ok(())
+            let dds = Dds {
+                context,
+                node,
+                subs,
+                spinner,
+            };
+            dds.run(&dds_shared, &topics, mode, stop_rx, worker)
         })
-        .map_err(thread_error)?;
-    let worker_shared = Arc::clone(&shared);
-    let worker = std::thread::Builder::new()
-        .name("tre-ros2-worker".into())
-        .spawn(move || work(&worker_shared, &config, processor, &publishers, recorder))
         .map_err(thread_error)?;
     Ok(RunningNode {
         shared,
         stop_dds: Some(stop_tx),
         dds: Some(dds),
-        worker: Some(worker),
     })
+}
+
+/// What the DDS thread owns, stopped in the order the libraries need (so a clean stop logs
+/// nothing): the worker and its publishers first, then the subscriptions, then the node (which
+/// tells the spinner to stop), the spinner run until it has stopped, the participant last.
+struct Dds {
+    context: Context,
+    node: Node,
+    subs: Subscriptions,
+    spinner: ros2_client::Spinner,
+}
+
+/// The worker thread's result: the recording's path.
+type WorkerResult = Result<Option<PathBuf>, Ros2Error>;
+
+impl Dds {
+    /// Receives until `stop` fires, then waits for the worker and takes everything down.
+    fn run(
+        self,
+        sh: &Shared,
+        c: &NodeConfig,
+        mode: Mode,
+        stop: futures::channel::oneshot::Receiver<()>,
+        worker: JoinHandle<WorkerResult>,
+    ) -> WorkerResult {
+        let Self {
+            context,
+            node,
+            subs,
+            spinner,
+        } = self;
+        let mut spin = Box::pin(
+            spinner
+                .spin()
+                .map(|r| {
+                    if let Err(e) = r {
+                        tracing::error!("ROS 2 spinner stopped: {e:?}");
+                    }
+                })
+                .fuse(),
+        );
+        futures::executor::block_on(async {
+            futures::select! {
+                () = subs.receive(sh, c, mode).fuse() => {},
+                () = spin => {},
+                _ = stop.fuse() => {},
+            }
+        });
+        // The worker may still be publishing its last frame: it stops first, its publishers
+        // with it.
+        let worked = worker.join().map_err(|_| Ros2Error::Dds {
+            what: "worker thread",
+            message: "panicked".into(),
+        });
+        drop(subs);
+        drop(node);
+        if !spin.is_terminated() {
+            futures::executor::block_on(&mut spin);
+        }
+        drop(spin);
+        drop(context);
+        worked?
+    }
 }
 
 fn pose_topic(c: &NodeConfig) -> String {
@@ -565,9 +624,9 @@ fn work(
     sh: &Shared,
     c: &NodeConfig,
     mut processor: Processor,
-    pubs: &Publishers,
+    pubs: Publishers,
     mut recorder: Option<Recorder>,
-) -> Result<Option<PathBuf>, Ros2Error> {
+) -> WorkerResult {
     let mut limiter = Limiter::new(c.log_every);
     let mut last_stamp: Option<Time> = None;
     loop {
@@ -618,7 +677,7 @@ fn work(
                     );
                 }
                 if let Some(r) = &mut recorder {
-                    write_outputs(r, pubs, &out, &processor)?;
+                    write_outputs(r, &pubs, &out, &processor)?;
                 }
             }
             Err(e) => {
@@ -627,7 +686,15 @@ fn work(
             }
         }
     }
-    Ok(recorder.map(Recorder::finish).transpose()?)
+    drop(pubs);
+    let finish = |r: Recorder| {
+        if c.record_bag {
+            r.finish_bag(ros2_client::COMPILED_ROS_DISTRO.as_str())
+        } else {
+            r.finish()
+        }
+    };
+    Ok(recorder.map(finish).transpose()?)
 }
 
 /// The pose for a frame: one already within the tolerance, else the first to arrive within
@@ -706,15 +773,9 @@ impl RunningNode {
         if let Some(tx) = self.stop_dds.take() {
             let _ = tx.send(());
         }
-        if let Some(h) = self.dds.take() {
-            h.join().map_err(|_| Ros2Error::Dds {
-                what: "DDS thread",
-                message: "panicked".into(),
-            })??;
-        }
-        match self.worker.take() {
+        match self.dds.take() {
             Some(h) => h.join().map_err(|_| Ros2Error::Dds {
-                what: "worker thread",
+                what: "DDS thread",
                 message: "panicked".into(),
             })?,
             None => Ok(None),
