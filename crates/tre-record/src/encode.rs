@@ -104,6 +104,31 @@ pub fn float_image(header: &Header, values: &Grid<f64>) -> Image {
     }
 }
 
+/// A `mono16` image (little-endian) of `values` in millimetres, rounded to the nearest: 0
+/// where there is no value, 1 for a value under 0.5 mm (so that 0 stays "no data"), 65535
+/// for one over 65.535 m.
+pub fn mono16_mm_image(header: &Header, values: &Grid<f64>) -> Image {
+    let (w, h) = values.size();
+    let mut data = Vec::with_capacity(2 * w * h);
+    for &v in values.as_slice() {
+        let mm = if v.is_finite() {
+            (v * 1000.0).round().clamp(1.0, 65535.0) as u16
+        } else {
+            0
+        };
+        data.extend(mm.to_le_bytes());
+    }
+    Image {
+        header: header.clone(),
+        height: h as u32,
+        width: w as u32,
+        encoding: "mono16".into(),
+        is_bigendian: 0,
+        step: 2 * w as u32,
+        data,
+    }
+}
+
 /// A `mono8` image of the three-state map: 0 unknown, 1 traversable, 2 hazard (the service's
 /// 8-bit values).
 pub fn traversal_image(header: &Header, t: &Grid<Traversal>) -> Image {
@@ -249,6 +274,22 @@ mod tests {
             },
         );
         assert_eq!(identity.pose.orientation.w, 1.0);
+    }
+
+    #[test]
+    fn mono16_is_rounded_millimetres_with_zero_for_no_data() {
+        let g = Grid::from_vec(5, 1, vec![0.0123, f64::NAN, 0.0001, 70.0, 0.0015]).unwrap();
+        let img = mono16_mm_image(&Header::default(), &g);
+        assert_eq!(
+            (img.encoding.as_str(), img.step, img.data.len()),
+            ("mono16", 10, 10)
+        );
+        let mm: Vec<u16> = img
+            .data
+            .chunks_exact(2)
+            .map(|b| u16::from_le_bytes([b[0], b[1]]))
+            .collect();
+        assert_eq!(mm, [12, 0, 1, 65535, 2]);
     }
 
     #[test]

@@ -1,9 +1,11 @@
 //! Recordings as MCAP: every message in its ROS 2 type (`ros2msg` schema, CDR), which
 //! `ros2 bag`, Foxglove and the `mcap` tools read, in zstd-compressed chunks, each channel
 //! with the `offered_qos_profiles` rosbag2 replays it with (transient-local for the occupancy
-//! grid). On request ([`RecordOptions::foxglove`]) the outputs again in Foxglove's own schemas
+//! grid) and its ROS 2 type hash (`topic_type_hash`, [`crate::type_hash`]). On request
+//! ([`RecordOptions::foxglove`]) the outputs again in Foxglove's own schemas
 //! (`foxglove.RawImage`, `foxglove.Grid`; JSON), which Foxglove shows with no extension but
 //! which rosbag2 refuses beside CDR (docs/ros2.md says which viewer shows which channel).
+//! [`Recorder::finish_bag`] also writes rosbag2's `metadata.yaml` beside the file.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -58,6 +60,20 @@ pub struct Recorder {
     channels: BTreeMap<String, u16>,
     sequence: u32,
     options: RecordOptions,
+    /// What rosbag2's `metadata.yaml` lists, per CDR channel.
+    bag: BTreeMap<u16, BagTopic>,
+    /// The first and last log times, nanoseconds.
+    span: Option<(u64, u64)>,
+}
+
+/// A channel as `metadata.yaml` lists it.
+#[derive(Debug)]
+struct BagTopic {
+    topic: String,
+    type_name: String,
+    qos: String,
+    hash: String,
+    count: u64,
 }
 
 impl std::fmt::Debug for Recorder {
@@ -96,6 +112,8 @@ impl Recorder {
             channels: BTreeMap::new(),
             sequence: 0,
             options,
+            bag: BTreeMap::new(),
+            span: None,
         })
     }
 
@@ -115,12 +133,31 @@ impl Recorder {
             .add_schema(name, schema_encoding, data)
             .map_err(|e| record_error(&path, e))?;
         let latched = topic.ends_with("/occupancy");
-        let metadata = BTreeMap::from([("offered_qos_profiles".to_owned(), offered_qos(latched))]);
+        let mut metadata =
+            BTreeMap::from([("offered_qos_profiles".to_owned(), offered_qos(latched))]);
+        // The ROS 2 type hash, where rosbag2's MCAP storage reads it.
+        if schema_encoding == "ros2msg" {
+            let hash = std::str::from_utf8(data)
+                .map_err(|e| e.to_string())
+                .and_then(|d| crate::type_hash::rihs01(name, d))
+                .map_err(|e| record_error(&path, e))?;
+            metadata.insert("topic_type_hash".to_owned(), hash);
+        }
+        let bag = (encoding == "cdr").then(|| BagTopic {
+            topic: topic.to_owned(),
+            type_name: name.to_owned(),
+            qos: metadata["offered_qos_profiles"].clone(),
+            hash: metadata.get("topic_type_hash").cloned().unwrap_or_default(),
+            count: 0,
+        });
         let id = self
             .writer
             .add_channel(schema_id, topic, encoding, &metadata)
             .map_err(|e| record_error(&path, e))?;
         self.channels.insert(topic.to_owned(), id);
+        if let Some(b) = bag {
+            self.bag.insert(id, b);
+        }
         Ok(id)
     }
 
@@ -132,6 +169,13 @@ impl Recorder {
         data: &[u8],
     ) -> Result<(), RecordError> {
         self.sequence = self.sequence.wrapping_add(1);
+        if let Some(b) = self.bag.get_mut(&channel_id) {
+            b.count += 1;
+        }
+        self.span = Some(match self.span {
+            Some((a, b)) => (a.min(log_ns), b.max(log_ns)),
+            None => (log_ns, log_ns),
+        });
         let header = mcap::records::MessageHeader {
             channel_id,
             sequence: self.sequence,
@@ -312,6 +356,60 @@ impl Recorder {
         self.writer.finish().map_err(|e| record_error(&path, e))?;
         Ok(path)
     }
+
+    /// Finishes the file and writes rosbag2's `metadata.yaml` (version 8: ROS 2 Iron, Jazzy
+    /// and later read it) in its folder, which makes the folder a bag that `ros2 bag info` and
+    /// `ros2 bag play` open; `distro` is its `ros_distro`. The folder should hold this
+    /// recording alone. Returns the file's path.
+    pub fn finish_bag(self, distro: &str) -> Result<PathBuf, RecordError> {
+        let yaml = self.bag_metadata(distro);
+        let path = self.finish()?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let meta = dir.join("metadata.yaml");
+        std::fs::write(&meta, yaml).map_err(|e| record_error(&meta, e))?;
+        Ok(path)
+    }
+
+    /// rosbag2's `metadata.yaml` of the recording so far.
+    fn bag_metadata(&self, distro: &str) -> String {
+        let (start, end) = self.span.unwrap_or((0, 0));
+        let count: u64 = self.bag.values().map(|b| b.count).sum();
+        let file = self
+            .path
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let q = |s: &str| serde_json::to_string(s).unwrap_or_default();
+        let mut y = format!(
+            "rosbag2_bagfile_information:\n  version: 8\n  storage_identifier: mcap\n  \
+             duration:\n    nanoseconds: {d}\n  starting_time:\n    \
+             nanoseconds_since_epoch: {start}\n  message_count: {count}\n  \
+             topics_with_message_count:\n",
+            d = end - start
+        );
+        for b in self.bag.values() {
+            y.push_str(&format!(
+                "    - topic_metadata:\n        name: {}\n        type: {}\n        \
+                 serialization_format: cdr\n        offered_qos_profiles: {}\n        \
+                 type_description_hash: {}\n      message_count: {}\n",
+                q(&b.topic),
+                q(&b.type_name),
+                q(&b.qos),
+                q(&b.hash),
+                b.count
+            ));
+        }
+        y.push_str(&format!(
+            "  compression_format: \"\"\n  compression_mode: \"\"\n  relative_file_paths:\n    \
+             - {f}\n  files:\n    - path: {f}\n      starting_time:\n        \
+             nanoseconds_since_epoch: {start}\n      duration:\n        nanoseconds: {d}\n      \
+             message_count: {count}\n  custom_data: ~\n  ros_distro: {distro}\n",
+            f = q(&file),
+            d = end - start,
+            distro = q(distro),
+        ));
+        y
+    }
 }
 
 /// The topics of a recording, as `tre ros2` names them by default: its input topics, and its
@@ -400,4 +498,78 @@ pub struct RecordError {
     pub path: PathBuf,
     /// The writer's message.
     pub message: String,
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::msgs::{Header, OccupancyGrid};
+    use crate::type_hash::rihs01_of;
+
+    /// Every CDR channel names its type hash and QoS where rosbag2's MCAP storage reads them.
+    #[test]
+    fn channels_carry_the_type_hash_and_qos() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.mcap");
+        let mut r = Recorder::create(&path).unwrap();
+        let h = Header::default();
+        let img = Image {
+            header: h.clone(),
+            ..Image::default()
+        };
+        r.ros("/tre/roughness", &img, &h.stamp, 1).unwrap();
+        r.ros("/tre/occupancy", &OccupancyGrid::default(), &h.stamp, 2)
+            .unwrap();
+        r.finish().unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let mut seen = BTreeMap::new();
+        for m in mcap::MessageStream::new(&bytes).unwrap() {
+            let c = m.unwrap().channel;
+            seen.insert(c.topic.clone(), c.metadata.clone());
+        }
+        let hash = |t: &str| seen[t]["topic_type_hash"].clone();
+        assert_eq!(hash("/tre/roughness"), rihs01_of::<Image>().unwrap());
+        assert_eq!(
+            hash("/tre/occupancy"),
+            rihs01_of::<OccupancyGrid>().unwrap()
+        );
+        assert!(seen["/tre/occupancy"]["offered_qos_profiles"].contains("durability: 1"));
+    }
+
+    /// `finish_bag` writes rosbag2's `metadata.yaml`: each CDR topic with its type, QoS, type
+    /// hash and count, and the file.
+    #[test]
+    fn a_bag_folder_lists_its_topics() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.mcap");
+        let mut r = Recorder::create(&path).unwrap();
+        let h = Header::default();
+        for ns in [1_000, 3_000] {
+            r.ros("/tre/roughness", &Image::default(), &h.stamp, ns)
+                .unwrap();
+        }
+        r.ros("/tre/occupancy", &OccupancyGrid::default(), &h.stamp, 2_000)
+            .unwrap();
+        r.finish_bag("jazzy").unwrap();
+        let y = std::fs::read_to_string(dir.path().join("metadata.yaml")).unwrap();
+        for want in [
+            "  version: 8\n",
+            "  storage_identifier: mcap\n",
+            "  message_count: 3\n",
+            "    nanoseconds: 2000\n",
+            "nanoseconds_since_epoch: 1000\n",
+            "name: \"/tre/roughness\"\n        type: \"sensor_msgs/msg/Image\"",
+            "      message_count: 2\n",
+            "    - path: \"run.mcap\"\n",
+            "  ros_distro: \"jazzy\"\n",
+        ] {
+            assert!(y.contains(want), "{want:?} not in {y}");
+        }
+        let hash = rihs01_of::<OccupancyGrid>().unwrap();
+        assert!(
+            y.contains(&format!("type_description_hash: \"{hash}\"")),
+            "{y}"
+        );
+    }
 }

@@ -17,7 +17,7 @@ use ros2_client::{
 use tre_core::roughness::noise::{SensorNoise, SensorPreset};
 use tre_pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
 use tre_record::msgs::{CameraInfo, Header, Image, RosMessage, Time};
-use tre_ros2::{FrameMsgs, NodeConfig, Processor};
+use tre_ros2::{FrameMsgs, ImageOutputs, NodeConfig, Processor};
 
 fn shared() -> PathBuf {
     match std::env::var_os("TRE_SHARED_DIR") {
@@ -77,7 +77,7 @@ fn processor() -> Processor {
         ..PipelineConfig::default()
     };
     let sensor = SensorNoise::Preset(SensorPreset::KinectV1);
-    Processor::new(Pipeline::new(None), cfg, Some(sensor), None)
+    Processor::new(Pipeline::new(None), cfg, Some(sensor), None).with_images(ImageOutputs::all())
 }
 
 /// The same frames in-process, after a warm-up round: the node's processing and the

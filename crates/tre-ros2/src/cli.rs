@@ -11,7 +11,8 @@ use tre_core::roughness::noise::SensorNoise;
 use tre_pipeline::{Mode, StageArgs};
 
 use crate::{
-    ConfigProblem, MapSettings, NodeConfig, PoseSource, Processor, Reliability, Ros2Error,
+    ConfigProblem, ImageOutputs, MapSettings, NodeConfig, PoseSource, Processor, Reliability,
+    Ros2Error, RoughnessEncoding,
 };
 
 /// Reliability of the input subscriptions.
@@ -23,7 +24,19 @@ pub enum InputReliability {
     Reliable,
 }
 
-/// Run the ROS 2 node: roughness, uncertainty and three-state images for every frame, and
+/// The roughness image's encoding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RoughnessImage {
+    /// `32FC1`, metres, NaN for no data: the pipeline's values bit for bit.
+    #[value(name = "32fc1")]
+    Float32,
+    /// `mono16`, millimetres rounded, 0 for no data: half the bytes.
+    #[value(name = "mono16")]
+    Mono16,
+}
+
+/// Run the ROS 2 node: the roughness image for every frame (uncertainty and three-state on
+/// request), and
 /// with a pose topic the fused map as grid_map_msgs/GridMap and nav_msgs/OccupancyGrid.
 #[derive(Debug, Args)]
 pub struct Ros2Args {
@@ -78,6 +91,17 @@ pub struct Ros2Args {
     /// map's height variance. Without it, neither is published and no map is made.
     #[arg(long, env = "TRE_SENSOR")]
     pub sensor: Option<SensorNoise>,
+    /// Also publish the uncertainty image (32FC1, metres; needs --sensor). Off by default:
+    /// another 1.2 MB a 640×480 frame.
+    #[arg(long)]
+    pub publish_uncertainty: bool,
+    /// Also publish the three-state image (mono8; needs --sensor). Off by default.
+    #[arg(long)]
+    pub publish_traversal: bool,
+    /// Encoding of the roughness image: 32fc1 (metres, exact) or mono16 (millimetres, half
+    /// the bytes).
+    #[arg(long, value_enum, default_value = "32fc1")]
+    pub roughness_encoding: RoughnessImage,
     /// Prefix of the output topics (roughness, uncertainty, traversal, grid_map, occupancy).
     #[arg(long, default_value = "/tre")]
     pub output_prefix: String,
@@ -90,6 +114,10 @@ pub struct Ros2Args {
     /// Also record the outputs in Foxglove's JSON schemas (rosbag2 refuses such a file).
     #[arg(long, requires = "record")]
     pub record_foxglove: bool,
+    /// Make the recording's folder a rosbag2 bag: metadata.yaml beside the .mcap (give
+    /// --record a file in a folder of its own). Not with --record-foxglove.
+    #[arg(long, requires = "record", conflicts_with = "record_foxglove")]
+    pub record_bag: bool,
     /// Stop after this many seconds (default: at Ctrl-C or SIGTERM).
     #[arg(long)]
     pub duration_s: Option<f64>,
@@ -150,7 +178,19 @@ impl Ros2Args {
         let cfg = self.stages.config(self.mode);
         let map = self.map_settings().map_err(Ros2Error::Config)?;
         let pipeline = self.stages.pipeline(&[cfg])?;
-        Ok(Processor::new(pipeline, cfg, self.sensor, map))
+        Ok(Processor::new(pipeline, cfg, self.sensor, map).with_images(self.images()))
+    }
+
+    /// The images published beside the roughness.
+    pub fn images(&self) -> ImageOutputs {
+        ImageOutputs {
+            uncertainty: self.publish_uncertainty,
+            traversal: self.publish_traversal,
+            roughness: match self.roughness_encoding {
+                RoughnessImage::Float32 => RoughnessEncoding::Float32,
+                RoughnessImage::Mono16 => RoughnessEncoding::Mono16Mm,
+            },
+        }
     }
 
     /// The input topic the mode reads.
@@ -206,6 +246,7 @@ impl Ros2Args {
             },
             record: self.record.clone(),
             record_foxglove: self.record_foxglove,
+            record_bag: self.record_bag,
             ..NodeConfig::default()
         }
     }

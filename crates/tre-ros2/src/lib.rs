@@ -4,8 +4,8 @@
 //! needed to build or run it. It subscribes to a depth image (`16UC1` millimetres or `32FC1`
 //! metres, REP 118), a colour image in the rgb and rgbd modes, their `CameraInfo` and
 //! optionally a pose (`nav_msgs/Odometry` or `geometry_msgs/PoseStamped`); it publishes, with
-//! the input's header, roughness and uncertainty (`32FC1`, metres) and the three-state map
-//! (`mono8`), and with a pose the fused map as `grid_map_msgs/GridMap` and
+//! the input's header, roughness (`32FC1` metres, or `mono16` millimetres), on request the
+//! uncertainty (`32FC1`, metres) and the three-state map (`mono8`), and with a pose the fused map as `grid_map_msgs/GridMap` and
 //! `nav_msgs/OccupancyGrid` (transient-local, for Nav2's static layer).
 //!
 //! - [`convert`]: messages to the pipeline's inputs (the way back is `tre_record::encode`);
@@ -21,9 +21,9 @@ mod node;
 mod process;
 
 #[cfg(feature = "cli")]
-pub use cli::{InputReliability, Ros2Args};
+pub use cli::{InputReliability, Ros2Args, RoughnessImage};
 pub use error::{ConfigProblem, InputError, Ros2Error};
 pub use node::{start, NodeConfig, NodeStats, PoseSource, Reliability, RunningNode};
-pub use process::{FrameMsgs, MapSettings, Outputs, Processor};
+pub use process::{FrameMsgs, ImageOutputs, MapSettings, Outputs, Processor, RoughnessEncoding};
 /// The ROS 2 distribution the node was built for (cargo feature `jazzy` or `humble`).
 pub use ros2_client::COMPILED_ROS_DISTRO;

@@ -41,11 +41,14 @@ impl FrameMsgs {
 /// What one frame gave.
 #[derive(Debug, Clone)]
 pub struct Outputs {
-    /// Roughness, metres, `32FC1` (NaN: no data), stamped with the input's header.
+    /// Roughness, `32FC1` metres (NaN: no data) or `mono16` millimetres (0: no data), stamped
+    /// with the input's header.
     pub roughness: Image,
-    /// The uncertainty, metres, `32FC1`, when the mode has a noise model or a calibration.
+    /// The uncertainty, metres, `32FC1`, when asked for and the mode has a noise model or a
+    /// calibration.
     pub uncertainty: Option<Image>,
-    /// Three-state traversability, `mono8` (0 unknown, 1 traversable, 2 hazard).
+    /// Three-state traversability, `mono8` (0 unknown, 1 traversable, 2 hazard), when asked
+    /// for.
     pub traversal: Option<Image>,
     /// The fused map after this frame, when a pose came with it.
     pub grid: Option<GridMap>,
@@ -55,6 +58,45 @@ pub struct Outputs {
     pub layers: Option<Layers>,
     /// Why the frame was not fused into the map (the map keeps what it had).
     pub map_error: Option<MapError>,
+}
+
+/// How the roughness image is encoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RoughnessEncoding {
+    /// `32FC1`, metres, NaN where there is no data: the pipeline's values bit for bit
+    /// (4 bytes a pixel).
+    #[default]
+    Float32,
+    /// `mono16`, millimetres rounded to the nearest, 0 where there is no data (a roughness
+    /// under 0.5 mm is written as 1, one over 65.535 m as 65535): half the bytes.
+    Mono16Mm,
+}
+
+/// The per-frame images published beside the roughness.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ImageOutputs {
+    /// The uncertainty image (`32FC1`, metres; needs a sensor model).
+    pub uncertainty: bool,
+    /// The three-state image (`mono8`; needs a sensor model).
+    pub traversal: bool,
+    /// The roughness image's encoding.
+    pub roughness: RoughnessEncoding,
+}
+
+impl ImageOutputs {
+    /// Every image, the roughness as `32FC1`.
+    pub fn all() -> Self {
+        Self {
+            uncertainty: true,
+            traversal: true,
+            roughness: RoughnessEncoding::Float32,
+        }
+    }
+
+    /// Whether the sensor maps (uncertainty and three-state) are needed.
+    fn sensor_maps(&self) -> bool {
+        self.uncertainty || self.traversal
+    }
 }
 
 /// The fused map's settings.
@@ -154,6 +196,7 @@ pub struct Processor {
     cfg: PipelineConfig,
     sensor: Option<SensorNoise>,
     map: Option<MapState>,
+    images: ImageOutputs,
 }
 
 impl Processor {
@@ -174,7 +217,20 @@ impl Processor {
                 map: None,
                 t0_ns: None,
             }),
+            images: ImageOutputs::default(),
         }
+    }
+
+    /// The images published beside the roughness, and its encoding (default: the roughness
+    /// alone, `32FC1`).
+    pub fn with_images(mut self, images: ImageOutputs) -> Self {
+        self.images = images;
+        self
+    }
+
+    /// The images it publishes.
+    pub fn images(&self) -> ImageOutputs {
+        self.images
     }
 
     /// The pipeline's configuration.
@@ -192,20 +248,30 @@ impl Processor {
             .pipeline
             .run(&input, &self.cfg)
             .map_err(InputError::Pipeline)?;
-        let roughness = encode::float_image(&header, &out.roughness_m);
-        let table = self.pipeline.interval_table_for(&self.cfg);
-        let maps = match out.sensor_maps(&input, self.cfg.mode, self.sensor.as_ref(), None, table) {
-            Ok(maps) => Some(maps),
-            Err(PipelineError::NoSensorModel { .. } | PipelineError::NoSensorDepth { .. }) => None,
-            Err(e) => return Err(InputError::Pipeline(e)),
+        let roughness = match self.images.roughness {
+            RoughnessEncoding::Float32 => encode::float_image(&header, &out.roughness_m),
+            RoughnessEncoding::Mono16Mm => encode::mono16_mm_image(&header, &out.roughness_m),
         };
+        let maps = if self.images.sensor_maps() {
+            let table = self.pipeline.interval_table_for(&self.cfg);
+            match out.sensor_maps(&input, self.cfg.mode, self.sensor.as_ref(), None, table) {
+                Ok(maps) => Some(maps),
+                Err(PipelineError::NoSensorModel { .. } | PipelineError::NoSensorDepth { .. }) => {
+                    None
+                }
+                Err(e) => return Err(InputError::Pipeline(e)),
+            }
+        } else {
+            None
+        };
+        let maps = maps.as_ref();
         let mut outputs = Outputs {
             roughness,
             uncertainty: maps
-                .as_ref()
+                .filter(|_| self.images.uncertainty)
                 .map(|m| encode::float_image(&header, &m.uncertainty_m)),
             traversal: maps
-                .as_ref()
+                .filter(|_| self.images.traversal)
                 .map(|m| encode::traversal_image(&header, &m.traversal)),
             grid: None,
             occupancy: None,
