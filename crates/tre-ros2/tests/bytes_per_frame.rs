@@ -1,0 +1,151 @@
+//! Bytes per frame on the wire: the CDR size of every message the node publishes for one real
+//! 640×480 kitchen depth frame (`real-rgbd-2/sevenscenes_redkitchen`, fused into the map with
+//! its pose), with every image (the node's outputs before the images became opt-in), with the
+//! defaults (the roughness alone, `32FC1`), and with `--roughness-encoding mono16`. The figures
+//! are in docs/ros2.md; `cargo test -p tre-ros2 --test bytes_per_frame -- --nocapture` prints
+//! them. Skipped when the shared data is missing (`TRE_SHARED_DIR`).
+#![allow(clippy::unwrap_used, clippy::print_stderr)] // A test fails loudly and prints.
+
+use std::path::PathBuf;
+
+use tre_core::geometry::Vec3;
+use tre_core::map::{MapConfig, MapLimits, Pose};
+use tre_core::roughness::noise::{SensorNoise, SensorPreset};
+use tre_pipeline::{Mode, Pipeline, PipelineConfig};
+use tre_record::msgs::{to_cdr, CameraInfo, Header, Image, Time};
+use tre_ros2::{FrameMsgs, ImageOutputs, MapSettings, Outputs, Processor, RoughnessEncoding};
+
+fn kitchen() -> Option<PathBuf> {
+    let base = match std::env::var_os("TRE_SHARED_DIR") {
+        Some(d) if !d.is_empty() => PathBuf::from(d),
+        _ => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"),
+    };
+    let dir = base.join("data/real-rgbd-2/sevenscenes_redkitchen");
+    dir.is_dir().then_some(dir)
+}
+
+fn frame(dir: &std::path::Path) -> FrameMsgs {
+    let img = image::open(dir.join("depth/frame-000000.png"))
+        .unwrap()
+        .to_luma16();
+    let (w, h) = img.dimensions();
+    let header = Header::new(
+        Time {
+            sec: 1_700_000_000,
+            nanosec: 0,
+        },
+        "camera_depth_optical_frame",
+    );
+    let depth = Image {
+        header,
+        height: h,
+        width: w,
+        encoding: "16UC1".into(),
+        is_bigendian: 0,
+        step: 2 * w,
+        data: img.as_raw().iter().flat_map(|v| v.to_le_bytes()).collect(),
+    };
+    let info = CameraInfo {
+        width: w,
+        height: h,
+        k: [585.0, 0.0, 320.0, 0.0, 585.0, 240.0, 0.0, 0.0, 1.0],
+        ..CameraInfo::default()
+    };
+    let text = std::fs::read_to_string(dir.join("poses/frame-000000.txt")).unwrap();
+    let v: Vec<f64> = text
+        .split_whitespace()
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let pose = Pose {
+        rotation: nalgebra::Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]),
+        translation: Vec3::new(v[3], v[7], v[11]),
+    };
+    FrameMsgs {
+        depth: Some(depth),
+        colour: None,
+        info: Some(info),
+        pose: Some(pose),
+    }
+}
+
+fn gravity(dir: &std::path::Path) -> Vec3 {
+    let g: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("gravity.json")).unwrap()).unwrap();
+    let c = |i: usize| g["gravity"][i].as_f64().unwrap();
+    Vec3::new(c(0), c(1), c(2))
+}
+
+/// The CDR bytes of each message published for the frame: (topic, bytes).
+fn published(dir: &std::path::Path, images: ImageOutputs) -> Vec<(&'static str, usize)> {
+    let cfg = PipelineConfig {
+        mode: Mode::Geometric,
+        ..PipelineConfig::default()
+    };
+    let map = MapSettings {
+        config: MapConfig::square(0.04, 8.0, 3.0),
+        limits: MapLimits::default(),
+        down: gravity(dir),
+        frame_id: "world".into(),
+    };
+    let sensor = SensorNoise::Preset(SensorPreset::KinectV1);
+    let mut p =
+        Processor::new(Pipeline::new(None), cfg, Some(sensor), Some(map)).with_images(images);
+    let o: Outputs = p.process(&frame(dir)).unwrap();
+    assert!(o.map_error.is_none(), "{:?}", o.map_error);
+    let mut sizes = vec![("roughness", to_cdr(&o.roughness).unwrap().len())];
+    if let Some(u) = &o.uncertainty {
+        sizes.push(("uncertainty", to_cdr(u).unwrap().len()));
+    }
+    if let Some(t) = &o.traversal {
+        sizes.push(("traversal", to_cdr(t).unwrap().len()));
+    }
+    sizes.push(("grid_map", to_cdr(o.grid.as_ref().unwrap()).unwrap().len()));
+    sizes.push((
+        "occupancy",
+        to_cdr(o.occupancy.as_ref().unwrap()).unwrap().len(),
+    ));
+    sizes
+}
+
+fn total(sizes: &[(&str, usize)]) -> usize {
+    sizes.iter().map(|(_, b)| b).sum()
+}
+
+#[test]
+fn the_defaults_send_the_roughness_alone_and_mono16_halves_it() {
+    let Some(dir) = kitchen() else { return };
+    let all = published(&dir, ImageOutputs::all());
+    let default = published(&dir, ImageOutputs::default());
+    let mono16 = published(
+        &dir,
+        ImageOutputs {
+            roughness: RoughnessEncoding::Mono16Mm,
+            ..ImageOutputs::default()
+        },
+    );
+    for (what, s) in [
+        ("every image", &all),
+        ("defaults", &default),
+        ("mono16", &mono16),
+    ] {
+        eprintln!("{what}: {s:?}, total {} bytes", total(s));
+    }
+    let names = |s: &[(&'static str, usize)]| s.iter().map(|(n, _)| *n).collect::<Vec<_>>();
+    assert_eq!(
+        names(&all),
+        [
+            "roughness",
+            "uncertainty",
+            "traversal",
+            "grid_map",
+            "occupancy"
+        ]
+    );
+    assert_eq!(names(&default), ["roughness", "grid_map", "occupancy"]);
+    // 640×480 pixels: 4 bytes each as 32FC1, 2 as mono16, plus the header and encoding.
+    let (r32, r16) = (default[0].1, mono16[0].1);
+    assert!((4 * 640 * 480..4 * 640 * 480 + 200).contains(&r32), "{r32}");
+    assert!((2 * 640 * 480..2 * 640 * 480 + 200).contains(&r16), "{r16}");
+    assert_eq!(default[1..], all[3..], "the map's messages do not change");
+    assert!(total(&default) + 4 * 640 * 480 < total(&all));
+}
