@@ -101,6 +101,12 @@ async function checkSingleImage(page, imagePath) {
   check(answer.mode === "rgb", `image answer names the mode that ran (${answer.mode})`);
   check(answer.assumed.includes("intrinsics"),
     `image answer shows the assumed intrinsics (${answer.assumed})`);
+  const caveat = await page.$eval("#image-answer", (el) => {
+    const c = el.querySelector(".caveat");
+    return c ? { text: c.textContent, warn: c.classList.contains("warn") } : null;
+  });
+  check(caveat !== null && /predicted depth/.test(caveat.text) && /unknown/.test(caveat.text)
+    && caveat.warn, `an rgb answer carries its caveat (${caveat && caveat.text})`);
 }
 
 /** The answer line in `selector`: mode, gravity source, assumed keys, texts, whether visible and
