@@ -667,15 +667,7 @@ fn work(
                 if out.grid.is_some() {
                     sh.stats.fused.fetch_add(1, Ordering::Relaxed);
                 }
-                if let Some(e) = &out.map_error {
-                    limiter.skipped("map", &format!("not fused into the map: {e}"));
-                }
-                if c.pose.is_some() && frame.pose.is_none() {
-                    limiter.skipped(
-                        "pose missing",
-                        "no pose within the tolerance of the frame's stamp: not fused",
-                    );
-                }
+                log_not_fused(&mut limiter, &out, c.pose.is_some() && frame.pose.is_none());
                 if let Some(r) = &mut recorder {
                     write_outputs(r, &pubs, &out, &processor)?;
                 }
@@ -687,6 +679,11 @@ fn work(
         }
     }
     drop(pubs);
+    finish_recording(recorder, c)
+}
+
+/// Finishes the recording, if any, as a rosbag2 folder when asked; its path.
+fn finish_recording(recorder: Option<Recorder>, c: &NodeConfig) -> WorkerResult {
     let finish = |r: Recorder| {
         if c.record_bag {
             r.finish_bag(ros2_client::COMPILED_ROS_DISTRO.as_str())
@@ -695,6 +692,19 @@ fn work(
         }
     };
     Ok(recorder.map(finish).transpose()?)
+}
+
+/// Logs (limited) why a published frame was not fused into the map.
+fn log_not_fused(limiter: &mut Limiter, out: &Outputs, pose_missing: bool) {
+    if let Some(e) = &out.map_error {
+        limiter.skipped("map", &format!("not fused into the map: {e}"));
+    }
+    if pose_missing {
+        limiter.skipped(
+            "pose missing",
+            "no pose within the tolerance of the frame's stamp: not fused",
+        );
+    }
 }
 
 /// The pose for a frame: one already within the tolerance, else the first to arrive within
