@@ -617,21 +617,22 @@ fn kitchen_frames_through_the_node_equal_infer_and_map() {
     }
     assert_occupancy_is_traversal(&occupancy, &npy_f32(&out.join("traversal.npy")));
     check_recording(&record, dir.path());
-    check_bag_metadata(dir.path());
-    // `TRE_ROS2_RECORDING_OUT=FILE` keeps the recording (docs/ros2.md's picture is drawn from it).
-    if let Some(keep) = std::env::var_os("TRE_ROS2_RECORDING_OUT") {
-        std::fs::copy(&record, keep).unwrap();
-    }
 }
 
 /// The recording decoded by the Python `mcap` and `mcap-ros2-support` packages
-/// (scripts/check_mcap.py): schemas, counts and the roughness values against `tre infer`'s.
+/// (scripts/check_mcap.py): schemas, counts and the roughness values against `tre infer`'s;
+/// then the bag's `metadata.yaml`.
 fn check_recording(record: &Path, dir: &Path) {
     let npy = dir.join("frame-000020.npy");
     check_mcap(
         record,
         &["--frames", "5", "--roughness-npy", npy.to_str().unwrap()],
     );
+    check_bag_metadata(dir);
+    // `TRE_ROS2_RECORDING_OUT=FILE` keeps the recording (docs/ros2.md's picture is drawn from it).
+    if let Some(keep) = std::env::var_os("TRE_ROS2_RECORDING_OUT") {
+        std::fs::copy(record, keep).unwrap();
+    }
 }
 
 /// `--record-bag`: the folder's `metadata.yaml` lists the recording and every CDR topic with

@@ -1,9 +1,8 @@
 //! ROS 2 type hashes (REP 2016, `RIHS01_` and 64 hex digits), computed from the `.msg`
-//! definitions of [`RosMessage`](crate::msgs::RosMessage): the SHA-256 of the type
-//! description (the type's fields and those of every type it uses, without constants and
-//! default values) written as the canonical JSON of `rosidl_generator_type_description`.
-//! Recordings carry the hash in each channel's `topic_type_hash` metadata, where rosbag2's
-//! MCAP storage reads it.
+//! definitions of [`RosMessage`]: the SHA-256 of the type description (the type's fields and
+//! those of every type it uses, without constants and default values) written as the
+//! canonical JSON of `rosidl_generator_type_description`. Recordings carry the hash in each
+//! channel's `topic_type_hash` metadata, where rosbag2's MCAP storage reads it.
 
 use sha2::{Digest, Sha256};
 
