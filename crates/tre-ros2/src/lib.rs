@@ -12,6 +12,13 @@
 //! - [`Processor`]: one frame through the pipeline and the map, without DDS;
 //! - [`start`]: the node, which records with `tre_record::Recorder`.
 
+// One ROS 2 distribution's wire details at a time (ros2-client's Gid size and more differ).
+#[cfg(all(feature = "jazzy", feature = "humble"))]
+compile_error!(
+    "tre-ros2: the features `jazzy` and `humble` exclude each other; for Humble build the tre \
+     package with `--no-default-features --features ros2-humble`"
+);
+
 #[cfg(feature = "cli")]
 mod cli;
 pub mod convert;
