@@ -269,6 +269,8 @@ mod tests {
         let d = parse(&["--server", "h:1", "--video", "v.mp4", "-o", "o"]).unwrap();
         assert_eq!(d.session.rate, Rate::AsFastAsResults);
         assert_eq!(d.session.reconnect.give_up_after, Some(20));
+        // One value per default: the options' defaults are the library's.
+        assert_eq!(d.session.reconnect, crate::config::Backoff::default());
         assert_eq!(
             d.session.connect_timeout,
             ClientConfig::default().connect_timeout

@@ -93,7 +93,7 @@ impl Default for Backoff {
             initial: Duration::from_millis(200),
             max: Duration::from_secs(5),
             factor: 2.0,
-            give_up_after: None,
+            give_up_after: Some(20),
         }
     }
 }
@@ -430,7 +430,13 @@ mod tests {
         assert_eq!(waits, [200, 400, 800, 1600, 3200, 5000, 5000]);
         assert_eq!(b.delay(u32::MAX), Duration::from_secs(5));
         assert!(!b.exhausted(2) && b.exhausted(3));
-        assert!(!Backoff::default().exhausted(u32::MAX));
+        // The default gives up after 20 failed attempts in a row (`--reconnect-attempts`'s).
+        assert!(!Backoff::default().exhausted(19) && Backoff::default().exhausted(20));
+        let never = Backoff {
+            give_up_after: None,
+            ..b
+        };
+        assert!(!never.exhausted(u32::MAX));
     }
 
     #[test]
