@@ -126,17 +126,7 @@ pub fn terrain_into(
     out: &mut TerrainMaps,
 ) {
     let (w, h) = points.size();
-    sums.build(points);
-    let sums = &*sums;
-    let origin = sums.origin();
-    let frame = Frame {
-        points,
-        sums,
-        origin,
-        fx_px,
-        noise,
-        cfg,
-    };
+    let frame = Frame::new(points, sums, fx_px, noise, cfg);
     // Pass 1: supports, surface terms and the steps of the seams right of and below each pixel.
     let per_pixel: Vec<(f64, f64, f64, Vec3)> = (0..h)
         .into_par_iter()
@@ -235,15 +225,7 @@ pub fn clean_points_into(
     out: &mut PointMap,
 ) {
     let (w, h) = points.size();
-    sums.build(points);
-    let frame = Frame {
-        points,
-        sums: &*sums,
-        origin: sums.origin(),
-        fx_px: k.fx_px,
-        noise,
-        cfg,
-    };
+    let frame = Frame::new(points, sums, k.fx_px, noise, cfg);
     out.reset(w, h, INVALID_POINT);
     out.par_rows_mut().for_each(|(y, row)| {
         let mut left = None;
@@ -269,7 +251,26 @@ struct Frame<'a> {
     cfg: &'a TerrainConfig,
 }
 
-impl Frame<'_> {
+impl<'a> Frame<'a> {
+    /// The frame of `points`, its summed-area tables built into `sums`.
+    fn new(
+        points: &'a PointMap,
+        sums: &'a mut SummedMoments,
+        fx_px: f64,
+        noise: Option<&'a SensorNoise>,
+        cfg: &'a TerrainConfig,
+    ) -> Self {
+        sums.build(points);
+        let sums = &*sums;
+        Frame {
+            points,
+            sums,
+            origin: sums.origin(),
+            fx_px,
+            noise,
+            cfg,
+        }
+    }
     /// The variance of the mean of `n` neighbours' noise, in units of one point's
     /// ([`SensorNoise::mean_variance`]; independent points without a noise model).
     fn mean_var(&self, n: f64) -> f64 {

@@ -61,30 +61,10 @@ pub fn fuse_depth(
     let mut sum: Vec<f64> = own.iter().map(|&z| if z > 0.0 { z } else { 0.0 }).collect();
     let mut count: Vec<u32> = own.iter().map(|&z| u32::from(z > 0.0)).collect();
     for b in others {
-        let (wb, _) = b.depth_m.size();
-        for (i, &z) in b.depth_m.as_slice().iter().enumerate() {
-            if !(z.is_finite() && z > 0.0) {
-                continue;
-            }
-            let (x, y) = ((i % wb) as f64, (i / wb) as f64);
-            let p = [
-                (x - b.k.cx_px) / b.k.fx_px * z,
-                (y - b.k.cy_px) / b.k.fy_px * z,
-                z,
-            ];
-            let q = target.pose.to_camera(b.pose.to_world(p));
-            if q[2] <= 0.0 {
-                continue;
-            }
-            let u = (target.k.fx_px * q[0] / q[2] + target.k.cx_px).round();
-            let v = (target.k.fy_px * q[1] / q[2] + target.k.cy_px).round();
-            if !(u >= 0.0 && v >= 0.0 && u < w as f64 && v < h as f64) {
-                continue;
-            }
-            let j = v as usize * w + u as usize;
+        for (_, j, z) in b.landings(target) {
             let zt = own[j];
-            if zt > 0.0 && (zt - q[2]).abs() < cfg.agree_m + cfg.agree_per_m * zt {
-                sum[j] += q[2];
+            if zt > 0.0 && (zt - z).abs() < cfg.agree_m + cfg.agree_per_m * zt {
+                sum[j] += z;
                 count[j] += 1;
             }
         }

@@ -51,13 +51,13 @@ impl Pose {
     }
 
     /// Camera point to world.
-    pub(super) fn to_world(self, p: [f64; 3]) -> [f64; 3] {
+    fn to_world(self, p: [f64; 3]) -> [f64; 3] {
         let m = &self.0;
         std::array::from_fn(|r| m[r][0] * p[0] + m[r][1] * p[1] + m[r][2] * p[2] + m[r][3])
     }
 
     /// World point to camera (the rotation is orthonormal).
-    pub(super) fn to_camera(self, w: [f64; 3]) -> [f64; 3] {
+    fn to_camera(self, w: [f64; 3]) -> [f64; 3] {
         let m = &self.0;
         let d = [w[0] - m[0][3], w[1] - m[1][3], w[2] - m[2][3]];
         std::array::from_fn(|c| m[0][c] * d[0] + m[1][c] * d[1] + m[2][c] * d[2])
@@ -81,37 +81,53 @@ pub struct ViewPair {
     pub shared: Vec<(usize, usize)>,
 }
 
+impl View<'_> {
+    /// Where the points of this view land in `a`: `(pixel of this view, pixel of a, depth
+    /// along a's axis)` for every pixel with depth whose point falls in front of `a` and
+    /// inside its image (flat indices; rounded to the nearest pixel).
+    pub(super) fn landings<'s>(
+        &'s self,
+        a: &'s View<'_>,
+    ) -> impl Iterator<Item = (usize, usize, f64)> + 's {
+        let (wb, _) = self.depth_m.size();
+        let (wa, ha) = a.depth_m.size();
+        self.depth_m
+            .as_slice()
+            .iter()
+            .enumerate()
+            .filter_map(move |(i, &z)| {
+                if !(z.is_finite() && z > 0.0) {
+                    return None;
+                }
+                let (x, y) = ((i % wb) as f64, (i / wb) as f64);
+                let p = [
+                    (x - self.k.cx_px) / self.k.fx_px * z,
+                    (y - self.k.cy_px) / self.k.fy_px * z,
+                    z,
+                ];
+                let q = a.pose.to_camera(self.pose.to_world(p));
+                if q[2] <= 0.0 {
+                    return None;
+                }
+                let u = (a.k.fx_px * q[0] / q[2] + a.k.cx_px).round();
+                let v = (a.k.fy_px * q[1] / q[2] + a.k.cy_px).round();
+                let inside = u >= 0.0 && v >= 0.0 && u < wa as f64 && v < ha as f64;
+                inside.then(|| (i, v as usize * wa + u as usize, q[2]))
+            })
+    }
+}
+
 impl ViewPair {
     /// The pixels of `b` seen in `a`.
     pub fn new(b: &View<'_>, a: &View<'_>) -> Self {
-        let (wb, _) = b.depth_m.size();
-        let (wa, ha) = a.depth_m.size();
-        let mut shared = Vec::new();
-        for (i, &z) in b.depth_m.as_slice().iter().enumerate() {
-            if !(z.is_finite() && z > 0.0) {
-                continue;
-            }
-            let (x, y) = ((i % wb) as f64, (i / wb) as f64);
-            let p = [
-                (x - b.k.cx_px) / b.k.fx_px * z,
-                (y - b.k.cy_px) / b.k.fy_px * z,
-                z,
-            ];
-            let q = a.pose.to_camera(b.pose.to_world(p));
-            if q[2] <= 0.0 {
-                continue;
-            }
-            let u = (a.k.fx_px * q[0] / q[2] + a.k.cx_px).round();
-            let v = (a.k.fy_px * q[1] / q[2] + a.k.cy_px).round();
-            if !(u >= 0.0 && v >= 0.0 && u < wa as f64 && v < ha as f64) {
-                continue;
-            }
-            let j = v as usize * wa + u as usize;
-            let za = a.depth_m.as_slice()[j];
-            if za > 0.0 && (za - q[2]).abs() < AGREE_M + AGREE_PER_M * q[2] {
-                shared.push((i, j));
-            }
-        }
+        let shared = b
+            .landings(a)
+            .filter(|&(_, j, z)| {
+                let za = a.depth_m.as_slice()[j];
+                za > 0.0 && (za - z).abs() < AGREE_M + AGREE_PER_M * z
+            })
+            .map(|(i, j, _)| (i, j))
+            .collect();
         Self { shared }
     }
 }
