@@ -451,12 +451,59 @@ fn map_fusion(c: &mut Criterion) {
     group.finish();
 }
 
+/// The 16-bit roughness PNG of the spec on the real Kinect frame, at 640×480 and 256×192, with
+/// each of the PNG filters (fast compression), `encode_png` (what the service and `tre infer`
+/// write) beside them; the sizes printed once.
+fn png_encode(c: &mut Criterion) {
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    let mut pipeline = Pipeline::new(None);
+    let mut group = c.benchmark_group("png");
+    group.sample_size(30);
+    let cfg = PipelineConfig {
+        geometric: GeometricMethod::Spec,
+        ..PipelineConfig::for_mode(Mode::Geometric)
+    };
+    for (w, h) in [(640, 480), (256, 192)] {
+        let out = pipeline
+            .run(&real_depth_frame((w, h)), &cfg)
+            .expect("the spec runs");
+        let img = DynamicImage::ImageLumaA16(tre::io::roughness_png16(&out.roughness_m));
+        let filters = [
+            ("adaptive", FilterType::Adaptive),
+            ("none", FilterType::NoFilter),
+            ("sub", FilterType::Sub),
+            ("up", FilterType::Up),
+            ("avg", FilterType::Avg),
+            ("paeth", FilterType::Paeth),
+        ];
+        for (name, filter) in filters {
+            let encode = || {
+                let mut bytes = Vec::new();
+                let enc = PngEncoder::new_with_quality(&mut bytes, CompressionType::Fast, filter);
+                img.write_with_encoder(enc).expect("encodes");
+                bytes
+            };
+            println!("png/{name}_{w}x{h}: {} bytes", encode().len());
+            group.bench_function(format!("{name}_{w}x{h}"), |b| b.iter(encode));
+        }
+        group.bench_function(format!("encode_png_{w}x{h}"), |b| {
+            b.iter(|| {
+                let mut bytes = Vec::new();
+                encode_png(&img, &mut bytes).expect("encodes");
+                bytes
+            })
+        });
+    }
+    group.finish();
+}
+
 criterion_group!(
     benches,
     pipeline,
     requests,
     ls_after_net,
     geometric_real,
-    map_fusion
+    map_fusion,
+    png_encode
 );
 criterion_main!(benches);

@@ -156,30 +156,36 @@ pub fn terrain_into(
 }
 
 /// Per row, the larger of each pixel's surface term and the steps within `band` pixels of it
-/// (NaN where the pixel has no estimate).
+/// (NaN where the pixel has no estimate). The box's largest step is taken along the rows, then
+/// down the columns: ten values a pixel instead of 25 at a band of 2, the same maximum.
 fn band_max(
     per_pixel: &[(f64, f64, f64, Vec3)],
     (w, h): (usize, usize),
     band: usize,
 ) -> Vec<(usize, Vec<f64>)> {
-    let band = band as isize;
-    let at = |x: isize, y: isize| {
-        let inside = x >= 0 && y >= 0 && x < w as isize && y < h as isize;
-        inside.then(|| per_pixel[y as usize * w + x as usize].1)
-    };
+    let across: Vec<f64> = (0..h)
+        .into_par_iter()
+        .flat_map_iter(|y| {
+            let row = &per_pixel[y * w..(y + 1) * w];
+            (0..w).map(move |x| {
+                row[x.saturating_sub(band)..(x + band + 1).min(w)]
+                    .iter()
+                    .fold(f64::NEG_INFINITY, |m, p| m.max(p.1))
+            })
+        })
+        .collect();
     (0..h)
         .into_par_iter()
         .map(|y| {
+            let rows = y.saturating_sub(band)..(y + band + 1).min(h);
             let row = (0..w)
                 .map(|x| {
                     let surface = per_pixel[y * w + x].0;
                     if !surface.is_finite() {
                         return f64::NAN;
                     }
-                    let (x, y) = (x as isize, y as isize);
-                    (-band..=band)
-                        .flat_map(|dy| (-band..=band).filter_map(move |dx| at(x + dx, y + dy)))
-                        .fold(surface, f64::max)
+                    rows.clone()
+                        .fold(surface, |m, yy| m.max(across[yy * w + x]))
                 })
                 .collect();
             (y, row)
