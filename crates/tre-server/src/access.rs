@@ -17,7 +17,7 @@ use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 
-use super::error::{ApiError, Refused, RequestError};
+use super::error::{ApiError, Refused, RequestError, ServiceError};
 use super::AppState;
 use tre_proto::ErrorCode;
 
@@ -50,7 +50,7 @@ pub(crate) async fn guard(
     let cross = origin.as_deref().filter(|o| !same_origin(o, req.headers()));
     let open = OPEN_PATHS.contains(&path.as_str());
     let mut resp = if let Some(o) = cross.filter(|o| !open && !allowed(&app, o)) {
-        let e = ApiError::from(RequestError::OriginNotAllowed {
+        let e = ApiError::from(ServiceError::OriginNotAllowed {
             origin: o.to_owned(),
         });
         drain(&app, req).await;
@@ -188,9 +188,9 @@ fn check_key(app: &AppState, headers: &HeaderMap, open: bool) -> Result<(), Requ
             scheme.eq_ignore_ascii_case("bearer").then(|| token.trim())
         });
     match given {
-        None => Err(RequestError::NoApiKey),
+        None => Err(ServiceError::NoApiKey.into()),
         Some(token) if equal_in_constant_time(token.as_bytes(), key.as_bytes()) => Ok(()),
-        Some(_) => Err(RequestError::WrongApiKey),
+        Some(_) => Err(ServiceError::WrongApiKey.into()),
     }
 }
 

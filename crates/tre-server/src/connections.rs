@@ -42,7 +42,7 @@ use hyper_util::service::TowerToHyperService;
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
-use super::error::{ApiError, RequestError};
+use super::error::{ApiError, LimitError};
 use super::metrics::Metrics;
 use super::pace::ReadBytes;
 use super::refusals::RefusalLog;
@@ -88,7 +88,7 @@ fn refuse_router(limits: ConnectionLimits) -> Router {
             }
         };
         let _ = tokio::time::timeout(limits.header_read, drain).await;
-        ApiError::from(RequestError::TooManyConnections {
+        ApiError::from(LimitError::TooManyConnections {
             max_open: limits.max_open,
         })
     })

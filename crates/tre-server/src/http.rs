@@ -4,21 +4,24 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use axum::body::{Body, Bytes, HttpBody};
-use axum::extract::{FromRequest, Multipart, Query, Request, State};
+use axum::extract::{Query, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
-use http_body_util::BodyExt;
 
-use super::error::{ApiError, ImagePart, RequestError};
+use super::error::{ApiError, BodyError, LimitError, ServiceError};
 use super::metrics::Gauges;
 use super::openapi::{Binary, ErrorResponse, Guarded, JsonObject, RoughnessForm};
 use super::query::RoughnessQuery;
-use super::request::{
-    image_header, strict_camera, DecodeLimits, FrameReply, FrameRequest, SCALE_M,
-};
-use super::{AppState, OVERSIZE_READ_FACTOR};
+use super::request::{FrameReply, SCALE_M};
+use super::AppState;
 use tre_proto::ErrorCode;
+
+mod body;
+
+pub(crate) use body::check_shapes;
+#[cfg(any(test, feature = "fuzzing"))]
+pub(crate) use body::parse_body;
+use body::read_body;
 
 /// `POST /v1/roughness`.
 #[utoipa::path(
@@ -103,7 +106,7 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
         None => Ok(RoughnessQuery::default()),
         Some(q) => Query::<RoughnessQuery>::try_from_uri(req.uri())
             .map(|Query(q)| q)
-            .map_err(|rejection| RequestError::Query {
+            .map_err(|rejection| BodyError::Query {
                 query: q.to_owned(),
                 rejection,
             }),
@@ -112,18 +115,18 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
     // otherwise meet a closed connection instead of the error.
     let mut frame = tokio::time::timeout(body_timeout, read_body(app, req))
         .await
-        .map_err(|_| RequestError::BodyTimeout {
+        .map_err(|_| LimitError::BodyTimeout {
             timeout: body_timeout,
         })??;
     let timeout = app.cfg.request_timeout;
     let deadline = tokio::time::Instant::now() + timeout;
     let max_concurrent = app.cfg.max_concurrent;
     let permit = app.concurrency.clone().try_acquire_owned();
-    let _permit = permit.map_err(|_| RequestError::TooManyRequests { max_concurrent })?;
+    let _permit = permit.map_err(|_| LimitError::TooManyRequests { max_concurrent })?;
     let query = query?;
     frame.options = query.options()?;
     match (&frame.camera, query.camera(app.cfg.decode_limits())?) {
-        (Some(_), Some(_)) => return Err(RequestError::CameraTwice.into()),
+        (Some(_), Some(_)) => return Err(BodyError::CameraTwice.into()),
         (None, from_query) => frame.camera = from_query,
         (Some(_), None) => {}
     }
@@ -131,221 +134,9 @@ async fn roughness_inner(app: &AppState, req: Request) -> Result<FrameReply, Api
     let rx = app.workers.submit(frame)?;
     match tokio::time::timeout_at(deadline, rx).await {
         Ok(Ok((result, _queued))) => result,
-        Ok(Err(_)) => Err(RequestError::WorkerStopped.into()),
-        Err(_) => Err(RequestError::Timeout { timeout }.into()),
+        Ok(Err(_)) => Err(ServiceError::WorkerStopped.into()),
+        Err(_) => Err(ServiceError::Timeout { timeout }.into()),
     }
-}
-
-/// The images' shapes from their headers, before the frame takes a place in the queue: a
-/// frame beyond the limits is refused at once rather than when a worker reaches it. (The
-/// worker checks again, and checks `.npy` depth, whose shape comes with its parsing.)
-pub(crate) fn check_shapes(frame: &FrameRequest, limits: DecodeLimits) -> Result<(), RequestError> {
-    if let Some(rgb) = &frame.rgb {
-        image_header(ImagePart::Rgb, rgb, limits)?;
-    }
-    if let Some(depth) = frame
-        .depth
-        .as_ref()
-        .filter(|d| !d.starts_with(b"\x93NUMPY"))
-    {
-        match image_header(ImagePart::Depth, depth, limits) {
-            Err(e) if e.is_over_limit() => return Err(e),
-            // Other depth errors are answered by the worker, saying what depth may be.
-            _ => {}
-        }
-    }
-    Ok(())
-}
-
-/// Reads the body within the byte limit: a bare image, or multipart with `rgb`, `depth`,
-/// `camera`.
-async fn read_body(app: &AppState, req: Request) -> Result<FrameRequest, RequestError> {
-    let content_type = req
-        .headers()
-        .get(header::CONTENT_TYPE)
-        .and_then(|v| v.to_str().ok())
-        .unwrap_or("")
-        .to_owned();
-    let pace = BodyPace::new(app.cfg.min_body_rate);
-    let bytes = read_within(req.into_body(), app.cfg.max_body_bytes, pace).await?;
-    parse_body(&content_type, bytes, app.cfg.decode_limits()).await
-}
-
-/// The frame a body of `content_type` carries: a bare image, or multipart with `rgb`, `depth`,
-/// `camera` (the camera checked with [`strict_camera`]). The images are not decoded here.
-pub(crate) async fn parse_body(
-    content_type: &str,
-    bytes: Bytes,
-    limits: DecodeLimits,
-) -> Result<FrameRequest, RequestError> {
-    // The boundary keeps its case (browsers' mix both); only the type is compared lowercase.
-    let lower = content_type.to_ascii_lowercase();
-    if lower.starts_with("multipart/form-data") {
-        let req = Request::builder()
-            .header(header::CONTENT_TYPE, content_type)
-            .body(Body::from(bytes))
-            .map_err(RequestError::MultipartHeader)?;
-        let multipart = Multipart::from_request(req, &())
-            .await
-            .map_err(RequestError::MultipartBoundary)?;
-        return read_multipart(multipart, limits).await;
-    }
-    let image_type = [
-        "",
-        "image/png",
-        "image/jpeg",
-        "image/jpg",
-        "application/octet-stream",
-    ];
-    let essence = lower.split(';').next().unwrap_or("").trim();
-    if !image_type.contains(&essence) {
-        return Err(RequestError::ContentType {
-            essence: essence.to_owned(),
-        });
-    }
-    Ok(FrameRequest {
-        rgb: Some(bytes.to_vec()),
-        ..FrameRequest::default()
-    })
-}
-
-/// The body, if it has at most `limit` bytes and arrives at `pace`; a 413 otherwise, once the
-/// rest has been read (up to [`OVERSIZE_READ_FACTOR`] × `limit`) and discarded, or at once when
-/// the declared length is beyond that; a 408 when it falls below the pace.
-async fn read_within(
-    mut body: Body,
-    limit: usize,
-    mut pace: BodyPace,
-) -> Result<Bytes, RequestError> {
-    let most = limit.saturating_mul(OVERSIZE_READ_FACTOR);
-    let too_large = || RequestError::BodyTooLarge { limit };
-    // The declared length, if any, sizes the buffer once (never beyond the limit).
-    let declared = usize::try_from(body.size_hint().lower()).unwrap_or(usize::MAX);
-    if declared > most {
-        return Err(too_large());
-    }
-    let mut kept = Vec::with_capacity(declared.min(limit));
-    let mut seen = 0usize;
-    while seen <= most {
-        let next = match pace.deadline() {
-            None => body.frame().await,
-            Some(at) => match tokio::time::timeout_at(at, body.frame()).await {
-                Ok(next) => next,
-                Err(_) => {
-                    pace.check(0, tokio::time::Instant::now())?;
-                    continue;
-                }
-            },
-        };
-        let Some(frame) = next else {
-            break;
-        };
-        let frame = frame.map_err(RequestError::ReadBody)?;
-        let Ok(data) = frame.into_data() else {
-            continue;
-        };
-        pace.check(data.len(), tokio::time::Instant::now())?;
-        seen = seen.saturating_add(data.len());
-        if seen <= limit {
-            kept.extend_from_slice(&data);
-        }
-    }
-    if seen > limit {
-        return Err(too_large());
-    }
-    Ok(Bytes::from(kept))
-}
-
-/// Window over which a body's rate is averaged (`--min-body-rate`); the first one is the grace
-/// a client has before its rate counts. One window for HTTP bodies and stream messages.
-pub(crate) use super::pace::PACE_WINDOW as BODY_RATE_WINDOW;
-
-/// The pace a body must keep: on average at least `--min-body-rate` bytes a second over each
-/// [`BODY_RATE_WINDOW`] from the headers on (a tumbling window: a body sent quickly and then
-/// stopped is caught one window later, not after its earlier bytes have been used up).
-#[derive(Debug, Clone, Copy)]
-struct BodyPace {
-    /// Bytes a second; 0: no pace.
-    min_bytes_per_s: u64,
-    /// Start of the current window.
-    since: tokio::time::Instant,
-    /// Bytes in it.
-    bytes: usize,
-}
-
-impl BodyPace {
-    fn new(min_bytes_per_s: u64) -> Self {
-        Self {
-            min_bytes_per_s,
-            since: tokio::time::Instant::now(),
-            bytes: 0,
-        }
-    }
-
-    /// When the current window ends; `None` without a pace.
-    fn deadline(&self) -> Option<tokio::time::Instant> {
-        (self.min_bytes_per_s > 0).then(|| self.since + BODY_RATE_WINDOW)
-    }
-
-    /// Counts `n` bytes arrived at `now`; at the end of a window, a 408 if it held too few,
-    /// else the next window starts.
-    fn check(&mut self, n: usize, now: tokio::time::Instant) -> Result<(), RequestError> {
-        self.bytes = self.bytes.saturating_add(n);
-        if self.deadline().is_none_or(|end| now < end) {
-            return Ok(());
-        }
-        let secs = (now - self.since).as_secs_f64();
-        let rate = self.bytes as f64 / secs;
-        if rate < self.min_bytes_per_s as f64 {
-            return Err(RequestError::BodyTooSlow {
-                rate,
-                secs,
-                min_bytes_per_s: self.min_bytes_per_s,
-            });
-        }
-        self.since = now;
-        self.bytes = 0;
-        Ok(())
-    }
-}
-
-async fn read_multipart(
-    mut m: Multipart,
-    limits: DecodeLimits,
-) -> Result<FrameRequest, RequestError> {
-    let mut frame = FrameRequest::default();
-    while let Some(field) = m.next_field().await.map_err(RequestError::Multipart)? {
-        let name = field.name().unwrap_or("").to_owned();
-        let data = match field.bytes().await {
-            Ok(data) => data,
-            Err(source) => return Err(RequestError::MultipartField { name, source }),
-        };
-        match name.as_str() {
-            "rgb" => set_once(&mut frame.rgb, &name, || Ok(data.to_vec()))?,
-            "depth" => set_once(&mut frame.depth, &name, || Ok(data.to_vec()))?,
-            "camera" => set_once(&mut frame.camera, &name, || strict_camera(&data, limits))?,
-            _ => return Err(RequestError::UnknownPart { name }),
-        }
-    }
-    if frame.rgb.is_none() && frame.depth.is_none() {
-        return Err(RequestError::NoImagePart);
-    }
-    Ok(frame)
-}
-
-/// Fills the slot of multipart part `name` with `value()`, unless the part came before.
-fn set_once<T>(
-    slot: &mut Option<T>,
-    name: &str,
-    value: impl FnOnce() -> Result<T, RequestError>,
-) -> Result<(), RequestError> {
-    if slot.is_some() {
-        return Err(RequestError::PartTwice {
-            name: name.to_owned(),
-        });
-    }
-    *slot = Some(value()?);
-    Ok(())
 }
 
 /// `Server-Timing` value: one entry per stage, milliseconds.
@@ -445,7 +236,7 @@ fn reply_response(reply: FrameReply) -> Response {
 /// Any other path: a JSON 404.
 pub(crate) async fn not_found(uri: axum::http::Uri) -> Response {
     let path = uri.path().to_owned();
-    ApiError::from(RequestError::NoRoute { path }).into_response()
+    ApiError::from(ServiceError::NoRoute { path }).into_response()
 }
 
 /// A known path with another method: a JSON 405.
@@ -454,7 +245,7 @@ pub(crate) async fn method_not_allowed(
     uri: axum::http::Uri,
 ) -> Response {
     let path = uri.path().to_owned();
-    ApiError::from(RequestError::MethodNotAllowed { method, path }).into_response()
+    ApiError::from(ServiceError::MethodNotAllowed { method, path }).into_response()
 }
 
 /// `GET /v1/streams/{id}/map`: the grid map of an open stream whose Hello asked for one.
@@ -490,8 +281,8 @@ pub(crate) async fn stream_map(
             )
                 .into_response()
         }
-        Some(None) => ApiError::from(RequestError::EmptyStreamMap { stream: id }).into_response(),
-        None => ApiError::from(RequestError::NoStreamMap { stream: id }).into_response(),
+        Some(None) => ApiError::from(ServiceError::EmptyStreamMap { stream: id }).into_response(),
+        None => ApiError::from(ServiceError::NoStreamMap { stream: id }).into_response(),
     }
 }
 
@@ -532,7 +323,7 @@ pub(crate) async fn readyz(State(app): State<Arc<AppState>>) -> Response {
         )
             .into_response()
     } else {
-        ApiError::from(RequestError::NotReady).into_response()
+        ApiError::from(ServiceError::NotReady).into_response()
     }
 }
 

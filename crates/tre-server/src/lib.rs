@@ -48,7 +48,10 @@ use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
 pub use config::{ConfigError, MIN_API_KEY_CHARS};
-pub use error::RequestError;
+pub use error::{
+    BodyError, CameraError, ImageError, LimitError, OptionError, RequestError, ServiceError,
+    StreamError,
+};
 pub use signal::{serve_until_signal, shutdown_signal};
 
 use metrics::Metrics;

@@ -3,7 +3,7 @@
 
 use prost::Message;
 
-use super::error::{ApiError, RequestError};
+use super::error::{ApiError, CameraError, OptionError, RequestError, StreamError};
 use super::map::{settings_from_pb, MapSettings};
 use super::options::FrameOptions;
 use super::request::{FrameReply, FrameRequest, SCALE_M};
@@ -75,8 +75,8 @@ fn sensor_from_pb(
         ([], Some(n)) => Ok(Some(SensorSpec::from_json(n.into())?)),
         (&[a, b, c], _) => SensorNoise::coefficients([a, b, c])
             .map(|m| Some(SensorSpec::Model(m)))
-            .map_err(RequestError::SensorCoefficients),
-        (other, _) => Err(RequestError::SensorCoefficientCount { given: other.len() }),
+            .map_err(|e| CameraError::SensorCoefficients(e).into()),
+        (other, _) => Err(CameraError::SensorCoefficientCount { given: other.len() }.into()),
     }
 }
 
@@ -94,8 +94,8 @@ fn camera_from_pb(c: pb::Camera) -> Result<CameraFile, RequestError> {
         height_m: c.height_m,
         sensor: sensor_from_pb(c.sensor, &c.sensor_sigma_mm)?,
     };
-    cam.intrinsics().map_err(RequestError::Camera)?;
-    cam.mounting().map_err(RequestError::Camera)?;
+    cam.intrinsics().map_err(CameraError::Geometry)?;
+    cam.mounting().map_err(CameraError::Geometry)?;
     // The stated size is checked against each frame's; the side limit is the frame's.
     let ranges = super::request::DecodeLimits {
         max_side: usize::MAX,
@@ -103,7 +103,11 @@ fn camera_from_pb(c: pb::Camera) -> Result<CameraFile, RequestError> {
     };
     super::request::check_camera_ranges(&cam, ranges)?;
     if let Some(s) = cam.depth_scale.filter(|s| !(s.is_finite() && *s > 0.0)) {
-        return Err(RequestError::MessageDepthScale { scale: s });
+        return Err(CameraError::DepthScale {
+            field: "camera.depth_scale:",
+            scale: s,
+        }
+        .into());
     }
     Ok(cam)
 }
@@ -122,7 +126,7 @@ fn hello_map(
         .and_then(|c| c.sensor.as_ref())
         .and_then(SensorSpec::noise);
     if sensor.is_none() && camera_model.is_none() {
-        return Err(RequestError::MapWithoutSensor);
+        return Err(OptionError::MapWithoutSensor.into());
     }
     settings_from_pb(m).map(Some)
 }
@@ -131,7 +135,7 @@ impl TryFrom<pb::Hello> for StreamSettings {
     type Error = RequestError;
 
     fn try_from(h: pb::Hello) -> Result<Self, RequestError> {
-        let unknown = |field, value| RequestError::UnknownValue { field, value };
+        let unknown = |field, value| OptionError::UnknownValue { field, value };
         let mode = pb::Mode::try_from(h.mode).map_err(|_| unknown("hello.mode", h.mode))?;
         let format =
             pb::Format::try_from(h.format).map_err(|_| unknown("hello.format", h.format))?;
@@ -140,20 +144,32 @@ impl TryFrom<pb::Hello> for StreamSettings {
         let dsac_hypotheses = match h.dsac_hypotheses {
             0 => None,
             k => Some(
-                check_dsac_hypotheses(k)
-                    .map_err(|e| RequestError::HelloDsacHypotheses(Box::new(e)))?,
+                check_dsac_hypotheses(k).map_err(|e| OptionError::DsacHypotheses {
+                    field: "hello.dsac_hypotheses",
+                    source: Box::new(e),
+                })?,
             ),
         };
         if let Some(m) = h.preview_max_m.filter(|m| !(m.is_finite() && *m > 0.0)) {
-            return Err(RequestError::HelloPreviewMax { m });
+            return Err(OptionError::PreviewMax {
+                field: "hello.preview_max_m",
+                value: m,
+            }
+            .into());
         }
         let sensor = match sensor_from_pb(h.sensor, &h.sensor_sigma_mm) {
             Ok(None) => None,
             Ok(Some(SensorSpec::Model(m))) => Some(m),
             Ok(Some(SensorSpec::Description(description))) => {
-                return Err(RequestError::HelloSensorDescription { description })
+                return Err(OptionError::SensorDescription { description }.into())
             }
-            Err(e) => return Err(RequestError::HelloSensor(Box::new(e))),
+            Err(e) => {
+                return Err(OptionError::Sensor {
+                    field: "hello.sensor",
+                    source: Box::new(e),
+                }
+                .into())
+            }
         };
         let camera = h.camera.map(camera_from_pb).transpose()?;
         let map = hello_map(h.map.as_ref(), sensor.as_ref(), camera.as_ref())?;
@@ -172,7 +188,10 @@ impl TryFrom<pb::Hello> for StreamSettings {
                 traversal_bytes: h.want_traversal,
                 uncertainty_f32: h.want_uncertainty,
                 traversability: Traversability::from_cm_deg(h.max_roughness_cm, h.max_slope_deg)
-                    .map_err(RequestError::HelloTraversability)?,
+                    .map_err(|source| OptionError::Traversability {
+                        prefix: "hello.",
+                        source,
+                    })?,
                 ..FrameOptions::default()
             },
         })
@@ -184,11 +203,11 @@ impl TryFrom<pb::Frame> for StreamFrame {
 
     fn try_from(f: pb::Frame) -> Result<Self, RequestError> {
         if f.image.is_empty() && f.depth.is_empty() {
-            return Err(RequestError::EmptyFrame);
+            return Err(StreamError::EmptyFrame.into());
         }
         let pose = match f.pose.as_slice() {
             [] => None,
-            v => Some(Pose::from_row_major(v).map_err(RequestError::Pose)?),
+            v => Some(Pose::from_row_major(v).map_err(StreamError::Pose)?),
         };
         Ok(Self {
             sequence: f.sequence,
@@ -204,7 +223,8 @@ impl TryFrom<pb::Frame> for StreamFrame {
 /// Decodes one binary WebSocket message from a client. The error carries the frame's sequence
 /// number when the message was a frame.
 pub(crate) fn decode_client(bytes: &[u8]) -> Result<Incoming, (Option<u64>, RequestError)> {
-    let msg = pb::ClientMessage::decode(bytes).map_err(|e| (None, RequestError::NotAMessage(e)))?;
+    let msg =
+        pb::ClientMessage::decode(bytes).map_err(|e| (None, StreamError::NotAMessage(e).into()))?;
     match msg.msg {
         Some(pb::client_message::Msg::Hello(h)) => StreamSettings::try_from(h)
             .map(Incoming::Hello)
@@ -215,7 +235,7 @@ pub(crate) fn decode_client(bytes: &[u8]) -> Result<Incoming, (Option<u64>, Requ
                 .map(Incoming::Frame)
                 .map_err(|e| (Some(seq), e))
         }
-        None => Err((None, RequestError::EmptyMessage)),
+        None => Err((None, StreamError::EmptyMessage.into())),
     }
 }
 

@@ -11,7 +11,7 @@ use utoipa::openapi::schema::{ObjectBuilder, Schema, Type};
 use utoipa::openapi::RefOr;
 use utoipa::{IntoParams, PartialSchema, ToSchema};
 
-use super::error::RequestError;
+use super::error::{CameraError, OptionError, RequestError};
 use super::options::{Extras, FrameOptions, OutputMap};
 use super::request::{check_camera_ranges, DecodeLimits};
 use tre_core::kinds::{
@@ -158,7 +158,7 @@ where
     value
         .map(|v| parse_choice(field, v))
         .transpose()
-        .map_err(RequestError::Choice)
+        .map_err(|e| OptionError::Choice(e).into())
 }
 
 impl RoughnessQuery {
@@ -169,7 +169,7 @@ impl RoughnessQuery {
             .as_deref()
             .map(|v| parse_choice_of("format", v, MapFormat::HTTP))
             .transpose()
-            .map_err(RequestError::Choice)?
+            .map_err(OptionError::Choice)?
             .unwrap_or_default();
         let mode = choice::<Mode>("mode", self.mode.as_deref())?;
         let normals = choice::<NormalsMethod>("normals", self.normals.as_deref())?;
@@ -177,9 +177,16 @@ impl RoughnessQuery {
             .dsac_hypotheses
             .map(check_dsac_hypotheses)
             .transpose()
-            .map_err(|e| RequestError::DsacHypotheses(Box::new(e)))?;
+            .map_err(|e| OptionError::DsacHypotheses {
+                field: "dsac_hypotheses",
+                source: Box::new(e),
+            })?;
         if let Some(cm) = self.preview_max_cm.filter(|c| !(c.is_finite() && *c > 0.0)) {
-            return Err(RequestError::PreviewMax { cm });
+            return Err(OptionError::PreviewMax {
+                field: "preview_max_cm",
+                value: cm,
+            }
+            .into());
         }
         Ok(FrameOptions {
             mode,
@@ -191,13 +198,16 @@ impl RoughnessQuery {
             extras: self.extras()?,
             traversable_bytes: false,
             traversability: Traversability::from_cm_deg(self.max_roughness_cm, self.max_slope_deg)
-                .map_err(RequestError::Traversability)?,
+                .map_err(|source| OptionError::Traversability { prefix: "", source })?,
             sensor: self
                 .sensor
                 .as_deref()
                 .map(str::parse)
                 .transpose()
-                .map_err(RequestError::Sensor)?,
+                .map_err(|why: String| OptionError::Sensor {
+                    field: "sensor",
+                    source: why.into(),
+                })?,
             traversal_bytes: false,
             uncertainty_f32: false,
         })
@@ -212,7 +222,7 @@ impl RoughnessQuery {
             .flat_map(|o| o.split(','))
             .filter(|s| !s.is_empty())
         {
-            let map: OutputMap = name.parse().map_err(|_| RequestError::UnknownOutput {
+            let map: OutputMap = name.parse().map_err(|_| OptionError::UnknownOutput {
                 name: name.to_owned(),
             })?;
             extras.add(map);
@@ -231,7 +241,7 @@ impl RoughnessQuery {
             return Ok(None);
         }
         let [Some(fx), Some(fy), Some(cx), Some(cy)] = k else {
-            return Err(RequestError::PartialIntrinsics);
+            return Err(CameraError::PartialIntrinsics.into());
         };
         let cam = CameraFile {
             fx,

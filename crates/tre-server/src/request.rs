@@ -7,15 +7,14 @@ use std::io::Cursor;
 use image::{DynamicImage, ImageFormat, ImageReader};
 
 pub use super::error::ImagePart;
-use super::error::RequestError;
-use super::options::{FrameOptions, OutputMap};
+use super::error::{CameraError, ImageError, RequestError};
+use super::options::FrameOptions;
 use tre_core::geometry::Grid;
 use tre_core::kinds::MapFormat;
-use tre_core::roughness::interval::IntervalTable;
-use tre_io::{self as io, colormap, CameraFile, ROUGHNESS_PNG_SCALE_M};
+use tre_io::{self as io, CameraFile, ROUGHNESS_PNG_SCALE_M};
 use tre_pipeline::{
-    Assumption, FrameInput, FrameOutput, Gravity, Mode, NormalsMethod, PipelineConfig,
-    PipelineError, DEFAULT_DSAC_HYPOTHESES,
+    Assumption, FrameInput, Gravity, Mode, NormalsMethod, PipelineConfig, PipelineError,
+    DEFAULT_DSAC_HYPOTHESES,
 };
 
 /// A frame as received: encoded images and an unchecked camera.
@@ -68,16 +67,16 @@ impl DecodeLimits {
     /// Checks a `w`×`h` image `part` against the limits: 422 `bad_image` (`bad_depth` for
     /// depth) without pixels or beyond the aspect ratio, 413 `too_large` beyond the side or the
     /// pixel count; each message names the limit and its option.
-    pub fn check_shape(&self, part: ImagePart, w: usize, h: usize) -> Result<(), RequestError> {
+    pub fn check_shape(&self, part: ImagePart, w: usize, h: usize) -> Result<(), ImageError> {
         let (long, short) = (w.max(h), w.min(h));
         let size = (w, h);
         let pixels = (w as u64).saturating_mul(h as u64);
         if short == 0 {
-            return Err(RequestError::NoPixels { part, size });
+            return Err(ImageError::NoPixels { part, size });
         }
         if long > self.max_side {
             let max_side = self.max_side;
-            return Err(RequestError::SideTooLong {
+            return Err(ImageError::SideTooLong {
                 part,
                 size,
                 max_side,
@@ -85,7 +84,7 @@ impl DecodeLimits {
         }
         if pixels > self.max_pixels as u64 {
             let max_pixels = self.max_pixels;
-            return Err(RequestError::TooManyPixels {
+            return Err(ImageError::TooManyPixels {
                 part,
                 size,
                 max_pixels,
@@ -93,7 +92,7 @@ impl DecodeLimits {
         }
         if long > short.saturating_mul(self.max_aspect) {
             let max_aspect = self.max_aspect;
-            return Err(RequestError::TooNarrow {
+            return Err(ImageError::TooNarrow {
                 part,
                 size,
                 max_aspect,
@@ -164,11 +163,11 @@ pub fn decode_image(
     part: ImagePart,
     bytes: &[u8],
     limits: DecodeLimits,
-) -> Result<DynamicImage, RequestError> {
+) -> Result<DynamicImage, ImageError> {
     let (format, (w, h)) = image_header(part, bytes, limits)?;
     let pixels = u64::from(w) * u64::from(h);
     if format == ImageFormat::Jpeg {
-        return io::decode_jpeg(bytes).map_err(|source| RequestError::Jpeg { part, source });
+        return io::decode_jpeg(bytes).map_err(|source| ImageError::Jpeg { part, source });
     }
     let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
     let mut l = image::Limits::default();
@@ -178,7 +177,7 @@ pub fn decode_image(
     reader.limits(l);
     reader
         .decode()
-        .map_err(|source| RequestError::Undecodable { part, source })
+        .map_err(|source| ImageError::Undecodable { part, source })
 }
 
 /// The format and size of image `part` from its header, checked against the limits, without
@@ -187,16 +186,16 @@ pub fn image_header(
     part: ImagePart,
     bytes: &[u8],
     limits: DecodeLimits,
-) -> Result<(ImageFormat, (u32, u32)), RequestError> {
+) -> Result<(ImageFormat, (u32, u32)), ImageError> {
     if bytes.is_empty() {
-        return Err(RequestError::EmptyImage { part });
+        return Err(ImageError::EmptyImage { part });
     }
     let Some(format) = sniff(bytes) else {
-        return Err(RequestError::NotAnImage { part });
+        return Err(ImageError::NotAnImage { part });
     };
     let (w, h) = ImageReader::with_format(Cursor::new(bytes), format)
         .into_dimensions()
-        .map_err(|source| RequestError::Undecodable { part, source })?;
+        .map_err(|source| ImageError::Undecodable { part, source })?;
     limits.check_shape(part, w as usize, h as usize)?;
     Ok((format, (w, h)))
 }
@@ -212,7 +211,7 @@ pub use tre_io::CAMERA_KEYS;
 pub fn check_camera_ranges(cam: &CameraFile, limits: DecodeLimits) -> Result<(), RequestError> {
     let within = |name, v: Option<f64>, lo, hi, unit| match v {
         Some(value) if !(value.is_finite() && (lo..=hi).contains(&value)) => {
-            Err(RequestError::CameraRange {
+            Err(CameraError::Range {
                 name,
                 value,
                 lo,
@@ -231,11 +230,12 @@ pub fn check_camera_ranges(cam: &CameraFile, limits: DecodeLimits) -> Result<(),
     within("depth_scale", cam.depth_scale, 1e-3, 1e6, "units per metre")?;
     for (name, side) in [("width", cam.width), ("height", cam.height)] {
         if let Some(side) = side.filter(|&s| s == 0 || s > limits.max_side) {
-            return Err(RequestError::CameraSide {
+            return Err(CameraError::Side {
                 name,
                 side,
                 max_side: limits.max_side,
-            });
+            }
+            .into());
         }
     }
     Ok(())
@@ -245,12 +245,11 @@ pub fn check_camera_ranges(cam: &CameraFile, limits: DecodeLimits) -> Result<(),
 /// ([`CameraFile`]: the parameters of [`CAMERA_KEYS`], other keys metadata unless they look
 /// like a misspelt parameter), within [`check_camera_ranges`].
 pub fn strict_camera(json: &[u8], limits: DecodeLimits) -> Result<CameraFile, RequestError> {
-    let value: serde_json::Value =
-        serde_json::from_slice(json).map_err(RequestError::CameraNotJson)?;
+    let value: serde_json::Value = serde_json::from_slice(json).map_err(CameraError::NotJson)?;
     if !value.is_object() {
-        return Err(RequestError::CameraNotObject);
+        return Err(CameraError::NotObject.into());
     }
-    let cam: CameraFile = serde_json::from_value(value).map_err(RequestError::CameraFields)?;
+    let cam: CameraFile = serde_json::from_value(value).map_err(CameraError::Fields)?;
     check_camera_ranges(&cam, limits)?;
     Ok(cam)
 }
@@ -284,17 +283,18 @@ fn depth_of(
     }
     // Not an image, or a broken one: a depth error, saying what depth may be.
     let image = decode_image(ImagePart::Depth, bytes, limits).map_err(|e| match e {
-        RequestError::EmptyImage { .. }
-        | RequestError::NotAnImage { .. }
-        | RequestError::Undecodable { .. }
-        | RequestError::Jpeg { .. } => RequestError::NotDepth(Box::new(e)),
+        ImageError::EmptyImage { .. }
+        | ImageError::NotAnImage { .. }
+        | ImageError::Undecodable { .. }
+        | ImageError::Jpeg { .. } => ImageError::NotDepth(Box::new(e)),
         _ => e,
     })?;
     match image {
         DynamicImage::ImageLuma16(img) => Ok(io::depth_from_luma16(img, units_per_m)),
-        other => Err(RequestError::DepthColour {
+        other => Err(ImageError::DepthColour {
             color: other.color(),
-        }),
+        }
+        .into()),
     }
 }
 
@@ -303,7 +303,7 @@ fn depth_of(
 fn rgb_frame(bytes: &[u8], limits: DecodeLimits) -> Result<image::RgbImage, RequestError> {
     let image = decode_image(ImagePart::Rgb, bytes, limits)?;
     if let Some(why) = io::not_rgb(image.color()) {
-        return Err(RequestError::DepthAsRgb { why });
+        return Err(ImageError::DepthAsRgb { why }.into());
     }
     Ok(image.to_rgb8())
 }
@@ -312,14 +312,18 @@ fn rgb_frame(bytes: &[u8], limits: DecodeLimits) -> Result<image::RgbImage, Requ
 pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInput, RequestError> {
     let (intrinsics, mounting, scale) = match &req.camera {
         Some(c) => (
-            Some(c.intrinsics().map_err(RequestError::Camera)?),
-            c.mounting().map_err(RequestError::Camera)?,
+            Some(c.intrinsics().map_err(CameraError::Geometry)?),
+            c.mounting().map_err(CameraError::Geometry)?,
             c.depth_scale.unwrap_or(1000.0),
         ),
         None => (None, None, 1000.0),
     };
     if !(scale.is_finite() && scale > 0.0) {
-        return Err(RequestError::DepthScale { scale });
+        return Err(CameraError::DepthScale {
+            field: "camera: depth_scale",
+            scale,
+        }
+        .into());
     }
     // `mode=rgb` predicts its own depth: a depth part would be dropped, so it is refused.
     if let Some(mode) = req.options.mode {
@@ -355,7 +359,7 @@ pub fn decode_frame(req: &FrameRequest, limits: DecodeLimits) -> Result<FrameInp
         sensor: req.noise_model(),
     };
     let Some(size) = frame.size() else {
-        return Err(RequestError::NoInput);
+        return Err(ImageError::NoInput.into());
     };
     if let Some(c) = &req.camera {
         c.check_size(size)?;
@@ -414,204 +418,11 @@ pub fn config_for(
     }
 }
 
-/// Encodes a PNG with the settings `tre infer` uses (fast compression, adaptive filter).
-fn png(img: &DynamicImage) -> Result<Vec<u8>, RequestError> {
-    let mut out = Vec::new();
-    io::encode_png(img, &mut out).map_err(RequestError::EncodePng)?;
-    Ok(out)
-}
-
-/// Writes an `.npy` into memory.
-fn npy<T: io::npy::NpyElement>(shape: &[usize], data: &[T]) -> Result<Vec<u8>, RequestError> {
-    let mut out = Vec::new();
-    io::npy::write_npy(&mut out, shape, data).map_err(RequestError::EncodeNpy)?;
-    Ok(out)
-}
-
-/// A mask as PNG part `name` (file `filename`): 8-bit grey, 255 where set.
-fn mask_part(
-    name: OutputMap,
-    filename: &'static str,
-    mask: &Grid<bool>,
-) -> Result<Part, RequestError> {
-    let grey = mask.map(|&m| if m { 255u8 } else { 0 });
-    png_part(name, filename, &DynamicImage::ImageLuma8(io::gray8(&grey)))
-}
-
-/// Part `name` of the answer: `image` as a PNG file `filename`.
-fn png_part(
-    name: OutputMap,
-    filename: &'static str,
-    image: &DynamicImage,
-) -> Result<Part, RequestError> {
-    Ok(Part {
-        name: name.into(),
-        content_type: "image/png",
-        filename,
-        bytes: png(image)?,
-    })
-}
-
-/// The roughness map in the options' format.
-fn encode_roughness(r: &Grid<f64>, opts: &FrameOptions) -> Result<Vec<u8>, RequestError> {
-    let (w, h) = r.size();
-    Ok(match opts.format {
-        MapFormat::Png16 => png(&DynamicImage::ImageLumaA16(io::roughness_png16(r)))?,
-        MapFormat::Color => png(&DynamicImage::ImageRgb8(colormap::colourise(
-            r,
-            0.0,
-            opts.preview_max_m.unwrap_or(0.05),
-        )))?,
-        MapFormat::Npy => npy(
-            &[h, w],
-            &r.as_slice().iter().map(|&v| v as f32).collect::<Vec<_>>(),
-        )?,
-        MapFormat::F32 => r
-            .as_slice()
-            .iter()
-            .flat_map(|&v| (v as f32).to_le_bytes())
-            .collect(),
-    })
-}
-
-/// What stood in for what `req` did not give, for `frame` (decoded from it) run in `mode`.
-pub fn assumptions(req: &FrameRequest, frame: &FrameInput, mode: Mode) -> Vec<Assumption> {
-    let depth_png = req
-        .depth
-        .as_ref()
-        .is_some_and(|d| !d.starts_with(b"\x93NUMPY"));
-    let scale_stated = req.camera.as_ref().is_some_and(|c| c.depth_scale.is_some());
-    Assumption::of_frame(
-        frame.intrinsics.is_some(),
-        depth_png && !scale_stated,
-        frame.mounting.is_some(),
-        (mode, req.options.mode.is_some()),
-    )
-}
-
-/// Encodes the pipeline's output as the options ask (the output stays the caller's, to hand
-/// back to [`Pipeline::recycle`](tre_pipeline::Pipeline::recycle)); `mode` ran, with the
-/// `assumed` stand-ins ([`assumptions`]).
-pub fn encode_reply(
-    out: &FrameOutput,
-    opts: &FrameOptions,
-    (mode, assumed): (Mode, Vec<Assumption>),
-) -> Result<FrameReply, RequestError> {
-    let (w, h) = out.roughness_m.size();
-    let roughness = encode_roughness(&out.roughness_m, opts)?;
-    let mut extras = Vec::new();
-    let e = opts.extras;
-    if let Some(d) = e.depth.then(|| out.depth_m()).flatten() {
-        extras.push(Part {
-            name: OutputMap::Depth.into(),
-            content_type: "image/png",
-            filename: "depth.png",
-            bytes: png(&DynamicImage::ImageLuma16(io::depth_png16(&d)))?,
-        });
-    }
-    if let Some(n) = e.normals.then(|| out.normals()).flatten() {
-        let data: Vec<f32> = n
-            .as_slice()
-            .iter()
-            .flat_map(|v| [v.x as f32, v.y as f32, v.z as f32])
-            .collect();
-        extras.push(Part {
-            name: OutputMap::Normals.into(),
-            content_type: "application/octet-stream",
-            filename: "normals.npy",
-            bytes: npy(&[h, w, 3], &data)?,
-        });
-    }
-    if let Some(s) = e.slope.then(|| out.slope_rad()).flatten() {
-        let data: Vec<f32> = s.as_slice().iter().map(|&v| v as f32).collect();
-        extras.push(Part {
-            name: OutputMap::Slope.into(),
-            content_type: "application/octet-stream",
-            filename: "slope.npy",
-            bytes: npy(&[h, w], &data)?,
-        });
-    }
-    let ok = (e.traversable || opts.traversable_bytes).then(|| out.traversable());
-    if let (true, Some(ok)) = (e.traversable, &ok) {
-        extras.push(mask_part(OutputMap::Traversable, "traversable.png", ok)?);
-    }
-    if let Some(b) = e.boundary.then(|| out.boundary()).flatten() {
-        extras.push(mask_part(OutputMap::Boundary, "boundary.png", &b)?);
-    }
-    let traversable = match (opts.traversable_bytes, &ok) {
-        (true, Some(ok)) => ok.as_slice().iter().map(|&t| u8::from(t)).collect(),
-        _ => Vec::new(),
-    };
-    Ok(FrameReply {
-        size: (w, h),
-        working_size: out.working_size,
-        roughness,
-        format: opts.format,
-        extras,
-        traversable,
-        traversal: Vec::new(),
-        uncertainty: Vec::new(),
-        timings: out.timings.clone(),
-        mode,
-        assumed,
-        gravity: out.gravity,
-        warnings: Vec::new(),
-    })
-}
-
-/// Adds the sensor-noise maps the options ask for to `reply`: parts `uncertainty` and
-/// `traversal` and the stream's bytes. The noise model is the options' `sensor`, else the
-/// camera's; `table`: the mode's calibrated intervals, if the models have them (docs/uncertainty.md);
-/// an error names what is missing (a noise model, or sensor depth in this mode). A three-state
-/// map mostly unknown adds a warning saying so.
-pub fn encode_sensor_maps(
-    out: &FrameOutput,
-    frame: &FrameInput,
-    (mode, table): (Mode, Option<&IntervalTable>),
-    req: &FrameRequest,
-    reply: &mut FrameReply,
-) -> Result<(), RequestError> {
-    let opts = &req.options;
-    if !opts.wants_sensor_maps() {
-        return Ok(());
-    }
-    let spec = req.camera.as_ref().and_then(|c| c.sensor.as_ref());
-    // The frame's model, from `req.noise_model()` when it was decoded.
-    let model = frame.sensor;
-    let described = match spec {
-        Some(io::SensorSpec::Description(d)) => Some(d.as_str()),
-        _ => None,
-    };
-    let maps = out.sensor_maps(frame, mode, model.as_ref(), described, table)?;
-    // A map almost all unknown: its roughness looks like an answer and is none; said in a
-    // `Warning` header, as `tre infer` says it.
-    if let Some(caveat) = maps.mostly_unknown() {
-        reply
-            .warnings
-            .push(format!("the three-state map is {caveat}"));
-    }
-    if opts.extras.uncertainty {
-        let image = DynamicImage::ImageLumaA16(io::roughness_png16(&maps.uncertainty_m));
-        let part = png_part(OutputMap::Uncertainty, "uncertainty.png", &image)?;
-        reply.extras.push(part);
-    }
-    if opts.extras.traversal {
-        let image = DynamicImage::ImageLuma8(io::traversal_gray8(&maps.traversal));
-        let part = png_part(OutputMap::Traversal, "traversal.png", &image)?;
-        reply.extras.push(part);
-    }
-    if opts.traversal_bytes {
-        reply.traversal = maps.traversal.as_slice().iter().map(|&t| t as u8).collect();
-    }
-    if opts.uncertainty_f32 {
-        let u = maps.uncertainty_m.as_slice().iter();
-        reply.uncertainty = u.flat_map(|&v| (v as f32).to_le_bytes()).collect();
-    }
-    Ok(())
-}
-
 /// Metres per unit of the 16-bit roughness PNG.
 pub const SCALE_M: f64 = ROUGHNESS_PNG_SCALE_M;
+
+mod encode;
+pub use encode::{assumptions, encode_reply, encode_sensor_maps};
 
 #[cfg(test)]
 mod tests;

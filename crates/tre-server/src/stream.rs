@@ -23,7 +23,7 @@ use tokio::sync::{oneshot, OwnedSemaphorePermit};
 use tokio::time::MissedTickBehavior;
 
 use super::access::RequestId;
-use super::error::{ApiError, RequestError};
+use super::error::{ApiError, LimitError, ServiceError, StreamError};
 use super::map::{MapJob, SessionMap, SharedMap};
 use super::pace::{MessagePace, ReadBytes, PACE_WINDOW};
 use super::proto::{self, Incoming, StreamFrame, StreamSettings};
@@ -61,7 +61,7 @@ pub(crate) async fn stream(
     let id = id.map_or_else(|| "-".to_owned(), |Extension(RequestId(id))| id);
     let ws = match ws {
         Ok(ws) => ws,
-        Err(e) => return ApiError::from(RequestError::NotAWebSocket(e)).into_response(),
+        Err(e) => return ApiError::from(StreamError::NotAWebSocket(e)).into_response(),
     };
     let waiting = if app.streams.available_permits() == 0 {
         None
@@ -72,7 +72,7 @@ pub(crate) async fn stream(
         let why = if app.streams.available_permits() == 0 {
             streams_full(&app)
         } else {
-            RequestError::StreamsWaiting {
+            LimitError::StreamsWaiting {
                 max_connections: app.cfg.max_connections,
             }
         };
@@ -97,14 +97,14 @@ pub(crate) async fn stream(
 }
 
 /// Why a stream is refused when every `--max-streams` place is held.
-fn streams_full(app: &AppState) -> RequestError {
-    RequestError::StreamsFull {
+fn streams_full(app: &AppState) -> LimitError {
+    LimitError::StreamsFull {
         max_streams: app.cfg.max_streams,
     }
 }
 
 /// The 429 of a stream over a limit (`why`), counted and logged.
-fn too_many(app: &AppState, id: &str, why: RequestError) -> ApiError {
+fn too_many(app: &AppState, id: &str, why: LimitError) -> ApiError {
     let e = ApiError::from(why);
     app.metrics.request("stream", e.code.as_str(), None);
     app.refusals
@@ -234,7 +234,7 @@ impl Connection {
                 Event::Done(done) => self.answer(*done).await && self.start_waiting().await,
                 Event::WorkerGone => {
                     let frame = self.in_flight.take().map(|f| f.frame.sequence);
-                    let e = ApiError::from(RequestError::WorkerStopped);
+                    let e = ApiError::from(ServiceError::WorkerStopped);
                     self.send(proto::error(frame, &e)).await && self.start_waiting().await
                 }
                 Event::Ping => self.on_ping().await,
@@ -305,7 +305,7 @@ impl Connection {
         let Some(Err(slow)) = self.pace.as_mut().map(|p| p.end_window(now)) else {
             return true;
         };
-        let e = ApiError::from(RequestError::from(slow));
+        let e = ApiError::from(LimitError::from(slow));
         self.app
             .refusals
             .refused("stream", &self.id, "ws_close_1008_slow", &e.message);
@@ -327,7 +327,7 @@ impl Connection {
         let bytes = match msg {
             Message::Binary(b) => b,
             Message::Text(_) => {
-                return self.refuse(None, RequestError::TextMessage).await;
+                return self.refuse(None, StreamError::TextMessage).await;
             }
             Message::Close(_) => {
                 // The reply the WebSocket queued on reading the client's close goes out now.
@@ -338,7 +338,7 @@ impl Connection {
         };
         let limit = self.app.cfg.ws_max_message_bytes;
         if bytes.len() > limit {
-            let e = RequestError::MessageTooLarge {
+            let e = LimitError::MessageTooLarge {
                 bytes: bytes.len(),
                 limit,
             };
@@ -375,7 +375,7 @@ impl Connection {
 
     async fn on_frame(&mut self, frame: StreamFrame) -> bool {
         if self.settings.is_none() {
-            let e = RequestError::FrameBeforeHello;
+            let e = StreamError::FrameBeforeHello;
             return self.refuse(Some(frame.sequence), e).await;
         }
         if self.in_flight.is_none() {

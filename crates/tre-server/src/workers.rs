@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 use tokio::sync::oneshot;
 
-use super::error::{ApiError, RequestError};
+use super::error::{ApiError, LimitError, RequestError, ServiceError};
 use super::metrics::Metrics;
 use super::request::{
     assumptions, config_for, decode_frame, encode_reply, encode_sensor_maps, DecodeLimits,
@@ -171,11 +171,11 @@ impl Workers {
         request: FrameRequest,
     ) -> Result<oneshot::Receiver<(JobResult, Duration)>, RequestError> {
         if !self.ready() {
-            return Err(RequestError::Loading);
+            return Err(ServiceError::Loading.into());
         }
         let guard = self.tx.lock().unwrap_or_else(PoisonError::into_inner);
         let Some(tx) = guard.as_ref() else {
-            return Err(RequestError::ShuttingDown);
+            return Err(ServiceError::ShuttingDown.into());
         };
         let (reply, rx) = oneshot::channel();
         let job = Job {
@@ -192,11 +192,12 @@ impl Workers {
         };
         match sent {
             Ok(()) => Ok(rx),
-            Err(TrySendError::Full(_)) => Err(RequestError::QueueFull {
+            Err(TrySendError::Full(_)) => Err(LimitError::QueueFull {
                 workers: self.count,
                 queued: self.capacity,
-            }),
-            Err(TrySendError::Disconnected(_)) => Err(RequestError::WorkersStopped),
+            }
+            .into()),
+            Err(TrySendError::Disconnected(_)) => Err(ServiceError::WorkersStopped.into()),
         }
     }
 
@@ -222,7 +223,7 @@ impl Workers {
             // cannot fail; if it did, the client hears why instead of waiting.
             if let Err(e) = tx.try_send(job) {
                 let job = e.into_inner();
-                let error = RequestError::RequeueFailed.into();
+                let error = ServiceError::RequeueFailed.into();
                 let _ = job.reply.send((Err(error), job.enqueued.elapsed()));
             }
         }
@@ -303,7 +304,7 @@ fn guarded(i: usize, job: impl FnOnce() -> JobResult) -> JobResult {
             .or_else(|| panic.downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "no message".to_string());
         tracing::error!(worker = i, panic = %what, "a frame hit a bug; the worker goes on");
-        Err(RequestError::Panic { panic: what }.into())
+        Err(ServiceError::Panic { panic: what }.into())
     })
 }
 
@@ -408,6 +409,7 @@ fn warm_up(pipeline: &mut Pipeline) -> Result<(), tre_pipeline::PipelineError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::ImageError;
     use tre_proto::ErrorCode;
 
     #[test]
@@ -417,7 +419,7 @@ mod tests {
         assert!(e.message.contains("index 7 out of range"), "{e}");
         let e = guarded(0, || panic!("{}", String::from("formatted"))).unwrap_err();
         assert!(e.message.contains("formatted"), "{e}");
-        let ok = guarded(0, || Err(RequestError::NoInput.into()));
+        let ok = guarded(0, || Err(ImageError::NoInput.into()));
         assert_eq!(ok.unwrap_err().code, ErrorCode::BadRequest);
     }
 }
