@@ -1,15 +1,20 @@
 //! The grid map's files, as `tre map` writes them (docs/map.md): every layer as `.npy`
-//! (float32) and 16-bit `.png` (0 = no data, the scale in `map.json`), `layers.png` (the layers
-//! side by side, for people) and `map.json` (the grid's geometry, layout and run figures).
+//! (float32) and 16-bit `.png` (0 = no data, the scale in `map.json`), the pictures for people
+//! (`layers.png`, every layer's panel side by side, and `views/<layer>.png`, one per layer:
+//! cropped to the seen cells, with colour bars, a scale bar and the camera's path;
+//! `picture.rs`, `style.rs`) and `map.json` (the grid's geometry, layout and run figures).
 
 use std::path::Path;
 
-use image::{DynamicImage, Rgb, RgbImage};
+use image::DynamicImage;
 use serde_json::json;
-use tre_core::geometry::Grid;
-use tre_core::map::{GridMap, Layers, LAYER_NAMES};
+use tre_core::geometry::{Grid, Vec3};
+use tre_core::map::{GridMap, Layers, Pose, LAYER_NAMES, LAYER_UNITS};
 
-use crate::{sheet, IoError};
+use crate::IoError;
+
+mod picture;
+mod style;
 
 /// What a run of the map did, for `map.json`.
 #[derive(Debug, Clone, Default)]
@@ -20,6 +25,36 @@ pub struct MapRun {
     pub skipped: Vec<String>,
     /// Time each fusion took, milliseconds.
     pub fuse_ms: Vec<f64>,
+    /// Per frame, how far the map's gravity is from the sequence's stated one, degrees (NaN:
+    /// either unknown).
+    pub gravity_deg: Vec<f64>,
+    /// Where the camera was and looked at each fused frame, in order (drawn on the pictures).
+    pub trajectory: Vec<CameraMark>,
+}
+
+/// The camera at one frame, in the map frame (x east, y north as the layers lie: column 0 at
+/// the smallest x, row 0 at the largest y).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraMark {
+    /// The camera centre's x, metres.
+    pub x_m: f64,
+    /// The camera centre's y, metres.
+    pub y_m: f64,
+    /// Where its optical axis points, projected on the x–y plane: radians from +x towards +y.
+    pub heading_rad: f64,
+}
+
+impl CameraMark {
+    /// The camera at `pose` (camera to world) in `map`'s frame.
+    pub fn of(map: &GridMap, pose: &Pose) -> Self {
+        let c = map.camera_in_map(pose);
+        let axis = map.frame().map_from_world * (pose.rotation * Vec3::new(0.0, 0.0, 1.0));
+        Self {
+            x_m: c.x,
+            y_m: c.y,
+            heading_rad: axis.y.atan2(axis.x),
+        }
+    }
 }
 
 /// What the written map shows, for a summary line.
@@ -81,8 +116,8 @@ impl MapWindow {
     }
 }
 
-/// Writes every layer of `map` (`layers`, read from it) into `dir` with `layers.png` and
-/// `map.json`, creating `dir`; what the map shows.
+/// Writes every layer of `map` (`layers`, read from it) into `dir` with the pictures
+/// (`layers.png`, `views/<layer>.png`) and `map.json`, creating `dir`; what the map shows.
 pub fn write_map(
     dir: &Path,
     map: &GridMap,
@@ -104,10 +139,7 @@ pub fn write_map_window(
     for (name, grid) in LAYER_NAMES.iter().zip(layers.all()) {
         meta.insert((*name).to_owned(), write_layer(dir, name, grid)?);
     }
-    crate::save(
-        &dir.join("layers.png"),
-        &DynamicImage::ImageRgb8(picture(layers)),
-    )?;
+    let crop = write_pictures(dir, window, layers, run)?;
     let (traversable, hazard, unknown, seen) = shares(&layers.traversal, &layers.count);
     let mut fuse_ms = run.fuse_ms.clone();
     fuse_ms.sort_by(f64::total_cmp);
@@ -121,10 +153,12 @@ pub fn write_map_window(
         "layout": "row-major (side, side) float32; column 0 at the smallest x, row 0 at the largest y; the cell of column c, row r spans x in [(origin_x + c)·cell, +cell), y in [(origin_y + side − 1 − r)·cell, +cell) of the map frame (z up)",
         "png": "16-bit grey: 0 = no data, else value = png_offset + (png − 1)·png_scale",
         "layers": meta,
+        "picture": picture_json(window, crop),
         "frames_fused": run.fused,
         "frames_skipped": run.skipped,
         "memory_bytes": window.memory_bytes,
         "fuse_ms_median": fuse_ms_median,
+        "gravity_error_deg": run.gravity_deg.iter().map(|v| v.is_finite().then_some(*v)).collect::<Vec<_>>(),
     });
     let text = serde_json::to_string_pretty(&geometry).unwrap_or_default();
     crate::paths::write_text(&dir.join("map.json"), &text)?;
@@ -196,73 +230,44 @@ fn shares(traversal: &Grid<f32>, count: &Grid<f32>) -> (f64, f64, f64, usize) {
     (share(1.0), share(2.0), share(0.0), seen.len())
 }
 
-/// The layers side by side: elevation, roughness, slope, step, score, three-state.
-fn picture(l: &Layers) -> RgbImage {
-    let scaled = |g: &Grid<f32>, lo: f64, hi: f64| {
-        crate::colormap::colourise(&g.map(|&v| f64::from(v)), lo, hi)
-    };
-    let finite = |g: &Grid<f32>| -> (f64, f64) {
-        let v: Vec<f64> = g
-            .as_slice()
-            .iter()
-            .filter(|v| v.is_finite())
-            .map(|&v| f64::from(v))
-            .collect();
-        let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        if lo.is_finite() {
-            (lo, hi.max(lo + 1e-3))
-        } else {
-            (0.0, 1.0)
-        }
-    };
-    let (elo, ehi) = finite(&l.elevation);
-    let trav = traversal_image(l);
-    let panels = [
-        sheet::Panel::new(
-            format!("elevation {elo:.2}..{ehi:.2} m"),
-            scaled(&l.elevation, elo, ehi),
-        ),
-        sheet::Panel::new("roughness 0..5 cm", scaled(&l.roughness, 0.0, 0.05)),
-        sheet::Panel::new("slope 0..30 deg", scaled(&l.slope, 0.0, 30.0)),
-        sheet::Panel::new("step 0..10 cm", scaled(&l.step, 0.0, 0.10)),
-        sheet::Panel::new("score 0..1", scaled(&l.score, 0.0, 1.0)),
-        sheet::Panel::new("three-state", trav),
-    ];
-    let legend = map_legend();
-    sheet::contact_sheet(&panels, 3, Some(&legend))
+/// Writes the pictures for people: `layers.png` (every layer) and `views/<layer>.png`; the
+/// cells they show.
+fn write_pictures(
+    dir: &Path,
+    window: &MapWindow,
+    layers: &Layers,
+    run: &MapRun,
+) -> Result<picture::Crop, IoError> {
+    let refs: Vec<picture::LayerRef<'_>> = LAYER_NAMES
+        .iter()
+        .zip(LAYER_UNITS)
+        .zip(layers.all())
+        .map(|((name, unit), grid)| picture::LayerRef { name, unit, grid })
+        .collect();
+    let pictures = picture::pictures(&refs, window, &run.trajectory, run.fused);
+    crate::save(
+        &dir.join("layers.png"),
+        &DynamicImage::ImageRgb8(pictures.sheet),
+    )?;
+    let views = dir.join("views");
+    crate::paths::create_dir(&views)?;
+    for (name, view) in pictures.views {
+        crate::save(
+            &views.join(format!("{name}.png")),
+            &DynamicImage::ImageRgb8(view),
+        )?;
+    }
+    Ok(pictures.crop)
 }
 
-/// The three-state layer in the previews' colours, never-seen cells dark.
-fn traversal_image(l: &Layers) -> RgbImage {
-    use tre_core::roughness::traversal::Traversal;
-    let (w, h) = l.traversal.size();
-    RgbImage::from_fn(w as u32, h as u32, |x, y| {
-        let (x, y) = (x as usize, y as usize);
-        if l.count[(x, y)] == 0.0 {
-            return Rgb(NOT_SEEN);
-        }
-        Rgb(crate::colormap::traversal_rgb(
-            match l.traversal[(x, y)] as u8 {
-                1 => Traversal::Traversable,
-                2 => Traversal::Hazard,
-                _ => Traversal::Unknown,
-            },
-        ))
+/// What the pictures show, for `map.json`: the columns and rows of the window, the metres and
+/// the pixels a cell.
+fn picture_json(window: &MapWindow, crop: picture::Crop) -> serde_json::Value {
+    json!({
+        "files": "layers.png (every layer), views/<layer>.png (one each)",
+        "columns": [crop.c0, crop.c0 + crop.w],
+        "rows": [crop.r0, crop.r0 + crop.h],
+        "shown_m": [crop.w as f64 * window.cell_m, crop.h as f64 * window.cell_m],
+        "pixels_per_cell": crop.px
     })
-}
-
-/// Colour of cells never seen.
-const NOT_SEEN: [u8; 3] = [40, 40, 40];
-
-/// The legend of the three-state panel.
-fn map_legend() -> RgbImage {
-    use tre_core::roughness::traversal::Traversal;
-    let c = |t| Rgb(crate::colormap::traversal_rgb(t));
-    sheet::categorical_legend(&[
-        ("traversable", c(Traversal::Traversable)),
-        ("hazard", c(Traversal::Hazard)),
-        ("unknown", c(Traversal::Unknown)),
-        ("not seen", Rgb(NOT_SEEN)),
-    ])
 }

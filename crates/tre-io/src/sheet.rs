@@ -1,6 +1,6 @@
 //! Contact sheets for people: titled panels in a grid, roughness maps in one shared Turbo scale,
-//! a colour-bar or categorical legend (`legend.rs`), and the 5×8 bitmap font that writes
-//! their text (`font.rs`).
+//! a colour-bar or categorical legend (`legend.rs`), the 5×8 bitmap font that writes
+//! their text (`font.rs`), and shapes, wrapped text and tiling for drawn pictures (`draw.rs`).
 //!
 //! A benchmark writes one sheet per frame ("RGB | spec | rgb | rgbd | geometric"): every
 //! roughness panel is drawn by [`roughness_panel`] with the same `max_m`, so equal colours mean
@@ -11,10 +11,12 @@ use image::{imageops, Rgb, RgbImage};
 use super::colormap::turbo;
 use tre_core::geometry::Grid;
 
+mod draw;
 mod font;
 mod legend;
 
-pub use font::{draw_text, text_size, ADVANCE, GLYPH_H, GLYPH_W};
+pub use draw::{arrow_head, disc, thick_line, tile, triangle, widest_word, wrap_text, Point};
+pub use font::{draw_text, fill, text_size, ADVANCE, GLYPH_H, GLYPH_W};
 pub use legend::{categorical_legend, colour_bar_legend, stack};
 
 use font::fit_text;

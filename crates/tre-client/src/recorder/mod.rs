@@ -443,7 +443,7 @@ fn write_stream_map(dir: &Path, map: Option<Box<StreamMap>>) -> Result<Notice, R
     let run = MapRun {
         fused: usize::try_from(m.fused).unwrap_or(usize::MAX),
         skipped,
-        fuse_ms: Vec::new(),
+        ..MapRun::default()
     };
     write_map_window(dir, &window, &m.layers, &run)?;
     Ok(Notice::MapWritten {

@@ -147,7 +147,7 @@ pub fn draw_text(img: &mut RgbImage, x: u32, y: u32, text: &str, scale: u32, col
 }
 
 /// Fills the `w`×`h` rectangle at (`x`, `y`), clipped to `img`.
-pub(super) fn fill(img: &mut RgbImage, x: u32, y: u32, w: u32, h: u32, colour: Rgb<u8>) {
+pub fn fill(img: &mut RgbImage, x: u32, y: u32, w: u32, h: u32, colour: Rgb<u8>) {
     let (x1, y1) = (
         x.saturating_add(w).min(img.width()),
         y.saturating_add(h).min(img.height()),
