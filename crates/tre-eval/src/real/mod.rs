@@ -304,6 +304,7 @@ mod report;
 mod safety;
 mod sheet;
 mod splits;
+mod traversal;
 mod views;
 
 pub use bench::*;
@@ -313,4 +314,6 @@ pub use report::markdown;
 pub use safety::{Safety, SafetyAcc, SafetyFigures};
 pub use sheet::{sheet_panels, write_sheet, SHEET_MAX_M};
 pub use splits::Splits;
+use traversal::TraversalAcc;
+pub use traversal::{StateShares, TraversalMetrics};
 pub use views::{shared_with, OtherView, Pose, PrevView, View, ViewPair};
