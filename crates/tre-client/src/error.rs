@@ -16,6 +16,7 @@ use std::time::Duration;
 use tokio_tungstenite::tungstenite;
 use tre_core::geometry::GeometryError;
 
+#[cfg(feature = "app")]
 use crate::source::{FfmpegProblem, SourceProblem};
 use crate::tls::TlsError;
 use crate::ErrorKind;
@@ -119,6 +120,7 @@ pub enum ClientError {
         limit: usize,
     },
     /// A frame source file or folder that cannot be read.
+    #[cfg(feature = "app")]
     #[error("{}: {reason}", path.display())]
     Source {
         /// The file or folder.
@@ -127,12 +129,14 @@ pub enum ClientError {
         reason: SourceProblem,
     },
     /// Video or camera input without an `ffmpeg` executable on `PATH`.
+    #[cfg(feature = "app")]
     #[error("{input}: reading video files and camera devices needs the `ffmpeg` executable on PATH (it is spawned to decode frames to PNG); install ffmpeg, or extract the frames to a folder and use --frames")]
     FfmpegMissing {
         /// The video file or device asked for.
         input: String,
     },
     /// `ffmpeg` failed or produced a stream that is not PNG images.
+    #[cfg(feature = "app")]
     #[error("ffmpeg on {input}: {reason}")]
     Ffmpeg {
         /// The video file or device.

@@ -57,8 +57,10 @@ mod connection;
 mod error;
 mod event;
 mod proto;
+#[cfg(feature = "app")]
 pub mod recorder;
 mod session;
+#[cfg(feature = "app")]
 pub mod source;
 pub mod tls;
 

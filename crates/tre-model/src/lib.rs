@@ -20,7 +20,7 @@
 mod locate;
 mod manifest;
 mod models;
-pub mod onnx;
+mod onnx;
 pub mod runtime;
 mod session;
 
@@ -30,6 +30,7 @@ use std::path::PathBuf;
 pub use locate::{find_models, locate_models, FoundModels, ModelSearch, ModelsRule, MODELS_ENV};
 pub use manifest::{Dim, Manifest, ManifestProblem, ModelEntry, TensorSpec, MANIFEST_FORMAT};
 pub use models::{Models, CENTROID_NET, DEPTH_NET, END_TO_END, NEIGHBOUR_NET, NORMAL_REFINER};
+pub use onnx::OnnxParseError;
 use runtime::RuntimeError;
 pub use session::{
     check_threads, cores, ExecutionProvider, InputProblem, ModelSession, OnnxProblem, Optimisation,

@@ -14,11 +14,11 @@ const OPSET_VERSION: u64 = 2;
 
 /// One `opset_import` entry: an operator domain (`""` is the default ONNX domain) and its version.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct OpsetImport {
+pub(crate) struct OpsetImport {
     /// Operator domain; `""` (or `"ai.onnx"`) is the default ONNX operator set.
-    pub domain: String,
+    pub(crate) domain: String,
     /// Operator-set version.
-    pub version: i64,
+    pub(crate) version: i64,
 }
 
 /// What is wrong with bytes that should be an ONNX `ModelProto`.
@@ -40,7 +40,7 @@ pub struct OnnxParseError {
 /// assert_eq!(imports[0].version, 17);
 /// assert_eq!(tre_model::onnx::default_opset(&imports), Some(17));
 /// ```
-pub fn opset_imports(bytes: &[u8]) -> Result<Vec<OpsetImport>, OnnxParseError> {
+pub(crate) fn opset_imports(bytes: &[u8]) -> Result<Vec<OpsetImport>, OnnxParseError> {
     let mut reader = Reader { bytes, at: 0 };
     let mut imports = Vec::new();
     while !reader.done() {
@@ -53,7 +53,7 @@ pub fn opset_imports(bytes: &[u8]) -> Result<Vec<OpsetImport>, OnnxParseError> {
 }
 
 /// The version of the default ONNX operator set (domain `""` or `"ai.onnx"`), if imported.
-pub fn default_opset(imports: &[OpsetImport]) -> Option<i64> {
+pub(crate) fn default_opset(imports: &[OpsetImport]) -> Option<i64> {
     imports
         .iter()
         .find(|i| i.domain.is_empty() || i.domain == "ai.onnx")
