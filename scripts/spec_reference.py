@@ -8,12 +8,15 @@ DEPTH.npy: float depth in metres (≤ 0 or not finite: no data). OUT.npy: float6
 metres (NaN where the pixel has no point). Defaults of the spec: R 0.05 m, window half-width
 cap 7 px, ε 0.015 m, segment angle 10°, edge band sigma 1.5 px; one label for all, LS normals.
 
-Everything is written from the spec's definitions, in float64, with whole-array operations and
-a union-find in Python; no code is shared with the Rust crates. One choice is the
-implementation's, as the spec leaves it open: a neighbour is within R when its squared
+Everything is written from the spec's definitions, with whole-array operations and a
+union-find in Python; no code is shared with the Rust crates. Two choices are the
+implementation's, as the spec leaves them open. A neighbour is within R when its squared
 distance, computed in float32 on float32 coordinates ((dx² + dy²) + dz²), is at most R² in
-float32. The same test in float64 would put a point that lies at R to the last bit on the other
-side now and then, and one point more or less moves a centroid by up to R / n.
+float32: the same test in float64 puts a point that lies at R to the last bit on the other side
+now and then, and one point more or less moves a centroid by up to R / n. And the window sums
+within R are float32 sums, row by row and left to right: on sparse LiDAR most windows hold one
+scan line, points on a line, whose plane (and so the segments and edges around them) is set by
+the sums' rounding. Everything else is float64.
 """
 
 import sys
@@ -48,28 +51,29 @@ def shifted(a, dx, dy, fill):
 
 
 def window_moments(pts, valid, half, radius_test):
-    """Count, Σd and Σddᵀ (d = q − p, float64) over each pixel's window of half-width `half`
-    (per pixel), of the valid points that pass `radius_test` (None: all of them)."""
+    """Count, Σd and Σddᵀ (d = q − p) over each pixel's window of half-width `half` (per
+    pixel), of the valid points within R (`radius_test`; else all of them), summed row by row,
+    left to right: in float32 within R, in float64 without the radius."""
     h, w = valid.shape
+    dtype = np.float32 if radius_test else np.float64
+    pts_t = pts.astype(dtype)
     n = np.zeros((h, w))
-    s1 = np.zeros((h, w, 3))
-    s2 = np.zeros((h, w, 3, 3))
-    p32 = pts.astype(np.float32)
+    s1 = np.zeros((h, w, 3), dtype=dtype)
+    s2 = np.zeros((h, w, 3, 3), dtype=dtype)
     r2 = np.float32(RADIUS_M) * np.float32(RADIUS_M)
     reach = int(half[valid].max(initial=0))
     for dy in range(-reach, reach + 1):
         for dx in range(-reach, reach + 1):
-            q = shifted(pts, dx, dy, np.nan)
-            keep = valid & (max(abs(dx), abs(dy)) <= half) & np.isfinite(q[..., 2])
+            d = shifted(pts_t, dx, dy, np.nan) - pts_t
+            keep = valid & (max(abs(dx), abs(dy)) <= half) & np.isfinite(d[..., 2])
             if radius_test:
-                d32 = shifted(p32, dx, dy, np.nan) - p32
-                d2 = d32[..., 0] * d32[..., 0] + d32[..., 1] * d32[..., 1]
-                keep &= (d2 + d32[..., 2] * d32[..., 2]) <= r2
-            d = np.where(keep[..., None], q - pts, 0.0)
+                d2 = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]
+                keep &= (d2 + d[..., 2] * d[..., 2]) <= r2
+            d = np.where(keep[..., None], d, dtype(0))
             n += keep
             s1 += d
             s2 += d[..., :, None] * d[..., None, :]
-    return n, s1, s2
+    return n, s1.astype(np.float64), s2.astype(np.float64)
 
 
 def plane_normals(n, s1, s2):

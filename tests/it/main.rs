@@ -28,4 +28,5 @@ mod ros2;
 mod sensor;
 mod server_http;
 mod server_stream;
+mod spec_reference;
 mod synth;
