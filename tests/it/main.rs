@@ -19,6 +19,7 @@ mod jpeg_decode;
 mod links;
 mod loadtest;
 mod map;
+mod map_picture;
 mod pictures;
 mod pipeline;
 mod readme;
