@@ -443,7 +443,10 @@ mod tests {
         assert_eq!(frame_size(&whole.views[0].1), (402, 402));
         let area = |img: &RgbImage| f64::from(img.width()) * f64::from(img.height());
         let (small_sheet, whole_sheet) = (area(&p.sheet), area(&whole.sheet));
-        assert!(small_sheet < 0.7 * whole_sheet, "{small_sheet} against {whole_sheet}");
+        assert!(
+            small_sheet < 0.7 * whole_sheet,
+            "{small_sheet} against {whole_sheet}"
+        );
         // The path is drawn in the cropped map: ink where the camera went.
         let view = &p.views[0].1;
         let ink = view.pixels().filter(|p| **p == INK).count();
