@@ -417,18 +417,15 @@ fn geometric_real(c: &mut Criterion) {
     group.finish();
 }
 
-/// Fusing one real 640×480 Kinect depth frame into the grid map (4 cm cells, 8 m × 8 m),
-/// roughness excluded (computed once before), and reading every layer of the map.
+/// Fusing one real 640×480 Kinect depth frame into the grid map (4 cm cells, 8 m × 8 m: the
+/// indoor preset), and reading every layer of the map (roughness, slope and step from the
+/// fused surface).
 fn map_fusion(c: &mut Criterion) {
     use tre::geometry::floor::{fit_floor, FloorFitConfig};
     use tre::map::{GridMap, MapConfig, MapFrame, MapLimits, Pose};
     let input = real_depth_frame((640, 480));
     let k = input.intrinsics.expect("intrinsics");
     let points = k.back_project_map(input.depth_m.as_ref().expect("depth"));
-    let mut pipeline = Pipeline::new(None);
-    let out = pipeline
-        .run(&input, &PipelineConfig::for_mode(Mode::Geometric))
-        .expect("the spec runs");
     let fit = fit_floor(&points, &FloorFitConfig::default()).expect("a ground");
     let frame = MapFrame::from_gravity(&-fit.up_in_cam).expect("a frame");
     let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
@@ -439,10 +436,8 @@ fn map_fusion(c: &mut Criterion) {
     group.bench_function("fuse_640x480", |b| {
         b.iter(|| {
             t += 1.0;
-            map.fuse(&points, Some(&out.roughness_m), &Pose::identity(), t, |z| {
-                kinect.sigma_z_m(z)
-            })
-            .expect("fuses")
+            map.fuse(&points, &Pose::identity(), t, &kinect)
+                .expect("fuses")
         });
     });
     group.bench_function("layers_200x200", |b| {

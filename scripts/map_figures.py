@@ -1,14 +1,19 @@
 #!/usr/bin/env python3
 """The floor figures of a map written by `tre map` (docs/map.md), and, given a second map of the
-same frames in another order, how far the two agree.
+same frames in another order, how far the two agree; or, with --lane SEQUENCE, the lane ahead
+of the sequence's first camera.
 
     python3 scripts/map_figures.py out/kitchen-map [out/kitchen-map-reverse]
+    python3 scripts/map_figures.py out/road-map --lane ../shared/data/real-rgbd-3/kitti_0023_stereo
 
 Floor cells: seen cells within 8 cm above the map's 2nd-percentile elevation (the floor level).
+The lane ahead: cells whose centre lies 5 to 20 m ahead of the first camera and within 1.5 m of
+its optical axis, both measured in the map's level plane (unseen cells count as unknown).
 Needs numpy.
 """
 
 import json
+import os
 import sys
 
 import numpy as np
@@ -48,6 +53,11 @@ def floor_figures(d):
         f"floor traversable {(t == 1).mean():.1%}, hazard {(t == 2).mean():.1%}, "
         f"unknown {(t == 0).mean():.1%}"
     )
+    sigma = np.sqrt(layers["variance"][f])
+    print(
+        f"floor elevation std {e.std() * 100:.2f} cm ({resid.std() * 100:.2f} cm about its "
+        f"plane); median cell sigma {np.median(sigma) * 100:.2f} cm"
+    )
 
 
 def cells(d):
@@ -75,7 +85,32 @@ def agreement(a, b):
     )
 
 
+def lane_figures(d, sequence):
+    layers, j = load(d)
+    poses = sorted(f for f in os.listdir(f"{sequence}/poses") if f.endswith(".txt"))
+    pose = np.loadtxt(f"{sequence}/poses/{poses[0]}").reshape(4, 4)
+    m = np.array(j["map_from_world"]).reshape(3, 3)
+    cam = (m @ pose[:3, 3])[:2]
+    fwd = (m @ pose[:3, :3] @ [0, 0, 1])[:2]
+    fwd /= np.linalg.norm(fwd)
+    right = np.array([fwd[1], -fwd[0]])
+    (ox, oy), side, cell = j["origin_cell"], j["side_cells"], j["cell_m"]
+    rows, cols = np.mgrid[0:side, 0:side]
+    xy = np.stack([(ox + cols + 0.5) * cell, (oy + side - 1 - rows + 0.5) * cell], -1) - cam
+    ahead, across = xy @ fwd, xy @ right
+    lane = (ahead >= 5) & (ahead <= 20) & (np.abs(across) <= 1.5)
+    t = layers["traversal"][lane]
+    seen = layers["count"][lane] > 0
+    print(
+        f"lane cells {lane.sum()} ({seen.mean():.1%} seen): traversable {(t == 1).mean():.1%}, "
+        f"hazard {(t == 2).mean():.1%}, unknown {(t == 0).mean():.1%}"
+    )
+
+
 if __name__ == "__main__":
-    floor_figures(sys.argv[1])
-    if len(sys.argv) > 2:
-        agreement(sys.argv[1], sys.argv[2])
+    if len(sys.argv) > 3 and sys.argv[2] == "--lane":
+        lane_figures(sys.argv[1], sys.argv[3])
+    else:
+        floor_figures(sys.argv[1])
+        if len(sys.argv) > 2:
+            agreement(sys.argv[1], sys.argv[2])

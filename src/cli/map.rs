@@ -7,10 +7,12 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::Args;
 
-use crate::io::map_files::{write_map, MapRun, MapSummary};
+use crate::geometry::Vec3;
+use crate::io::map_files::{write_map, CameraMark, MapRun, MapSummary};
+use crate::io::map_params::map_params_arg;
 use crate::io::sequence::{read_gravity, sequence_frames, FrameSelection, SequenceFrame};
 use crate::io::{self, CameraFile};
-use crate::map::{GridMap, MapConfig, MapFrame, MapLimits, Pose};
+use crate::map::{GravitySource, GridMap, MapParams, MapSession, Pose, SessionFrame};
 use crate::pipeline::{FrameInput, Mode, StageArgs};
 use crate::record::msgs::{Header, Time};
 use crate::record::{now_ns, Colour, FrameRecord, Recorder};
@@ -29,22 +31,32 @@ pub(crate) struct Map {
     /// Output folder: `<layer>.npy`, `<layer>.png`, `layers.png`, `map.json`.
     #[arg(long, short)]
     pub out: PathBuf,
-    /// Cell side, centimetres.
-    #[arg(long, default_value_t = 4.0)]
-    pub cell_cm: f64,
-    /// Side of the square map, metres.
-    #[arg(long, default_value_t = 8.0)]
-    pub size_m: f64,
+    /// Map settings: a preset (`indoor`: 4 cm cells, an 8 m window, points to 4 m; `outdoor`:
+    /// 10 cm cells, a 40 m window, points from 1 to 20 m) or a TOML settings file
+    /// (docs/map.md).
+    #[arg(long, default_value = "indoor")]
+    pub params: String,
+    /// Cell side, centimetres (default: the settings').
+    #[arg(long)]
+    pub cell_cm: Option<f64>,
+    /// Side of the square map, metres (default: the settings').
+    #[arg(long)]
+    pub size_m: Option<f64>,
+    /// What levels the map: `auto` (the sequence's gravity.json, else the camera's stated
+    /// pitch, else the ground over the frames) or `ground` (the ground over the frames alone:
+    /// every frame's confident ground fit turned into the world by its pose, averaged).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub gravity: GravityChoice,
     /// Roughness from this mode (geometric: the spec on the depth; rgbd needs `rgb/<stem>.*`).
     #[arg(long, value_enum, default_value = "geometric")]
     pub mode: Mode,
     /// Depth sensor noise model (default: the camera's `sensor`): a preset or a,b,c.
     #[arg(long)]
     pub sensor: Option<SensorNoise>,
-    /// Points farther than this from the camera are left out, metres (the depth's noise
-    /// grows with the square of the distance).
-    #[arg(long, default_value_t = 3.0)]
-    pub max_range_m: f64,
+    /// Points farther than this from the camera are left out, metres (default: the
+    /// settings'; the depth's noise grows with the square of the distance).
+    #[arg(long)]
+    pub max_range_m: Option<f64>,
     /// Record each frame's depth, pose and roughness and the final map to this MCAP file
     /// (ROS 2 messages and Foxglove schemas, docs/ros2.md); frames are stamped at 30 frames/s
     /// from the number their name ends with.
@@ -58,9 +70,19 @@ pub(crate) struct Map {
     pub stages: StageArgs,
 }
 
+/// What levels the map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum GravityChoice {
+    /// gravity.json, else the stated pitch, else the ground.
+    Auto,
+    /// The ground over the frames alone.
+    Ground,
+}
+
 impl Map {
     /// Fuses the sequence and writes the layers.
     pub(crate) fn run(self) -> anyhow::Result<()> {
+        let params = self.params()?;
         let cam_path = self
             .camera
             .clone()
@@ -68,12 +90,11 @@ impl Map {
         let (cam, k) = io::read_camera(&cam_path)?;
         let (sensor, scale) = self.sensor_and_scale(&cam)?;
         let frames = self.frames()?;
-        let gravity = read_gravity(&self.sequence)?;
-        let up_in_cam = cam.mounting()?.map(|m| m.up_in_cam());
-        let cfg = MapConfig::square(self.cell_cm / 100.0, self.size_m, self.max_range_m);
+        let given = read_gravity(&self.sequence)?;
+        let gravity = self.gravity_source(&cam, given)?;
+        let mut session = MapSession::new(params, gravity, sensor);
         let pcfg = self.stages.config(self.mode);
         let mut pipeline = self.stages.pipeline(&[pcfg])?;
-        let mut map: Option<GridMap> = None;
         let mut run = MapRun::default();
         let mut recorder = self.record.as_deref().map(create_recorder).transpose()?;
         for (i, f) in frames.iter().enumerate() {
@@ -86,33 +107,55 @@ impl Map {
                 }
             };
             let points = k.back_project_map(&depth_m);
-            let m = match &mut map {
-                Some(m) => m,
-                None => {
-                    let frame = MapFrame::levelled(gravity, up_in_cam, &points, &pose)?;
-                    map.insert(GridMap::under(cfg, frame, &pose)?)
-                }
-            };
             let mut input = self.input(f, depth_m, k)?;
             input.sensor = Some(sensor);
             let out = pipeline.run(&input, &pcfg)?;
             if let Some(r) = &mut recorder {
                 record_frame(r, f, i, &input, &pose, &out.roughness_m)?;
             }
-            let start = Instant::now();
-            let result = m.fuse(&points, Some(&out.roughness_m), &pose, i as f64, |z| {
-                sensor.sigma_z_m(z)
-            });
-            run.fuse_ms.push(start.elapsed().as_secs_f64() * 1e3);
+            let frame = SessionFrame {
+                points: &points,
+                pose: Some(pose),
+                t_s: i as f64,
+                ground_up_in_cam: out.gravity.up_in_cam(),
+            };
             pipeline.recycle(out);
-            match result {
-                Ok(_) => run.fused += 1,
-                Err(e) => run.skipped.push(format!("{}: {e}", f.stem)),
-            }
+            fuse_frame(&mut session, &frame, &f.stem, given, &mut run);
         }
-        let map = map.context("no frame could start the map")?;
+        let map = session.map().context("no frame could start the map")?;
         let last = frames.len().checked_sub(1).map(|i| stamp(&frames[i], i));
-        self.finish(&map, &run, recorder, last.unwrap_or_default())
+        self.finish(
+            map,
+            session.params(),
+            &run,
+            recorder,
+            last.unwrap_or_default(),
+        )
+    }
+
+    /// What levels the map: `--gravity ground`, else the sequence's gravity.json, the camera's
+    /// stated mounting or the ground, the first there is.
+    fn gravity_source(
+        &self,
+        cam: &CameraFile,
+        given: Option<Vec3>,
+    ) -> anyhow::Result<GravitySource> {
+        let up_in_cam = cam.mounting()?.map(|m| m.up_in_cam());
+        Ok(match (self.gravity, given, up_in_cam) {
+            (GravityChoice::Auto, Some(down), _) => GravitySource::Given(down),
+            (GravityChoice::Auto, None, Some(up)) => GravitySource::Stated(up),
+            _ => GravitySource::Ground,
+        })
+    }
+
+    /// The settings: `--params`, changed by the flags given.
+    fn params(&self) -> anyhow::Result<MapParams> {
+        let p = map_params_arg(&self.params)?;
+        Ok(p.with_flags(
+            self.cell_cm.map(|cm| cm / 100.0),
+            self.size_m,
+            self.max_range_m,
+        )?)
     }
 
     /// Records the map (stamped `last`, the last frame's stamp), writes its layers, and prints
@@ -120,11 +163,12 @@ impl Map {
     fn finish(
         &self,
         map: &GridMap,
+        params: &MapParams,
         run: &MapRun,
         recorder: Option<Recorder>,
         last: Time,
     ) -> anyhow::Result<()> {
-        let layers = map.layers(&MapLimits::default());
+        let layers = map.layers(&params.limits);
         let recorded = match recorder {
             Some(mut r) => {
                 r.map(&Header::new(last, "map"), map, &layers, now_ns())?;
@@ -196,7 +240,8 @@ fn print_summary(map: &GridMap, run: &MapRun, s: &MapSummary) {
     let cfg = map.config();
     println!(
         "{} frames fused, {} skipped; {} cells seen: {:.1}% traversable, {:.1}% hazard, \
-         {:.1}% unknown; fusion {:.1} ms a frame (median); map {} cells of {} cm, {:.1} MiB",
+         {:.1}% unknown; fusion {:.1} ms a frame (median); map {} cells of {} cm, {:.1} MiB; \
+         the sensor's height noise scaled by {:.2}",
         run.fused,
         run.skipped.len(),
         s.seen,
@@ -206,7 +251,8 @@ fn print_summary(map: &GridMap, run: &MapRun, s: &MapSummary) {
         s.fuse_ms_median,
         cfg.side * cfg.side,
         100.0 * cfg.cell_m,
-        map.memory_bytes() as f64 / f64::from(1 << 20)
+        map.memory_bytes() as f64 / f64::from(1 << 20),
+        map.noise_scale().sqrt()
     );
 }
 
@@ -248,5 +294,45 @@ fn frame_pose(f: &SequenceFrame) -> anyhow::Result<Pose> {
     match f.pose.as_deref() {
         None => Ok(Pose::identity()),
         Some(path) => Ok(Pose::from_row_major(&io::read_pose(path)?)?),
+    }
+}
+
+/// Fuses `frame` (of `stem`) into the session, and notes in `run` its time, whether it was
+/// fused or why not, the camera's mark and how far the map's gravity is from `given`'s.
+fn fuse_frame(
+    session: &mut MapSession,
+    frame: &SessionFrame<'_>,
+    stem: &str,
+    given: Option<Vec3>,
+    run: &mut MapRun,
+) {
+    let start = Instant::now();
+    let result = session.fuse(frame);
+    run.fuse_ms.push(start.elapsed().as_secs_f64() * 1e3);
+    let pose = frame.pose.unwrap_or_else(Pose::identity);
+    if let (Ok(_), Some(m)) = (&result, session.map()) {
+        run.trajectory.push(CameraMark::of(m, &pose));
+    }
+    match result {
+        Ok(_) => run.fused += 1,
+        Err(e) => run.skipped.push(format!("{stem}: {e}")),
+    }
+    run.gravity_deg
+        .push(gravity_error_deg(session, &pose, given));
+}
+
+/// How far the session's gravity for the frame at `pose` is from the sequence's stated one
+/// (`given`, the world's down), degrees: NaN when either is unknown.
+fn gravity_error_deg(
+    session: &MapSession,
+    pose: &Pose,
+    given: Option<crate::geometry::Vec3>,
+) -> f64 {
+    match (session.up_in_cam(pose), given) {
+        (Some(up), Some(down)) => {
+            let stated = -(pose.rotation.transpose() * down);
+            up.angle(&stated).to_degrees()
+        }
+        _ => f64::NAN,
     }
 }

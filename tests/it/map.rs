@@ -127,3 +127,50 @@ fn tre_map_writes_every_layer_and_skips_a_broken_pose() {
         &["--kind", "map", "--frames", "5", "--map-dir", map_dir],
     );
 }
+
+#[test]
+fn the_settings_files_are_the_presets_and_a_misspelt_key_is_refused() {
+    use tre::io::map_params::read_map_params;
+    use tre::map::{MapParams, MapPreset};
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/map");
+    for (file, preset) in [
+        ("indoor.toml", MapPreset::Indoor),
+        ("outdoor.toml", MapPreset::Outdoor),
+    ] {
+        assert_eq!(
+            read_map_params(&root.join(file)).unwrap(),
+            MapParams::preset(preset),
+            "{file}"
+        );
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "preset = \"outdoor\"\n[grid]\ncel_m = 0.2\n").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .args(["map", "no-such-sequence", "-o"])
+        .arg(dir.path().join("out"))
+        .arg("--params")
+        .arg(&bad)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains("bad.toml") && stderr.contains("cel_m") && stderr.contains("cell_m"),
+        "{stderr}"
+    );
+    // A value out of range names its key.
+    std::fs::write(&bad, "[traversability]\nmax_slope_deg = 95\n").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_tre"))
+        .args(["map", "no-such-sequence", "-o"])
+        .arg(dir.path().join("out"))
+        .arg("--params")
+        .arg(&bad)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        stderr.contains("traversability.max_slope_deg = 95"),
+        "{stderr}"
+    );
+}

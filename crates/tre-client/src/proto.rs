@@ -233,6 +233,9 @@ fn stream_map(m: pb::MapUpdate) -> Result<StreamMap, ClientError> {
         elevation: layer("elevation")?,
         variance: layer("variance")?,
         count: layer("count")?,
+        // Newer layers: a server from before them sends none, read as no data.
+        upper: layer("upper").unwrap_or_else(|_| Grid::new(side, side, f32::NAN)),
+        clearance: layer("clearance").unwrap_or_else(|_| Grid::new(side, side, f32::NAN)),
         roughness: layer("roughness")?,
         slope: layer("slope")?,
         step: layer("step")?,

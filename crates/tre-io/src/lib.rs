@@ -15,6 +15,7 @@ mod depth;
 mod frame_files;
 mod images;
 pub mod map_files;
+pub mod map_params;
 mod maps;
 pub mod npy;
 pub mod outputs;

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use clap::{Args, ValueEnum};
 use tre_core::geometry::Vec3;
-use tre_core::map::{MapConfig, MapLimits, Pose};
+use tre_core::map::Pose;
 use tre_core::roughness::noise::SensorNoise;
 use tre_pipeline::{Mode, StageArgs};
 
@@ -77,15 +77,21 @@ pub struct Ros2Args {
     /// frame_id of the published map (the pose's frame, levelled by --gravity).
     #[arg(long, default_value = "odom")]
     pub map_frame: String,
-    /// Map cell side, centimetres.
-    #[arg(long, default_value_t = 4.0)]
-    pub cell_cm: f64,
-    /// Map side, metres (the window follows the camera).
-    #[arg(long, default_value_t = 8.0)]
-    pub size_m: f64,
-    /// Points farther than this from the camera are left out of the map, metres.
-    #[arg(long, default_value_t = 3.0)]
-    pub max_range_m: f64,
+    /// Map settings: a preset (`indoor`: 4 cm cells, an 8 m window, points to 4 m; `outdoor`:
+    /// 10 cm cells, a 40 m window, points from 1 to 20 m) or a TOML settings file
+    /// (docs/map.md), the same `tre map --params` reads.
+    #[arg(long, default_value = "indoor")]
+    pub map_params: String,
+    /// Map cell side, centimetres (default: the settings').
+    #[arg(long)]
+    pub cell_cm: Option<f64>,
+    /// Map side, metres; the window follows the camera (default: the settings').
+    #[arg(long)]
+    pub size_m: Option<f64>,
+    /// Points farther than this from the camera are left out of the map, metres (default: the
+    /// settings').
+    #[arg(long)]
+    pub max_range_m: Option<f64>,
     /// Depth sensor noise model (kinect_v1, realsense_d435, azure_kinect, lidar, lidar_accumulated, passive_stereo, exact, or
     /// a,b,c with σ_z = a + b·z + c·z² mm): the uncertainty and three-state images, and the
     /// map's height variance. Without it, neither is published and no map is made.
@@ -220,9 +226,13 @@ impl Ros2Args {
         if self.mode == Mode::Rgb {
             return Err(ConfigProblem::MapWithoutDepth);
         }
+        let params = tre_io::map_params::map_params_arg(&self.map_params)?.with_flags(
+            self.cell_cm.map(|cm| cm / 100.0),
+            self.size_m,
+            self.max_range_m,
+        )?;
         Ok(Some(MapSettings {
-            config: MapConfig::square(self.cell_cm / 100.0, self.size_m, self.max_range_m),
-            limits: MapLimits::default(),
+            params,
             down: self.gravity,
             frame_id: self.map_frame.clone(),
         }))

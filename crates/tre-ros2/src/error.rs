@@ -117,7 +117,7 @@ pub enum Ros2Error {
 }
 
 /// Options of the node that do not go together.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub enum ConfigProblem {
     /// A map was asked for (a pose topic) without the sensor model its heights need.
     #[error(
@@ -134,4 +134,10 @@ pub enum ConfigProblem {
     /// A domain id beyond the RTPS limit.
     #[error("--domain-id {0}: ROS 2 domain ids are 0 to 232")]
     DomainId(u16),
+    /// A map settings file that cannot be used (`--map-params`).
+    #[error("--map-params: {0}")]
+    MapParams(#[from] tre_io::map_params::MapParamsError),
+    /// A map setting out of its range (`--cell-cm`, `--size-m`, `--max-range-m`).
+    #[error("{0}")]
+    MapRange(#[from] tre_core::map::ParamsError),
 }

@@ -1,9 +1,10 @@
 //! One frame from the topics through the pipeline and into the map: what the node does
 //! between receiving and publishing, without DDS (so it is tested and measured alone).
 
-use tre_core::geometry::{Grid, Intrinsics, PointMap, Vec3};
+use tre_core::geometry::{Intrinsics, PointMap, Vec3};
 use tre_core::map::{
-    GridMap as Map, Layers, MapConfig, MapError, MapFrame, MapLimits, Pose as MapPose,
+    GravitySource, GridMap as Map, Layers, MapError, MapParams, MapSession, Pose as MapPose,
+    SessionFrame,
 };
 use tre_core::roughness::noise::SensorNoise;
 use tre_pipeline::{FrameInput, Pipeline, PipelineConfig, PipelineError};
@@ -102,10 +103,8 @@ impl ImageOutputs {
 /// The fused map's settings.
 #[derive(Debug, Clone)]
 pub struct MapSettings {
-    /// Layout of the grid.
-    pub config: MapConfig,
-    /// Thresholds of its three-state layer.
-    pub limits: MapLimits,
+    /// The grid, the fusion and the thresholds of its three-state layer.
+    pub params: MapParams,
     /// Gravity (down) in the pose's world frame (ROS: −z, REP 103).
     pub down: Vec3,
     /// `frame_id` of the published map (the frame of the poses, levelled by `down`).
@@ -116,7 +115,7 @@ pub struct MapSettings {
 #[derive(Debug)]
 struct MapState {
     settings: MapSettings,
-    map: Option<Map>,
+    session: Option<MapSession>,
     /// Stamp of the first fused frame, nanoseconds: the map's times count from it.
     t0_ns: Option<i64>,
 }
@@ -152,12 +151,11 @@ fn frame_input(f: &FrameMsgs) -> Result<(FrameInput, Intrinsics), InputError> {
 }
 
 impl MapState {
-    /// Fuses a frame's points and roughness at `pose` (the map starts at its first frame);
-    /// the map's messages and layers after it.
+    /// Fuses a frame's points at `pose` (the map starts at its first frame, levelled by the
+    /// settings' gravity); the map's messages and layers after it.
     fn fuse(
         &mut self,
         points: &PointMap,
-        roughness_m: &Grid<f64>,
         pose: &MapPose,
         header: &Header,
         sensor: &SensorNoise,
@@ -165,18 +163,23 @@ impl MapState {
         let t_ns = header.stamp.nanos();
         let t0 = *self.t0_ns.get_or_insert(t_ns);
         let t_s = (t_ns - t0) as f64 * 1e-9;
-        let m = match &mut self.map {
-            Some(m) => m,
-            None => {
-                let frame = MapFrame::levelled(Some(self.settings.down), None, points, pose)?;
-                self.map
-                    .insert(Map::under(self.settings.config, frame, pose)?)
-            }
-        };
-        m.fuse(points, Some(roughness_m), pose, t_s, |z| {
-            sensor.sigma_z_m(z)
+        let settings = &self.settings;
+        let session = self.session.get_or_insert_with(|| {
+            MapSession::new(
+                settings.params,
+                GravitySource::Given(settings.down),
+                *sensor,
+            )
+        });
+        session.fuse(&SessionFrame {
+            points,
+            pose: Some(*pose),
+            t_s,
+            ground_up_in_cam: None,
         })?;
-        let layers = m.layers(&self.settings.limits);
+        let (Some(m), Some(layers)) = (session.map(), session.layers()) else {
+            return Err(MapError::NothingSeen);
+        };
         let h = Header {
             stamp: header.stamp,
             frame_id: self.settings.frame_id.clone(),
@@ -214,7 +217,7 @@ impl Processor {
             sensor,
             map: map.map(|settings| MapState {
                 settings,
-                map: None,
+                session: None,
                 t0_ns: None,
             }),
             images: ImageOutputs::default(),
@@ -282,7 +285,7 @@ impl Processor {
             (&mut self.map, f.pose, &input.depth_m, self.sensor)
         {
             let points = k.back_project_map(depth);
-            let fused = state.fuse(&points, &out.roughness_m, &pose, &header, &sensor);
+            let fused = state.fuse(&points, &pose, &header, &sensor);
             match fused {
                 Ok((grid, occupancy, layers)) => {
                     outputs.grid = Some(grid);
@@ -298,7 +301,10 @@ impl Processor {
 
     /// The fused map, if one has started.
     pub fn map(&self) -> Option<&Map> {
-        self.map.as_ref().and_then(|s| s.map.as_ref())
+        self.map
+            .as_ref()
+            .and_then(|s| s.session.as_ref())
+            .and_then(MapSession::map)
     }
 
     /// The map's settings, if it is on.

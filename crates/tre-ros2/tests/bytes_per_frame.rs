@@ -9,7 +9,7 @@
 use std::path::PathBuf;
 
 use tre_core::geometry::Vec3;
-use tre_core::map::{MapConfig, MapLimits, Pose};
+use tre_core::map::{MapParams, MapPreset, Pose};
 use tre_core::roughness::noise::{SensorNoise, SensorPreset};
 use tre_pipeline::{Mode, Pipeline, PipelineConfig};
 use tre_record::msgs::{to_cdr, CameraInfo, Header, Image, Time};
@@ -86,8 +86,7 @@ fn published(dir: &std::path::Path, images: ImageOutputs) -> Vec<(&'static str, 
         ..PipelineConfig::default()
     };
     let map = MapSettings {
-        config: MapConfig::square(0.04, 8.0, 3.0),
-        limits: MapLimits::default(),
+        params: MapParams::preset(MapPreset::Indoor),
         down: gravity(dir),
         frame_id: "world".into(),
     };

@@ -7,7 +7,10 @@ use std::sync::{Arc, Mutex, PoisonError, Weak};
 
 use super::error::RequestError;
 use tre_core::geometry::{Intrinsics, Vec3};
-use tre_core::map::{GridMap, MapConfig, MapFrame, MapLimits, Pose, LAYER_NAMES, LAYER_UNITS};
+use tre_core::map::{
+    GravitySource, MapError, MapParams, MapPreset, MapSession, Pose, SessionFrame, LAYER_NAMES,
+    LAYER_UNITS,
+};
 use tre_core::roughness::noise::SensorNoise;
 use tre_pipeline::{FrameInput, FrameOutput, DEFAULT_HFOV_DEG};
 use tre_proto::v1 as pb;
@@ -15,8 +18,9 @@ use tre_proto::v1 as pb;
 /// What a Hello asks of the map.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MapSettings {
-    /// Cell side, metres, and cells along a side.
-    pub config: MapConfig,
+    /// The map's settings (the indoor preset, with the Hello's cell side and cells along a
+    /// side).
+    pub params: MapParams,
     /// Most updates a second (0: after every fused frame).
     pub send_hz: f64,
     /// The world's down direction in the pose frame, if given.
@@ -28,14 +32,26 @@ pub struct MapSettings {
 pub struct SessionMap {
     /// The settings.
     pub settings: MapSettings,
-    /// The map, once a frame started it.
-    pub map: Option<GridMap>,
+    /// The map session, from the first frame that comes with the noise model it needs.
+    pub session: Option<MapSession>,
     /// The last frame fused.
     pub sequence: u64,
-    /// Frames fused and skipped.
-    pub fused: u64,
-    /// Frames skipped, with the last reason.
-    pub skipped: u64,
+    /// Frames skipped before a session could start.
+    pub skipped_before: u64,
+}
+
+/// Why a stream's frame was not fused.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum NotFused {
+    /// The frame carries no sensor depth.
+    #[error("the frame has no sensor depth")]
+    NoDepth,
+    /// Its size gives no default intrinsics.
+    #[error("{0}")]
+    Intrinsics(tre_core::geometry::GeometryError),
+    /// The map could not take it.
+    #[error("{0}")]
+    Map(#[from] MapError),
 }
 
 /// A shared handle on a stream's map.
@@ -79,17 +95,16 @@ impl SessionMap {
     pub fn new(settings: MapSettings) -> Self {
         Self {
             settings,
-            map: None,
+            session: None,
             sequence: 0,
-            fused: 0,
-            skipped: 0,
+            skipped_before: 0,
         }
     }
 
-    /// Fuses one answered frame (on the worker that ran it): its sensor depth and roughness,
-    /// the pose (without one the map restarts on the frame, centred on the camera), the noise
-    /// model. A frame that cannot be fused is counted skipped, logged, and the map keeps what
-    /// it had.
+    /// Fuses one answered frame (on the worker that ran it): its sensor depth and the pose
+    /// (without one the map restarts on the frame, centred on the camera), gravity from the
+    /// Hello's or from the frames' ground. A frame that cannot be fused is counted skipped,
+    /// logged, and the map keeps what it had.
     pub fn fuse(
         &mut self,
         frame: &FrameInput,
@@ -98,12 +113,11 @@ impl SessionMap {
         sensor: &SensorNoise,
     ) {
         match self.try_fuse(frame, out, job, sensor) {
-            Ok(()) => {
-                self.fused += 1;
-                self.sequence = job.sequence;
-            }
+            Ok(()) => self.sequence = job.sequence,
             Err(why) => {
-                self.skipped += 1;
+                if !matches!(why, NotFused::Map(_)) {
+                    self.skipped_before += 1;
+                }
                 tracing::info!(sequence = job.sequence, "map: frame skipped: {why}");
             }
         }
@@ -115,54 +129,45 @@ impl SessionMap {
         out: &FrameOutput,
         job: &MapJob,
         sensor: &SensorNoise,
-    ) -> Result<(), String> {
-        let depth = frame
-            .depth_m
-            .as_ref()
-            .ok_or("the frame has no sensor depth")?;
+    ) -> Result<(), NotFused> {
+        let depth = frame.depth_m.as_ref().ok_or(NotFused::NoDepth)?;
         let (w, h) = depth.size();
         let k = match frame.intrinsics {
             Some(k) => k,
-            None => Intrinsics::from_hfov(w, h, DEFAULT_HFOV_DEG).map_err(|e| e.to_string())?,
+            None => Intrinsics::from_hfov(w, h, DEFAULT_HFOV_DEG).map_err(NotFused::Intrinsics)?,
         };
         let points = k.back_project_map(depth);
-        let pose = job.pose.unwrap_or_else(Pose::identity);
-        if job.pose.is_none() {
-            self.map = None;
-        }
-        let map = match &mut self.map {
-            Some(m) => m,
-            None => {
-                let down = match self.settings.gravity {
-                    Some(g) => g,
-                    None => {
-                        let up = out.gravity.up_in_cam().ok_or_else(|| {
-                            format!("gravity unknown to start the map ({})", out.gravity)
-                        })?;
-                        -(pose.rotation * up)
-                    }
-                };
-                let frame = MapFrame::from_gravity(&down).map_err(|e| e.to_string())?;
-                let m = GridMap::under(self.settings.config, frame, &pose)
-                    .map_err(|e| e.to_string())?;
-                self.map.insert(m)
-            }
-        };
-        map.fuse(
-            &points,
-            Some(&out.roughness_m),
-            &pose,
-            job.sequence as f64,
-            |z| sensor.sigma_z_m(z),
-        )
-        .map(|_| ())
-        .map_err(|e| e.to_string())
+        let settings = self.settings;
+        let session = self.session.get_or_insert_with(|| {
+            let gravity = settings
+                .gravity
+                .map_or(GravitySource::Ground, GravitySource::Given);
+            MapSession::new(settings.params, gravity, *sensor)
+        });
+        session.fuse(&SessionFrame {
+            points: &points,
+            pose: job.pose,
+            t_s: job.sequence as f64,
+            ground_up_in_cam: out.gravity.up_in_cam(),
+        })?;
+        Ok(())
+    }
+
+    /// Frames fused and skipped.
+    pub fn counts(&self) -> (u64, u64) {
+        let (fused, skipped) = self
+            .session
+            .as_ref()
+            .map_or((0, 0), |s| (s.fused(), s.skipped().0));
+        (fused, skipped + self.skipped_before)
     }
 
     /// The map as a `MapUpdate` message, once a frame started it.
     pub fn update(&self) -> Option<pb::MapUpdate> {
-        let map = self.map.as_ref()?;
-        let layers = map.layers(&MapLimits::default());
+        let session = self.session.as_ref()?;
+        let map = session.map()?;
+        let layers = session.layers()?;
+        let (fused, skipped) = self.counts();
         let cfg = map.config();
         let r = map.frame().map_from_world;
         Some(pb::MapUpdate {
@@ -188,8 +193,8 @@ impl SessionMap {
                         .collect(),
                 })
                 .collect(),
-            fused: self.fused,
-            skipped: self.skipped,
+            fused,
+            skipped,
         })
     }
 }
@@ -219,12 +224,10 @@ pub(crate) fn settings_from_pb(m: &pb::MapSettings) -> Result<MapSettings, Reque
             })
         }
     };
+    let mut params = MapParams::preset(MapPreset::Indoor);
+    (params.config.cell_m, params.config.side) = (cell_m, side);
     Ok(MapSettings {
-        config: MapConfig {
-            cell_m,
-            side,
-            ..MapConfig::default()
-        },
+        params,
         send_hz: m.send_hz,
         gravity,
     })

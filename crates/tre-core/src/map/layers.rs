@@ -2,15 +2,18 @@
 //! row-major, column 0 at the window's smallest x (west), row 0 at its largest y (north), so that
 //! a layer saved as an image looks down on the map with +y up (docs/map.md).
 
-use super::GridMap;
+use super::surface::{Ground, Surface};
+use super::{Cell, GridMap};
 use crate::geometry::Grid;
 use crate::roughness::traversal::Traversal;
 
 /// The layer names, in the order [`Layers::all`] gives them.
-pub const LAYER_NAMES: [&str; 9] = [
+pub const LAYER_NAMES: [&str; 11] = [
     "elevation",
     "variance",
     "count",
+    "upper",
+    "clearance",
     "roughness",
     "slope",
     "step",
@@ -20,10 +23,12 @@ pub const LAYER_NAMES: [&str; 9] = [
 ];
 
 /// The unit of each layer, in [`LAYER_NAMES`] order.
-pub const LAYER_UNITS: [&str; 9] = [
+pub const LAYER_UNITS: [&str; 11] = [
     "m",
     "m^2",
     "measurements",
+    "m",
+    "m",
     "m",
     "degrees",
     "m",
@@ -45,6 +50,10 @@ pub struct MapLimits {
     pub min_count: u32,
     /// Largest height standard deviation for a cell to be judged, metres (default 0.02).
     pub max_sigma_m: f64,
+    /// Least clearance under a surface above the ground, metres (default 0: not judged): a
+    /// cell whose upper surface is lower above its ground is a hazard (a table top, an
+    /// overhang the robot does not fit under).
+    pub min_clearance_m: f64,
 }
 
 impl Default for MapLimits {
@@ -55,6 +64,7 @@ impl Default for MapLimits {
             max_step_m: 0.05,
             min_count: 3,
             max_sigma_m: 0.02,
+            min_clearance_m: 0.0,
         }
     }
 }
@@ -62,17 +72,22 @@ impl Default for MapLimits {
 /// Every layer of a map window (NaN: no data; `traversal` 0 unknown, 1 traversable, 2 hazard).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Layers {
-    /// Height in the map frame, metres.
+    /// Height of the ground (the lowest surface seen) in the map frame, metres.
     pub elevation: Grid<f32>,
-    /// Its variance, m².
+    /// Its variance (fused and correlated parts), m².
     pub variance: Grid<f32>,
-    /// Measurements fused.
+    /// Measurements fused into the ground.
     pub count: Grid<f32>,
-    /// Mean roughness, metres.
+    /// Height of the highest surface seen above the ground, metres.
+    pub upper: Grid<f32>,
+    /// The upper surface's height above the ground, metres.
+    pub clearance: Grid<f32>,
+    /// Roughness of the fused ground: the scatter of the neighbourhood's heights about their
+    /// plane, less what the heights' variances explain, metres.
     pub roughness: Grid<f32>,
-    /// Slope of the height surface, degrees.
+    /// Slope of that plane, degrees.
     pub slope: Grid<f32>,
-    /// Largest height difference to a seen 8-neighbour, metres.
+    /// Height above the lowest seen 8-neighbour, less two σ of the difference, metres.
     pub step: Grid<f32>,
     /// Traversability score, 0 (at or beyond a limit) to 1 (flat, level, no step).
     pub score: Grid<f32>,
@@ -84,11 +99,13 @@ pub struct Layers {
 
 impl Layers {
     /// The layers in [`LAYER_NAMES`] order.
-    pub fn all(&self) -> [&Grid<f32>; 9] {
+    pub fn all(&self) -> [&Grid<f32>; 11] {
         [
             &self.elevation,
             &self.variance,
             &self.count,
+            &self.upper,
+            &self.clearance,
             &self.roughness,
             &self.slope,
             &self.step,
@@ -100,80 +117,105 @@ impl Layers {
 }
 
 impl GridMap {
-    /// The map's layers under `limits`. A cell with fewer than `min_count` measurements or a
-    /// height σ above `max_sigma_m` is unknown; else a hazard when its roughness, slope or step
-    /// reaches a limit, traversable otherwise. Slope comes from the central differences of
-    /// the neighbours' heights (one-sided at a gap), step from the largest difference to a seen
-    /// 8-neighbour.
+    /// The map's layers under `limits`. A cell with fewer than `min_count` measurements, a
+    /// height σ above `max_sigma_m` or no roughness (too few seen neighbours on its surface)
+    /// and no step beyond the limit is unknown;
+    /// else a hazard when its roughness, slope or step reaches a limit, or its clearance is
+    /// under `min_clearance_m`, traversable otherwise. Roughness and slope come from the plane
+    /// of the fused ground heights within [`MapConfig::roughness_radius_m`] of the cell
+    /// ([`Ground::surface`]), the step from its lowest seen 8-neighbour ([`Ground::step`]).
+    ///
+    /// [`MapConfig::roughness_radius_m`]: super::MapConfig::roughness_radius_m
     pub fn layers(&self, limits: &MapLimits) -> Layers {
         let side = self.cfg.side;
-        let nan = |_: usize, _: usize| f32::NAN;
+        let grid = |v: f32| Grid::from_fn(side, side, move |_, _| v);
         let mut out = Layers {
-            elevation: Grid::from_fn(side, side, nan),
-            variance: Grid::from_fn(side, side, nan),
-            count: Grid::from_fn(side, side, |_, _| 0.0),
-            roughness: Grid::from_fn(side, side, nan),
-            slope: Grid::from_fn(side, side, nan),
-            step: Grid::from_fn(side, side, nan),
-            score: Grid::from_fn(side, side, nan),
-            traversal: Grid::from_fn(side, side, |_, _| 0.0),
-            last_update: Grid::from_fn(side, side, nan),
+            elevation: grid(f32::NAN),
+            variance: grid(f32::NAN),
+            count: grid(0.0),
+            upper: grid(f32::NAN),
+            clearance: grid(f32::NAN),
+            roughness: grid(f32::NAN),
+            slope: grid(f32::NAN),
+            step: grid(f32::NAN),
+            score: grid(f32::NAN),
+            traversal: grid(0.0),
+            last_update: grid(f32::NAN),
         };
-        let height = |c: isize, r: isize| -> Option<f64> {
-            if c < 0 || r < 0 || c >= side as isize || r >= side as isize {
-                return None;
-            }
-            let cell = self.at(c as usize, r as usize);
-            (cell.count > 0 && cell.height_m.is_finite()).then_some(f64::from(cell.height_m))
-        };
+        let ground = self.ground();
+        let radius = ((self.cfg.roughness_radius_m / self.cfg.cell_m).round() as usize).max(1);
         for row in 0..side {
             for col in 0..side {
                 let cell = self.at(col, row);
                 if cell.count == 0 {
                     continue;
                 }
-                let (c, r) = (col as isize, row as isize);
-                let h = f64::from(cell.height_m);
-                out.elevation[(col, row)] = cell.height_m;
-                out.variance[(col, row)] = cell.var_m2;
-                out.count[(col, row)] = cell.count as f32;
-                out.roughness[(col, row)] = cell.roughness_m;
-                out.last_update[(col, row)] = cell.last_s as f32;
-                let slope = slope_at(&height, (c, r), h, self.cfg.cell_m);
-                let step = step_at(&height, (c, r), h);
-                out.slope[(col, row)] = slope.map_or(f32::NAN, |s| s.to_degrees() as f32);
-                out.step[(col, row)] = step as f32;
-                let (score, state) = judge(cell, slope, step, limits);
-                out.score[(col, row)] = score;
-                out.traversal[(col, row)] = f32::from(state as u8);
+                let at = (col, row);
+                out.elevation[at] = cell.height_m;
+                out.variance[at] = cell.total_var_m2();
+                out.count[at] = cell.count as f32;
+                out.upper[at] = if cell.upper_count > 0 {
+                    cell.upper_m
+                } else {
+                    f32::NAN
+                };
+                out.clearance[at] = cell.clearance_m();
+                out.last_update[at] = cell.last_s as f32;
+                let surface = ground.surface(at, radius, (limits.max_step_m, limits.max_slope_rad));
+                let step = ground.step(at);
+                out.roughness[at] = surface.map_or(f32::NAN, |s| s.roughness_m as f32);
+                out.slope[at] = surface.map_or(f32::NAN, |s| s.slope_rad.to_degrees() as f32);
+                out.step[at] = step as f32;
+                let (score, state) = judge(cell, surface, step, limits);
+                out.score[at] = score;
+                out.traversal[at] = f32::from(state as u8);
             }
         }
         out
     }
+
+    /// The fused ground heights and variances in the layers' layout.
+    fn ground(&self) -> Ground {
+        let side = self.cfg.side;
+        let mut g = Ground {
+            side,
+            cell_m: self.cfg.cell_m,
+            height: vec![f64::NAN; side * side],
+            var: vec![f64::NAN; side * side],
+        };
+        for row in 0..side {
+            for col in 0..side {
+                let cell = self.at(col, row);
+                if cell.count > 0 && cell.height_m.is_finite() {
+                    g.height[row * side + col] = f64::from(cell.height_m);
+                    g.var[row * side + col] = f64::from(cell.total_var_m2());
+                }
+            }
+        }
+        g
+    }
 }
 
-/// A seen cell's score and three-state value from its roughness, `slope` (radians) and `step`
-/// (metres; NaN parts, no roughness or no neighbour, do not count against it).
-fn judge(
-    cell: &super::Cell,
-    slope: Option<f64>,
-    step: f64,
-    limits: &MapLimits,
-) -> (f32, Traversal) {
-    let rough = f64::from(cell.roughness_m);
+/// A seen cell's score and three-state value from its `surface` (roughness and slope), `step`
+/// (metres; NaN, no neighbour, does not count against it) and clearance.
+fn judge(cell: &Cell, surface: Option<Surface>, step: f64, limits: &MapLimits) -> (f32, Traversal) {
+    let rough = surface.map_or(f64::NAN, |s| s.roughness_m);
+    let clearance = f64::from(cell.clearance_m());
+    let low = limits.min_clearance_m > 0.0 && clearance < limits.min_clearance_m;
     let parts = [
         rough / limits.max_roughness_m,
-        slope.map_or(f64::NAN, |s| s / limits.max_slope_rad),
+        surface.map_or(f64::NAN, |s| s.slope_rad / limits.max_slope_rad),
         step / limits.max_step_m,
     ];
     let worst = parts
         .iter()
         .copied()
         .filter(|v| v.is_finite())
-        .fold(0.0f64, f64::max);
+        .fold(if low { 1.0 } else { 0.0 }, f64::max);
+    // A cell too small a surface for a plane (a post, one raised cell) is judged by its step.
     let judged = cell.count >= limits.min_count
-        && f64::from(cell.var_m2).sqrt() <= limits.max_sigma_m
-        && rough.is_finite();
+        && f64::from(cell.total_var_m2()).sqrt() <= limits.max_sigma_m
+        && (rough.is_finite() || step >= limits.max_step_m);
     let state = if !judged {
         Traversal::Unknown
     } else if worst >= 1.0 {
@@ -182,34 +224,4 @@ fn judge(
         Traversal::Traversable
     };
     ((1.0 - worst).clamp(0.0, 1.0) as f32, state)
-}
-
-/// The largest height difference from `h` to a seen 8-neighbour of `(c, r)` (NaN: none seen).
-fn step_at(height: &impl Fn(isize, isize) -> Option<f64>, (c, r): (isize, isize), h: f64) -> f64 {
-    crate::geometry::NEIGHBOURS_8
-        .iter()
-        .filter_map(|&(dc, dr)| height(c + dc as isize, r + dr as isize))
-        .map(|n| (n - h).abs())
-        .fold(f64::NAN, f64::max)
-}
-
-/// Slope at `(c, r)` of height `h` from its neighbours' heights: central differences where both
-/// neighbours are seen, one-sided where one is; `None` without any along an axis.
-fn slope_at(
-    height: &impl Fn(isize, isize) -> Option<f64>,
-    (c, r): (isize, isize),
-    h: f64,
-    cell_m: f64,
-) -> Option<f64> {
-    let grad = |a: Option<f64>, b: Option<f64>| -> Option<f64> {
-        match (a, b) {
-            (Some(a), Some(b)) => Some((b - a) / (2.0 * cell_m)),
-            (Some(a), None) => Some((h - a) / cell_m),
-            (None, Some(b)) => Some((b - h) / cell_m),
-            (None, None) => None,
-        }
-    };
-    let gx = grad(height(c - 1, r), height(c + 1, r))?;
-    let gy = grad(height(c, r + 1), height(c, r - 1))?;
-    Some(gx.hypot(gy).atan())
 }
