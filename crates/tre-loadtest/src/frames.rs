@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use image::{DynamicImage, ImageFormat};
 use tokio_tungstenite::tungstenite::Bytes;
 
+use super::problems::FrameProblem;
 use super::{LoadConfigProblem, LoadError};
 use tre_synth::dataset::{build_scene, scene_views, view_conditions};
 use tre_synth::{dataset::SynthConfig, render};
@@ -220,12 +221,12 @@ fn read_depth_files(paths: &[PathBuf]) -> Result<Vec<Vec<u8>>, LoadError> {
     for path in paths {
         let bytes = std::fs::read(path).map_err(|e| LoadError::Frame {
             path: path.clone(),
-            why: e.to_string(),
+            why: e.into(),
         })?;
         if !(bytes.starts_with(b"\x93NUMPY") || content_type(&bytes) == Some("image/png")) {
             return Err(LoadError::Frame {
                 path: path.clone(),
-                why: "depth must be a 16-bit PNG or a float .npy".into(),
+                why: FrameProblem::DepthFormat,
             });
         }
         depths.push(bytes);
@@ -284,11 +285,11 @@ fn from_files(paths: &[PathBuf]) -> Result<Frames, LoadError> {
     for path in paths {
         let bytes = std::fs::read(path).map_err(|e| LoadError::Frame {
             path: path.clone(),
-            why: e.to_string(),
+            why: e.into(),
         })?;
         content_type(&bytes).ok_or_else(|| LoadError::Frame {
             path: path.clone(),
-            why: "not a PNG or JPEG".into(),
+            why: FrameProblem::NotAnImage,
         })?;
         total += bytes.len();
         frames.push(LoadFrame::new(bytes, Vec::new(), &[]));
@@ -305,12 +306,12 @@ fn from_files(paths: &[PathBuf]) -> Result<Frames, LoadError> {
 
 /// The files of `dir` with one of the extensions `exts`, sorted by name; none is an error.
 fn files_in(dir: &Path, exts: &[&str]) -> Result<Vec<PathBuf>, LoadError> {
-    let err = |why: String| LoadError::Frame {
+    let err = |why: FrameProblem| LoadError::Frame {
         path: dir.to_path_buf(),
         why,
     };
     let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|e| err(e.to_string()))?
+        .map_err(|e| err(e.into()))?
         .filter_map(Result::ok)
         .map(|e| e.path())
         .filter(|p| {
@@ -321,11 +322,9 @@ fn files_in(dir: &Path, exts: &[&str]) -> Result<Vec<PathBuf>, LoadError> {
         .collect();
     paths.sort();
     if paths.is_empty() {
-        let names: Vec<String> = exts.iter().map(|e| format!(".{e}")).collect();
-        return Err(err(format!(
-            "no {} file in this folder",
-            names.join(" or ")
-        )));
+        return Err(err(FrameProblem::NoFile {
+            extensions: exts.iter().map(|e| (*e).to_owned()).collect(),
+        }));
     }
     Ok(paths)
 }

@@ -27,6 +27,7 @@ mod cli;
 mod frames;
 mod http;
 mod plan;
+mod problems;
 pub mod report;
 mod stats;
 pub mod svg;
@@ -42,6 +43,7 @@ use serde::{Deserialize, Serialize};
 #[cfg(feature = "cli")]
 pub use cli::{ArgsError, LoadtestArgs};
 pub use frames::{Frames, LoadFrame, LoadSource};
+pub use problems::{AnswerProblem, FrameProblem, StreamProblem, UrlProblem};
 pub use stats::{Percentiles, Report};
 pub use target::Target;
 
@@ -303,7 +305,7 @@ pub enum LoadError {
         /// The URL given.
         url: String,
         /// What is wrong with it.
-        why: String,
+        why: UrlProblem,
     },
     /// The host name resolves to addresses that are not loopback and `allow_remote` is off.
     #[error("{host} resolves to {addrs} (not loopback); pass --allow-remote to load a remote service, or give the IP address itself in --url")]
@@ -335,7 +337,7 @@ pub enum LoadError {
         /// The file.
         path: PathBuf,
         /// Why.
-        why: String,
+        why: FrameProblem,
     },
     /// The WebSocket handshake or the Hello failed.
     #[error("websocket {url}: {why}")]
@@ -343,19 +345,11 @@ pub enum LoadError {
         /// The stream URL.
         url: String,
         /// Why.
-        why: String,
+        why: StreamProblem,
     },
     /// The HTTP client could not be built.
     #[error("http client: {0}")]
     Client(#[from] reqwest::Error),
-    /// A report file cannot be read or written.
-    #[error("report {path}: {why}")]
-    Report {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        why: String,
-    },
 }
 
 /// A setting of a load test out of its range, or settings that do not go together; the

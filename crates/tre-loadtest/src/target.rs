@@ -6,6 +6,7 @@ use std::time::Duration;
 
 use reqwest::Url;
 
+use super::problems::UrlProblem;
 use super::LoadError;
 
 /// Time the start-up probe waits for a TCP connection.
@@ -36,21 +37,21 @@ pub(crate) enum HostKind {
 /// Splits `url` into its host, port, base path and whether it is over TLS; `http://`, `ws://`,
 /// `https://` and `wss://` are accepted.
 pub(crate) fn parse(url: &str) -> Result<(HostKind, u16, String, bool), LoadError> {
-    let bad = |why: &str| LoadError::Url {
+    let bad = |why: UrlProblem| LoadError::Url {
         url: url.into(),
-        why: why.into(),
+        why,
     };
-    let parsed = Url::parse(url).map_err(|e| bad(&e.to_string()))?;
+    let parsed = Url::parse(url).map_err(|e| bad(e.into()))?;
     let (default_port, tls) = match parsed.scheme() {
         "http" | "ws" => (80, false),
         "https" | "wss" => (443, true),
-        _ => return Err(bad("expected http://host:port or https://host:port")),
+        _ => return Err(bad(UrlProblem::Scheme)),
     };
     if parsed.query().is_some() || parsed.fragment().is_some() {
-        return Err(bad("no query or fragment, only http://host:port[/prefix]"));
+        return Err(bad(UrlProblem::QueryOrFragment));
     }
     let host = match parsed.host_str() {
-        None | Some("") => return Err(bad("no host")),
+        None | Some("") => return Err(bad(UrlProblem::NoHost)),
         Some(h) => {
             let bare = h.trim_start_matches('[').trim_end_matches(']');
             bare.parse::<IpAddr>()

@@ -20,6 +20,7 @@ use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
 use super::frames::Frames;
 use super::plan::Plan;
+use super::problems::{AnswerProblem, StreamProblem};
 use super::stats::{Outcome, Recorder, Report, RunInfo};
 use super::{Load, LoadConfig, LoadError, Protocol, Target};
 use tre_proto::v1 as pb;
@@ -53,9 +54,9 @@ pub(crate) enum Answer {
 
 impl Answer {
     /// Decodes a `ServerMessage`.
-    pub(crate) fn decode(bytes: &[u8]) -> Result<Self, String> {
+    pub(crate) fn decode(bytes: &[u8]) -> Result<Self, AnswerProblem> {
         use pb::server_message::Msg;
-        let msg = pb::ServerMessage::decode(bytes).map_err(|e| e.to_string())?;
+        let msg = pb::ServerMessage::decode(bytes)?;
         match msg.msg {
             Some(Msg::Ready(_)) => Ok(Self::Ready),
             Some(Msg::Result(r)) => Ok(Self::Result(r.sequence)),
@@ -66,7 +67,7 @@ impl Answer {
             }),
             // The load test's Hello asks for no map; one would be no frame's answer.
             Some(Msg::Map(_)) => Ok(Self::Ready),
-            None => Err("empty ServerMessage".into()),
+            None => Err(AnswerProblem::Empty),
         }
     }
 
@@ -122,20 +123,24 @@ async fn connect(
     tls: Option<&Arc<rustls::ClientConfig>>,
 ) -> Result<Socket, LoadError> {
     let url = target.stream_url();
-    let err = |why: String| LoadError::Stream {
+    let err = |why: StreamProblem| LoadError::Stream {
         url: url.clone(),
         why,
     };
     let setup = async {
-        let tcp = TcpStream::connect(target.addr)
-            .await
-            .map_err(|e| err(format!("connecting to {}: {e}", target.addr)))?;
-        tcp.set_nodelay(true).map_err(|e| err(e.to_string()))?;
+        let tcp = TcpStream::connect(target.addr).await.map_err(|source| {
+            err(StreamProblem::Connect {
+                addr: target.addr,
+                source,
+            })
+        })?;
+        tcp.set_nodelay(true)
+            .map_err(|e| err(StreamProblem::Socket(e)))?;
         let mut request =
             tokio_tungstenite::tungstenite::client::IntoClientRequest::into_client_request(
                 url.as_str(),
             )
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| err(e.into()))?;
         if let Some(key) = api_key {
             request
                 .headers_mut()
@@ -145,22 +150,24 @@ async fn connect(
         let (mut ws, _) =
             tokio_tungstenite::client_async_tls_with_config(request, tcp, None, connector)
                 .await
-                .map_err(|e| err(format!("handshake: {e}")))?;
-        ws.send(hello(ask)).await.map_err(|e| err(e.to_string()))?;
+                .map_err(|e| err(StreamProblem::Handshake(e)))?;
+        ws.send(hello(ask)).await.map_err(|e| err(e.into()))?;
         while let Some(msg) = ws.next().await {
-            let Message::Binary(b) = msg.map_err(|e| err(e.to_string()))? else {
+            let Message::Binary(b) = msg.map_err(|e| err(e.into()))? else {
                 continue;
             };
-            match Answer::decode(&b).map_err(err)? {
+            match Answer::decode(&b).map_err(|e| err(e.into()))? {
                 Answer::Ready => return Ok(ws),
-                other => return Err(err(format!("expected Ready, got {other:?}"))),
+                other => return Err(err(StreamProblem::NotReady(format!("{other:?}")))),
             }
         }
-        Err(err("closed before Ready".into()))
+        Err(err(StreamProblem::Closed))
     };
-    tokio::time::timeout(timeout, setup)
-        .await
-        .map_err(|_| err(format!("no Ready within {} ms", timeout.as_millis())))?
+    tokio::time::timeout(timeout, setup).await.map_err(|_| {
+        err(StreamProblem::Timeout {
+            timeout_ms: timeout.as_millis(),
+        })
+    })?
 }
 
 /// Runs `cfg` over the stream against `target`.

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::{SynthConfig, SynthError};
+use super::{SynthConfig, SynthConfigProblem, SynthError};
 use crate::appearance::{Conditions, Lighting, Weather};
 use crate::content::Content;
 use crate::imaging::Imaging;
@@ -76,7 +76,7 @@ pub const RUN_FILE: &str = "dataset.partial.json";
 /// settings of the run found there (in progress, or finished in `dataset.json`) must be these.
 pub(super) fn start_run(cfg: &SynthConfig) -> Result<(), SynthError> {
     std::fs::create_dir_all(&cfg.out).map_err(IoError::from)?;
-    let settings = serde_json::to_value(cfg).map_err(|e| SynthError::Config(e.to_string()))?;
+    let settings = serde_json::to_value(cfg)?;
     let run_file = cfg.out.join(RUN_FILE);
     if cfg.resume {
         let read = |path: &Path| -> Option<serde_json::Value> {
@@ -87,24 +87,22 @@ pub(super) fn start_run(cfg: &SynthConfig) -> Result<(), SynthError> {
             .or_else(|| read(&cfg.out.join("dataset.json")).map(|m| m["config"].clone()));
         match previous {
             Some(p) if p != settings => {
-                return Err(SynthError::Config(format!(
-                    "cannot resume {}: it was started with other settings ({}); use them, \
-                     or another --out",
-                    cfg.out.display(),
-                    serde_json::to_string(&p).unwrap_or_default()
-                )))
+                return Err(SynthConfigProblem::OtherSettings {
+                    out: cfg.out.clone(),
+                    previous: p,
+                }
+                .into())
             }
             None if cfg.out.join("scene_00000").exists() => {
-                return Err(SynthError::Config(format!(
-                    "cannot resume {}: its frames carry no record of their settings",
-                    cfg.out.display()
-                )))
+                return Err(SynthConfigProblem::Unrecorded {
+                    out: cfg.out.clone(),
+                }
+                .into())
             }
             _ => {}
         }
     }
-    let json =
-        serde_json::to_string_pretty(&settings).map_err(|e| SynthError::Config(e.to_string()))?;
+    let json = serde_json::to_string_pretty(&settings)?;
     std::fs::write(run_file, json).map_err(IoError::from)?;
     Ok(())
 }

@@ -172,8 +172,54 @@ pub enum SynthError {
         source: RoughnessError,
     },
     /// A bad setting.
-    #[error("{0}")]
-    Config(String),
+    #[error(transparent)]
+    Config(#[from] SynthConfigProblem),
+    /// The settings or the manifest do not serialise.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+}
+
+/// Settings that cannot make a dataset, or cannot resume the one in the output folder.
+#[derive(Debug, thiserror::Error)]
+pub enum SynthConfigProblem {
+    /// An image size of 0 or over 4096×4096.
+    #[error("image size {width}×{height} must be between 1×1 and 4096×4096")]
+    ImageSize {
+        /// Width, pixels.
+        width: usize,
+        /// Height, pixels.
+        height: usize,
+    },
+    /// A field of view, number of views or cell size out of range.
+    #[error("need 1° < hfov < 170°, at least one view, cell ≥ 0.5 mm")]
+    Camera,
+    /// No scene.
+    #[error("need at least one scene")]
+    NoScene,
+    /// No depth sensor.
+    #[error("need at least one depth sensor (one of {})", SensorPreset::names())]
+    NoSensor,
+    /// A test fraction outside [0, 1].
+    #[error("the test fraction must be between 0 and 1, got {0}")]
+    TestFraction(f64),
+    /// `--resume` of a folder started with other settings.
+    #[error(
+        "cannot resume {}: it was started with other settings ({previous}); use them, \
+         or another --out",
+        out.display()
+    )]
+    OtherSettings {
+        /// The output folder.
+        out: PathBuf,
+        /// The settings it was started with.
+        previous: serde_json::Value,
+    },
+    /// `--resume` of a folder whose frames carry no record of their settings.
+    #[error("cannot resume {}: its frames carry no record of their settings", out.display())]
+    Unrecorded {
+        /// The output folder.
+        out: PathBuf,
+    },
 }
 
 /// Generates the dataset described by `cfg`; returns its manifest (also written to disk).
@@ -207,8 +253,7 @@ pub fn generate(cfg: &SynthConfig) -> Result<Manifest, SynthError> {
         counts: (count("train"), count("test")),
         scenes,
     };
-    let json =
-        serde_json::to_string_pretty(&manifest).map_err(|e| SynthError::Config(e.to_string()))?;
+    let json = serde_json::to_string_pretty(&manifest)?;
     std::fs::write(cfg.out.join("dataset.json"), json).map_err(IoError::from)?;
     io::save(
         &cfg.out.join("contact_sheet.png"),
@@ -222,29 +267,23 @@ pub fn generate(cfg: &SynthConfig) -> Result<Manifest, SynthError> {
 fn check(cfg: &SynthConfig) -> Result<(), SynthError> {
     let (w, h) = cfg.size;
     if w == 0 || h == 0 || w.checked_mul(h).is_none_or(|n| n > 4096 * 4096) {
-        return Err(SynthError::Config(format!(
-            "image size {w}×{h} must be between 1×1 and 4096×4096"
-        )));
+        return Err(SynthConfigProblem::ImageSize {
+            width: w,
+            height: h,
+        }
+        .into());
     }
     if !(cfg.hfov_deg > 1.0 && cfg.hfov_deg < 170.0) || cfg.views == 0 || !(cfg.cell_m > 0.0005) {
-        return Err(SynthError::Config(
-            "need 1° < hfov < 170°, at least one view, cell ≥ 0.5 mm".into(),
-        ));
+        return Err(SynthConfigProblem::Camera.into());
     }
     if cfg.scenes == 0 {
-        return Err(SynthError::Config("need at least one scene".into()));
+        return Err(SynthConfigProblem::NoScene.into());
     }
     if cfg.sensors.is_empty() {
-        return Err(SynthError::Config(format!(
-            "need at least one depth sensor (one of {})",
-            SensorPreset::names()
-        )));
+        return Err(SynthConfigProblem::NoSensor.into());
     }
     if !(0.0..=1.0).contains(&cfg.test_fraction) {
-        return Err(SynthError::Config(format!(
-            "the test fraction must be between 0 and 1, got {}",
-            cfg.test_fraction
-        )));
+        return Err(SynthConfigProblem::TestFraction(cfg.test_fraction).into());
     }
     Ok(())
 }
