@@ -12,4 +12,6 @@ pub mod msgs;
 mod recorder;
 pub mod type_hash;
 
-pub use recorder::{now_ns, topics, Colour, FrameRecord, RecordError, RecordOptions, Recorder};
+pub use recorder::{
+    now_ns, topics, Colour, FrameRecord, RecordError, RecordFault, RecordOptions, Recorder,
+};

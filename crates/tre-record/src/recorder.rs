@@ -137,10 +137,9 @@ impl Recorder {
             BTreeMap::from([("offered_qos_profiles".to_owned(), offered_qos(latched))]);
         // The ROS 2 type hash, where rosbag2's MCAP storage reads it.
         if schema_encoding == "ros2msg" {
-            let hash = std::str::from_utf8(data)
-                .map_err(|e| e.to_string())
-                .and_then(|d| crate::type_hash::rihs01(name, d))
-                .map_err(|e| record_error(&path, e))?;
+            let definition = std::str::from_utf8(data).map_err(|e| record_error(&path, e))?;
+            let hash = crate::type_hash::rihs01(name, definition)
+                .map_err(|e| record_error(&path, RecordFault::TypeHash(e)))?;
             metadata.insert("topic_type_hash".to_owned(), hash);
         }
         let bag = (encoding == "cdr").then(|| BagTopic {
@@ -483,21 +482,42 @@ fn stamp_json(h: &Header) -> serde_json::Value {
     json!({"sec": h.stamp.sec, "nsec": h.stamp.nanosec})
 }
 
-fn record_error(path: &Path, e: impl std::fmt::Display) -> RecordError {
+fn record_error(path: &Path, e: impl Into<RecordFault>) -> RecordError {
     RecordError {
         path: path.to_owned(),
-        message: e.to_string(),
+        source: e.into(),
     }
 }
 
 /// The MCAP file could not be made or written.
 #[derive(Debug, thiserror::Error)]
-#[error("recording {}: {message}", path.display())]
+#[error("recording {}: {source}", path.display())]
 pub struct RecordError {
     /// The file.
     pub path: PathBuf,
-    /// The writer's message.
-    pub message: String,
+    /// What failed.
+    #[source]
+    pub source: RecordFault,
+}
+
+/// What failed in making or writing a recording.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordFault {
+    /// The file or the bag's metadata cannot be written.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+    /// The MCAP writer failed.
+    #[error(transparent)]
+    Mcap(#[from] mcap::McapError),
+    /// A message does not encode as CDR.
+    #[error(transparent)]
+    Cdr(#[from] cdr_encoding::Error),
+    /// A schema that is not UTF-8.
+    #[error(transparent)]
+    Utf8(#[from] std::str::Utf8Error),
+    /// A schema whose ROS 2 type hash cannot be computed (the type hash's own account).
+    #[error("{0}")]
+    TypeHash(String),
 }
 
 #[cfg(test)]
