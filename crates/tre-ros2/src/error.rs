@@ -90,20 +90,20 @@ impl InputError {
 #[derive(Debug, thiserror::Error)]
 pub enum Ros2Error {
     /// A DDS participant, node, topic or endpoint could not be made.
-    #[error("ROS 2 ({what}): {message}")]
+    #[error("ROS 2 ({what}): {fault}")]
     Dds {
         /// What was being made.
         what: &'static str,
-        /// RustDDS's message.
-        message: String,
+        /// What failed.
+        fault: DdsFault,
     },
     /// A topic or node name ROS 2 does not accept.
-    #[error("ROS 2 name {name:?}: {message}")]
+    #[error("ROS 2 name {name:?}: {why:?}")]
     Name {
         /// The name.
         name: String,
-        /// Why.
-        message: String,
+        /// ros2-client's error, which prints itself through `Debug` only.
+        why: Box<dyn std::fmt::Debug + Send + Sync>,
     },
     /// Options that do not go together.
     #[error("{0}")]
@@ -114,6 +114,20 @@ pub enum Ros2Error {
     /// The MCAP recording could not be written.
     #[error(transparent)]
     Record(#[from] tre_record::RecordError),
+}
+
+/// What failed in making a DDS participant, node, topic, endpoint or thread.
+#[derive(Debug, thiserror::Error)]
+pub enum DdsFault {
+    /// RustDDS or ros2-client refused; their errors print themselves through `Debug` only.
+    #[error("{0:?}")]
+    Refused(Box<dyn std::fmt::Debug + Send + Sync>),
+    /// A thread could not be started.
+    #[error(transparent)]
+    Thread(#[from] std::io::Error),
+    /// A thread panicked.
+    #[error("panicked")]
+    Panicked,
 }
 
 /// Options of the node that do not go together.

@@ -29,7 +29,7 @@ mod process;
 
 #[cfg(feature = "cli")]
 pub use cli::{InputReliability, Ros2Args, RoughnessImage};
-pub use error::{ConfigProblem, InputError, Ros2Error};
+pub use error::{ConfigProblem, DdsFault, InputError, Ros2Error};
 pub use node::{start, NodeConfig, NodeStats, PoseSource, Reliability, RunningNode};
 pub use process::{FrameMsgs, ImageOutputs, MapSettings, Outputs, Processor, RoughnessEncoding};
 /// The ROS 2 distribution the node was built for (cargo feature `jazzy` or `humble`).

@@ -28,7 +28,7 @@ use tre_record::msgs::{CameraInfo, Image, Odometry, PoseStamped, RosMessage, Tim
 use tre_record::{now_ns, RecordOptions, Recorder};
 
 use crate::convert;
-use crate::error::Ros2Error;
+use crate::error::{DdsFault, Ros2Error};
 use crate::process::{FrameMsgs, Processor};
 
 mod config;
@@ -81,17 +81,17 @@ impl Shared {
     }
 }
 
-fn dds<E: std::fmt::Debug>(what: &'static str) -> impl Fn(E) -> Ros2Error {
+fn dds<E: std::fmt::Debug + Send + Sync + 'static>(what: &'static str) -> impl Fn(E) -> Ros2Error {
     move |e| Ros2Error::Dds {
         what,
-        message: format!("{e:?}"),
+        fault: DdsFault::Refused(Box::new(e)),
     }
 }
 
 fn name(full: &str) -> Result<Name, Ros2Error> {
     Name::parse(full).map_err(|e| Ros2Error::Name {
         name: full.to_owned(),
-        message: format!("{e:?}"),
+        why: Box::new(e),
     })
 }
 
@@ -239,7 +239,7 @@ async fn receive_images(
 fn thread_error(e: std::io::Error) -> Ros2Error {
     Ros2Error::Dds {
         what: "thread",
-        message: e.to_string(),
+        fault: e.into(),
     }
 }
 
@@ -265,7 +265,7 @@ pub fn start(config: NodeConfig, processor: Processor) -> Result<RunningNode, Ro
     };
     let node_name = NodeName::new(ns, base).map_err(|e| Ros2Error::Name {
         name: config.node_name.clone(),
-        message: format!("{e:?}"),
+        why: Box::new(e),
     })?;
     let mut node = context
         .new_node(node_name, NodeOptions::new().enable_rosout(false))
@@ -356,7 +356,7 @@ impl Dds {
         // with it.
         let worked = worker.join().map_err(|_| Ros2Error::Dds {
             what: "worker thread",
-            message: "panicked".into(),
+            fault: DdsFault::Panicked,
         });
         drop(subs);
         drop(node);
@@ -480,7 +480,7 @@ impl RunningNode {
         match self.dds.take() {
             Some(h) => h.join().map_err(|_| Ros2Error::Dds {
                 what: "DDS thread",
-                message: "panicked".into(),
+                fault: DdsFault::Panicked,
             })?,
             None => Ok(None),
         }
