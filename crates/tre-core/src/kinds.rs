@@ -275,17 +275,31 @@ pub fn names<E: IntoEnumIterator + EnumMessage + Copy + Into<&'static str>>() ->
 /// use tre_core::kinds::{parse_choice, NormalsMethod};
 /// assert_eq!(parse_choice::<NormalsMethod>("normals", "ls"), Ok(NormalsMethod::Ls));
 /// assert_eq!(
-///     parse_choice::<NormalsMethod>("normals", "LS").unwrap_err(),
+///     parse_choice::<NormalsMethod>("normals", "LS").unwrap_err().to_string(),
 ///     r#"normals: expected ls or dsac, got "LS""#
 /// );
 /// ```
 pub fn parse_choice<E: IntoEnumIterator + FromStr + Copy + Into<&'static str>>(
     field: &str,
     value: &str,
-) -> Result<E, String> {
-    value
-        .parse()
-        .map_err(|_| format!("{field}: expected {}, got {value:?}", one_of::<E>()))
+) -> Result<E, ChoiceError> {
+    value.parse().map_err(|_| ChoiceError {
+        field: field.to_owned(),
+        expected: one_of::<E>(),
+        got: value.to_owned(),
+    })
+}
+
+/// A value that is none of a field's choices: `mode: expected rgb, rgbd or geometric, got "depth"`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{field}: expected {expected}, got {got:?}")]
+pub struct ChoiceError {
+    /// The field, as the interface names it.
+    pub field: String,
+    /// The choices, listed as [`one_of`] writes them.
+    pub expected: String,
+    /// The value given.
+    pub got: String,
 }
 
 /// As [`one_of`], for the choices in `allowed` alone: `png16, color or npy`.
@@ -321,7 +335,7 @@ pub fn names_of_these<E: EnumMessage + Copy + Into<&'static str>>(
 /// let http = MapFormat::HTTP;
 /// assert_eq!(parse_choice_of("format", "colour", http), Ok(MapFormat::Color));
 /// assert_eq!(
-///     parse_choice_of("format", "f32", http).unwrap_err(),
+///     parse_choice_of("format", "f32", http).unwrap_err().to_string(),
 ///     r#"format: expected png16, color or npy, got "f32""#
 /// );
 /// ```
@@ -329,12 +343,16 @@ pub fn parse_choice_of<E: FromStr + PartialEq + Copy + Into<&'static str>>(
     field: &str,
     value: &str,
     allowed: &[E],
-) -> Result<E, String> {
+) -> Result<E, ChoiceError> {
     value
         .parse()
         .ok()
         .filter(|v| allowed.contains(v))
-        .ok_or_else(|| format!("{field}: expected {}, got {value:?}", one_of_these(allowed)))
+        .ok_or_else(|| ChoiceError {
+            field: field.to_owned(),
+            expected: one_of_these(allowed),
+            got: value.to_owned(),
+        })
 }
 
 /// clap's parser of an option that takes the choices in `allowed` alone, each listed in
@@ -464,11 +482,13 @@ mod tests {
     #[test]
     fn bad_choices_name_the_field_and_the_choices() {
         assert_eq!(
-            parse_choice::<Mode>("mode", "depth").unwrap_err(),
+            parse_choice::<Mode>("mode", "depth")
+                .unwrap_err()
+                .to_string(),
             r#"mode: expected rgb, rgbd or geometric, got "depth""#
         );
         assert_eq!(
-            parse_choice::<Mode>("mode", "RGB").unwrap_err(),
+            parse_choice::<Mode>("mode", "RGB").unwrap_err().to_string(),
             r#"mode: expected rgb, rgbd or geometric, got "RGB""#
         );
         assert_eq!(

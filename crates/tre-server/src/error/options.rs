@@ -2,7 +2,7 @@
 //! and the stream's Hello name the same options, and share their errors; `field` says which
 //! one the client wrote.
 
-use tre_core::kinds::TraversabilityError;
+use tre_core::kinds::{ChoiceError, TraversabilityError};
 use tre_core::roughness::noise::SensorPreset;
 use tre_pipeline::PipelineError;
 use tre_proto::ErrorCode;
@@ -14,8 +14,8 @@ use crate::options::OutputMap;
 pub enum OptionError {
     /// A choice parameter outside its enum (tre-core's
     /// [`parse_choice`](tre_core::kinds::parse_choice) message, which names the field).
-    #[error("{0}")]
-    Choice(String),
+    #[error(transparent)]
+    Choice(#[from] ChoiceError),
     /// An enum field of the stream's protocol with a value the protocol does not define.
     #[error("{field}: unknown value {value}")]
     UnknownValue {
