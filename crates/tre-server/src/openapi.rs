@@ -4,9 +4,10 @@
 //! ([`super::routes`]), so that a route cannot be served without being documented.
 //!
 //! utoipa writes OpenAPI 3.1; the service documents itself as 3.0 (what most tools read), and
-//! [`as_openapi_3_0`] rewrites the few constructs that differ. `src/openapi.json` holds the
-//! document as served, for readers of the repository; a test keeps it equal to the generated
-//! one (`TRE_WRITE_OPENAPI=1 cargo test -p tre-server --lib openapi` rewrites it).
+//! [`as_openapi_3_0`] rewrites the few constructs that differ. The workspace's
+//! `docs/openapi.json` holds the document as served, for readers of the repository; a test keeps
+//! it equal to the generated one (`TRE_WRITE_OPENAPI=1 cargo test -p tre-server --lib openapi`
+//! rewrites it).
 
 use std::collections::BTreeMap;
 use std::sync::LazyLock;

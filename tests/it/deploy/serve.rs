@@ -191,12 +191,12 @@ fn container_port_is_the_serve_default_port_serve() {
 
 #[test]
 fn probe_paths_are_in_the_openapi_document_serve() {
-    let doc: serde_json::Value = serde_json::from_str(&read("crates/tre-server/src/openapi.json"))
-        .expect("crates/tre-server/src/openapi.json is JSON");
+    let doc: serde_json::Value =
+        serde_json::from_str(&read("docs/openapi.json")).expect("docs/openapi.json is JSON");
     let paths = doc
         .get("paths")
         .and_then(serde_json::Value::as_object)
-        .expect("crates/tre-server/src/openapi.json has no `paths` object");
+        .expect("docs/openapi.json has no `paths` object");
     let deploy = deployment();
     let c = container(&deploy);
     for probe in ["livenessProbe", "readinessProbe", "startupProbe"] {
