@@ -480,6 +480,12 @@ enum Found {
     Nothing,
 }
 
+/// Whether a covariance's middle eigenvalue can reach `l_mid`: it is at most half the trace
+/// (the other two are at least 0 and at least it), with room for the solver's rounding.
+fn may_spread(cov: &SymLanes<1>, l_mid: f64) -> bool {
+    0.5 * (cov[0][0] + cov[3][0] + cov[5][0]) * (1.0 + 1e-9) >= l_mid
+}
+
 /// The largest angle between the pooled normal of a step's two sides and the support's: a
 /// real step tilts the support's plane by less; two sides that are each a fronto-parallel
 /// terrace of quantised disparity (passive stereo) pool to the viewing axis, far more.
@@ -502,7 +508,14 @@ fn pooled_step(
     let covs = covariance_lanes(&[*a, *b]);
     let pooled: SymLanes<1> =
         std::array::from_fn(|e| [(na * covs[e][0] + nb * covs[e][1]) / (na + nb)]);
-    let (normal, spread, count) = match eigen_plane_near(&pooled, &s.normal) {
+    // Half the trace bounds the middle eigenvalue: a pooled scatter that cannot pass the
+    // spread test needs no solve.
+    let plane = if may_spread(&pooled, 0.0625 * extent * extent) {
+        eigen_plane_near(&pooled, &s.normal)
+    } else {
+        None
+    };
+    let (normal, spread, count) = match plane {
         Some((n, l_min, l_mid))
             if l_mid >= conditioning * l_min
                 && l_mid.sqrt() >= 0.25 * extent

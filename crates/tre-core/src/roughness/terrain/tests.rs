@@ -237,3 +237,33 @@ fn cleaning_removes_range_noise_keeps_a_drop_and_fills_scan_line_gaps() {
         "drop {above} → {below} m, exact {exact_above} → {exact_below} m"
     );
 }
+
+#[test]
+fn the_middle_eigenvalue_never_exceeds_what_may_spread_allows() {
+    // Covariances of points near planes, flat to isotropic, at scales from 1e-8 to 1 m².
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for i in 0..4096 {
+        let r = nalgebra::Rotation3::from_euler_angles(next() * 6.3, next() * 6.3, next());
+        let d = Vec3::new(1.0, next(), next().powi(4));
+        let m = r.matrix() * nalgebra::Matrix3::from_diagonal(&d) * r.matrix().transpose();
+        let m = m * 10f64.powi(-(i % 9));
+        let cov: SymLanes<1> = [
+            [m[(0, 0)]],
+            [m[(0, 1)]],
+            [m[(0, 2)]],
+            [m[(1, 1)]],
+            [m[(1, 2)]],
+            [m[(2, 2)]],
+        ];
+        let solved = [eigen_plane_near(&cov, &Vec3::z()), eigen_plane(&cov)];
+        for (_, _, l_mid) in solved.into_iter().flatten() {
+            assert!(may_spread(&cov, l_mid), "{cov:?}: {l_mid}");
+        }
+    }
+}
