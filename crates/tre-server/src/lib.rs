@@ -226,6 +226,13 @@ pub struct ServeConfig {
         env = "TRE_SHUTDOWN_GRACE_S", default_value = "30",
         value_parser = tre_io::units::parse_seconds))]
     pub shutdown_grace: Duration,
+    /// Settings of the streams' maps: a preset (`indoor`: 4 cm cells, an 8 m window, points to
+    /// 4 m; `outdoor`: 10 cm cells, a 40 m window, points from 1 to 20 m) or a TOML settings
+    /// file (docs/map.md), the same `tre map --params` reads; a Hello's `cell_m` and `side`
+    /// change them.
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_MAP_PARAMS", default_value = "indoor",
+        value_parser = tre_io::map_params::map_params_arg))]
+    pub map_params: tre_core::map::MapParams,
 }
 
 impl Default for ServeConfig {
@@ -257,6 +264,7 @@ impl Default for ServeConfig {
             stall_timeout: Duration::from_secs(30),
             max_connections: 1024,
             shutdown_grace: Duration::from_secs(30),
+            map_params: tre_core::map::MapParams::preset(tre_core::map::MapPreset::Indoor),
         }
     }
 }

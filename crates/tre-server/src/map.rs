@@ -18,13 +18,27 @@ use tre_proto::v1 as pb;
 /// What a Hello asks of the map.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MapSettings {
-    /// The map's settings (the indoor preset, with the Hello's cell side and cells along a
-    /// side).
+    /// The map's settings: the server's (`tre serve --map-params`, [`MapSettings::on`]; the
+    /// indoor preset until then), with the Hello's cell side and cells along a side.
     pub params: MapParams,
+    /// The Hello's cell side, metres, and cells along a side, where it gave them.
+    pub asked: (Option<f64>, Option<usize>),
     /// Most updates a second (0: after every fused frame).
     pub send_hz: f64,
     /// The world's down direction in the pose frame, if given.
     pub gravity: Option<Vec3>,
+}
+
+impl MapSettings {
+    /// These settings on the server's `base` settings: the Hello's cell side and cells along a
+    /// side where it gave them, the rest the server's.
+    #[must_use]
+    pub fn on(mut self, base: &MapParams) -> Self {
+        self.params = *base;
+        let c = &mut self.params.config;
+        (c.cell_m, c.side) = (self.asked.0.unwrap_or(c.cell_m), self.asked.1.unwrap_or(c.side));
+        self
+    }
 }
 
 /// A stream's map and its counts.
@@ -202,8 +216,13 @@ impl SessionMap {
 /// The map settings of a Hello's `map`, checked: a cell of 1 mm to 1 m, 1 to 1,000 cells a
 /// side, a finite non-negative rate, gravity of 3 finite values if given.
 pub(crate) fn settings_from_pb(m: &pb::MapSettings) -> Result<MapSettings, RequestError> {
-    let cell_m = if m.cell_m == 0.0 { 0.04 } else { m.cell_m };
-    let side = if m.side == 0 { 200 } else { m.side as usize };
+    let indoor = MapParams::preset(MapPreset::Indoor);
+    let asked = (
+        (m.cell_m != 0.0).then_some(m.cell_m),
+        (m.side != 0).then_some(m.side as usize),
+    );
+    let cell_m = asked.0.unwrap_or(indoor.config.cell_m);
+    let side = asked.1.unwrap_or(indoor.config.side);
     if !(cell_m.is_finite() && (0.001..=1.0).contains(&cell_m)) {
         return Err(RequestError::MapCellSize { cell_m });
     }
@@ -224,10 +243,9 @@ pub(crate) fn settings_from_pb(m: &pb::MapSettings) -> Result<MapSettings, Reque
             })
         }
     };
-    let mut params = MapParams::preset(MapPreset::Indoor);
-    (params.config.cell_m, params.config.side) = (cell_m, side);
     Ok(MapSettings {
-        params,
+        params: indoor,
+        asked,
         send_hz: m.send_hz,
         gravity,
     })

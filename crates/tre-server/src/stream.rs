@@ -347,6 +347,7 @@ impl Connection {
         match proto::decode_client(&bytes) {
             Ok(Incoming::Hello(settings)) => {
                 self.map = settings.map.map(|m| {
+                    let m = m.on(&self.app.cfg.map_params);
                     let shared = Arc::new(std::sync::Mutex::new(SessionMap::new(m)));
                     self.app.maps.insert(&self.id, &shared);
                     (shared, None)

@@ -94,7 +94,7 @@ fn a_stream_keeps_a_map_of_its_posed_frames_and_serves_it_over_http() {
                 (r.sequence, m.sequence, m.fused),
                 (n as u64 + 1, n as u64 + 1, n as u64 + 1)
             );
-            assert_eq!((m.side, m.layers.len()), (120, 9));
+            assert_eq!((m.side, m.layers.len()), (120, tre::map::LAYER_NAMES.len()));
             assert!((m.cell_m - 0.05).abs() < 1e-12);
             let count = &m.layers[2];
             assert_eq!(count.name, "count");
@@ -124,7 +124,10 @@ fn a_stream_keeps_a_map_of_its_posed_frames_and_serves_it_over_http() {
         let (status, body) = get(server.addr, &format!("/v1/streams/{}/map", ready.stream_id));
         assert_eq!(status, 200);
         let m = pb::MapUpdate::decode(body.as_slice()).unwrap();
-        assert_eq!((m.fused, m.sequence, m.layers.len()), (3, 3, 9));
+        assert_eq!(
+            (m.fused, m.sequence, m.layers.len()),
+            (3, 3, tre::map::LAYER_NAMES.len())
+        );
         let (status, _) = get(server.addr, "/v1/streams/nonsense/map");
         assert_eq!(status, 404);
     });

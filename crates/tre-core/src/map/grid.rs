@@ -78,6 +78,37 @@ const MIN_RESCALE_CELLS: usize = 20;
 /// The largest noise scale (a height σ 100 times the stated).
 const MAX_NOISE_SCALE: f64 = 1e4;
 
+/// The window's ring-buffer layout for one frame: [`GridMap::slot`] without a division per
+/// point (the origin's place in the ring computed once).
+#[derive(Debug, Clone, Copy)]
+struct Ring {
+    origin: (i64, i64),
+    side: i64,
+    /// The origin's column and row in the ring.
+    start: (i64, i64),
+}
+
+impl Ring {
+    fn of(map: &GridMap) -> Self {
+        let side = map.cfg.side as i64;
+        Self {
+            origin: map.origin,
+            side,
+            start: (map.origin.0.rem_euclid(side), map.origin.1.rem_euclid(side)),
+        }
+    }
+
+    /// Ring-buffer slot of world cell `(ix, iy)`, if it is in the window.
+    fn slot(&self, ix: i64, iy: i64) -> Option<usize> {
+        let (dx, dy) = (ix - self.origin.0, iy - self.origin.1);
+        if !(0..self.side).contains(&dx) || !(0..self.side).contains(&dy) {
+            return None;
+        }
+        let wrap = |v: i64| if v >= self.side { v - self.side } else { v };
+        Some((wrap(self.start.1 + dy) * self.side + wrap(self.start.0 + dx)) as usize)
+    }
+}
+
 /// One point of a frame in the map: its cell's slot, its height and the height's variance.
 #[derive(Debug, Clone, Copy)]
 struct Landed {
@@ -331,13 +362,15 @@ impl GridMap {
         let mut touched: Vec<usize> = Vec::new();
         self.landed.clear();
         let (lo, hi) = (self.cfg.min_range_m, self.cfg.max_range_m);
+        let ring = Ring::of(self);
+        let registered = noise.registration_m(1.0) > 0.0;
         for p in points.as_slice() {
             if !is_valid_point(p) || p.z > hi || p.z < lo {
                 continue;
             }
             let v = rot * p;
             let m = v + trans;
-            let Some(i) = self.slot(self.cell_of(m.x), self.cell_of(m.y)) else {
+            let Some(i) = ring.slot(self.cell_of(m.x), self.cell_of(m.y)) else {
                 continue;
             };
             let var = (noise.sigma_z_m(p.z) * v.z / p.z).powi(2);
@@ -347,7 +380,9 @@ impl GridMap {
             }
             a.n += 1;
             a.var_sum += var;
-            a.corr_sum += noise.registration_m(p.norm()).powi(2);
+            if registered {
+                a.corr_sum += noise.registration_m(p.norm()).powi(2);
+            }
             a.z_min = a.z_min.min(m.z);
             a.z_max = a.z_max.max(m.z);
             self.landed.push(Landed {
@@ -440,5 +475,32 @@ impl GridMap {
         let iy = self.origin.1 + (side - 1 - row) as i64;
         let s = side as i64;
         (iy.rem_euclid(s) * s + ix.rem_euclid(s)) as usize
+    }
+}
+
+#[cfg(test)]
+mod ring_tests {
+    use super::*;
+
+    #[test]
+    fn the_ring_finds_the_slot_the_map_does_wherever_the_window_lies() {
+        let cfg = MapConfig {
+            side: 7,
+            cell_m: 0.5,
+            ..MapConfig::default()
+        };
+        let frame = MapFrame {
+            map_from_world: Matrix3::identity(),
+        };
+        for centre in [(0.0, 0.0), (-13.2, 4.9), (101.0, -57.5)] {
+            let map = GridMap::new(cfg, frame, centre).unwrap();
+            let ring = Ring::of(&map);
+            let (ox, oy) = map.origin();
+            for ix in ox - 2..ox + 9 {
+                for iy in oy - 2..oy + 9 {
+                    assert_eq!(ring.slot(ix, iy), map.slot(ix, iy), "{centre:?} {ix},{iy}");
+                }
+            }
+        }
     }
 }
