@@ -2,7 +2,7 @@
 //! ONNX Runtime version, and every option and `TRE_*` variable the files use is one `tre serve`
 //! has.
 //!
-//! Tests whose name ends in `_serve` run `tre serve --help` or read `crates/tre-server/src/openapi.json`;
+//! Tests whose name ends in `_serve` run `tre serve --help` or read `docs/openapi.json`;
 //! the others read only the files under `deploy/`.
 
 use std::collections::{BTreeMap, BTreeSet};
