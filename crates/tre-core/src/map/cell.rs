@@ -84,7 +84,7 @@ fn kalman(
 
 impl Cell {
     /// Fuses a ground measurement `z_m` of variance `r_m2` taken at `t_s` into the cell
-    /// ([`kalman`]'s step). A measurement beyond the bound and more than
+    /// (a scalar Kalman step). A measurement beyond the bound and more than
     /// [`MapConfig::surface_band_m`] above the ground is a surface over it and goes to
     /// [`Cell::fuse_upper`]; any other beyond the bound counts as an outlier, and
     /// [`MapConfig::restart_after`] of them in a row restart the ground from the new

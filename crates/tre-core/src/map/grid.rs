@@ -462,8 +462,8 @@ impl GridMap {
         )
     }
 
-    /// The cell at window position `(col, row)` of the layers' layout ([`Layers`]: column 0 at
-    /// the window's smallest x, row 0 at its largest y).
+    /// The cell at window position `(col, row)` of the layers' layout
+    /// ([`Layers`](super::Layers): column 0 at the window's smallest x, row 0 at its largest y).
     pub fn at(&self, col: usize, row: usize) -> &Cell {
         &self.cells[self.index(col, row)]
     }

@@ -123,7 +123,7 @@ impl GridMap {
     /// else a hazard when its roughness, slope or step reaches a limit, or its clearance is
     /// under `min_clearance_m`, traversable otherwise. Roughness and slope come from the plane
     /// of the fused ground heights within [`MapConfig::roughness_radius_m`] of the cell
-    /// ([`Ground::surface`]), the step from its lowest seen 8-neighbour ([`Ground::step`]).
+    /// (`Ground::surface`), the step from its lowest seen 8-neighbour (`Ground::step`).
     ///
     /// [`MapConfig::roughness_radius_m`]: super::MapConfig::roughness_radius_m
     pub fn layers(&self, limits: &MapLimits) -> Layers {
