@@ -36,7 +36,10 @@ impl MapSettings {
     pub fn on(mut self, base: &MapParams) -> Self {
         self.params = *base;
         let c = &mut self.params.config;
-        (c.cell_m, c.side) = (self.asked.0.unwrap_or(c.cell_m), self.asked.1.unwrap_or(c.side));
+        (c.cell_m, c.side) = (
+            self.asked.0.unwrap_or(c.cell_m),
+            self.asked.1.unwrap_or(c.side),
+        );
         self
     }
 }
