@@ -133,8 +133,8 @@ fn every_shipped_camera_file_reads_and_names_a_noise_model() {
         );
         n += 1;
     }
-    // One per shared sequence: 3 of real-rgbd, 14 of real-rgbd-2.
-    assert_eq!(n, 17);
+    // One per shared sequence: 3 of real-rgbd, 14 of real-rgbd-2, 2 of real-rgbd-3.
+    assert_eq!(n, 19);
     let sample = read("samples/tum_fr2_desk/camera.json");
     assert_eq!(sample, read("cameras/real-rgbd_slambook2_ch7.json"));
 }
