@@ -31,15 +31,8 @@ pub struct OnnxParseError {
     pub reason: &'static str,
 }
 
-/// Every `opset_import` entry of a serialised `ModelProto`, in file order.
-///
-/// ```
-/// // ModelProto { ir_version: 8, opset_import: [{ domain: "", version: 17 }] }
-/// let bytes = [0x08, 8, 0x42, 2, 0x10, 17];
-/// let imports = tre_model::onnx::opset_imports(&bytes).unwrap();
-/// assert_eq!(imports[0].version, 17);
-/// assert_eq!(tre_model::onnx::default_opset(&imports), Some(17));
-/// ```
+/// Every `opset_import` entry of a serialised `ModelProto`, in file order (unit test
+/// `the_smallest_model_imports_opset_17`).
 pub(crate) fn opset_imports(bytes: &[u8]) -> Result<Vec<OpsetImport>, OnnxParseError> {
     let mut reader = Reader { bytes, at: 0 };
     let mut imports = Vec::new();
@@ -164,6 +157,15 @@ impl<'a> Reader<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_smallest_model_imports_opset_17() {
+        // ModelProto { ir_version: 8, opset_import: [{ domain: "", version: 17 }] }
+        let bytes = [0x08, 8, 0x42, 2, 0x10, 17];
+        let imports = opset_imports(&bytes).unwrap();
+        assert_eq!(imports[0].version, 17);
+        assert_eq!(default_opset(&imports), Some(17));
+    }
 
     #[test]
     fn reads_domains_and_multi_byte_versions_and_skips_other_wire_types() {
