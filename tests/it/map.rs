@@ -128,6 +128,18 @@ fn tre_map_writes_every_layer_and_skips_a_broken_pose() {
     );
 }
 
+/// `tre map` of a sequence that does not exist with the settings file `params`: the settings
+/// are read first, so their error is the one said.
+fn map_with_params(params: &Path, out: &Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_tre"))
+        .args(["map", "no-such-sequence", "-o"])
+        .arg(out)
+        .arg("--params")
+        .arg(params)
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn the_settings_files_are_the_presets_and_a_misspelt_key_is_refused() {
     use tre::io::map_params::read_map_params;
@@ -146,13 +158,7 @@ fn the_settings_files_are_the_presets_and_a_misspelt_key_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("bad.toml");
     std::fs::write(&bad, "preset = \"outdoor\"\n[grid]\ncel_m = 0.2\n").unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_tre"))
-        .args(["map", "no-such-sequence", "-o"])
-        .arg(dir.path().join("out"))
-        .arg("--params")
-        .arg(&bad)
-        .output()
-        .unwrap();
+    let o = map_with_params(&bad, &dir.path().join("out"));
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success());
     assert!(
@@ -161,13 +167,7 @@ fn the_settings_files_are_the_presets_and_a_misspelt_key_is_refused() {
     );
     // A value out of range names its key.
     std::fs::write(&bad, "[traversability]\nmax_slope_deg = 95\n").unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_tre"))
-        .args(["map", "no-such-sequence", "-o"])
-        .arg(dir.path().join("out"))
-        .arg("--params")
-        .arg(&bad)
-        .output()
-        .unwrap();
+    let o = map_with_params(&bad, &dir.path().join("out"));
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(
         stderr.contains("traversability.max_slope_deg = 95"),
