@@ -1,0 +1,141 @@
+//! The node against a ROS 2 peer of another DDS implementation at its stock settings: Eclipse
+//! Cyclone DDS (the `cyclonedds` wheel from PyPI, through `scripts/ros2_rates.py`) publishes real
+//! kitchen depth frames, camera_info and odometry and subscribes to the roughness, the grid map
+//! and the occupancy grid with ROS 2's default subscription profile (reliable, keep the last
+//! 10). Every message the node publishes must reach it, with the stamp of its frame.
+//!
+//! Python: `TRE_DDS_PYTHON`, else `.ci/.venv-py` as `.ci/run` makes it (with
+//! `scripts/requirements-dds.txt`). Skipped without it or without `../shared`, unless
+//! `TRE_REQUIRE_DDS=1` (CI), where a missing peer fails.
+#![allow(clippy::unwrap_used, clippy::print_stderr)] // A test fails loudly and prints.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::Ordering;
+
+use tre_core::geometry::Vec3;
+use tre_core::map::{MapParams, MapPreset};
+use tre_core::roughness::noise::{SensorNoise, SensorPreset};
+use tre_pipeline::{Mode, Pipeline, PipelineConfig};
+use tre_ros2::{MapSettings, NodeConfig, PoseSource, Processor, Reliability};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn required() -> bool {
+    std::env::var("TRE_REQUIRE_DDS").is_ok_and(|v| v == "1")
+}
+
+/// A Python that imports the peer's packages, or why there is none.
+fn python() -> Result<PathBuf, String> {
+    let py = std::env::var_os("TRE_DDS_PYTHON")
+        .filter(|p| !p.is_empty())
+        .map_or_else(|| root().join(".ci/.venv-py/bin/python"), PathBuf::from);
+    let ok = Command::new(&py)
+        .args(["-c", "import cyclonedds, numpy, PIL"])
+        .output()
+        .map_err(|e| format!("{}: {e}", py.display()))?;
+    if ok.status.success() {
+        Ok(py)
+    } else {
+        Err(format!(
+            "{} cannot import cyclonedds, numpy and PIL (scripts/requirements-dds.txt): {}",
+            py.display(),
+            String::from_utf8_lossy(&ok.stderr)
+        ))
+    }
+}
+
+fn kitchen() -> Option<PathBuf> {
+    let base = match std::env::var_os("TRE_SHARED_DIR") {
+        Some(d) if !d.is_empty() => PathBuf::from(d),
+        _ => root().join("../shared"),
+    };
+    let dir = base.join("data/real-rgbd-2/sevenscenes_redkitchen");
+    dir.is_dir().then_some(dir)
+}
+
+fn gravity(dir: &Path) -> Vec3 {
+    let g: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("gravity.json")).unwrap()).unwrap();
+    let c = |i: usize| g["gravity"][i].as_f64().unwrap();
+    Vec3::new(c(0), c(1), c(2))
+}
+
+/// The node under test on `domain`: kinect_v1 noise, the indoor map from `/odom`.
+fn start_node(dir: &Path, domain: u16) -> tre_ros2::RunningNode {
+    let map = MapSettings {
+        params: MapParams::preset(MapPreset::Indoor),
+        down: gravity(dir),
+        frame_id: "world".into(),
+    };
+    let cfg = PipelineConfig {
+        mode: Mode::Geometric,
+        ..PipelineConfig::default()
+    };
+    let sensor = SensorNoise::Preset(SensorPreset::KinectV1);
+    let processor = Processor::new(Pipeline::new(None), cfg, Some(sensor), Some(map));
+    tre_ros2::start(
+        NodeConfig {
+            domain_id: domain,
+            pose: Some(PoseSource::Odometry("/odom".into())),
+            // Reliable in as well, so that every frame sent is a frame received.
+            input_reliability: Reliability::Reliable,
+            ..NodeConfig::default()
+        },
+        processor,
+    )
+    .unwrap()
+}
+
+#[test]
+fn every_published_message_reaches_a_stock_cyclone_dds_subscriber() {
+    let (py, dir) = match (python(), kitchen()) {
+        (Ok(py), Some(dir)) => (py, dir),
+        (py, dir) => {
+            let why = format!(
+                "{} {}",
+                py.err().unwrap_or_default(),
+                if dir.is_none() { "no ../shared" } else { "" }
+            );
+            assert!(!required(), "TRE_REQUIRE_DDS=1 but {why}");
+            eprintln!("skipped: {why}");
+            return;
+        }
+    };
+    let domain = 60 + (std::process::id() % 60) as u16;
+    let node = start_node(&dir, domain);
+    let out = Command::new(&py)
+        .arg(root().join("scripts/ros2_rates.py"))
+        .args(["--dds", "cyclone", "--domain", &domain.to_string()])
+        .arg("--frames")
+        .arg(&dir)
+        .args(["--count", "15", "--step", "5", "--hz", "5", "--reliability"])
+        .arg("reliable")
+        .output()
+        .unwrap();
+    let stats = node.stats();
+    let (published, fused) = (
+        stats.published.load(Ordering::Relaxed),
+        stats.fused.load(Ordering::Relaxed),
+    );
+    let received = stats.received.load(Ordering::Relaxed);
+    drop(node.stop());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "the Cyclone DDS peer failed: {stderr}"
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    eprintln!("{report}\nnode: received {received}, published {published}, fused {fused}");
+    assert_eq!(
+        received, 15,
+        "the node received {received} of 15 depth frames"
+    );
+    assert!(published > 0 && fused > 0, "nothing published: {report}");
+    let got = |topic: &str| report["topics"][topic]["received"].as_u64().unwrap_or(0);
+    assert_eq!(got("roughness"), published, "roughness: {report}");
+    assert_eq!(got("grid_map"), fused, "grid_map: {report}");
+    assert_eq!(got("occupancy"), fused, "occupancy: {report}");
+}
