@@ -10,7 +10,6 @@
 
 use std::collections::BTreeMap;
 
-use anyhow::Context;
 use tre_core::geometry::Grid;
 use tre_core::roughness::interval::{
     feature_map, FirstAxis, IntervalTable, Sample, SecondAxis, COVERAGE,
@@ -18,7 +17,8 @@ use tre_core::roughness::interval::{
 use tre_core::roughness::noise::SensorNoise;
 use tre_pipeline::{FrameOutput, Mode, Pipeline, PipelineConfig};
 
-use crate::real::{self, LoadedFrame, Pose, PrevView, RealFrame};
+use crate::error::{BenchError, RunError};
+use crate::real::{self, LoadedFrame, OtherView, Pose, PrevView, RealFrame};
 
 /// A sample with its block (see [`block_of`]).
 type Tagged = (usize, Sample);
@@ -91,45 +91,74 @@ fn held_out_level(axes: (FirstAxis, SecondAxis), samples: &[Tagged]) -> Option<(
 impl Samples {
     /// Every mode's samples on `frames` (`sensor`: the noise model of sequences that name
     /// none; every `stride`-th pixel in x and y).
+    ///
+    /// # Errors
+    ///
+    /// When a frame does not read or a mode fails on it.
     pub fn collect(
         frames: &[RealFrame],
         pipeline: &mut Pipeline,
         cfgs: &[PipelineConfig],
         sensor: &SensorNoise,
         stride: usize,
-    ) -> anyhow::Result<Samples> {
+    ) -> Result<Samples, BenchError> {
         let mut samples = Samples::default();
         let mut previous: Option<PrevView> = None;
         let mut blocks = Vec::new();
         for (i, frame) in frames.iter().enumerate() {
             let block = block_of(&mut blocks, frame);
-            let loaded = real::load_frame(frame).with_context(|| frame.name())?;
+            let load_error = |source| BenchError::Load {
+                frame: frame.name(),
+                source: Box::new(source),
+            };
+            let loaded = real::load_frame(frame).map_err(load_error)?;
             let frame_sensor = real::frame_sensor(frame, sensor);
-            let pose = Pose::of(frame)?;
+            let pose = Pose::of(frame).map_err(|e| load_error(e.into()))?;
             let shared = real::shared_with(previous.as_ref(), frame, pose, &loaded);
             for cfg in cfgs {
-                let out = pipeline.run(&loaded.input, cfg)?;
-                let target = match (cfg.mode, &shared) {
-                    (Mode::Geometric, None) => None,
-                    (Mode::Geometric, Some(other)) => Some(other.targets()),
-                    _ => Some(loaded.spec.roughness_m.clone()),
-                };
-                if let Some(target) = target {
-                    let s = samples_of(&out, &loaded, (cfg.mode, &frame_sensor), &target, stride)?;
-                    let s = s.into_iter().map(|x| (block, x));
-                    match cfg.mode {
-                        Mode::Rgb => samples.rgb.extend(s),
-                        Mode::Rgbd => samples.rgbd.extend(s),
-                        Mode::Geometric => samples.geometric.extend(s),
-                    }
+                let views = (&loaded, shared.as_ref());
+                let s = mode_samples(pipeline, cfg, views, &frame_sensor, stride).map_err(
+                    |source| BenchError::Run {
+                        frame: frame.name(),
+                        row: cfg.mode.to_string(),
+                        source: Box::new(source),
+                    },
+                )?;
+                let s = s.into_iter().map(|x| (block, x));
+                match cfg.mode {
+                    Mode::Rgb => samples.rgb.extend(s),
+                    Mode::Rgbd => samples.rgbd.extend(s),
+                    Mode::Geometric => samples.geometric.extend(s),
                 }
-                pipeline.recycle(out);
             }
             tracing::info!("{}/{} frames: {}", i + 1, frames.len(), frame.name());
             previous = pose.map(|pose| PrevView::new(frame, pose, loaded));
         }
         Ok(samples)
     }
+}
+
+/// Runs one mode on a loaded frame; its samples against the spec on the same depth, or for
+/// `geometric` against the spec of the same surface in the other view (none without one).
+fn mode_samples(
+    pipeline: &mut Pipeline,
+    cfg: &PipelineConfig,
+    (loaded, other): (&LoadedFrame, Option<&OtherView>),
+    sensor: &SensorNoise,
+    stride: usize,
+) -> Result<Vec<Sample>, RunError> {
+    let out = pipeline.run(&loaded.input, cfg)?;
+    let target = match (cfg.mode, other) {
+        (Mode::Geometric, None) => None,
+        (Mode::Geometric, Some(other)) => Some(other.targets()),
+        _ => Some(loaded.spec.roughness_m.clone()),
+    };
+    let samples = match target {
+        Some(target) => samples_of(&out, loaded, (cfg.mode, sensor), &target, stride),
+        None => Ok(Vec::new()),
+    };
+    pipeline.recycle(out);
+    samples
 }
 
 /// The samples of one mode's output on a frame against `target` (NaN: none).
@@ -139,22 +168,22 @@ fn samples_of(
     (mode, sensor): (Mode, &SensorNoise),
     target: &Grid<f64>,
     stride: usize,
-) -> anyhow::Result<Vec<Sample>> {
+) -> Result<Vec<Sample>, RunError> {
     let r = &out.roughness_m;
     let second = match mode {
-        Mode::Rgb => out.depth_m().context("the rgb mode has depth")?,
+        Mode::Rgb => out.depth_m().ok_or(RunError::NoPredictedDepth { mode })?,
         _ => {
             out.sensor_maps(&loaded.input, mode, Some(sensor), None, None)?
                 .uncertainty_m
         }
     };
     let depth = match mode {
-        Mode::Rgb => out.depth_m().context("the rgb mode has depth")?,
+        Mode::Rgb => out.depth_m().ok_or(RunError::NoPredictedDepth { mode })?,
         _ => loaded
             .input
             .depth_m
             .clone()
-            .context("a real frame has depth")?,
+            .ok_or(RunError::NoSensorDepth)?,
     };
     let feature = feature_map(first_axis(mode), r, &depth);
     let (w, h) = r.size();

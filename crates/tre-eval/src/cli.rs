@@ -3,13 +3,15 @@
 
 use std::path::PathBuf;
 
-use anyhow::bail;
 use tre_core::kinds::{GeometricMethod, Mode};
 use tre_core::roughness::interval::{Calibration, CALIBRATION_FILE};
 use tre_core::roughness::noise::SensorNoise;
-use tre_pipeline::{models_key, PipelineConfig, StageArgs};
+use tre_io::IoError;
+use tre_model::ModelError;
+use tre_pipeline::{models_key, PipelineConfig, PipelineError, StageArgs};
 
 use crate::calibrate::{fit_tables, Samples};
+use crate::error::{BenchError, FramesError};
 use crate::real::{self, RealFrame};
 use crate::synthetic::{self, DepthSource, RowSpec};
 use crate::tables;
@@ -101,17 +103,13 @@ impl EvalArgs {
     /// # Errors
     ///
     /// When `--mode` names more than one.
-    pub fn synthetic_mode(&self) -> anyhow::Result<Mode> {
+    pub fn synthetic_mode(&self) -> Result<Mode, OneModeError> {
         match self.mode.as_slice() {
             [] => Ok(Mode::Geometric),
             [one] => Ok(*one),
-            more => bail!(
-                "--mode: the synthetic split scores one mode at a time, got {}",
-                more.iter()
-                    .map(ToString::to_string)
-                    .collect::<Vec<_>>()
-                    .join(",")
-            ),
+            more => Err(OneModeError {
+                modes: more.to_vec(),
+            }),
         }
     }
 
@@ -121,7 +119,7 @@ impl EvalArgs {
     /// # Errors
     ///
     /// As [`synthetic_mode`](Self::synthetic_mode).
-    pub fn synthetic_rows(&self) -> anyhow::Result<Vec<RowSpec>> {
+    pub fn synthetic_rows(&self) -> Result<Vec<RowSpec>, OneModeError> {
         let cfg = self.stages.config(self.synthetic_mode()?);
         Ok(if self.tables {
             tables::row_specs(&cfg)
@@ -176,7 +174,7 @@ impl EvalArgs {
     /// # Errors
     ///
     /// As [`real::frames_of`].
-    pub fn real_frames(&self, dirs: &[PathBuf]) -> anyhow::Result<Vec<RealFrame>> {
+    pub fn real_frames(&self, dirs: &[PathBuf]) -> Result<Vec<RealFrame>, FramesError> {
         let mut frames =
             real::frames_of(dirs, self.real_splits.as_deref(), &self.split, self.limit)?;
         if self.no_mounting {
@@ -233,9 +231,9 @@ impl CalibrateArgs {
     ///
     /// For the test split (the intervals are judged there), and when the frames, the models
     /// or a frame's run fail.
-    pub fn fit(&self) -> anyhow::Result<Fitted> {
+    pub fn fit(&self) -> Result<Fitted, CalibrateError> {
         if self.split == "test" {
-            bail!("--split test: the intervals are judged on the test frames; fit them on val");
+            return Err(CalibrateError::TestSplit);
         }
         let frames = real::frames_of(&self.real, Some(&self.real_splits), &self.split, None)?;
         let base = self.stages.config(Mode::Rgb);
@@ -277,7 +275,7 @@ impl CalibrateArgs {
     /// # Errors
     ///
     /// When no models folder is found or the file cannot be written.
-    pub fn write(&self, calibration: &Calibration) -> anyhow::Result<PathBuf> {
+    pub fn write(&self, calibration: &Calibration) -> Result<PathBuf, CalibrateError> {
         let out = match &self.out {
             Some(p) => p.clone(),
             None => tre_model::find_models(self.stages.models.as_deref())?.join(CALIBRATION_FILE),
@@ -285,4 +283,41 @@ impl CalibrateArgs {
         tre_io::paths::write_text(&out, &serde_json::to_string_pretty(calibration)?)?;
         Ok(out)
     }
+}
+
+/// `--mode` naming more than one mode for the synthetic split.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "--mode: the synthetic split scores one mode at a time, got {}",
+    modes.iter().map(ToString::to_string).collect::<Vec<_>>().join(",")
+)]
+pub struct OneModeError {
+    /// The modes given.
+    pub modes: Vec<Mode>,
+}
+
+/// Why `tre calibrate` cannot fit or write the intervals.
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrateError {
+    /// `--split test`.
+    #[error("--split test: the intervals are judged on the test frames; fit them on val")]
+    TestSplit,
+    /// The frames of the split cannot be found.
+    #[error(transparent)]
+    Frames(#[from] FramesError),
+    /// The pipeline cannot be built.
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
+    /// A frame does not read or a mode fails on it.
+    #[error(transparent)]
+    Samples(#[from] BenchError),
+    /// No models folder to write to.
+    #[error(transparent)]
+    Models(#[from] ModelError),
+    /// The calibration does not serialise.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    /// The file cannot be written.
+    #[error(transparent)]
+    Write(#[from] IoError),
 }

@@ -7,9 +7,13 @@
 pub mod calibrate;
 #[cfg(feature = "cli")]
 mod cli;
+pub mod error;
 pub mod real;
 pub mod synthetic;
 pub mod tables;
 
 #[cfg(feature = "cli")]
-pub use cli::{CalibrateArgs, EvalArgs, Fitted};
+pub use cli::{CalibrateArgs, CalibrateError, EvalArgs, Fitted, OneModeError};
+pub use error::{
+    BenchError, FrameLoadError, FramesError, JsonFileError, RunError, SplitsError, SyntheticError,
+};

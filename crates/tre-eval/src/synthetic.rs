@@ -5,7 +5,6 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
 use serde::Serialize;
 use tre_core::geometry::{Grid, Vec3};
 use tre_core::roughness::metrics::{DepthAccumulator, NormalAccumulator, RoughnessAccumulator};
@@ -13,6 +12,8 @@ use tre_core::roughness::metrics::{DepthMetrics, NormalMetrics, RoughnessMetrics
 use tre_io as io;
 use tre_pipeline::{FrameInput, Method, Mode, Pipeline, PipelineConfig};
 use tre_synth::dataset::Manifest;
+
+use crate::error::{read_json, FrameLoadError, RunError, SyntheticError};
 
 /// Which depth of a `tre synth` frame the modes read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -74,11 +75,16 @@ pub struct SplitReport<'a> {
 }
 
 /// The frame folders of `split` in the `tre synth` dataset at `data`, at most `limit`.
-pub fn frame_dirs(data: &Path, split: &str, limit: Option<usize>) -> anyhow::Result<Vec<PathBuf>> {
-    let path = data.join("dataset.json");
-    let text =
-        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-    let manifest: Manifest = serde_json::from_str(&text).context("parsing dataset.json")?;
+///
+/// # Errors
+///
+/// When the manifest does not read or parse, or the split has no frame.
+pub fn frame_dirs(
+    data: &Path,
+    split: &str,
+    limit: Option<usize>,
+) -> Result<Vec<PathBuf>, SyntheticError> {
+    let manifest: Manifest = read_json(&data.join("dataset.json"))?;
     let dirs: Vec<PathBuf> = manifest
         .scenes
         .iter()
@@ -87,7 +93,9 @@ pub fn frame_dirs(data: &Path, split: &str, limit: Option<usize>) -> anyhow::Res
         .take(limit.unwrap_or(usize::MAX))
         .collect();
     if dirs.is_empty() {
-        bail!("no frames in split {split:?}");
+        return Err(SyntheticError::NoFrames {
+            split: split.to_owned(),
+        });
     }
     Ok(dirs)
 }
@@ -105,18 +113,28 @@ pub fn dataset_inputs(data: &Path) -> Vec<PathBuf> {
 
 /// Scores every configuration of `specs` on every frame folder of `dirs` (the modes that read
 /// depth read `source`'s), one result per configuration.
+///
+/// # Errors
+///
+/// When a frame does not read or a configuration fails on it.
 pub fn score_split(
     pipeline: &mut Pipeline,
     dirs: &[PathBuf],
     specs: &[RowSpec],
     source: DepthSource,
-) -> anyhow::Result<Vec<RowResult>> {
+) -> Result<Vec<RowResult>, SyntheticError> {
     let mut scores: Vec<Score> = specs.iter().map(|_| Score::default()).collect();
     for (i, dir) in dirs.iter().enumerate() {
-        let frame = read_frame(dir, source).with_context(|| format!("frame {}", dir.display()))?;
+        let frame = read_frame(dir, source).map_err(|source| SyntheticError::Load {
+            dir: dir.clone(),
+            source: Box::new(source),
+        })?;
         for (spec, score) in specs.iter().zip(&mut scores) {
-            score_frame(pipeline, &frame, spec, score)
-                .with_context(|| format!("frame {}, {}", dir.display(), spec.key))?;
+            score_frame(pipeline, &frame, spec, score).map_err(|source| SyntheticError::Run {
+                dir: dir.clone(),
+                row: spec.key.clone(),
+                source: Box::new(source),
+            })?;
         }
         tracing::info!("{}/{} frames", i + 1, dirs.len());
     }
@@ -157,7 +175,7 @@ pub fn row_key(cfg: &PipelineConfig) -> String {
 }
 
 /// Reads a `tre synth` frame folder: inputs (depth from `source`) and ground truth.
-fn read_frame(dir: &Path, source: DepthSource) -> anyhow::Result<Frame> {
+fn read_frame(dir: &Path, source: DepthSource) -> Result<Frame, FrameLoadError> {
     let (cam, k) = io::read_camera(&dir.join("camera.json"))?;
     let scale = cam.depth_scale.unwrap_or(1000.0);
     let depth_m = io::read_depth(&dir.join("depth.png"), scale)?;
@@ -184,7 +202,7 @@ fn read_frame(dir: &Path, source: DepthSource) -> anyhow::Result<Frame> {
 /// A depth-sensor model's depth; `None` when the sensor saw nothing at all (every pixel 0, such
 /// as a Kinect whose whole view is beyond its range), which no depth mode can run on. The PNG is
 /// decoded once; anything else goes through [`io::read_depth`] and its checks.
-fn read_sensor_depth(path: &Path, scale: f64) -> anyhow::Result<Option<Grid<f64>>> {
+fn read_sensor_depth(path: &Path, scale: f64) -> Result<Option<Grid<f64>>, FrameLoadError> {
     let image::DynamicImage::ImageLuma16(img) = io::read_image(path)? else {
         return Ok(Some(io::read_depth(path, scale)?));
     };
@@ -196,7 +214,10 @@ fn read_sensor_depth(path: &Path, scale: f64) -> anyhow::Result<Option<Grid<f64>
         return Ok(None);
     }
     let depth = io::depth_from_luma16(img, scale);
-    io::check_depth(&depth).map_err(|why| anyhow::anyhow!("{}: {why}", path.display()))?;
+    io::check_depth(&depth).map_err(|source| FrameLoadError::SensorDepth {
+        path: path.to_owned(),
+        source,
+    })?;
     Ok(Some(depth))
 }
 
@@ -207,7 +228,7 @@ fn score_frame(
     frame: &Frame,
     spec: &RowSpec,
     score: &mut Score,
-) -> anyhow::Result<()> {
+) -> Result<(), RunError> {
     if frame.input.depth_m.is_none()
         && spec.cfg.mode != Mode::Rgb
         && spec.cfg.method != Method::EndToEnd

@@ -190,15 +190,24 @@ fn range_bins() -> Vec<(String, f64, f64)> {
         .collect()
 }
 
-/// A frame read with its sensor's noise model, its spec on `reference`'s depth; `None` (and a
-/// log line) when the reference has none for it.
+/// A frame read with its sensor's noise model, its spec on `reference`'s depth, and its pose;
+/// `None` (and a log line) when the reference has none for it.
 fn load_referenced(
     frame: &RealFrame,
     (frames, reference): (&[RealFrame], Reference),
     sensor: &SensorNoise,
-) -> anyhow::Result<Option<LoadedFrame>> {
-    let raw = load_sensed(frame, sensor)?;
-    let loaded = reference.apply(frame, frames, &FuseConfig::default(), raw)?;
+) -> Result<Option<(LoadedFrame, Option<Pose>)>, BenchError> {
+    let load = || -> Result<_, FrameLoadError> {
+        let raw = load_frame(frame)?.sensed(frame, sensor);
+        let Some(loaded) = reference.apply(frame, frames, &FuseConfig::default(), raw)? else {
+            return Ok(None);
+        };
+        Ok(Some((loaded, Pose::of(frame)?)))
+    };
+    let loaded = load().map_err(|source| BenchError::Load {
+        frame: frame.name(),
+        source: Box::new(source),
+    })?;
     if loaded.is_none() {
         tracing::info!(
             "{}: no pose or neighbour, left out of the reference",
@@ -208,13 +217,6 @@ fn load_referenced(
     Ok(loaded)
 }
 
-/// A frame read, with its sensor's noise model in its input (the terrain estimate reads it).
-fn load_sensed(frame: &RealFrame, sensor: &SensorNoise) -> anyhow::Result<LoadedFrame> {
-    Ok(load_frame(frame)
-        .with_context(|| frame.name())?
-        .sensed(frame, sensor))
-}
-
 /// Runs the benchmark: every frame, every configuration; the modes that read sensor depth also
 /// get the uncertainty and three-state maps under `sensor`'s noise model (or the frame's camera
 /// file's, when it names one). Calls `on_frame` with each frame's maps (for the contact
@@ -222,7 +224,7 @@ fn load_sensed(frame: &RealFrame, sensor: &SensorNoise) -> anyhow::Result<Loaded
 ///
 /// # Errors
 ///
-/// When a frame does not read or a configuration fails on it.
+/// When a frame does not read, a configuration fails on it or `on_frame` fails.
 pub fn run_benchmark(
     (data, split): (&[PathBuf], Option<&str>),
     (frames, reference): (&[RealFrame], Reference),
@@ -230,8 +232,8 @@ pub fn run_benchmark(
     rows: &[(String, PipelineConfig)],
     pipeline: &mut Pipeline,
     sensor: &SensorNoise,
-    mut on_frame: impl FnMut(&RealFrame, &LoadedFrame, &[RowMaps]) -> anyhow::Result<()>,
-) -> anyhow::Result<RealReport> {
+    mut on_frame: impl FnMut(&RealFrame, &LoadedFrame, &[RowMaps]) -> Result<(), io::IoError>,
+) -> Result<RealReport, BenchError> {
     let mut pooled = fresh(rows);
     let mut per_sequence: BTreeMap<String, (usize, Vec<RowAcc>)> = BTreeMap::new();
     let mut spec_acc = SpecAcc::default();
@@ -240,10 +242,9 @@ pub fn run_benchmark(
     let any_floor = frames.iter().any(|f| floors.contains_key(&key(f)));
     let mut prev: Option<PrevView> = None;
     for (i, frame) in frames.iter().enumerate() {
-        let Some(loaded) = load_referenced(frame, (frames, reference), sensor)? else {
+        let Some((loaded, pose)) = load_referenced(frame, (frames, reference), sensor)? else {
             continue;
         };
-        let pose = Pose::of(frame)?;
         let other = shared_with(prev.as_ref(), frame, pose, &loaded);
         let floor_box = floors.get(&key(frame)).copied();
         let spec = spec_summary(&loaded, floor_box);
@@ -260,7 +261,7 @@ pub fn run_benchmark(
             .or_insert_with(|| (0, fresh(rows)));
         seq.0 += 1;
         let (reports, maps) = scored.score(pipeline, rows, [&mut pooled, &mut seq.1])?;
-        on_frame(frame, &loaded, &maps)?;
+        on_frame(frame, &loaded, &maps).map_err(BenchError::Sheet)?;
         per_frame.push(FrameReport {
             name: frame.name(),
             rgb: frame.rgb.clone(),
@@ -370,13 +371,16 @@ impl FrameScoring<'_> {
         pipeline: &mut Pipeline,
         rows: &[(String, PipelineConfig)],
         pools: [&mut [RowAcc]; 2],
-    ) -> anyhow::Result<(Vec<RealRow>, Vec<RowMaps>)> {
+    ) -> Result<(Vec<RealRow>, Vec<RowMaps>), BenchError> {
         let mut maps = Vec::new();
         let mut reports = Vec::new();
         let [all, seq] = pools;
         for (((key, cfg), acc), seq_acc) in rows.iter().zip(all).zip(seq) {
-            let (one, map) = score_row(pipeline, self, cfg)
-                .with_context(|| format!("{}: {key}", self.frame.name()))?;
+            let (one, map) = score_row(pipeline, self, cfg).map_err(|source| BenchError::Run {
+                frame: self.frame.name(),
+                row: key.clone(),
+                source: Box::new(source),
+            })?;
             reports.push(one.finish(key, 1, self.floor_box.is_some()));
             acc.merge(&one);
             seq_acc.merge(&one);
@@ -412,14 +416,14 @@ fn score_row(
     pipeline: &mut Pipeline,
     scoring: &FrameScoring<'_>,
     cfg: &PipelineConfig,
-) -> anyhow::Result<(RowAcc, RowMaps)> {
+) -> Result<(RowAcc, RowMaps), RunError> {
     let (loaded, floor_box) = (scoring.loaded, scoring.floor_box);
     let out = pipeline.run(&loaded.input, cfg)?;
     let sensor_depth = loaded
         .input
         .depth_m
         .as_ref()
-        .context("a real frame has depth")?;
+        .ok_or(RunError::NoSensorDepth)?;
     let mut acc = RowAcc::default();
     let spec = &loaded.spec;
     acc.scores.add(
@@ -462,7 +466,7 @@ fn three_state(
     cfg: &PipelineConfig,
     out: &tre_pipeline::FrameOutput,
     acc: &mut RowAcc,
-) -> anyhow::Result<Option<Grid<Traversal>>> {
+) -> Result<Option<Grid<Traversal>>, RunError> {
     let loaded = scoring.loaded;
     let spec_row = cfg.mode != Mode::Geometric || cfg.geometric == GeometricMethod::Spec;
     let table = pipeline.interval_table(cfg.mode).filter(|_| spec_row);
@@ -474,7 +478,7 @@ fn three_state(
         .input
         .depth_m
         .as_ref()
-        .context("a real frame has depth")?;
+        .ok_or(RunError::NoSensorDepth)?;
     let mut t = TraversalAcc::default();
     t.add(&maps, loaded, scoring.floor_box);
     acc.traversal = Some(t);

@@ -95,7 +95,7 @@ impl Reference {
         frames: &[RealFrame],
         cfg: &FuseConfig,
         mut loaded: LoadedFrame,
-    ) -> anyhow::Result<Option<LoadedFrame>> {
+    ) -> Result<Option<LoadedFrame>, FrameLoadError> {
         if self == Self::Raw {
             return Ok(Some(loaded));
         }

@@ -21,7 +21,6 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{bail, Context};
 use serde::{Deserialize, Serialize};
 
 use image::Rgb;
@@ -42,6 +41,10 @@ use tre_io::sheet::{
 use tre_io::{self as io, CameraFile};
 use tre_pipeline::SensorMaps;
 use tre_pipeline::{FrameInput, GeometricMethod, Mode, Pipeline, PipelineConfig};
+
+use crate::error::{
+    read_json, read_text, BenchError, FrameLoadError, FramesError, JsonFileError, RunError,
+};
 
 /// One real frame on disk.
 #[derive(Debug, Clone)]
@@ -74,12 +77,15 @@ impl RealFrame {
 /// # Errors
 ///
 /// When no sequence folder or no frame is found, or a camera file does not read.
-pub fn find_frames(dir: &Path, limit: Option<usize>) -> anyhow::Result<Vec<RealFrame>> {
+pub fn find_frames(dir: &Path, limit: Option<usize>) -> Result<Vec<RealFrame>, FramesError> {
     let sequences: Vec<PathBuf> = if dir.join("intrinsics.json").is_file() {
         vec![dir.to_owned()]
     } else {
         let mut subs: Vec<PathBuf> = std::fs::read_dir(dir)
-            .with_context(|| format!("reading {}", dir.display()))?
+            .map_err(|source| FramesError::ReadDir {
+                dir: dir.to_owned(),
+                source,
+            })?
             .flatten()
             .map(|e| e.path())
             .filter(|p| p.join("intrinsics.json").is_file())
@@ -88,10 +94,9 @@ pub fn find_frames(dir: &Path, limit: Option<usize>) -> anyhow::Result<Vec<RealF
         subs
     };
     if sequences.is_empty() {
-        bail!(
-            "{}: no intrinsics.json in it or in its folders (see `tre eval --help` for the layout)",
-            dir.display()
-        );
+        return Err(FramesError::NoSequence {
+            dir: dir.to_owned(),
+        });
     }
     let mut frames = Vec::new();
     for seq in &sequences {
@@ -99,7 +104,9 @@ pub fn find_frames(dir: &Path, limit: Option<usize>) -> anyhow::Result<Vec<RealF
     }
     frames.truncate(limit.unwrap_or(usize::MAX));
     if frames.is_empty() {
-        bail!("{}: no RGB-D frames found", dir.display());
+        return Err(FramesError::NoFrames {
+            dir: dir.to_owned(),
+        });
     }
     Ok(frames)
 }
@@ -115,7 +122,7 @@ pub fn frames_of(
     splits: Option<&Path>,
     split: &str,
     limit: Option<usize>,
-) -> anyhow::Result<Vec<RealFrame>> {
+) -> Result<Vec<RealFrame>, FramesError> {
     let mut frames = Vec::new();
     for dir in dirs {
         frames.extend(find_frames(dir, None)?);
@@ -123,7 +130,10 @@ pub fn frames_of(
     if let Some(path) = splits {
         frames = Splits::read(path)?.select(frames, split)?;
         if frames.is_empty() {
-            bail!("{}: no frame is in split {split:?}", path.display());
+            return Err(FramesError::EmptySplit {
+                path: path.to_owned(),
+                split: split.to_owned(),
+            });
         }
     }
     frames.truncate(limit.unwrap_or(usize::MAX));
@@ -131,15 +141,18 @@ pub fn frames_of(
 }
 
 /// The frames of one sequence folder, by the layout's three rules.
-fn sequence_frames(seq: &Path) -> anyhow::Result<Vec<RealFrame>> {
+fn sequence_frames(seq: &Path) -> Result<Vec<RealFrame>, FramesError> {
     let cam_path = seq.join("intrinsics.json");
     let (camera, intrinsics) = io::read_camera(&cam_path)?;
-    let text = std::fs::read_to_string(&cam_path)?;
-    let listed: ListedFrames = serde_json::from_str(&text)
-        .with_context(|| format!("{}: \"frames\"", cam_path.display()))?;
+    let text = read_text(&cam_path)?;
+    let listed: ListedFrames =
+        serde_json::from_str(&text).map_err(|source| FramesError::FrameList {
+            path: cam_path.clone(),
+            source,
+        })?;
     let pairs = match listed.frames {
         Some(pairs) => pairs,
-        None => paired_files(seq)?,
+        None => paired_files(seq),
     };
     let sequence = seq
         .file_name()
@@ -149,11 +162,10 @@ fn sequence_frames(seq: &Path) -> anyhow::Result<Vec<RealFrame>> {
         let (rgb_path, depth_path) = (seq.join(&rgb), seq.join(&depth));
         for p in [&rgb_path, &depth_path] {
             if !p.is_file() {
-                bail!(
-                    "{}: listed frame file {} is missing",
-                    seq.display(),
-                    p.display()
-                );
+                return Err(FramesError::MissingFile {
+                    sequence: seq.to_owned(),
+                    file: p.clone(),
+                });
             }
         }
         frames.push(RealFrame {
@@ -177,7 +189,7 @@ struct ListedFrames {
 }
 
 /// `(rgb, depth)` pairs by rule 2 (`color/` + `depth/`) or rule 3 (`NAME` + `NAME_depth`).
-fn paired_files(seq: &Path) -> anyhow::Result<Vec<(String, String)>> {
+fn paired_files(seq: &Path) -> Vec<(String, String)> {
     let images = |dir: &Path| -> Vec<String> {
         let mut names: Vec<String> = std::fs::read_dir(dir)
             .into_iter()
@@ -206,7 +218,7 @@ fn paired_files(seq: &Path) -> anyhow::Result<Vec<(String, String)>> {
             }
         }
     }
-    Ok(pairs)
+    pairs
 }
 
 /// Floor boxes by `(sequence, depth path)`.
@@ -217,7 +229,7 @@ pub type Floors = BTreeMap<(String, String), [usize; 4]>;
 /// # Errors
 ///
 /// When the file does not read or parse.
-pub fn read_floors(path: &Path) -> anyhow::Result<Floors> {
+pub fn read_floors(path: &Path) -> Result<Floors, JsonFileError> {
     #[derive(Deserialize)]
     struct File {
         frames: Vec<Entry>,
@@ -228,10 +240,7 @@ pub fn read_floors(path: &Path) -> anyhow::Result<Floors> {
         depth: String,
         floor: [usize; 4],
     }
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let file: File =
-        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let file: File = read_json(path)?;
     Ok(file
         .frames
         .into_iter()
@@ -254,7 +263,7 @@ pub struct LoadedFrame {
 /// # Errors
 ///
 /// When a file does not read or the depth has no valid pixel.
-pub fn load_frame(frame: &RealFrame) -> anyhow::Result<LoadedFrame> {
+pub fn load_frame(frame: &RealFrame) -> Result<LoadedFrame, FrameLoadError> {
     let scale = frame.camera.depth_scale.unwrap_or(1000.0);
     let depth_m = io::read_depth(&frame.depth, scale)?;
     let rgb = io::read_image(&frame.rgb)?.to_rgb8();

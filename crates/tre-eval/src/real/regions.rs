@@ -6,14 +6,14 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use anyhow::Context;
 use serde::{Deserialize, Serialize};
 use tre_core::geometry::Grid;
 use tre_core::roughness::noise::SensorNoise;
 use tre_core::roughness::traversal::Traversal;
-use tre_pipeline::{Pipeline, PipelineConfig};
+use tre_pipeline::{FrameInput, Pipeline, PipelineConfig};
 
 use super::{frame_sensor, load_frame, RealFrame};
+use crate::error::{read_json, BenchError, JsonFileError, RunError};
 
 /// The regions file.
 #[derive(Debug, Clone, Deserialize)]
@@ -65,10 +65,8 @@ impl RegionFile {
     /// # Errors
     ///
     /// When it does not read or parse.
-    pub fn read(path: &Path) -> anyhow::Result<Self> {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
+    pub fn read(path: &Path) -> Result<Self, JsonFileError> {
+        read_json(path)
     }
 
     fn frame(&self, f: &RealFrame) -> Option<&RegionFrame> {
@@ -129,7 +127,7 @@ pub fn score_regions(
     rows: &[(String, PipelineConfig)],
     pipeline: &mut Pipeline,
     default: &SensorNoise,
-) -> anyhow::Result<RegionReport> {
+) -> Result<RegionReport, BenchError> {
     let mut report = RegionReport {
         names: rows.iter().map(|(n, _)| n.clone()).collect(),
         rows: vec![BTreeMap::new(); rows.len()],
@@ -141,27 +139,48 @@ pub fn score_regions(
         let set = file.sensors.get(&frame.sequence);
         let sensor = set.map_or_else(|| frame_sensor(frame, default), |s| s.sensor);
         let class = set.map_or_else(|| "unlisted".to_owned(), |s| s.class.clone());
-        let mut loaded = load_frame(frame).with_context(|| frame.name())?;
+        let mut loaded = load_frame(frame).map_err(|source| BenchError::Load {
+            frame: frame.name(),
+            source: Box::new(source),
+        })?;
         loaded.input.sensor = Some(sensor);
-        let depth = loaded
-            .input
-            .depth_m
-            .as_ref()
-            .context("a real frame has depth")?;
-        for ((_, cfg), acc) in rows.iter().zip(&mut report.rows) {
-            let out = pipeline.run(&loaded.input, cfg)?;
-            let table = pipeline.interval_table_for(cfg);
-            let maps = out.sensor_maps(&loaded.input, cfg.mode, Some(&sensor), None, table)?;
+        for ((key, cfg), acc) in rows.iter().zip(&mut report.rows) {
             let fig = acc.entry(class.clone()).or_default();
-            fig.frames += 1;
-            let gravity = out.gravity.up_in_cam().is_some();
-            fig.gravity_frames += usize::from(gravity);
-            let maps_of = (&out.roughness_m, &maps.traversal, gravity);
-            add_regions(fig, regions, depth, maps_of);
-            pipeline.recycle(out);
+            score_row(pipeline, (&loaded.input, regions), cfg, fig).map_err(|source| {
+                BenchError::Run {
+                    frame: frame.name(),
+                    row: key.clone(),
+                    source: Box::new(source),
+                }
+            })?;
         }
     }
     Ok(report)
+}
+
+/// Runs one configuration on a frame (its input carries the sensor's noise model) and adds
+/// its figures on the frame's regions to `fig`.
+fn score_row(
+    pipeline: &mut Pipeline,
+    (input, regions): (&FrameInput, &RegionFrame),
+    cfg: &PipelineConfig,
+    fig: &mut RegionFigures,
+) -> Result<(), RunError> {
+    let depth = input.depth_m.as_ref().ok_or(RunError::NoSensorDepth)?;
+    let out = pipeline.run(input, cfg)?;
+    let table = pipeline.interval_table_for(cfg);
+    let maps = out.sensor_maps(input, cfg.mode, input.sensor.as_ref(), None, table)?;
+    fig.frames += 1;
+    let gravity = out.gravity.up_in_cam().is_some();
+    fig.gravity_frames += usize::from(gravity);
+    add_regions(
+        fig,
+        regions,
+        depth,
+        (&out.roughness_m, &maps.traversal, gravity),
+    );
+    pipeline.recycle(out);
+    Ok(())
 }
 
 /// Adds one frame's regions to `fig`.

@@ -93,7 +93,7 @@ pub fn write_sheet(
     loaded: &LoadedFrame,
     rows: &[(String, PipelineConfig)],
     maps: &[RowMaps],
-) -> anyhow::Result<()> {
+) -> Result<(), io::IoError> {
     let panels = sheet_panels(loaded, rows, maps);
     let width = panels.first().map_or(320, |p| p.image.width()) * 2;
     let legend = stack(&[
@@ -106,6 +106,5 @@ pub fn write_sheet(
         .trim_end_matches(".png")
         .replace(['/', '\\'], "_");
     let path = dir.join(format!("{}_{stem}.png", frame.sequence));
-    io::save(&path, &image::DynamicImage::ImageRgb8(sheet))?;
-    Ok(())
+    io::save(&path, &image::DynamicImage::ImageRgb8(sheet))
 }

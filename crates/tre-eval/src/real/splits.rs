@@ -3,6 +3,7 @@
 //! between them.
 
 use super::*;
+use crate::error::SplitsError;
 
 /// A parsed splits file: per sequence name, its parts.
 #[derive(Debug, Clone, Deserialize)]
@@ -26,15 +27,15 @@ impl Splits {
     /// # Errors
     ///
     /// When it does not read or parse, or a part has `from` ≥ `to`.
-    pub fn read(path: &Path) -> anyhow::Result<Self> {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        let s: Self =
-            serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    pub fn read(path: &Path) -> Result<Self, SplitsError> {
+        let s: Self = read_json(path)?;
         for (seq, parts) in &s.sequences {
             for p in parts {
                 if p.from.unwrap_or(0) >= p.to.unwrap_or(usize::MAX) {
-                    bail!("{}: {seq}: a part with from ≥ to", path.display());
+                    return Err(SplitsError::PartOrder {
+                        path: path.to_owned(),
+                        sequence: seq.clone(),
+                    });
                 }
             }
         }
@@ -46,10 +47,13 @@ impl Splits {
     /// # Errors
     ///
     /// When the sequence is not in the file (every sequence scored must have a split).
-    pub fn split_of(&self, sequence: &str, index: usize) -> anyhow::Result<Option<&str>> {
-        let parts = self.sequences.get(sequence).with_context(|| {
-            format!("sequence {sequence:?} has no split in the splits file; add it there")
-        })?;
+    pub fn split_of(&self, sequence: &str, index: usize) -> Result<Option<&str>, SplitsError> {
+        let parts = self
+            .sequences
+            .get(sequence)
+            .ok_or_else(|| SplitsError::Unsplit {
+                sequence: sequence.to_owned(),
+            })?;
         Ok(parts
             .iter()
             .find(|p| index >= p.from.unwrap_or(0) && index < p.to.unwrap_or(usize::MAX))
@@ -61,7 +65,11 @@ impl Splits {
     /// # Errors
     ///
     /// Those of [`Splits::split_of`].
-    pub fn select(&self, frames: Vec<RealFrame>, name: &str) -> anyhow::Result<Vec<RealFrame>> {
+    pub fn select(
+        &self,
+        frames: Vec<RealFrame>,
+        name: &str,
+    ) -> Result<Vec<RealFrame>, SplitsError> {
         let mut out = Vec::new();
         for f in frames {
             if self.split_of(&f.sequence, f.index)? == Some(name) {
@@ -89,6 +97,10 @@ mod tests {
         assert_eq!(kitchen(125), None, "a gap");
         assert_eq!(kitchen(140), Some("val"));
         assert_eq!(kitchen(199), Some("test"));
-        assert!(s.split_of("elsewhere", 0).is_err());
+        let unsplit = s.split_of("elsewhere", 0).expect_err("not listed");
+        assert_eq!(
+            unsplit.to_string(),
+            "sequence \"elsewhere\" has no split in the splits file; add it there"
+        );
     }
 }

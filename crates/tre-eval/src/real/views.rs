@@ -5,6 +5,7 @@
 //! the `geometric` mode's interval (docs/uncertainty.md).
 
 use super::*;
+use tre_io::IoError;
 
 /// A camera-to-world pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -23,7 +24,7 @@ impl Pose {
     /// # Errors
     ///
     /// When the file exists but does not hold 16 numbers.
-    pub fn of(frame: &RealFrame) -> anyhow::Result<Option<Self>> {
+    pub fn of(frame: &RealFrame) -> Result<Option<Self>, IoError> {
         let depth_rel = Path::new(&frame.depth_rel);
         let Some(seq) = frame.depth.ancestors().nth(depth_rel.components().count()) else {
             return Ok(None);
