@@ -13,7 +13,7 @@ use tokio::time::Instant;
 use super::frames::{Frames, LoadFrame};
 use super::plan::Plan;
 use super::stats::{Outcome, Recorder, Report, RunInfo};
-use super::{Load, LoadConfig, LoadError, Protocol, Target};
+use super::{Load, LoadConfig, LoadError, Target};
 
 /// Longest a connection attempt may take (shorter if the request timeout is).
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
@@ -72,22 +72,7 @@ pub(super) async fn drive(
                 .as_secs_f64()
         }
     };
-    let info = RunInfo {
-        protocol: Protocol::Http,
-        load: if cfg.rate_per_s().is_some() {
-            "open"
-        } else {
-            "closed"
-        }
-        .into(),
-        url: shared.url.clone(),
-        frames: frames.description.clone(),
-        offered_rate_per_s: cfg.rate_per_s(),
-        connections: cfg.connections,
-        max_in_flight: cfg.max_in_flight,
-        warmup_s: cfg.warmup.as_secs_f64(),
-        window_start_unix_s: shared.plan.window_start_unix_s(),
-    };
+    let info = RunInfo::new(cfg, shared.url.clone(), frames, &shared.plan);
     Ok(shared.rec.report(info, window_s))
 }
 

@@ -10,7 +10,9 @@ use hdrhistogram::Histogram;
 use serde::{Deserialize, Serialize};
 use tokio::time::Instant;
 
-use super::Protocol;
+use super::frames::Frames;
+use super::plan::Plan;
+use super::{LoadConfig, Protocol};
 
 /// Largest latency the histograms hold, microseconds (one hour); longer ones are clamped.
 const MAX_US: u64 = 3_600_000_000;
@@ -303,6 +305,29 @@ pub struct RunInfo {
     /// Start of the measured window, seconds since the Unix epoch.
     #[serde(default)]
     pub window_start_unix_s: f64,
+}
+
+impl RunInfo {
+    /// What the run of `cfg` loading `url` with `frames` on the schedule `plan` was; the
+    /// measured window's start as `plan` places it now.
+    pub(crate) fn new(cfg: &LoadConfig, url: String, frames: &Frames, plan: &Plan) -> Self {
+        Self {
+            protocol: cfg.protocol,
+            load: if cfg.rate_per_s().is_some() {
+                "open"
+            } else {
+                "closed"
+            }
+            .into(),
+            url,
+            frames: frames.description.clone(),
+            offered_rate_per_s: cfg.rate_per_s(),
+            connections: cfg.connections,
+            max_in_flight: cfg.max_in_flight,
+            warmup_s: cfg.warmup.as_secs_f64(),
+            window_start_unix_s: plan.window_start_unix_s(),
+        }
+    }
 }
 
 /// The result of one run: what was offered, what came back and how fast.

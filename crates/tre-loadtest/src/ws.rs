@@ -22,7 +22,7 @@ use super::frames::Frames;
 use super::plan::Plan;
 use super::problems::{AnswerProblem, StreamProblem};
 use super::stats::{Outcome, Recorder, Report, RunInfo};
-use super::{Load, LoadConfig, LoadError, Protocol, Target};
+use super::{Load, LoadConfig, LoadError, Target};
 use tre_proto::v1 as pb;
 
 /// Frames that may wait for one connection's writer (open loop); beyond, `client_saturated`.
@@ -211,22 +211,7 @@ pub(super) async fn drive(
                 .as_secs_f64()
         }
     };
-    let info = RunInfo {
-        protocol: Protocol::Ws,
-        load: if cfg.rate_per_s().is_some() {
-            "open"
-        } else {
-            "closed"
-        }
-        .into(),
-        url: target.stream_url(),
-        frames: frames.description.clone(),
-        offered_rate_per_s: cfg.rate_per_s(),
-        connections: cfg.connections,
-        max_in_flight: cfg.max_in_flight,
-        warmup_s: cfg.warmup.as_secs_f64(),
-        window_start_unix_s: run.plan.window_start_unix_s(),
-    };
+    let info = RunInfo::new(cfg, target.stream_url(), frames, &run.plan);
     Ok(run.rec.report(info, window_s))
 }
 
