@@ -5,7 +5,7 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{GeometryError, Grid, Vec3};
+use super::{GeometryError, Grid, ImplausibleIntrinsic, Vec3};
 
 /// Per-pixel 3-D points in the camera frame (metres); invalid pixels hold NaN.
 pub type PointMap = Grid<Vec3>;
@@ -88,28 +88,28 @@ impl Intrinsics {
     /// assert!(Intrinsics::new(1e-9, 525.0, 319.5, 239.5).unwrap().check_for(640, 480).is_err());
     /// ```
     pub fn check_for(&self, width: usize, height: usize) -> Result<(), GeometryError> {
-        let fault = |what: String, why| GeometryError::ImplausibleIntrinsics {
+        let fault = |what| GeometryError::ImplausibleIntrinsics {
             width,
             height,
             what,
-            why,
         };
         for (name, c, side) in [("cx", self.cx_px, width), ("cy", self.cy_px, height)] {
             let side = side as f64;
             if !(-side..=2.0 * side).contains(&c) {
-                return Err(fault(
-                    format!("{name} = {c}"),
-                    "the principal point must lie within one image size of the image",
-                ));
+                return Err(fault(ImplausibleIntrinsic::PrincipalPoint {
+                    name,
+                    value_px: c,
+                }));
             }
         }
         for (name, f, side) in [("fx", self.fx_px, width), ("fy", self.fy_px, height)] {
             let fov_deg = 2.0 * (side as f64 / (2.0 * f)).atan().to_degrees();
             if !(MIN_FOV_DEG..=MAX_FOV_DEG).contains(&fov_deg) {
-                return Err(fault(
-                    format!("{name} = {f} ({fov_deg:.3}° across the image)"),
-                    "the field of view must be 0.1° to 170° (is the focal length in pixels?)",
-                ));
+                return Err(fault(ImplausibleIntrinsic::FocalLength {
+                    name,
+                    value_px: f,
+                    fov_deg,
+                }));
             }
         }
         Ok(())
@@ -189,4 +189,26 @@ impl Intrinsics {
 /// The depth (z) of every point; invalid points give 0.
 pub fn depth_of(points: &PointMap) -> Grid<f64> {
     points.map(|p| if is_valid_point(p) { p.z } else { 0.0 })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn implausible_intrinsics_say_which_value_and_the_rule() {
+        let k = |fx, cx| Intrinsics::new(fx, 525.0, cx, 239.5).expect("finite");
+        let off = k(525.0, -1e9).check_for(640, 480).expect_err("far off");
+        assert_eq!(
+            off.to_string(),
+            "intrinsics cx = -1000000000 cannot describe a 640×480 image: the principal point \
+             must lie within one image size of the image"
+        );
+        let mm = k(3.6, 319.5).check_for(640, 480).expect_err("millimetres");
+        assert_eq!(
+            mm.to_string(),
+            "intrinsics fx = 3.6 (178.711° across the image) cannot describe a 640×480 image: \
+             the field of view must be 0.1° to 170° (is the focal length in pixels?)"
+        );
+    }
 }

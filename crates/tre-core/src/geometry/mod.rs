@@ -75,16 +75,14 @@ pub enum GeometryError {
         height_m: f64,
     },
     /// Intrinsics that no pinhole camera could have for an image of the frame's size.
-    #[error("intrinsics {what} cannot describe a {width}×{height} image: {why}")]
+    #[error("intrinsics {what} cannot describe a {width}×{height} image: {}", what.rule())]
     ImplausibleIntrinsics {
         /// The image width, pixels.
         width: usize,
         /// The image height, pixels.
         height: usize,
-        /// The values at fault, as given.
-        what: String,
-        /// The rule they break.
-        why: &'static str,
+        /// The value at fault, as given.
+        what: ImplausibleIntrinsic,
     },
     /// Neighbour logits of the wrong size for the point map.
     #[error("neighbour logits hold {got} values, expected 49 × H × W = {expected}")]
@@ -94,4 +92,55 @@ pub enum GeometryError {
         /// Values supplied.
         got: usize,
     },
+}
+
+/// The intrinsic of [`GeometryError::ImplausibleIntrinsics`] at fault, as given; its `Display`
+/// says which and its value (`cx = -1000000000`), [`rule`](Self::rule) what it breaks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ImplausibleIntrinsic {
+    /// A principal point coordinate more than one image size off the image.
+    PrincipalPoint {
+        /// `cx` or `cy`.
+        name: &'static str,
+        /// The value given, pixels.
+        value_px: f64,
+    },
+    /// A focal length whose field of view across the image is outside [`MIN_FOV_DEG`] to
+    /// [`MAX_FOV_DEG`].
+    FocalLength {
+        /// `fx` or `fy`.
+        name: &'static str,
+        /// The value given, pixels.
+        value_px: f64,
+        /// The field of view it gives across the image, degrees.
+        fov_deg: f64,
+    },
+}
+
+impl ImplausibleIntrinsic {
+    /// The rule the value breaks, in words.
+    #[must_use]
+    pub fn rule(&self) -> &'static str {
+        match self {
+            Self::PrincipalPoint { .. } => {
+                "the principal point must lie within one image size of the image"
+            }
+            Self::FocalLength { .. } => {
+                "the field of view must be 0.1° to 170° (is the focal length in pixels?)"
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for ImplausibleIntrinsic {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            Self::PrincipalPoint { name, value_px } => write!(f, "{name} = {value_px}"),
+            Self::FocalLength {
+                name,
+                value_px,
+                fov_deg,
+            } => write!(f, "{name} = {value_px} ({fov_deg:.3}° across the image)"),
+        }
+    }
 }
