@@ -138,8 +138,8 @@ impl Recorder {
         // The ROS 2 type hash, where rosbag2's MCAP storage reads it.
         if schema_encoding == "ros2msg" {
             let definition = std::str::from_utf8(data).map_err(|e| record_error(&path, e))?;
-            let hash = crate::type_hash::rihs01(name, definition)
-                .map_err(|e| record_error(&path, RecordFault::TypeHash(e)))?;
+            let hash =
+                crate::type_hash::rihs01(name, definition).map_err(|e| record_error(&path, e))?;
             metadata.insert("topic_type_hash".to_owned(), hash);
         }
         let bag = (encoding == "cdr").then(|| BagTopic {
@@ -515,9 +515,9 @@ pub enum RecordFault {
     /// A schema that is not UTF-8.
     #[error(transparent)]
     Utf8(#[from] std::str::Utf8Error),
-    /// A schema whose ROS 2 type hash cannot be computed (the type hash's own account).
-    #[error("{0}")]
-    TypeHash(String),
+    /// A schema whose ROS 2 type hash cannot be computed.
+    #[error(transparent)]
+    TypeHash(#[from] crate::type_hash::TypeHashError),
 }
 
 #[cfg(test)]

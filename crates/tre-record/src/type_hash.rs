@@ -8,13 +8,52 @@ use sha2::{Digest, Sha256};
 
 use crate::msgs::RosMessage;
 
+/// A `.msg` definition whose type hash cannot be computed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TypeHashError {
+    /// A line that is neither a field nor a constant.
+    #[error("{type_name}: line {line:?}")]
+    Line {
+        /// The type whose section holds it.
+        type_name: String,
+        /// The line, comment removed.
+        line: String,
+    },
+    /// An array type without its closing `]`.
+    #[error("array type {field_type:?}")]
+    Array {
+        /// The type as written.
+        field_type: String,
+    },
+    /// An array bound that is not a whole number.
+    #[error("{field_type:?}: {source}")]
+    Bound {
+        /// The type as written.
+        field_type: String,
+        /// Why the bound does not parse.
+        #[source]
+        source: std::num::ParseIntError,
+    },
+    /// A definition without a type.
+    #[error("no type")]
+    NoType,
+    /// A type used whose definition the text does not hold.
+    #[error("{type_name}: no definition of {used}")]
+    Undefined {
+        /// The type hashed.
+        type_name: String,
+        /// The type it uses (`pkg/msg/Name`).
+        used: String,
+    },
+}
+
 /// The `RIHS01_…` hash of `M`.
 ///
 /// # Errors
 ///
 /// A line of its definition that is not a field or a constant, or a type it uses whose
 /// definition is missing.
-pub fn rihs01_of<M: RosMessage>() -> Result<String, String> {
+pub fn rihs01_of<M: RosMessage>() -> Result<String, TypeHashError> {
     rihs01(&M::schema_name(), &M::definition())
 }
 
@@ -75,14 +114,19 @@ fn base_id(t: &str) -> (u32, u64) {
 }
 
 /// A field's type as written in a `.msg` line (`float64[9]`, `uint8[]`, `pkg/T[<=4]`).
-fn field_type(t: &str, package: &str) -> Result<FieldType, String> {
+fn field_type(t: &str, package: &str) -> Result<FieldType, TypeHashError> {
     let (base, offset, capacity) = match t.split_once('[') {
         None => (t, 0, 0),
         Some((base, rest)) => {
-            let inner = rest
-                .strip_suffix(']')
-                .ok_or_else(|| format!("array type {t:?}"))?;
-            let number = |s: &str| s.parse::<u64>().map_err(|e| format!("{t:?}: {e}"));
+            let inner = rest.strip_suffix(']').ok_or_else(|| TypeHashError::Array {
+                field_type: t.to_owned(),
+            })?;
+            let number = |s: &str| {
+                s.parse::<u64>().map_err(|source| TypeHashError::Bound {
+                    field_type: t.to_owned(),
+                    source,
+                })
+            };
             match inner.strip_prefix("<=") {
                 _ if inner.is_empty() => (base, 144, 0),
                 Some(n) => (base, 96, number(n)?),
@@ -104,7 +148,7 @@ fn field_type(t: &str, package: &str) -> Result<FieldType, String> {
 }
 
 /// The fields of one `.msg` text (constants, comments and default values left out).
-fn parse(name: &str, text: &str) -> Result<Individual, String> {
+fn parse(name: &str, text: &str) -> Result<Individual, TypeHashError> {
     let package = name.split('/').next().unwrap_or_default();
     let mut fields = Vec::new();
     for line in text.lines() {
@@ -114,7 +158,10 @@ fn parse(name: &str, text: &str) -> Result<Individual, String> {
             if line.is_empty() {
                 continue;
             }
-            return Err(format!("{name}: line {line:?}"));
+            return Err(TypeHashError::Line {
+                type_name: name.to_owned(),
+                line: line.to_owned(),
+            });
         };
         if field.contains('=') || words.next() == Some("=") {
             continue; // a constant
@@ -128,7 +175,7 @@ fn parse(name: &str, text: &str) -> Result<Individual, String> {
 }
 
 /// The `.msg` sections of a definition: the main type's, then each `MSG: pkg/Name`.
-fn sections(name: &str, definition: &str) -> Result<Vec<Individual>, String> {
+fn sections(name: &str, definition: &str) -> Result<Vec<Individual>, TypeHashError> {
     let mut out = Vec::new();
     let mut current = (name.to_owned(), String::new());
     for line in definition.lines() {
@@ -196,9 +243,9 @@ fn json_individual(t: &Individual, out: &mut String) {
 /// # Errors
 ///
 /// As [`rihs01_of`].
-pub fn rihs01(name: &str, definition: &str) -> Result<String, String> {
+pub fn rihs01(name: &str, definition: &str) -> Result<String, TypeHashError> {
     let all = sections(name, definition)?;
-    let (main, rest) = all.split_first().ok_or("no type")?;
+    let (main, rest) = all.split_first().ok_or(TypeHashError::NoType)?;
     // The types `main` uses, directly or not, sorted by name.
     let mut used: Vec<&Individual> = Vec::new();
     let mut todo: Vec<&str> = main.fields.iter().map(|f| f.1.nested.as_str()).collect();
@@ -209,7 +256,10 @@ pub fn rihs01(name: &str, definition: &str) -> Result<String, String> {
         let t = rest
             .iter()
             .find(|t| t.name == n)
-            .ok_or_else(|| format!("{name}: no definition of {n}"))?;
+            .ok_or_else(|| TypeHashError::Undefined {
+                type_name: name.to_owned(),
+                used: n.to_owned(),
+            })?;
         used.push(t);
         todo.extend(t.fields.iter().map(|f| f.1.nested.as_str()));
     }
@@ -289,5 +339,17 @@ mod tests {
             t("RegionOfInterest").nested,
             "sensor_msgs/msg/RegionOfInterest"
         );
+    }
+
+    #[test]
+    fn a_definition_that_does_not_hash_says_where() {
+        let said = |def| rihs01("pkg/msg/T", def).expect_err("no hash").to_string();
+        assert_eq!(said("float64\n"), "pkg/msg/T: line \"float64\"");
+        assert_eq!(said("uint8[4 data\n"), "array type \"uint8[4\"");
+        assert_eq!(
+            said("uint8[x] data\n"),
+            "\"uint8[x]\": invalid digit found in string"
+        );
+        assert_eq!(said("pkg/U u\n"), "pkg/msg/T: no definition of pkg/msg/U");
     }
 }
