@@ -97,7 +97,7 @@ pub enum ArgsError {
     DepthOnlyNeedsGeometric,
     /// Map settings that make no map.
     #[error("--map: {0}")]
-    Map(String),
+    Map(MapArgProblem),
     /// `--limit 0`.
     #[error("--limit must be at least 1")]
     ZeroLimit,
@@ -184,10 +184,10 @@ impl ClientArgs {
             && cells.is_finite()
             && (1.0..=1000.0).contains(&cells))
         {
-            return Err(ArgsError::Map(format!(
-                "{} m at {} cm a cell is not 1 to 1000 cells a side",
-                self.map_size_m, self.map_cell_cm
-            )));
+            return Err(ArgsError::Map(MapArgProblem::Cells {
+                size_m: self.map_size_m,
+                cell_cm: self.map_cell_cm,
+            }));
         }
         let gravity = self.map_gravity.as_deref().map(gravity).transpose()?;
         Ok(MapRequest {
@@ -208,10 +208,49 @@ fn gravity(text: &str) -> Result<[f64; 3], ArgsError> {
     struct GravityFile {
         gravity: [f64; 3],
     }
-    let bad = |why: String| ArgsError::Map(format!("--map-gravity {text}: {why}"));
-    let bytes = std::fs::read(text).map_err(|e| bad(format!("not X,Y,Z, nor a file ({e})")))?;
-    let g: GravityFile = serde_json::from_slice(&bytes).map_err(|e| bad(e.to_string()))?;
+    let bytes = std::fs::read(text).map_err(|reason| {
+        ArgsError::Map(MapArgProblem::GravityRead {
+            text: text.to_owned(),
+            reason,
+        })
+    })?;
+    let g: GravityFile = serde_json::from_slice(&bytes).map_err(|reason| {
+        ArgsError::Map(MapArgProblem::GravityFile {
+            path: text.to_owned(),
+            reason,
+        })
+    })?;
     Ok(g.gravity)
+}
+
+/// Why `--map-cell-cm`, `--map-size-m` or `--map-gravity` make no map ([`ArgsError::Map`]).
+// The cause is in the message, not a `source` (as the crate's other problems).
+#[derive(Debug, thiserror::Error)]
+pub enum MapArgProblem {
+    /// A size and cell that are not 1 to 1000 cells a side.
+    #[error("{size_m} m at {cell_cm} cm a cell is not 1 to 1000 cells a side")]
+    Cells {
+        /// `--map-size-m`.
+        size_m: f64,
+        /// `--map-cell-cm`.
+        cell_cm: f64,
+    },
+    /// A `--map-gravity` that is neither `X,Y,Z` nor a file that reads.
+    #[error("--map-gravity {text}: not X,Y,Z, nor a file ({reason})")]
+    GravityRead {
+        /// The value given.
+        text: String,
+        /// Why it does not read as a file.
+        reason: std::io::Error,
+    },
+    /// A gravity file that is not `{"gravity": [x, y, z]}`.
+    #[error("--map-gravity {path}: {reason}")]
+    GravityFile {
+        /// The file given.
+        path: String,
+        /// What the parser said.
+        reason: serde_json::Error,
+    },
 }
 
 #[cfg(test)]

@@ -324,7 +324,36 @@ pub enum ProtocolProblem {
     },
     /// A MapUpdate whose layers do not make a map.
     #[error("MapUpdate: {0}")]
-    BadMap(String),
+    BadMap(MapUpdateProblem),
+}
+
+/// Why a MapUpdate's fields do not make a map ([`ProtocolProblem::BadMap`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MapUpdateProblem {
+    /// A `map_from_world` that is not 9 values.
+    #[error("{0} map_from_world values")]
+    Transform(usize),
+    /// A layer the map needs is missing.
+    #[error("no {0} layer")]
+    NoLayer(&'static str),
+    /// A layer whose bytes are not 4 per cell.
+    #[error("{name}: {bytes} bytes for {side}×{side} cells")]
+    LayerSize {
+        /// The layer.
+        name: &'static str,
+        /// Its bytes.
+        bytes: usize,
+        /// The map's side, cells.
+        side: usize,
+    },
+    /// A layer's cells that do not make a grid.
+    #[error("{name}: {reason}")]
+    Grid {
+        /// The layer.
+        name: &'static str,
+        /// Why.
+        reason: GeometryError,
+    },
 }
 
 /// What is wrong with a Result ([`ClientError::BadResult`]).

@@ -65,12 +65,12 @@ pub mod source;
 pub mod tls;
 
 #[cfg(feature = "cli")]
-pub use cli::{ArgsError, ClientArgs};
+pub use cli::{ArgsError, ClientArgs, MapArgProblem};
 pub use clock::unix_us;
 pub use config::{endpoints, Backoff, ClientConfig, Endpoints, MapRequest, Rate};
 pub use error::{
-    ClientError, ConfigProblem, ConnectProblem, MapProblem, ProtocolProblem, RejectProblem,
-    ResultProblem, ServerSaid, UpgradeAnswer, UrlProblem,
+    ClientError, ConfigProblem, ConnectProblem, MapProblem, MapUpdateProblem, ProtocolProblem,
+    RejectProblem, ResultProblem, ServerSaid, UpgradeAnswer, UrlProblem,
 };
 pub use event::{
     DisconnectReason, ErrorKind, Event, Frame, FrameResult, LostReason, Roughness, ServerInfo,

@@ -9,7 +9,7 @@ use prost::Message;
 
 use super::clock::Stamp;
 use super::config::ClientConfig;
-use super::error::{MapProblem, ProtocolProblem, ResultProblem};
+use super::error::{MapProblem, MapUpdateProblem, ProtocolProblem, ResultProblem};
 use super::event::{ErrorKind, Event, Frame, FrameResult, Roughness, ServerInfo, StreamMap};
 use super::ClientError;
 use tre_core::geometry::Grid;
@@ -203,31 +203,33 @@ impl TryFrom<pb::ServerMessage> for Incoming {
 
 /// A MapUpdate in domain terms: its nine layers by name, each `side × side` float32.
 fn stream_map(m: pb::MapUpdate) -> Result<StreamMap, ClientError> {
-    let bad = |why: String| ClientError::Protocol(ProtocolProblem::BadMap(why));
+    let bad = |why| ClientError::Protocol(ProtocolProblem::BadMap(why));
     let side = m.side as usize;
     let map_from_world: [f64; 9] = m
         .map_from_world
         .as_slice()
         .try_into()
-        .map_err(|_| bad(format!("{} map_from_world values", m.map_from_world.len())))?;
-    let layer = |name: &str| -> Result<Grid<f32>, ClientError> {
+        .map_err(|_| bad(MapUpdateProblem::Transform(m.map_from_world.len())))?;
+    let layer = |name: &'static str| -> Result<Grid<f32>, ClientError> {
         let l = m
             .layers
             .iter()
             .find(|l| l.name == name)
-            .ok_or_else(|| bad(format!("no {name} layer")))?;
+            .ok_or_else(|| bad(MapUpdateProblem::NoLayer(name)))?;
         if l.data.len() != 4 * side * side {
-            return Err(bad(format!(
-                "{name}: {} bytes for {side}×{side} cells",
-                l.data.len()
-            )));
+            return Err(bad(MapUpdateProblem::LayerSize {
+                name,
+                bytes: l.data.len(),
+                side,
+            }));
         }
         let cells = l
             .data
             .chunks_exact(4)
             .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
             .collect();
-        Grid::from_vec(side, side, cells).map_err(|e| bad(format!("{name}: {e}")))
+        Grid::from_vec(side, side, cells)
+            .map_err(|reason| bad(MapUpdateProblem::Grid { name, reason }))
     };
     let layers = Layers {
         elevation: layer("elevation")?,

@@ -90,7 +90,7 @@ pub enum SourceProblem {
         /// The line, from 1.
         line: usize,
         /// Why.
-        reason: String,
+        reason: PoseLineProblem,
     },
     /// A pose list shorter than the frames.
     #[error("{poses} poses for {frames} frames")]
@@ -100,6 +100,23 @@ pub enum SourceProblem {
         /// Frames of the folder.
         frames: usize,
     },
+}
+
+/// Why a line of a pose list is not a pose ([`SourceProblem::PoseLine`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PoseLineProblem {
+    /// Text that is not all numbers.
+    #[error("not numbers ({0})")]
+    NotNumbers(std::num::ParseFloatError),
+    /// A number that is NaN or infinite.
+    #[error("a number that is not finite")]
+    NotFinite,
+    /// A quaternion of length zero.
+    #[error("a zero quaternion")]
+    ZeroQuaternion,
+    /// Another count of numbers than 16, 12 or 8.
+    #[error("{0} numbers: expected 16 (4×4), 12 (3×4) or 8 (t tx ty tz qx qy qz qw)")]
+    Count(usize),
 }
 
 /// What went wrong with `ffmpeg` ([`ClientError::Ffmpeg`]).

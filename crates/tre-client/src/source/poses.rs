@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{source_err, SourceProblem};
+use super::{source_err, PoseLineProblem, SourceProblem};
 use crate::ClientError;
 
 /// Where a folder's poses come from.
@@ -90,15 +90,15 @@ impl Poses {
 }
 
 /// One line of a pose list as a 4×4 matrix row by row.
-fn parse_line(line: &str) -> Result<[f64; 16], String> {
+fn parse_line(line: &str) -> Result<[f64; 16], PoseLineProblem> {
     let v: Vec<f64> = line
         .split(|c: char| c.is_whitespace() || c == ',')
         .filter(|t| !t.is_empty())
         .map(str::parse)
         .collect::<Result<_, _>>()
-        .map_err(|e| format!("not numbers ({e})"))?;
+        .map_err(PoseLineProblem::NotNumbers)?;
     if v.iter().any(|x| !x.is_finite()) {
-        return Err("a number that is not finite".to_owned());
+        return Err(PoseLineProblem::NotFinite);
     }
     let mut m = [0.0; 16];
     match v.len() {
@@ -109,18 +109,14 @@ fn parse_line(line: &str) -> Result<[f64; 16], String> {
         }
         8 => {
             let (t, q) = ([v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]]);
-            let r = rotation(q).ok_or("a zero quaternion")?;
+            let r = rotation(q).ok_or(PoseLineProblem::ZeroQuaternion)?;
             for row in 0..3 {
                 m[4 * row..4 * row + 3].copy_from_slice(&r[row]);
                 m[4 * row + 3] = t[row];
             }
             m[15] = 1.0;
         }
-        n => {
-            return Err(format!(
-                "{n} numbers: expected 16 (4×4), 12 (3×4) or 8 (t tx ty tz qx qy qz qw)"
-            ))
-        }
+        n => return Err(PoseLineProblem::Count(n)),
     }
     Ok(m)
 }
@@ -166,8 +162,14 @@ mod tests {
         let h = std::f64::consts::FRAC_1_SQRT_2;
         let quarter = parse_line(&format!("0 0 0 0 0 0 {h} {h}")).unwrap();
         assert!((quarter[4] - 1.0).abs() < 1e-12 && (quarter[1] + 1.0).abs() < 1e-12);
-        assert!(parse_line("1 2 3").unwrap_err().contains("3 numbers"));
-        assert!(parse_line("0 0 0 0 0 0 0 0").unwrap_err().contains("zero"));
+        assert_eq!(
+            parse_line("1 2 3").unwrap_err().to_string(),
+            "3 numbers: expected 16 (4×4), 12 (3×4) or 8 (t tx ty tz qx qy qz qw)"
+        );
+        assert_eq!(
+            parse_line("0 0 0 0 0 0 0 0").unwrap_err(),
+            PoseLineProblem::ZeroQuaternion
+        );
         assert!(parse_line("a b").is_err());
     }
 
