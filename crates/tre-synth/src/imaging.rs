@@ -64,8 +64,19 @@ impl fmt::Display for ImageEffect {
     }
 }
 
+/// A name that is no [`ImageEffect`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "unknown effect {name:?}: the effects are {}",
+    ImageEffect::ALL.map(ImageEffect::name).join(", ")
+)]
+pub struct UnknownEffect {
+    /// The name given.
+    pub name: String,
+}
+
 impl FromStr for ImageEffect {
-    type Err = String;
+    type Err = UnknownEffect;
 
     /// An effect by name (case and `-`/`_` do not matter).
     ///
@@ -74,15 +85,12 @@ impl FromStr for ImageEffect {
     /// assert_eq!("Motion-Blur".parse(), Ok(ImageEffect::MotionBlur));
     /// assert!("blur".parse::<ImageEffect>().is_err());
     /// ```
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, UnknownEffect> {
         let key = s.trim().to_ascii_lowercase().replace('-', "_");
         Self::ALL
             .into_iter()
             .find(|e| e.name() == key)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Self::ALL.iter().map(|e| e.name()).collect();
-                format!("unknown effect {s:?}: the effects are {}", names.join(", "))
-            })
+            .ok_or_else(|| UnknownEffect { name: s.to_owned() })
     }
 }
 

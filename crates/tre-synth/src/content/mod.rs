@@ -95,21 +95,33 @@ impl fmt::Display for Content {
     }
 }
 
+/// A name that is no [`Content`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown content {name:?}: one of {}", Content::names())]
+pub struct UnknownContent {
+    /// The name given.
+    pub name: String,
+}
+
 impl FromStr for Content {
-    type Err = String;
+    type Err = UnknownContent;
 
     /// A content switch by name (case does not matter).
     ///
     /// ```
     /// use tre_synth::content::Content;
     /// assert_eq!("Indoor".parse(), Ok(Content::Indoor));
-    /// assert!("forest".parse::<Content>().unwrap_err().contains("urban"));
+    /// let unknown = "forest".parse::<Content>().unwrap_err();
+    /// assert_eq!(
+    ///     unknown.to_string(),
+    ///     "unknown content \"forest\": one of natural, indoor, urban, mixed"
+    /// );
     /// ```
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, UnknownContent> {
         let key = s.trim().to_ascii_lowercase();
         Self::ALL
             .into_iter()
             .find(|c| c.name() == key)
-            .ok_or_else(|| format!("unknown content {s:?}: one of {}", Self::names()))
+            .ok_or_else(|| UnknownContent { name: s.to_owned() })
     }
 }
