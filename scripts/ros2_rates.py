@@ -1,18 +1,19 @@
-"""Receive rates of `tre ros2`'s outputs at a stock subscriber of another DDS implementation.
+"""Receive rates of `tre ros2`'s outputs at stock subscribers of other DDS implementations.
 
-A ROS 2 peer written with a DDS implementation the node does not use (Eclipse Cyclone DDS or
-Dust DDS, both from PyPI), at its default settings: it publishes real depth frames, their
-camera_info and odometry at a fixed rate, with each frame stamped with the wall clock when it
-is sent, and counts what arrives on the node's outputs. For every output topic it prints how
-many of the sent frames came back and the latency from the frame's own stamp (p50, p99).
+A ROS 2 peer built on a DDS implementation the node does not use, at its default settings:
+Eclipse Cyclone DDS (`--dds cyclone`, the `cyclonedds` wheel; ROS 2 message types written out
+in scripts/ros2_rates_cyclone.py) or a real rclpy node over eProsima Fast DDS, ROS 2's default
+middleware (`--dds fastdds`, the `ros-*` wheels of ROS 2 Kilted; scripts/ros2_rates_rclpy.py).
+It publishes real depth frames, their camera_info and odometry at a fixed rate, each frame
+stamped with the wall clock when it is sent, and counts what arrives on the node's outputs: for
+every output topic, how many of the sent frames came back and the latency from the frame's own
+stamp (p50, p99).
 
     python scripts/ros2_rates.py --dds cyclone --domain 7 \
         --frames ../shared/data/real-rgbd-2/sevenscenes_redkitchen --hz 15 --count 90
 
-with `tre ros2 --domain-id 7 --odom-topic /odom --sensor kinect_v1 ...` running. The ROS 2
-message types are written out below field by field (their CDR is the wire format of every ROS 2
-DDS middleware); the DDS type names are ROS 2's (`sensor_msgs::msg::dds_::Image_`). The result
-is one JSON object on stdout.
+with `tre ros2 --domain-id 7 --odom-topic /odom --sensor kinect_v1 ...` running
+(scripts/ros2_rates.sh starts both). The result is one JSON object on stdout.
 """
 
 from __future__ import annotations
@@ -28,7 +29,16 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-TOPICS_OUT = ("roughness", "uncertainty", "traversal", "grid_map", "occupancy")
+TOPICS_OUT = (
+    "roughness",
+    "roughness/compressed",
+    "uncertainty",
+    "uncertainty/compressed",
+    "traversal",
+    "traversal/compressed",
+    "grid_map",
+    "occupancy",
+)
 
 
 def depth_le16(path: Path) -> tuple[int, int, bytes]:
@@ -107,7 +117,7 @@ def summary(sent: list[tuple[int, int]], tally: Tally, hz: float, meta: dict) ->
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--dds", choices=["cyclone", "dust"], default="cyclone")
+    ap.add_argument("--dds", choices=["cyclone", "fastdds"], default="cyclone")
     ap.add_argument("--domain", type=int, default=0)
     ap.add_argument("--frames", type=Path, required=True, help="folder with depth/ and poses/")
     ap.add_argument("--count", type=int, default=90, help="frames to send")
@@ -118,6 +128,12 @@ def main() -> None:
         choices=["reliable", "best-effort"],
         default="reliable",
         help="of the subscriptions to the outputs (the inputs are published reliable)",
+    )
+    ap.add_argument(
+        "--subscribe",
+        default=",".join(TOPICS_OUT),
+        help="output topics to subscribe to, under /tre (a raw 640x480 image in the same socket "
+        "buffer delays the small messages beside it)",
     )
     ap.add_argument("--fx", type=float, default=585.0)
     ap.add_argument("--fy", type=float, default=585.0)
@@ -133,9 +149,13 @@ def main() -> None:
     if args.dds == "cyclone":
         from ros2_rates_cyclone import Peer
     else:
-        from ros2_rates_dust import Peer
+        from ros2_rates_rclpy import Peer
     tally = Tally()
-    peer = Peer(args.domain, args.reliability == "reliable", tally)
+    topics = [t for t in args.subscribe.split(",") if t]
+    unknown = set(topics) - set(TOPICS_OUT)
+    if unknown:
+        raise SystemExit(f"--subscribe: unknown topics {sorted(unknown)}")
+    peer = Peer(args.domain, args.reliability == "reliable", tally, topics)
     for w, h, depth, _ in frames:
         peer.prepare(w, h, depth)
     t0 = time.time()

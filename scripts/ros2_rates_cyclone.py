@@ -54,6 +54,13 @@ class Image(IdlStruct, typename="sensor_msgs::msg::dds_::Image_"):
 
 
 @dataclass
+class CompressedImage(IdlStruct, typename="sensor_msgs::msg::dds_::CompressedImage_"):
+    header: Header
+    format: str
+    data: sequence[uint8]
+
+
+@dataclass
 class RegionOfInterest(IdlStruct, typename="sensor_msgs::msg::dds_::RegionOfInterest_"):
     x_offset: uint32 = 0
     y_offset: uint32 = 0
@@ -187,8 +194,11 @@ class GridMap(IdlStruct, typename="grid_map_msgs::msg::dds_::GridMap_"):
 
 OUTPUTS = {
     "roughness": Image,
+    "roughness/compressed": CompressedImage,
     "uncertainty": Image,
+    "uncertainty/compressed": CompressedImage,
     "traversal": Image,
+    "traversal/compressed": CompressedImage,
     "grid_map": GridMap,
     "occupancy": OccupancyGrid,
 }
@@ -199,7 +209,7 @@ XCDR1 = Policy.DataRepresentation(use_cdrv0_representation=True)
 class Peer:
     """Publishes depth, camera_info and odometry; counts the node's outputs into `tally`."""
 
-    def __init__(self, domain: int, reliable: bool, tally) -> None:
+    def __init__(self, domain: int, reliable: bool, tally, topics: list[str]) -> None:
         self.dp = DomainParticipant(domain)
         self.serialised: dict[int, bytearray] = {}
         # A ROS 2 publisher's default profile: reliable, volatile, keep the last 10.
@@ -210,25 +220,28 @@ class Peer:
         self.info = self._writer("rt/camera/depth/camera_info", CameraInfo, pub_qos)
         self.odom = self._writer("rt/odom", Odometry, pub_qos)
         # The subscriber's: the default profile (reliable, keep 10) or the sensor-data one
-        # (best effort, keep 5); the occupancy grid transient-local as Nav2's map subscriber.
+        # (best effort, keep 5); the occupancy grid reliable and transient-local as Nav2's map
+        # subscriber, keeping 10 (not Nav2's 1) so that every grid is counted.
         if reliable:
             sub = [Policy.Reliability.Reliable(duration(seconds=1)), Policy.History.KeepLast(10)]
         else:
             sub = [Policy.Reliability.BestEffort, Policy.History.KeepLast(5)]
         self.readers = []
         for name, kind in OUTPUTS.items():
+            if name not in topics:
+                continue
             policies = list(sub)
             if name == "occupancy":
                 policies = [
                     Policy.Reliability.Reliable(duration(seconds=1)),
-                    Policy.History.KeepLast(1),
+                    Policy.History.KeepLast(10),
                     Policy.Durability.TransientLocal,
                 ]
             topic = Topic(self.dp, f"rt/tre/{name}", kind)
 
             reader = DataReader(self.dp, topic, qos=Qos(*policies, XCDR1))
             self.readers.append((name, reader))
-        self.roughness = self.readers[0][1]
+        self.first = self.readers[0][1]
         # Taken on a thread of the peer's own, so Cyclone's receive threads never wait on Python.
         self.running = True
         self.taker = threading.Thread(target=self._take, args=(tally,), daemon=True)
@@ -252,7 +265,7 @@ class Peer:
             bool(self.depth.get_matched_subscriptions())
             and bool(self.info.get_matched_subscriptions())
             and bool(self.odom.get_matched_subscriptions())
-            and bool(self.roughness.get_matched_publications())
+            and bool(self.first.get_matched_publications())
         )
 
     def publish(self, stamp, w, h, depth, k, pose) -> None:

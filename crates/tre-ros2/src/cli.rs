@@ -108,6 +108,11 @@ pub struct Ros2Args {
     /// the bytes).
     #[arg(long, value_enum, default_value = "32fc1")]
     pub roughness_encoding: RoughnessImage,
+    /// Do not publish the images as PNGs on `{topic}/compressed` (sensor_msgs/CompressedImage,
+    /// image_transport's `compressed`: the roughness as mono16 millimetres), which a subscriber
+    /// with stock socket buffers receives where it loses raw 640×480 images.
+    #[arg(long)]
+    pub no_compressed: bool,
     /// Prefix of the output topics (roughness, uncertainty, traversal, grid_map, occupancy).
     #[arg(long, default_value = "/tre")]
     pub output_prefix: String,
@@ -196,6 +201,7 @@ impl Ros2Args {
                 RoughnessImage::Float32 => RoughnessEncoding::Float32,
                 RoughnessImage::Mono16 => RoughnessEncoding::Mono16Mm,
             },
+            compressed: !self.no_compressed,
         }
     }
 

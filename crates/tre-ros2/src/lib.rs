@@ -5,8 +5,10 @@
 //! metres, REP 118), a colour image in the rgb and rgbd modes, their `CameraInfo` and
 //! optionally a pose (`nav_msgs/Odometry` or `geometry_msgs/PoseStamped`); it publishes, with
 //! the input's header, roughness (`32FC1` metres, or `mono16` millimetres), on request the
-//! uncertainty (`32FC1`, metres) and the three-state map (`mono8`), and with a pose the fused map as `grid_map_msgs/GridMap` and
-//! `nav_msgs/OccupancyGrid` (transient-local, for Nav2's static layer).
+//! uncertainty (`32FC1`, metres) and the three-state map (`mono8`), each also as a PNG
+//! `sensor_msgs/CompressedImage` on `{topic}/compressed`, and with a pose the fused map as
+//! `grid_map_msgs/GridMap` and `nav_msgs/OccupancyGrid` (transient-local, for Nav2's static
+//! layer).
 //!
 //! - [`convert`]: messages to the pipeline's inputs (the way back is `tre_record::encode`);
 //! - [`Processor`]: one frame through the pipeline and the map, without DDS;
@@ -21,6 +23,7 @@ compile_error!(
 
 #[cfg(feature = "cli")]
 mod cli;
+mod compressed;
 pub mod convert;
 mod error;
 mod limiter;

@@ -9,7 +9,7 @@ use tre_core::map::{
 use tre_core::roughness::noise::SensorNoise;
 use tre_pipeline::{FrameInput, Pipeline, PipelineConfig, PipelineError};
 use tre_record::encode;
-use tre_record::msgs::{CameraInfo, GridMap, Header, Image, OccupancyGrid};
+use tre_record::msgs::{CameraInfo, CompressedImage, GridMap, Header, Image, OccupancyGrid};
 
 use crate::convert;
 use crate::error::InputError;
@@ -51,6 +51,9 @@ pub struct Outputs {
     /// Three-state traversability, `mono8` (0 unknown, 1 traversable, 2 hazard), when asked
     /// for.
     pub traversal: Option<Image>,
+    /// The images above as PNGs (`{topic}/compressed`), when asked for: the roughness, the
+    /// uncertainty and the three-state image, in that order, each when its image is there.
+    pub compressed: Vec<(&'static str, CompressedImage)>,
     /// The fused map after this frame, when a pose came with it.
     pub grid: Option<GridMap>,
     /// The map's three-state layer for Nav2.
@@ -59,6 +62,21 @@ pub struct Outputs {
     pub layers: Option<Layers>,
     /// Why the frame was not fused into the map (the map keeps what it had).
     pub map_error: Option<MapError>,
+}
+
+impl Outputs {
+    /// The PNGs of the roughness, the uncertainty and the three-state image (those there).
+    fn pngs(&self) -> Vec<(&'static str, CompressedImage)> {
+        let images = [
+            ("roughness", Some(&self.roughness)),
+            ("uncertainty", self.uncertainty.as_ref()),
+            ("traversal", self.traversal.as_ref()),
+        ];
+        images
+            .into_iter()
+            .filter_map(|(name, img)| Some((name, crate::compressed::png(img?)?)))
+            .collect()
+    }
 }
 
 /// How the roughness image is encoded.
@@ -74,7 +92,7 @@ pub enum RoughnessEncoding {
 }
 
 /// The per-frame images published beside the roughness.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ImageOutputs {
     /// The uncertainty image (`32FC1`, metres; needs a sensor model).
     pub uncertainty: bool,
@@ -82,15 +100,29 @@ pub struct ImageOutputs {
     pub traversal: bool,
     /// The roughness image's encoding.
     pub roughness: RoughnessEncoding,
+    /// Each image also as a PNG `sensor_msgs/CompressedImage` on `{topic}/compressed`.
+    pub compressed: bool,
+}
+
+impl Default for ImageOutputs {
+    /// The roughness alone, `32FC1`, and its PNG.
+    fn default() -> Self {
+        Self {
+            uncertainty: false,
+            traversal: false,
+            roughness: RoughnessEncoding::Float32,
+            compressed: true,
+        }
+    }
 }
 
 impl ImageOutputs {
-    /// Every image, the roughness as `32FC1`.
+    /// Every image, the roughness as `32FC1`, and their PNGs.
     pub fn all() -> Self {
         Self {
             uncertainty: true,
             traversal: true,
-            roughness: RoughnessEncoding::Float32,
+            ..Self::default()
         }
     }
 
@@ -276,11 +308,15 @@ impl Processor {
             traversal: maps
                 .filter(|_| self.images.traversal)
                 .map(|m| encode::traversal_image(&header, &m.traversal)),
+            compressed: Vec::new(),
             grid: None,
             occupancy: None,
             layers: None,
             map_error: None,
         };
+        if self.images.compressed {
+            outputs.compressed = outputs.pngs();
+        }
         if let (Some(state), Some(pose), Some(depth), Some(sensor)) =
             (&mut self.map, f.pose, &input.depth_m, self.sensor)
         {

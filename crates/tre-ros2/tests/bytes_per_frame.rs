@@ -102,6 +102,14 @@ fn published(dir: &std::path::Path, images: ImageOutputs) -> Vec<(&'static str, 
     if let Some(t) = &o.traversal {
         sizes.push(("traversal", to_cdr(t).unwrap().len()));
     }
+    for (name, png) in &o.compressed {
+        let topic = match *name {
+            "roughness" => "roughness/compressed",
+            "uncertainty" => "uncertainty/compressed",
+            _ => "traversal/compressed",
+        };
+        sizes.push((topic, to_cdr(png).unwrap().len()));
+    }
     sizes.push(("grid_map", to_cdr(o.grid.as_ref().unwrap()).unwrap().len()));
     sizes.push((
         "occupancy",
@@ -140,15 +148,26 @@ fn the_defaults_send_the_roughness_alone_and_mono16_halves_it() {
             "roughness",
             "uncertainty",
             "traversal",
+            "roughness/compressed",
+            "uncertainty/compressed",
+            "traversal/compressed",
             "grid_map",
             "occupancy"
         ]
     );
-    assert_eq!(names(&default), ["roughness", "grid_map", "occupancy"]);
+    assert_eq!(
+        names(&default),
+        ["roughness", "roughness/compressed", "grid_map", "occupancy"]
+    );
     // 640×480 pixels: 4 bytes each as 32FC1, 2 as mono16, plus the header and encoding.
     let (r32, r16) = (default[0].1, mono16[0].1);
     assert!((4 * 640 * 480..4 * 640 * 480 + 200).contains(&r32), "{r32}");
     assert!((2 * 640 * 480..2 * 640 * 480 + 200).contains(&r16), "{r16}");
-    assert_eq!(default[1..], all[3..], "the map's messages do not change");
+    assert_eq!(default[2..], all[6..], "the map's messages do not change");
+    // The PNGs fit a stock Linux socket buffer (net.core.rmem_default, 208 KiB), which the raw
+    // images do not.
+    for (name, bytes) in all.iter().filter(|(n, _)| n.ends_with("/compressed")) {
+        assert!(*bytes < 208 * 1024, "{name}: {bytes} bytes");
+    }
     assert!(total(&default) + 4 * 640 * 480 < total(&all));
 }

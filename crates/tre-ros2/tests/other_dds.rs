@@ -1,8 +1,13 @@
-//! The node against a ROS 2 peer of another DDS implementation at its stock settings: Eclipse
-//! Cyclone DDS (the `cyclonedds` wheel from PyPI, through `scripts/ros2_rates.py`) publishes real
-//! kitchen depth frames, camera_info and odometry and subscribes to the roughness, the grid map
-//! and the occupancy grid with ROS 2's default subscription profile (reliable, keep the last
-//! 10). Every message the node publishes must reach it, with the stamp of its frame.
+//! The node against ROS 2 peers of other DDS implementations at their stock settings
+//! (`scripts/ros2_rates.py`): they publish real kitchen depth frames, camera_info and odometry
+//! and subscribe to the node's outputs with ROS 2's default subscription profile (reliable, keep
+//! the last 10). Every message the node publishes must reach them, with the stamp of its frame:
+//!
+//! - Eclipse Cyclone DDS (the `cyclonedds` wheel): the roughness, its PNG, the grid map and the
+//!   occupancy grid;
+//! - a real rclpy node over eProsima Fast DDS, ROS 2's default middleware (the `ros-*` wheels of
+//!   ROS 2 Kilted): the roughness's PNG and the occupancy grid, which fit its stock socket
+//!   buffer (the raw 1.2 MB roughness does not; docs/ros2.md).
 //!
 //! Python: `TRE_DDS_PYTHON`, else `.ci/.venv-py` as `.ci/run` makes it (with
 //! `scripts/requirements-dds.txt`). Skipped without it or without `../shared`, unless
@@ -27,20 +32,20 @@ fn required() -> bool {
     std::env::var("TRE_REQUIRE_DDS").is_ok_and(|v| v == "1")
 }
 
-/// A Python that imports the peer's packages, or why there is none.
-fn python() -> Result<PathBuf, String> {
+/// A Python that imports the peer's packages (`imports`), or why there is none.
+fn python(imports: &str) -> Result<PathBuf, String> {
     let py = std::env::var_os("TRE_DDS_PYTHON")
         .filter(|p| !p.is_empty())
         .map_or_else(|| root().join(".ci/.venv-py/bin/python"), PathBuf::from);
     let ok = Command::new(&py)
-        .args(["-c", "import cyclonedds, numpy, PIL"])
+        .args(["-c", &format!("import {imports}, numpy, PIL")])
         .output()
         .map_err(|e| format!("{}: {e}", py.display()))?;
     if ok.status.success() {
         Ok(py)
     } else {
         Err(format!(
-            "{} cannot import cyclonedds, numpy and PIL (scripts/requirements-dds.txt): {}",
+            "{} cannot import {imports}, numpy and PIL (scripts/requirements-dds.txt): {}",
             py.display(),
             String::from_utf8_lossy(&ok.stderr)
         ))
@@ -89,9 +94,18 @@ fn start_node(dir: &Path, domain: u16) -> tre_ros2::RunningNode {
     .unwrap()
 }
 
-#[test]
-fn every_published_message_reaches_a_stock_cyclone_dds_subscriber() {
-    let (py, dir) = match (python(), kitchen()) {
+/// The peer's report and the node's counts: (received, published, fused).
+struct Run {
+    report: serde_json::Value,
+    received: u64,
+    published: u64,
+    fused: u64,
+}
+
+/// Runs the node and the `dds` peer (importing `imports`) subscribed to `topics`; `None`
+/// (skipped) without the peer or the frames.
+fn run(dds: &str, imports: &str, domain: u16, topics: &str) -> Option<Run> {
+    let (py, dir) = match (python(imports), kitchen()) {
         (Ok(py), Some(dir)) => (py, dir),
         (py, dir) => {
             let why = format!(
@@ -101,14 +115,20 @@ fn every_published_message_reaches_a_stock_cyclone_dds_subscriber() {
             );
             assert!(!required(), "TRE_REQUIRE_DDS=1 but {why}");
             eprintln!("skipped: {why}");
-            return;
+            return None;
         }
     };
-    let domain = 60 + (std::process::id() % 60) as u16;
     let node = start_node(&dir, domain);
     let out = Command::new(&py)
         .arg(root().join("scripts/ros2_rates.py"))
-        .args(["--dds", "cyclone", "--domain", &domain.to_string()])
+        .args([
+            "--dds",
+            dds,
+            "--domain",
+            &domain.to_string(),
+            "--subscribe",
+            topics,
+        ])
         .arg("--frames")
         .arg(&dir)
         .args(["--count", "15", "--step", "5", "--hz", "5", "--reliability"])
@@ -116,17 +136,15 @@ fn every_published_message_reaches_a_stock_cyclone_dds_subscriber() {
         .output()
         .unwrap();
     let stats = node.stats();
-    let (published, fused) = (
-        stats.published.load(Ordering::Relaxed),
-        stats.fused.load(Ordering::Relaxed),
+    let count = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
+    let (received, published, fused) = (
+        count(&stats.received),
+        count(&stats.published),
+        count(&stats.fused),
     );
-    let received = stats.received.load(Ordering::Relaxed);
     drop(node.stop());
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "the Cyclone DDS peer failed: {stderr}"
-    );
+    assert!(out.status.success(), "the {dds} peer failed: {stderr}");
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     eprintln!("{report}\nnode: received {received}, published {published}, fused {fused}");
     assert_eq!(
@@ -134,8 +152,47 @@ fn every_published_message_reaches_a_stock_cyclone_dds_subscriber() {
         "the node received {received} of 15 depth frames"
     );
     assert!(published > 0 && fused > 0, "nothing published: {report}");
-    let got = |topic: &str| report["topics"][topic]["received"].as_u64().unwrap_or(0);
-    assert_eq!(got("roughness"), published, "roughness: {report}");
-    assert_eq!(got("grid_map"), fused, "grid_map: {report}");
-    assert_eq!(got("occupancy"), fused, "occupancy: {report}");
+    Some(Run {
+        report,
+        received,
+        published,
+        fused,
+    })
+}
+
+impl Run {
+    fn got(&self, topic: &str) -> u64 {
+        self.report["topics"][topic]["received"]
+            .as_u64()
+            .unwrap_or(0)
+    }
+}
+
+#[test]
+fn every_published_message_reaches_a_stock_cyclone_dds_subscriber() {
+    let domain = 60 + (std::process::id() % 40) as u16 * 2;
+    let topics = "roughness,roughness/compressed,grid_map,occupancy";
+    let Some(r) = run("cyclone", "cyclonedds", domain, topics) else {
+        return;
+    };
+    assert_eq!(r.received, 15);
+    for (topic, want) in [
+        ("roughness", r.published),
+        ("roughness/compressed", r.published),
+        ("grid_map", r.fused),
+        ("occupancy", r.fused),
+    ] {
+        assert_eq!(r.got(topic), want, "{topic}: {}", r.report);
+    }
+}
+
+#[test]
+fn the_roughness_png_and_the_occupancy_grid_reach_a_stock_rclpy_fast_dds_subscriber() {
+    let domain = 61 + (std::process::id() % 40) as u16 * 2;
+    let topics = "roughness/compressed,occupancy";
+    let Some(r) = run("fastdds", "rclpy, sensor_msgs, nav_msgs", domain, topics) else {
+        return;
+    };
+    assert_eq!(r.got("roughness/compressed"), r.published, "{}", r.report);
+    assert_eq!(r.got("occupancy"), r.fused, "{}", r.report);
 }

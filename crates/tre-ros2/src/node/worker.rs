@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use ros2_client::{MessageTypeName, Node, Publisher};
 use tre_core::map::Pose as MapPose;
-use tre_record::msgs::{GridMap, Image, OccupancyGrid, RosMessage, Time};
+use tre_record::msgs::{CompressedImage, GridMap, Image, OccupancyGrid, RosMessage, Time};
 use tre_record::{now_ns, Recorder};
 
 use super::{dds, name, output_qos, NodeConfig, Recorded, Shared, WorkerResult};
@@ -20,6 +20,8 @@ pub(super) struct Publishers {
     roughness: Publisher<Image>,
     uncertainty: Publisher<Image>,
     traversal: Publisher<Image>,
+    /// `{topic}/compressed` of the roughness, the uncertainty and the three-state image.
+    compressed: [(&'static str, Publisher<CompressedImage>); 3],
     grid: Publisher<GridMap>,
     occupancy: Publisher<OccupancyGrid>,
 }
@@ -43,6 +45,11 @@ impl Publishers {
             roughness: make(node, &format!("{prefix}/roughness"), false)?,
             uncertainty: make(node, &format!("{prefix}/uncertainty"), false)?,
             traversal: make(node, &format!("{prefix}/traversal"), false)?,
+            compressed: [
+                ("roughness", make(node, &format!("{prefix}/roughness/compressed"), false)?),
+                ("uncertainty", make(node, &format!("{prefix}/uncertainty/compressed"), false)?),
+                ("traversal", make(node, &format!("{prefix}/traversal/compressed"), false)?),
+            ],
             grid: make(node, &format!("{prefix}/grid_map"), false)?,
             occupancy: make(node, &format!("{prefix}/occupancy"), true)?,
             prefix,
@@ -53,6 +60,11 @@ impl Publishers {
         send(&self.roughness, "roughness", Some(&o.roughness));
         send(&self.uncertainty, "uncertainty", o.uncertainty.as_ref());
         send(&self.traversal, "traversal", o.traversal.as_ref());
+        for (name, img) in &o.compressed {
+            if let Some((_, p)) = self.compressed.iter().find(|(n, _)| n == name) {
+                send(p, "compressed image", Some(img));
+            }
+        }
         send(&self.grid, "grid_map", o.grid.as_ref());
         send(&self.occupancy, "occupancy", o.occupancy.as_ref());
     }
@@ -220,6 +232,9 @@ fn write_outputs(
     }
     if let Some(t) = &out.traversal {
         r.ros(&format!("{p}/traversal"), t, &stamp, ns)?;
+    }
+    for (name, img) in &out.compressed {
+        r.ros(&format!("{p}/{name}/compressed"), img, &stamp, ns)?;
     }
     if let Some(g) = &out.grid {
         r.ros(&format!("{p}/grid_map"), g, &stamp, ns)?;
