@@ -4,13 +4,13 @@
 # scripts/ros2_rates.py against it and prints the peer's JSON, then the node's own count.
 #
 #   PY=/path/to/venv/bin/python scripts/ros2_rates.sh cyclone 15 90 reliable [tre ros2 options]
-#   scripts/ros2_rates.sh dust 15 90 best-effort [tre ros2 options]
+#   PY=... scripts/ros2_rates.sh fastdds 15 90 best-effort [tre ros2 options]
 #
-# cyclone: scripts/ros2_rates.py in Eclipse Cyclone DDS; dust: tools/ros2-dust-peer in Dust DDS
-# (DUST_PEER: its binary). PY: a Python with the packages of scripts/requirements-dds.txt.
+# cyclone: the peer in Eclipse Cyclone DDS; fastdds: a real rclpy node over Fast DDS. PY: a
+# Python with the packages of scripts/requirements-dds.txt (and requirements-rclpy.txt).
 # SUBSCRIBE: the output topics the peer subscribes to (default: all); SHOW_LOG=1: the node's
-# most frequent log lines. TRE: the binary (default
-# target/release/tre). FRAMES: the kitchen sequence (default ../shared/data/real-rgbd-2/...).
+# most frequent log lines. TRE: the binary (default target/release/tre). FRAMES: the kitchen
+# sequence (default ../shared/data/real-rgbd-2/sevenscenes_redkitchen).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 dds=${1:-cyclone} hz=${2:-15} count=${3:-90} rel=${4:-reliable}
@@ -26,14 +26,8 @@ duration=$("$py" -c "print($count / $hz + 45)")
     --map-frame world --duration-s "$duration" "$@" >"$log.out" 2>"$log.err" &
 node=$!
 trap 'kill $node 2>/dev/null || true; rm -f "$log" "$log.out" "$log.err"' EXIT
-if [ "$dds" = dust ]; then
-    # tools/ros2-dust-peer, built with `cargo build --release` in its folder.
-    peer=${DUST_PEER:-tools/ros2-dust-peer/target/release/ros2-dust-peer}
-else
-    peer="$py scripts/ros2_rates.py --dds $dds"
-fi
-$peer --domain "$domain" --frames "$frames" --hz "$hz" --count "$count" --reliability "$rel" \
-    ${SUBSCRIBE:+--subscribe "$SUBSCRIBE"}
+"$py" scripts/ros2_rates.py --dds "$dds" --domain "$domain" --frames "$frames" --hz "$hz" \
+    --count "$count" --reliability "$rel" ${SUBSCRIBE:+--subscribe "$SUBSCRIBE"}
 kill -INT $node 2>/dev/null || true
 wait $node || true
 echo "node: $(tail -n 1 "$log.out")"
