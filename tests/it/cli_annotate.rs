@@ -3,24 +3,8 @@
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-use crate::common::real;
-
-fn tre(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tre"))
-        .args(args)
-        .output()
-        .expect("runs tre")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use crate::common::{real, s, stderr, tre};
 
 /// Runs annotate and expects failure with `needle` in the message and no panic.
 fn expect_error(args: &[&str], needle: &str) {

@@ -14,11 +14,7 @@ use crate::common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use common::{real, Server};
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
+use common::{real, repo_root, Server};
 
 /// What the browser test needs and this machine lacks, if anything.
 fn missing_prerequisite() -> Option<String> {
@@ -34,7 +30,7 @@ fn missing_prerequisite() -> Option<String> {
     if !Path::new(&chromium).exists() {
         return Some(format!("no Chromium at {chromium}"));
     }
-    let playwright = root().join("tests/browser/node_modules/playwright-core");
+    let playwright = repo_root().join("tests/browser/node_modules/playwright-core");
     if !playwright.exists() {
         return Some(format!("{} is missing", playwright.display()));
     }
@@ -64,11 +60,11 @@ fn demo_page_renders_roughness_streams_and_shows_errors() {
     crate::common::skip_unless_shared!("data/real-rgbd");
     let server = Server::start(&[]);
     let out = Command::new("node")
-        .arg(root().join("tests/browser/demo.mjs"))
+        .arg(repo_root().join("tests/browser/demo.mjs"))
         .arg(server.url())
         .arg(image())
         .arg(real("metric3d_nyu/depth/sync_depth_00000.png"))
-        .arg(root().join("cameras/real-rgbd_metric3d_nyu.json"))
+        .arg(repo_root().join("cameras/real-rgbd_metric3d_nyu.json"))
         // The page's sensor choices must be the library's presets, in order.
         .env("TRE_SENSOR_PRESETS", sensor_presets())
         .output()
@@ -84,7 +80,7 @@ fn demo_page_renders_roughness_streams_and_shows_errors() {
 
 /// The demo page's source, as the server embeds it.
 fn demo_html() -> String {
-    std::fs::read_to_string(root().join("crates/tre-server/src/demo/index.html"))
+    std::fs::read_to_string(repo_root().join("crates/tre-server/src/demo/index.html"))
         .expect("the demo page")
 }
 

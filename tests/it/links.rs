@@ -7,6 +7,8 @@
 use std::path::{Component, Path, PathBuf};
 use std::process::Command;
 
+use crate::common::repo_root;
+
 /// A cited path is checked when it starts with one of these: the repository's top-level folders,
 /// and `../shared/` (the shared data beside a clone: checked where it is there, in the folder
 /// `common::shared_root` names; where it is not, the test says so and leaves those paths
@@ -45,11 +47,6 @@ struct Cited {
     line: usize,
     target: String,
     link: bool,
-}
-
-/// The repository's root.
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
 /// The files git tracks or would track (untracked but not ignored) that exist, relative to the
@@ -358,20 +355,20 @@ fn link_resolves(root: &Path, shared: Option<&Path>, file: &Path, target: &str) 
 /// broken reference as `file:line: path`.
 #[test]
 fn every_link_and_cited_path_resolves() {
-    let root = root();
+    let root = repo_root();
     let shared = crate::common::shared_data("");
     let mut broken = Vec::new();
     let mut checked = 0;
-    for file in repository_files(&root) {
+    for file in repository_files(root) {
         let Ok(text) = std::fs::read_to_string(root.join(&file)) else {
             continue;
         };
         for c in citations(&file, &text) {
             checked += 1;
             let ok = if c.link {
-                link_resolves(&root, shared.as_deref(), &file, &c.target)
+                link_resolves(root, shared.as_deref(), &file, &c.target)
             } else {
-                path_resolves(&root, shared.as_deref(), &file, &c.target)
+                path_resolves(root, shared.as_deref(), &file, &c.target)
             };
             if !ok {
                 broken.push(format!("{}:{}: {}", file.display(), c.line, c.target));

@@ -8,7 +8,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use crate::common::{check_mcap, shared_data};
+use crate::common::{check_mcap, npy_f32, shared_data};
 
 /// Six kitchen frames of `src` (`../shared/data/real-rgbd-2/sevenscenes_redkitchen`) in a
 /// sequence folder of the layout `tre map` reads, the fourth pose broken (a scaled rotation).
@@ -33,16 +33,6 @@ fn sequence(src: &Path, dir: &Path) {
     let camera = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("cameras/real-rgbd-2_sevenscenes_redkitchen.json");
     std::fs::copy(camera, dir.join("intrinsics.json")).unwrap();
-}
-
-/// A `.npy` of float32 written by `tre map`: its shape and values.
-fn npy_f32(path: &Path) -> ((usize, usize), Vec<f32>) {
-    let a = tre::io::npy::read_npy(std::fs::File::open(path).unwrap()).unwrap();
-    let g = tre::io::npy_grid(a).unwrap();
-    (
-        (g.height(), g.width()),
-        g.as_slice().iter().map(|&v| v as f32).collect(),
-    )
 }
 
 /// Layer `name` in `out`: 200 × 200, its PNG decoding to its `.npy` by the stated scale and

@@ -8,9 +8,7 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
+use crate::common::repo_root;
 
 /// The PNGs under `dir`, relative to the repository's root.
 fn pngs(dir: &Path, found: &mut BTreeSet<String>) {
@@ -19,14 +17,14 @@ fn pngs(dir: &Path, found: &mut BTreeSet<String>) {
         if path.is_dir() {
             pngs(&path, found);
         } else if path.extension().is_some_and(|e| e == "png") {
-            let rel = path.strip_prefix(root()).unwrap();
+            let rel = path.strip_prefix(repo_root()).unwrap();
             found.insert(rel.to_string_lossy().replace('\\', "/"));
         }
     }
 }
 
 fn manifest() -> serde_json::Value {
-    let text = std::fs::read_to_string(root().join("docs/pictures.json")).unwrap();
+    let text = std::fs::read_to_string(repo_root().join("docs/pictures.json")).unwrap();
     serde_json::from_str(&text).unwrap()
 }
 
@@ -34,13 +32,16 @@ fn manifest() -> serde_json::Value {
 fn every_committed_picture_names_its_command_and_the_committed_models() {
     let doc = manifest();
     let pictures = doc["pictures"].as_array().unwrap();
-    let models = tre::model::Manifest::read(&root().join("models")).unwrap();
+    let models = tre::model::Manifest::read(&repo_root().join("models")).unwrap();
     let key = tre::pipeline::models_key(&models);
     let mut listed = BTreeSet::new();
     for p in pictures {
         let path = p["path"].as_str().unwrap();
         assert!(listed.insert(path.to_owned()), "{path} listed twice");
-        assert!(root().join(path).is_file(), "{path} is listed but missing");
+        assert!(
+            repo_root().join(path).is_file(),
+            "{path} is listed but missing"
+        );
         let command = p["command"].as_str().unwrap_or_default();
         assert!(
             command.contains("tre ") || command.contains("cargo "),
@@ -59,20 +60,20 @@ fn every_committed_picture_names_its_command_and_the_committed_models() {
         }
         for page in p["shown_in"].as_array().unwrap() {
             let page = page.as_str().unwrap();
-            let text = std::fs::read_to_string(root().join(page)).unwrap();
+            let text = std::fs::read_to_string(repo_root().join(page)).unwrap();
             let name = Path::new(path).file_name().unwrap().to_str().unwrap();
             assert!(text.contains(name), "{page} does not show {path}");
         }
     }
     let mut committed = BTreeSet::new();
-    pngs(&root().join("docs"), &mut committed);
+    pngs(&repo_root().join("docs"), &mut committed);
     let unlisted: Vec<_> = committed.difference(&listed).collect();
     assert!(
         unlisted.is_empty(),
         "not in docs/pictures.json: {unlisted:?}"
     );
     // The README's pictures are among them.
-    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let readme = std::fs::read_to_string(repo_root().join("README.md")).unwrap();
     for shown in readme.split("](docs/").skip(1) {
         let path = format!("docs/{}", shown.split(')').next().unwrap());
         if path.ends_with(".png") {

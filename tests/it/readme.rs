@@ -5,10 +5,7 @@
 use std::path::Path;
 use std::process::Command;
 
-/// A file of the repository, as text.
-fn read(rel: &str) -> String {
-    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)).unwrap()
-}
+use crate::common::repo_text;
 
 /// The first fenced block of `doc` after the first line containing `marker`, line by line.
 fn block_after(doc: &str, marker: &str) -> Vec<String> {
@@ -39,7 +36,7 @@ fn tre_args(block: &[String], starts: &str) -> Vec<String> {
 
 #[test]
 fn readme_command_one_runs_and_prints_what_the_readme_and_cli_docs_say() {
-    let readme = read("README.md");
+    let readme = repo_text("README.md");
     let setup = block_after(&readme, "## Set-up: two commands");
     let mut args = tre_args(&setup, "cargo run --release --");
     assert_eq!(args[0], "infer", "{args:?}");
@@ -61,7 +58,7 @@ fn readme_command_one_runs_and_prints_what_the_readme_and_cli_docs_say() {
     let printed: Vec<&str> = stdout.lines().filter(|l| !l.starts_with("ms:")).collect();
     let said = block_after(&readme, "Command 1 prints");
     assert_eq!(printed, said, "README.md, 'Command 1 prints'");
-    let cli = block_after(&read("docs/cli.md"), "It runs the `geometric` mode");
+    let cli = block_after(&repo_text("docs/cli.md"), "It runs the `geometric` mode");
     assert_eq!(printed, cli, "docs/cli.md, `tre infer`");
     for f in [
         "roughness.png",
@@ -135,6 +132,6 @@ fn every_shipped_camera_file_reads_and_names_a_noise_model() {
     }
     // One per shared sequence: 3 of real-rgbd, 14 of real-rgbd-2, 2 of real-rgbd-3.
     assert_eq!(n, 19);
-    let sample = read("samples/tum_fr2_desk/camera.json");
-    assert_eq!(sample, read("cameras/real-rgbd_slambook2_ch7.json"));
+    let sample = repo_text("samples/tum_fr2_desk/camera.json");
+    assert_eq!(sample, repo_text("cameras/real-rgbd_slambook2_ch7.json"));
 }

@@ -5,26 +5,13 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::common::{real, shared_data};
+use crate::common::{real, s, shared_data, stderr, tre};
 use std::process::{Command, Output};
 
 mod eval;
 mod infer;
 mod models;
 mod record;
-
-fn tre(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tre"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .env("TRE_ORT_THREADS", "1")
-        .args(args)
-        .output()
-        .expect("runs tre")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// Runs `tre args`, which must fail with a message holding `needle` (and no panic).
 fn fails_saying(args: &[&str], needle: &str) {
@@ -36,8 +23,4 @@ fn fails_saying(args: &[&str], needle: &str) {
         err.contains(needle),
         "{args:?}: expected {needle:?} in {err}"
     );
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }

@@ -7,7 +7,7 @@ pub(crate) mod stream;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 /// A `tre serve` child process on 127.0.0.1, killed when dropped.
@@ -179,6 +179,60 @@ pub(crate) use skip_unless_shared;
 /// returns early unless they are there: [`skip_unless_shared`].
 pub(crate) fn real(rel: &str) -> PathBuf {
     shared_root().join("data/real-rgbd").join(rel)
+}
+
+/// The repository's root (the `tre` package's folder).
+pub(crate) fn repo_root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The text of `rel`, a file of the repository; failing that, a failure that names the file.
+pub(crate) fn repo_text(rel: &str) -> String {
+    let path = repo_root().join(rel);
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()))
+}
+
+/// The `tre` binary as a test runs it: from the package root, with one ORT thread.
+pub(crate) fn tre_command() -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_tre"));
+    command
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("TRE_ORT_THREADS", "1");
+    command
+}
+
+/// `tre ARGS` run to its end ([`tre_command`]): its status and output.
+pub(crate) fn tre(args: &[&str]) -> Output {
+    tre_command().args(args).output().expect("runs tre")
+}
+
+/// The stderr of a finished command, as text.
+pub(crate) fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A path as a command-line argument (the tests' paths are UTF-8).
+pub(crate) fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A multi-threaded runtime for a test's client.
+pub(crate) fn rt() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .unwrap()
+}
+
+/// A 2-D `.npy` written by `tre` (`tre map`'s layers, `--format npy` maps) as float32: its
+/// shape (rows, columns) and its values, row by row.
+pub(crate) fn npy_f32(path: &Path) -> ((usize, usize), Vec<f32>) {
+    let a = tre::io::npy::read_npy(std::fs::File::open(path).unwrap()).unwrap();
+    let g = tre::io::npy_grid(a).unwrap();
+    (
+        (g.height(), g.width()),
+        g.as_slice().iter().map(|&v| v as f32).collect(),
+    )
 }
 
 /// Runs `tre infer` with `args` writing a 16-bit PNG, and returns its raw grey+alpha values.

@@ -14,13 +14,10 @@ use super::Server;
 pub(crate) type Ws =
     tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
-/// A multi-threaded runtime for a test's client.
-pub(crate) fn rt() -> tokio::runtime::Runtime {
-    tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .unwrap()
-}
+/// [`super::rt`], here too for `benches/stream_memory.rs`, which takes its stream helpers from
+/// this module.
+#[allow(unused_imports)] // Only that bench takes it from here.
+pub(crate) use super::rt;
 
 /// Opens `/v1/stream` on `server`.
 pub(crate) async fn connect(server: &Server) -> Ws {

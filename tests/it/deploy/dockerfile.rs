@@ -13,7 +13,7 @@ pub(super) struct Instruction {
 }
 
 pub(super) fn dockerfile_text() -> String {
-    read("deploy/Dockerfile")
+    repo_text("deploy/Dockerfile")
 }
 
 // Hand-parsed: a Dockerfile is line-based; splitting lines and joining `\` ends is the format.
@@ -206,7 +206,7 @@ fn dockerfile_ships_the_models_and_exposes_the_container_port() {
             check.args
         );
     }
-    let ignore = read(".dockerignore");
+    let ignore = repo_text(".dockerignore");
     assert!(
         ignore.lines().any(|l| l.trim() == "target"),
         ".dockerignore must leave out target"
@@ -241,7 +241,7 @@ fn image_tag_is_the_crate_version_everywhere() {
     let build = format!("docker build -f deploy/Dockerfile -t {tag} .");
     for (file, text) in [
         ("deploy/Dockerfile", dockerfile_text()),
-        ("deploy/README.md", read("deploy/README.md")),
+        ("deploy/README.md", repo_text("deploy/README.md")),
     ] {
         assert!(text.contains(&build), "{file} documents `{build}`");
         for found in versions_after(&text, "tre:")

@@ -4,7 +4,7 @@
 use super::*;
 
 pub(super) fn yaml(rel: &str) -> Value {
-    serde_yaml_ng::from_str(&read(rel)).unwrap_or_else(|e| panic!("{rel} is not YAML: {e}"))
+    serde_yaml_ng::from_str(&repo_text(rel)).unwrap_or_else(|e| panic!("{rel} is not YAML: {e}"))
 }
 
 /// The value at a dotted path (`spec.template.spec`; a number indexes a sequence); panics naming

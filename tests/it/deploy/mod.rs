@@ -13,6 +13,8 @@ use std::sync::OnceLock;
 use serde_yaml_ng::Value;
 use tre::model::runtime::ORT_VERSION;
 
+use crate::common::repo_text;
+
 mod dockerfile;
 mod k8s;
 mod serve;
@@ -69,15 +71,6 @@ fn bytes(size: &str, k_is_1024: bool) -> u64 {
         other => panic!("size unit {other:?} in {size:?}"),
     };
     n * unit
-}
-
-fn repo(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
-}
-
-fn read(rel: &str) -> String {
-    let path = repo(rel);
-    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()))
 }
 
 /// Every `TRE_NAME` token in `text` (comments included).
@@ -199,8 +192,8 @@ fn logical_lines(text: &str, comments: &[char]) -> Vec<String> {
 
 #[test]
 fn readme_features_exist_in_cargo_toml() {
-    let readme = read("deploy/README.md");
-    let manifest = read("Cargo.toml");
+    let readme = repo_text("deploy/README.md");
+    let manifest = repo_text("Cargo.toml");
     let features: BTreeSet<&str> = readme
         .split("--features")
         .skip(1)

@@ -192,7 +192,7 @@ fn container_port_is_the_serve_default_port_serve() {
 #[test]
 fn probe_paths_are_in_the_openapi_document_serve() {
     let doc: serde_json::Value =
-        serde_json::from_str(&read("docs/openapi.json")).expect("docs/openapi.json is JSON");
+        serde_json::from_str(&repo_text("docs/openapi.json")).expect("docs/openapi.json is JSON");
     let paths = doc
         .get("paths")
         .and_then(serde_json::Value::as_object)
@@ -216,7 +216,7 @@ fn systemd_flags_and_variables_are_serve_options_serve() {
     assert_serve_flags(&long_flags(&exec.join(" ")), "tre.service ExecStart");
     assert_serve_env(unit_env(&service).into_keys(), "tre.service Environment=");
     assert_serve_env(
-        tre_vars(&read("deploy/systemd/tre.service")),
+        tre_vars(&repo_text("deploy/systemd/tre.service")),
         "deploy/systemd/tre.service",
     );
 }
@@ -227,7 +227,7 @@ fn deployment_flags_and_variables_are_serve_options_serve() {
     let c = container(&deploy);
     assert_serve_env(container_env(c).into_keys(), "deployment.yaml env");
     assert_serve_env(
-        tre_vars(&read("deploy/k8s/deployment.yaml")),
+        tre_vars(&repo_text("deploy/k8s/deployment.yaml")),
         "deploy/k8s/deployment.yaml",
     );
     let mut args = Vec::new();
@@ -252,7 +252,7 @@ fn dockerfile_and_readme_variables_are_serve_options_serve() {
         tre_vars(&final_text.join("\n")),
         "the Dockerfile's final stage",
     );
-    let readme = read("deploy/README.md");
+    let readme = repo_text("deploy/README.md");
     assert_serve_env(tre_vars(&readme), "deploy/README.md");
     let serve_lines: Vec<&str> = readme.lines().filter(|l| l.contains("tre serve")).collect();
     let flags = long_flags(&serve_lines.join("\n"));

@@ -7,7 +7,7 @@ use super::*;
 pub(super) fn unit_service() -> Vec<(String, String)> {
     let mut out = Vec::new();
     let mut section = String::new();
-    for full in logical_lines(&read("deploy/systemd/tre.service"), &['#', ';']) {
+    for full in logical_lines(&repo_text("deploy/systemd/tre.service"), &['#', ';']) {
         if full.starts_with('[') {
             section = full;
             continue;

@@ -8,6 +8,7 @@
 //! `cargo bench --bench loadtest` (`benches/loadtest.rs`), on a quiet machine.
 
 use crate::common;
+use crate::common::tre_command;
 
 use std::net::{SocketAddr, TcpListener};
 use std::process::Command;
@@ -244,10 +245,6 @@ fn a_sweep_finds_the_knee_where_p99_leaves_the_objective() {
     );
 }
 
-fn tre() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_tre"))
-}
-
 /// Runs `cmd`, asserts that it succeeded (showing its output if not) and returns its stdout.
 fn succeeds(cmd: &mut Command) -> String {
     let out = cmd.output().expect("runs");
@@ -271,7 +268,7 @@ fn the_cli_writes_json_and_svg_and_compares_with_an_earlier_run() {
     std::fs::write(&frame, b"\x89PNG\r\n\x1a\nfake").expect("write");
     let url = format!("http://{addr}");
     let stdout = succeeds(
-        tre()
+        tre_command()
             .args(["loadtest", "--url", &url, "--rate", "20", "--duration", "1"])
             .arg("--frame")
             .arg(&frame)
@@ -287,7 +284,7 @@ fn the_cli_writes_json_and_svg_and_compares_with_an_earlier_run() {
     let plot = std::fs::read_to_string(&svg).expect("svg written");
     assert!(plot.starts_with("<svg") && plot.contains("percentile (log scale of nines)"));
     let stdout = succeeds(
-        tre()
+        tre_command()
             .args(["loadtest", "--url", &url, "--requests", "5"])
             .arg("--frame")
             .arg(&frame)
@@ -298,13 +295,16 @@ fn the_cli_writes_json_and_svg_and_compares_with_an_earlier_run() {
         stdout.contains("compared with") && stdout.contains("new/old"),
         "{stdout}"
     );
-    let help = tre().args(["loadtest", "--help"]).output().expect("runs");
+    let help = tre_command()
+        .args(["loadtest", "--help"])
+        .output()
+        .expect("runs");
     let help = String::from_utf8_lossy(&help.stdout);
     assert!(
         help.contains("--allow-remote") && help.contains("loopback"),
         "{help}"
     );
-    let bad = tre()
+    let bad = tre_command()
         .args(["loadtest", "--url", "ftp://127.0.0.1:1"])
         .output()
         .expect("runs");

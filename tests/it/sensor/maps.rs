@@ -149,8 +149,7 @@ fn http_and_stream_answer_the_sensor_maps() {
             .collect(),
     )
     .to_string();
-    let rt = tokio::runtime::Runtime::new().unwrap();
-    rt.block_on(async {
+    common::rt().block_on(async {
         let post = |query: &str| {
             let form = reqwest::multipart::Form::new()
                 .part("depth", reqwest::multipart::Part::bytes(depth.clone()))

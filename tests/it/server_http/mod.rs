@@ -8,7 +8,7 @@ use crate::common;
 use std::io::Write;
 use std::net::TcpStream;
 
-use common::{get, infer_png16, png16_values, png_with_header, real, Server};
+use common::{get, infer_png16, png16_values, png_with_header, real, rt, Server};
 use reqwest::multipart::{Form, Part};
 
 mod answers;
@@ -17,13 +17,6 @@ mod auth;
 mod bad_input;
 mod overload;
 mod slow_clients;
-
-fn rt() -> tokio::runtime::Runtime {
-    tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .unwrap()
-}
 
 async fn post(url: &str, content_type: &str, body: Vec<u8>) -> reqwest::Response {
     reqwest::Client::new()

@@ -8,8 +8,8 @@ use crate::common;
 
 use std::time::Duration;
 
-use common::stream::{connect, frame, handshake, next, rt, send, Ws};
-use common::{get, infer_png16, png16_values, real, Server};
+use common::stream::{connect, frame, handshake, next, send, Ws};
+use common::{get, infer_png16, png16_values, real, rt, Server};
 use futures_util::{SinkExt, StreamExt};
 use prost::Message as _;
 use tokio_tungstenite::tungstenite::Message;
