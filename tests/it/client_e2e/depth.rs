@@ -50,9 +50,7 @@ fn check_client_recording(record: &Path, out: &Path) {
 
 #[test]
 fn the_client_sends_depth_and_says_once_what_the_server_ran_and_assumed() {
-    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = tempfile::tempdir().unwrap();
-    let server = Server::start("127.0.0.1:0", &dir.path().join("serve.log"));
+    let (_one, dir, server) = serve(&[]);
     let (frames, depth) = sample_frames(dir.path());
     let camera = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/tum_fr2_desk/camera.json");
     let url = format!("http://{}", server.addr);
@@ -119,9 +117,7 @@ fn the_client_sends_depth_and_says_once_what_the_server_ran_and_assumed() {
 
 #[test]
 fn the_load_tester_drives_the_depth_only_mode_over_http_and_the_stream() {
-    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = tempfile::tempdir().unwrap();
-    let server = Server::start("127.0.0.1:0", &dir.path().join("serve.log"));
+    let (_one, dir, server) = serve(&[]);
     server.wait_ready();
     let (_, depth) = sample_frames(dir.path());
     let camera = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/tum_fr2_desk/camera.json");

@@ -4,6 +4,8 @@
 
 use super::*;
 
+use common::npy_f32;
+
 /// The kitchen sequence, `../shared/data/real-rgbd-2/sevenscenes_redkitchen`.
 const KITCHEN: &str = "data/real-rgbd-2/sevenscenes_redkitchen";
 
@@ -19,22 +21,9 @@ fn run_client(url: &str, args: &[&std::ffi::OsStr]) -> String {
     stderr
 }
 
-/// The float32 values of a `.npy` file (version 1 header).
-fn npy_f32(path: &Path) -> Vec<f32> {
-    let bytes = std::fs::read(path).unwrap();
-    assert!(bytes.starts_with(b"\x93NUMPY\x01"), "{}", path.display());
-    let header = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
-    bytes[10 + header..]
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect()
-}
-
 #[test]
 fn depth_alone_streams_depth_only_frames_in_the_geometric_mode() {
-    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = tempfile::tempdir().unwrap();
-    let server = Server::start("127.0.0.1:0", &dir.path().join("serve.log"));
+    let (_one, dir, server) = serve(&[]);
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/tum_fr2_desk");
     let depth = dir.path().join("depth");
     std::fs::create_dir_all(&depth).unwrap();
@@ -75,10 +64,8 @@ fn depth_alone_streams_depth_only_frames_in_the_geometric_mode() {
 #[test]
 fn depth_with_poses_and_map_writes_the_streams_map_as_tre_map_does() {
     common::skip_unless_shared!(KITCHEN);
-    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let (_one, dir, server) = serve(&[]);
     let kitchen = common::shared_root().join(KITCHEN);
-    let dir = tempfile::tempdir().unwrap();
-    let server = Server::start("127.0.0.1:0", &dir.path().join("serve.log"));
     let (depth, pose_file) = depth_and_poses(&kitchen, dir.path());
     let (out, map) = (dir.path().join("out"), dir.path().join("map"));
     let url = format!("http://{}", server.addr);
@@ -109,7 +96,7 @@ fn depth_with_poses_and_map_writes_the_streams_map_as_tre_map_does() {
     );
     assert_tre_map_files(&map);
     // Three posed views of the kitchen floor: hundreds of cells seen, some more than once.
-    let count = npy_f32(&map.join("count.npy"));
+    let (_, count) = npy_f32(&map.join("count.npy"));
     let seen = count.iter().filter(|&&c| c > 0.0).count();
     assert!(seen > 500, "{seen} cells seen");
     assert!(count.iter().any(|&c| c >= 2.0), "no cell seen twice");
@@ -158,7 +145,7 @@ fn assert_tre_map_files(map: &Path) {
     ];
     for name in layers {
         assert!(map.join(format!("{name}.png")).is_file(), "{name}.png");
-        assert_eq!(npy_f32(&map.join(format!("{name}.npy"))).len(), 120 * 120);
+        assert_eq!(npy_f32(&map.join(format!("{name}.npy"))).0, (120, 120));
     }
     assert!(map.join("layers.png").is_file());
     let meta: serde_json::Value =

@@ -8,12 +8,8 @@ use tre::client::FrameResult;
 #[test]
 fn every_frame_comes_back_equal_to_tre_infer_and_the_cli_writes_them() {
     crate::common::skip_unless_shared!("data/real-rgbd");
-    let _serial = SERIAL
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = tempfile::tempdir().unwrap();
+    let (_serial, dir, server) = serve(&[]);
     let frames = make_frames(&dir.path().join("frames"));
-    let server = Server::start("127.0.0.1:0", &dir.path().join("serve.log"));
     server.wait_ready();
 
     // The library, one frame at a time: nothing is dropped.

@@ -12,10 +12,10 @@ use std::io::{BufRead, BufReader};
 use std::net::{SocketAddr, TcpListener};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdout, Command, Stdio};
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use common::{check_mcap, get, infer_png16, png16_values, real};
+use common::{check_mcap, get, infer_png16, png16_values, real, rt};
 use image::DynamicImage;
 use tre::client::{ClientConfig, Event, Frame, LostReason, Rate, Session};
 use tre::pipeline::{Mode, NormalsMethod};
@@ -28,6 +28,19 @@ mod tls;
 
 /// One test at a time: each starts servers, and the machine has few cores.
 static SERIAL: Mutex<()> = Mutex::new(());
+
+/// What a test starts with: the other tests waited for ([`SERIAL`]), a temporary folder, and a
+/// `tre serve` on a free loopback port with `more` options, logging to `serve.log` in it. Not
+/// waited for: `tre client` waits for readiness itself, and a test that needs the server ready
+/// first calls [`Server::wait_ready`].
+fn serve(more: &[&str]) -> (MutexGuard<'static, ()>, tempfile::TempDir, Server) {
+    let serial = SERIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = tempfile::tempdir().unwrap();
+    let server = Server::start_with("127.0.0.1:0", &dir.path().join("serve.log"), more);
+    (serial, dir, server)
+}
 
 /// A `tre serve` child process at a chosen address (so that a second one can take the first's
 /// port), killed on drop; its log goes to a file.
@@ -129,14 +142,6 @@ fn make_frames(dir: &Path) -> Vec<(String, PathBuf)> {
             ((*name).to_owned(), path)
         })
         .collect()
-}
-
-fn rt() -> tokio::runtime::Runtime {
-    tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap()
 }
 
 fn session_config(addr: SocketAddr) -> ClientConfig {

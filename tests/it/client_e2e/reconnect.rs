@@ -136,11 +136,7 @@ async fn loss_and_drop_after(
 /// connection, and the session carries on once the server answers again.
 #[test]
 fn a_hung_server_is_reported_on_time_and_the_session_recovers() {
-    let _serial = SERIAL
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = tempfile::tempdir().unwrap();
-    let mut server = Server::start("127.0.0.1:0", &dir.path().join("serve.log"));
+    let (_serial, _dir, mut server) = serve(&[]);
     server.wait_ready();
     let noise = noise_png();
     let signal = |sig: &str| {
@@ -204,13 +200,9 @@ fn a_hung_server_is_reported_on_time_and_the_session_recovers() {
 fn a_server_at_its_connection_limit_is_named_and_the_client_connects_once_a_place_frees() {
     crate::common::skip_unless_shared!("data/real-rgbd");
     use std::io::Read;
-    let _serial = SERIAL
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = tempfile::tempdir().unwrap();
-    make_frames(&dir.path().join("frames"));
     let more = ["--max-connections", "1", "--request-timeout-ms", "60000"];
-    let server = Server::start_with("127.0.0.1:0", &dir.path().join("server.log"), &more);
+    let (_serial, dir, server) = serve(&more);
+    make_frames(&dir.path().join("frames"));
     server.wait_ready();
     // A kept-alive connection, seen served, holds the only place for 3 s.
     let holder = served_connection(server.addr);

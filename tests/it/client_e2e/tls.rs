@@ -66,17 +66,9 @@ fn tls_proxy(rt: &tokio::runtime::Runtime, upstream: SocketAddr) -> (SocketAddr,
 #[test]
 fn the_client_and_the_load_tester_speak_tls_to_a_proxy_with_a_private_ca() {
     crate::common::skip_unless_shared!("data/real-rgbd");
-    let _serial = SERIAL
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = tempfile::tempdir().unwrap();
-    let frames = make_frames(&dir.path().join("frames"));
     let key = "tls-test-key-0123456789";
-    let server = Server::start_with(
-        "127.0.0.1:0",
-        &dir.path().join("server.log"),
-        &["--api-key", key],
-    );
+    let (_serial, dir, server) = serve(&["--api-key", key]);
+    let frames = make_frames(&dir.path().join("frames"));
     server.wait_ready();
     let rt = rt();
     let (proxy, ca_pem) = tls_proxy(&rt, server.addr);
