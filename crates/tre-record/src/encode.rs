@@ -156,40 +156,49 @@ fn window(map: &Map) -> ((f64, f64), f64) {
 /// dimension labels grid_map checks (`column_index`, then `row_index`), cell (0, 0) at the
 /// window's largest x and y, no circular-buffer offset; `info.pose` the window's centre.
 pub fn grid_map(header: &Header, map: &Map, layers: &Layers) -> GridMap {
+    grid_map_layers(header, map, layers, &LAYER_NAMES)
+}
+
+/// One layer as grid_map stores it. Layers: row-major, column = +x from the smallest x, row 0
+/// at the largest y. grid_map: (r, c) with r along -x from the largest x, c along -y from the
+/// largest y, stored column-major (index c * side + r).
+fn grid_map_layer(src: &[f32], side: usize) -> Float32MultiArray {
+    let mut out = Vec::with_capacity(side * side);
+    for c in 0..side {
+        let row = &src[c * side..(c + 1) * side];
+        out.extend(row.iter().rev());
+    }
+    Float32MultiArray {
+        layout: MultiArrayLayout {
+            dim: vec![
+                MultiArrayDimension {
+                    label: "column_index".into(),
+                    size: side as u32,
+                    stride: (side * side) as u32,
+                },
+                MultiArrayDimension {
+                    label: "row_index".into(),
+                    size: side as u32,
+                    stride: side as u32,
+                },
+            ],
+            data_offset: 0,
+        },
+        data: out,
+    }
+}
+
+/// [`grid_map`] with the layers named in `names` only, in [`LAYER_NAMES`] order (a name not
+/// there is left out).
+pub fn grid_map_layers(header: &Header, map: &Map, layers: &Layers, names: &[&str]) -> GridMap {
     let side = map.config().side;
     let ((x0, y0), len) = window(map);
-    let data = layers
-        .all()
+    let keep = |name: &&str| names.contains(name);
+    let data = LAYER_NAMES
         .iter()
-        .map(|layer| {
-            // Layers: row-major, column = +x from the smallest x, row 0 at the largest y.
-            // grid_map: (r, c) with r along -x from the largest x, c along -y from the largest
-            // y, stored column-major (index c * side + r).
-            let src = layer.as_slice();
-            let mut out = Vec::with_capacity(side * side);
-            for c in 0..side {
-                let row = &src[c * side..(c + 1) * side];
-                out.extend(row.iter().rev());
-            }
-            Float32MultiArray {
-                layout: MultiArrayLayout {
-                    dim: vec![
-                        MultiArrayDimension {
-                            label: "column_index".into(),
-                            size: side as u32,
-                            stride: (side * side) as u32,
-                        },
-                        MultiArrayDimension {
-                            label: "row_index".into(),
-                            size: side as u32,
-                            stride: side as u32,
-                        },
-                    ],
-                    data_offset: 0,
-                },
-                data: out,
-            }
-        })
+        .zip(layers.all())
+        .filter(|(name, _)| keep(name))
+        .map(|(_, layer)| grid_map_layer(layer.as_slice(), side))
         .collect();
     GridMap {
         header: header.clone(),
@@ -206,8 +215,15 @@ pub fn grid_map(header: &Header, map: &Map, layers: &Layers) -> GridMap {
                 orientation: Quaternion::default(),
             },
         },
-        layers: LAYER_NAMES.iter().map(|s| (*s).to_owned()).collect(),
-        basic_layers: vec!["elevation".into()],
+        layers: LAYER_NAMES
+            .iter()
+            .filter(|n| keep(n))
+            .map(|s| (*s).to_owned())
+            .collect(),
+        basic_layers: vec!["elevation".into()]
+            .into_iter()
+            .filter(|_| names.contains(&"elevation"))
+            .collect(),
         data,
         outer_start_index: 0,
         inner_start_index: 0,

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use clap::{Args, ValueEnum};
 use tre_core::geometry::Vec3;
-use tre_core::map::Pose;
+use tre_core::map::{Pose, LAYER_NAMES};
 use tre_core::roughness::noise::SensorNoise;
 use tre_pipeline::{Mode, StageArgs};
 
@@ -85,6 +85,11 @@ pub struct Ros2Args {
     /// Map cell side, centimetres (default: the settings').
     #[arg(long)]
     pub cell_cm: Option<f64>,
+    /// The layers the grid_map message carries, comma-separated (default: every layer; 160 KB
+    /// a layer at the default 200×200 cells): elevation, variance, count, upper, clearance,
+    /// roughness, slope, step, score, traversal, last_update.
+    #[arg(long, value_delimiter = ',')]
+    pub grid_layers: Option<Vec<String>>,
     /// Map side, metres; the window follows the camera (default: the settings').
     #[arg(long)]
     pub size_m: Option<f64>,
@@ -237,10 +242,24 @@ impl Ros2Args {
             self.size_m,
             self.max_range_m,
         )?;
+        let grid_layers = match &self.grid_layers {
+            None => LAYER_NAMES.to_vec(),
+            Some(names) => names
+                .iter()
+                .map(|n| {
+                    LAYER_NAMES
+                        .iter()
+                        .find(|l| **l == n.as_str())
+                        .copied()
+                        .ok_or_else(|| ConfigProblem::GridLayer(n.clone()))
+                })
+                .collect::<Result<_, _>>()?,
+        };
         Ok(Some(MapSettings {
             params,
             down: self.gravity,
             frame_id: self.map_frame.clone(),
+            grid_layers,
         }))
     }
 
@@ -265,5 +284,41 @@ impl Ros2Args {
             record_bag: self.record_bag,
             ..NodeConfig::default()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        ros2: Ros2Args,
+    }
+
+    fn grid_layers(list: &str) -> Result<Vec<&'static str>, ConfigProblem> {
+        let args = ["tre", "--odom-topic", "/odom", "--sensor", "kinect_v1"];
+        let cli = Cli::try_parse_from(args.into_iter().chain(["--grid-layers", list]))
+            .expect("the options parse");
+        cli.ros2
+            .map_settings()
+            .map(|m| m.expect("a map with a pose topic").grid_layers)
+    }
+
+    #[test]
+    fn grid_layers_are_checked_against_the_maps_layers() {
+        assert_eq!(
+            grid_layers("traversal,elevation").expect("known layers"),
+            ["traversal", "elevation"]
+        );
+        let e = grid_layers("elevation,heigth").expect_err("a misspelt layer");
+        assert!(e.to_string().contains("\"heigth\""), "{e}");
+        let cli = Cli::try_parse_from(["tre", "--odom-topic", "/odom", "--sensor", "kinect_v1"])
+            .expect("the options parse");
+        let all = cli.ros2.map_settings().expect("valid").expect("a map");
+        assert_eq!(all.grid_layers, LAYER_NAMES);
     }
 }

@@ -25,7 +25,10 @@ pub(crate) fn png(img: &Image) -> Option<CompressedImage> {
             (mono16(w, h, mm.collect())?, "mono16")
         }
         "mono16" if img.data.len() == 2 * pixels && img.is_bigendian == 0 => {
-            let v = img.data.chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]]));
+            let v = img
+                .data
+                .chunks_exact(2)
+                .map(|b| u16::from_le_bytes([b[0], b[1]]));
             (mono16(w, h, v.collect())?, "mono16")
         }
         "mono8" if img.data.len() == pixels => (
@@ -81,7 +84,10 @@ mod tests {
         let c = png(&image("mono8", 3, 1, vec![0, 1, 2])).expect("encoded");
         assert_eq!(c.format, "mono8; png compressed mono8");
         assert_eq!(decode(&c).to_luma8().into_raw(), [0, 1, 2]);
-        let data = [7_u16, 65535].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let data = [7_u16, 65535]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
         let c = png(&image("mono16", 2, 1, data)).expect("encoded");
         assert_eq!(decode(&c).to_luma16().into_raw(), [7, 65535]);
     }

@@ -151,6 +151,12 @@ pub enum ConfigProblem {
     /// A map settings file that cannot be used (`--map-params`).
     #[error("--map-params: {0}")]
     MapParams(#[from] tre_io::map_params::MapParamsError),
+    /// A layer name the map does not have (`--grid-layers`).
+    #[error(
+        "--grid-layers: no layer {0:?}; the map's layers: elevation, variance, count, upper, \
+         clearance, roughness, slope, step, score, traversal, last_update"
+    )]
+    GridLayer(String),
     /// A map setting out of its range (`--cell-cm`, `--size-m`, `--max-range-m`).
     #[error("{0}")]
     MapRange(#[from] tre_core::map::ParamsError),

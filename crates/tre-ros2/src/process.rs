@@ -141,6 +141,9 @@ pub struct MapSettings {
     pub down: Vec3,
     /// `frame_id` of the published map (the frame of the poses, levelled by `down`).
     pub frame_id: String,
+    /// The layers the grid_map message carries (of `tre_core::map::LAYER_NAMES`; 160 KB a
+    /// layer for the default 200×200 cells).
+    pub grid_layers: Vec<&'static str>,
 }
 
 /// The map and where it started.
@@ -217,7 +220,7 @@ impl MapState {
             frame_id: self.settings.frame_id.clone(),
         };
         Ok((
-            encode::grid_map(&h, m, &layers),
+            encode::grid_map_layers(&h, m, &layers, &self.settings.grid_layers),
             encode::occupancy(&h, m, &layers),
             layers,
         ))

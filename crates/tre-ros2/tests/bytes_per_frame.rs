@@ -9,7 +9,7 @@
 use std::path::PathBuf;
 
 use tre_core::geometry::Vec3;
-use tre_core::map::{MapParams, MapPreset, Pose};
+use tre_core::map::{MapParams, MapPreset, Pose, LAYER_NAMES};
 use tre_core::roughness::noise::{SensorNoise, SensorPreset};
 use tre_pipeline::{Mode, Pipeline, PipelineConfig};
 use tre_record::msgs::{to_cdr, CameraInfo, Header, Image, Time};
@@ -89,6 +89,7 @@ fn published(dir: &std::path::Path, images: ImageOutputs) -> Vec<(&'static str, 
         params: MapParams::preset(MapPreset::Indoor),
         down: gravity(dir),
         frame_id: "world".into(),
+        grid_layers: LAYER_NAMES.to_vec(),
     };
     let sensor = SensorNoise::Preset(SensorPreset::KinectV1);
     let mut p =

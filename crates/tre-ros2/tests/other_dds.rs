@@ -19,7 +19,7 @@ use std::process::Command;
 use std::sync::atomic::Ordering;
 
 use tre_core::geometry::Vec3;
-use tre_core::map::{MapParams, MapPreset};
+use tre_core::map::{MapParams, MapPreset, LAYER_NAMES};
 use tre_core::roughness::noise::{SensorNoise, SensorPreset};
 use tre_pipeline::{Mode, Pipeline, PipelineConfig};
 use tre_ros2::{MapSettings, NodeConfig, PoseSource, Processor, Reliability};
@@ -74,6 +74,7 @@ fn start_node(dir: &Path, domain: u16) -> tre_ros2::RunningNode {
         params: MapParams::preset(MapPreset::Indoor),
         down: gravity(dir),
         frame_id: "world".into(),
+        grid_layers: LAYER_NAMES.to_vec(),
     };
     let cfg = PipelineConfig {
         mode: Mode::Geometric,

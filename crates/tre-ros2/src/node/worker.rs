@@ -46,9 +46,18 @@ impl Publishers {
             uncertainty: make(node, &format!("{prefix}/uncertainty"), false)?,
             traversal: make(node, &format!("{prefix}/traversal"), false)?,
             compressed: [
-                ("roughness", make(node, &format!("{prefix}/roughness/compressed"), false)?),
-                ("uncertainty", make(node, &format!("{prefix}/uncertainty/compressed"), false)?),
-                ("traversal", make(node, &format!("{prefix}/traversal/compressed"), false)?),
+                (
+                    "roughness",
+                    make(node, &format!("{prefix}/roughness/compressed"), false)?,
+                ),
+                (
+                    "uncertainty",
+                    make(node, &format!("{prefix}/uncertainty/compressed"), false)?,
+                ),
+                (
+                    "traversal",
+                    make(node, &format!("{prefix}/traversal/compressed"), false)?,
+                ),
             ],
             grid: make(node, &format!("{prefix}/grid_map"), false)?,
             occupancy: make(node, &format!("{prefix}/occupancy"), true)?,
