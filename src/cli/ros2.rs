@@ -41,12 +41,13 @@ impl Ros2 {
         let count = |c: &AtomicU64| c.load(Ordering::Relaxed);
         let line = format!(
             "frames received {}, published {}, dropped (stale) {}, skipped (bad input) {}, fused \
-             into the map {}",
+             into the map {}, grid maps published {}",
             count(&s.received),
             count(&s.published),
             count(&s.dropped),
             count(&s.skipped),
             count(&s.fused),
+            count(&s.grids),
         );
         if let Some(path) = node.stop()? {
             println!("recorded {}", path.display());

@@ -42,6 +42,19 @@ impl StageArgs {
     }
 }
 
+/// A `--working-size` that is not `WIDTHxHEIGHT`.
+#[derive(Debug, thiserror::Error)]
+#[error("{0:?}: expected WIDTHxHEIGHT in pixels, e.g. 320x240")]
+pub(crate) struct WorkingSizeError(String);
+
+/// clap's parser of `--working-size WIDTHxHEIGHT` (the range is checked where the frame is
+/// known: `PipelineError::BadWorkingSize`).
+pub(crate) fn working_size(s: &str) -> Result<(usize, usize), WorkingSizeError> {
+    let bad = || WorkingSizeError(s.to_owned());
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    Ok((w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?))
+}
+
 /// On or off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum Switch {

@@ -76,12 +76,12 @@ pub struct PipelineConfig {
         default_value_t = DEFAULT_DSAC_HYPOTHESES,
         value_parser = tre_core::kinds::dsac_hypotheses_parser()))]
     pub dsac_hypotheses: u32,
-    /// Size the stages run at, `(width, height)`. `None`: when any network runs, the longer
-    /// side of the frame takes the manifest's working size (256 without models) and the other
-    /// keeps the aspect ratio (`fit_aspect` in `run.rs`); in geometric mode, the
-    /// input's own size.
-    /// With networks, both sides must be multiples of the manifest's stride.
-    #[cfg_attr(feature = "cli", arg(skip))]
+    /// Size the stages run at, WIDTHxHEIGHT (e.g. 320x240; the outputs have this size). Default:
+    /// with a network, the longer side of the frame takes the models' working size (256
+    /// without models) and the other keeps the aspect ratio; in geometric mode, the input's own
+    /// size. With networks, both sides must be multiples of the models' stride. Depth is
+    /// resized nearest-neighbour, the intrinsics scaled.
+    #[cfg_attr(feature = "cli", arg(long, value_parser = super::cli::working_size))]
     pub working_size: Option<(usize, usize)>,
     /// Neighbourhood of LS normals and window centroids.
     #[cfg_attr(feature = "cli", arg(skip))]

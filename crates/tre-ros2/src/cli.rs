@@ -90,6 +90,10 @@ pub struct Ros2Args {
     /// roughness, slope, step, score, traversal, last_update.
     #[arg(long, value_delimiter = ',')]
     pub grid_layers: Option<Vec<String>>,
+    /// Publish the grid_map message at most once this period, milliseconds, by the frames'
+    /// stamps (0: every fused frame); the occupancy grid goes out with every fused frame.
+    #[arg(long, default_value_t = 200)]
+    pub grid_period_ms: u64,
     /// Map side, metres; the window follows the camera (default: the settings').
     #[arg(long)]
     pub size_m: Option<f64>,
@@ -260,6 +264,7 @@ impl Ros2Args {
             down: self.gravity,
             frame_id: self.map_frame.clone(),
             grid_layers,
+            grid_period: Duration::from_millis(self.grid_period_ms),
         }))
     }
 

@@ -54,7 +54,7 @@ pub struct Outputs {
     /// The images above as PNGs (`{topic}/compressed`), when asked for: the roughness, the
     /// uncertainty and the three-state image, in that order, each when its image is there.
     pub compressed: Vec<(&'static str, CompressedImage)>,
-    /// The fused map after this frame, when a pose came with it.
+    /// The fused map after this frame, when a pose came with it and its period is due.
     pub grid: Option<GridMap>,
     /// The map's three-state layer for Nav2.
     pub occupancy: Option<OccupancyGrid>,
@@ -144,6 +144,9 @@ pub struct MapSettings {
     /// The layers the grid_map message carries (of `tre_core::map::LAYER_NAMES`; 160 KB a
     /// layer for the default 200×200 cells).
     pub grid_layers: Vec<&'static str>,
+    /// The grid_map message at most once this period (by the frames' stamps; zero: every
+    /// fused frame); the occupancy grid goes out with every fused frame.
+    pub grid_period: std::time::Duration,
 }
 
 /// The map and where it started.
@@ -153,6 +156,8 @@ struct MapState {
     session: Option<MapSession>,
     /// Stamp of the first fused frame, nanoseconds: the map's times count from it.
     t0_ns: Option<i64>,
+    /// Stamp of the frame whose grid_map was last published, nanoseconds.
+    last_grid_ns: Option<i64>,
 }
 
 /// The pipeline's input of a frame's messages, and its intrinsics.
@@ -194,7 +199,7 @@ impl MapState {
         pose: &MapPose,
         header: &Header,
         sensor: &SensorNoise,
-    ) -> Result<(GridMap, OccupancyGrid, Layers), MapError> {
+    ) -> Result<(Option<GridMap>, OccupancyGrid, Layers), MapError> {
         let t_ns = header.stamp.nanos();
         let t0 = *self.t0_ns.get_or_insert(t_ns);
         let t_s = (t_ns - t0) as f64 * 1e-9;
@@ -219,11 +224,17 @@ impl MapState {
             stamp: header.stamp,
             frame_id: self.settings.frame_id.clone(),
         };
-        Ok((
-            encode::grid_map_layers(&h, m, &layers, &self.settings.grid_layers),
-            encode::occupancy(&h, m, &layers),
-            layers,
-        ))
+        // The grid_map message (160 KB a layer) at most once a grid period, by the frames'
+        // stamps; the occupancy grid (a byte a cell) every frame.
+        let period = i64::try_from(self.settings.grid_period.as_nanos()).unwrap_or(i64::MAX);
+        let due = self
+            .last_grid_ns
+            .is_none_or(|last| t_ns < last || t_ns - last >= period);
+        let grid = due.then(|| {
+            self.last_grid_ns = Some(t_ns);
+            encode::grid_map_layers(&h, m, &layers, &self.settings.grid_layers)
+        });
+        Ok((grid, encode::occupancy(&h, m, &layers), layers))
     }
 }
 
@@ -254,6 +265,7 @@ impl Processor {
                 settings,
                 session: None,
                 t0_ns: None,
+                last_grid_ns: None,
             }),
             images: ImageOutputs::default(),
         }
@@ -327,7 +339,7 @@ impl Processor {
             let fused = state.fuse(&points, &pose, &header, &sensor);
             match fused {
                 Ok((grid, occupancy, layers)) => {
-                    outputs.grid = Some(grid);
+                    outputs.grid = grid;
                     outputs.occupancy = Some(occupancy);
                     outputs.layers = Some(layers);
                 }

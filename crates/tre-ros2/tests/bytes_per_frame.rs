@@ -90,6 +90,7 @@ fn published(dir: &std::path::Path, images: ImageOutputs) -> Vec<(&'static str, 
         down: gravity(dir),
         frame_id: "world".into(),
         grid_layers: LAYER_NAMES.to_vec(),
+        grid_period: std::time::Duration::ZERO,
     };
     let sensor = SensorNoise::Preset(SensorPreset::KinectV1);
     let mut p =
@@ -171,4 +172,38 @@ fn the_defaults_send_the_roughness_alone_and_mono16_halves_it() {
         assert!(*bytes < 208 * 1024, "{name}: {bytes} bytes");
     }
     assert!(total(&default) + 4 * 640 * 480 < total(&all));
+}
+
+#[test]
+fn the_grid_map_goes_out_once_a_grid_period_and_the_occupancy_grid_every_frame() {
+    let Some(dir) = kitchen() else { return };
+    let cfg = PipelineConfig {
+        mode: Mode::Geometric,
+        ..PipelineConfig::default()
+    };
+    let map = MapSettings {
+        params: MapParams::preset(MapPreset::Indoor),
+        down: gravity(&dir),
+        frame_id: "world".into(),
+        grid_layers: vec!["elevation", "traversal"],
+        grid_period: std::time::Duration::from_millis(200),
+    };
+    let sensor = SensorNoise::Preset(SensorPreset::KinectV1);
+    let mut p = Processor::new(Pipeline::new(None), cfg, Some(sensor), Some(map));
+    let mut f = frame(&dir);
+    // Frames 0, 100, 200 and 250 ms apart from the first: grids at 0 and 200 ms only.
+    let mut grids = Vec::new();
+    for ms in [0, 100, 200, 250] {
+        if let Some(d) = &mut f.depth {
+            d.header.stamp = Time::from_nanos(1_700_000_000_000_000_000 + ms * 1_000_000);
+        }
+        let o = p.process(&f).unwrap();
+        assert!(o.occupancy.is_some(), "an occupancy grid at {ms} ms");
+        if let Some(g) = o.grid {
+            assert_eq!(g.layers, ["elevation", "traversal"]);
+            assert_eq!(g.data.len(), 2);
+            grids.push(ms);
+        }
+    }
+    assert_eq!(grids, [0, 200]);
 }

@@ -75,6 +75,7 @@ fn start_node(dir: &Path, domain: u16) -> tre_ros2::RunningNode {
         down: gravity(dir),
         frame_id: "world".into(),
         grid_layers: LAYER_NAMES.to_vec(),
+        grid_period: std::time::Duration::ZERO,
     };
     let cfg = PipelineConfig {
         mode: Mode::Geometric,
@@ -95,12 +96,13 @@ fn start_node(dir: &Path, domain: u16) -> tre_ros2::RunningNode {
     .unwrap()
 }
 
-/// The peer's report and the node's counts: (received, published, fused).
+/// The peer's report and the node's counts.
 struct Run {
     report: serde_json::Value,
     received: u64,
     published: u64,
     fused: u64,
+    grids: u64,
 }
 
 /// Runs the node and the `dds` peer (importing `imports`) subscribed to `topics`; `None`
@@ -138,10 +140,11 @@ fn run(dds: &str, imports: &str, domain: u16, topics: &str) -> Option<Run> {
         .unwrap();
     let stats = node.stats();
     let count = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
-    let (received, published, fused) = (
+    let (received, published, fused, grids) = (
         count(&stats.received),
         count(&stats.published),
         count(&stats.fused),
+        count(&stats.grids),
     );
     drop(node.stop());
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -158,6 +161,7 @@ fn run(dds: &str, imports: &str, domain: u16, topics: &str) -> Option<Run> {
         received,
         published,
         fused,
+        grids,
     })
 }
 
@@ -177,6 +181,10 @@ fn every_published_message_reaches_a_stock_cyclone_dds_subscriber() {
         return;
     };
     assert_eq!(r.received, 15);
+    assert_eq!(
+        r.grids, r.fused,
+        "a grid map for every fused frame (grid period 0)"
+    );
     for (topic, want) in [
         ("roughness", r.published),
         ("roughness/compressed", r.published),

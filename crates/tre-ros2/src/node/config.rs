@@ -95,4 +95,6 @@ pub struct NodeStats {
     pub published: AtomicU64,
     /// Frames fused into the map.
     pub fused: AtomicU64,
+    /// grid_map messages published (at most one a grid period).
+    pub grids: AtomicU64,
 }

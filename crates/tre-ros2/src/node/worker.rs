@@ -149,8 +149,11 @@ pub(super) fn work(
                 limiter.good();
                 pubs.publish(&out);
                 sh.stats.published.fetch_add(1, Ordering::Relaxed);
-                if out.grid.is_some() {
+                if out.layers.is_some() {
                     sh.stats.fused.fetch_add(1, Ordering::Relaxed);
+                }
+                if out.grid.is_some() {
+                    sh.stats.grids.fetch_add(1, Ordering::Relaxed);
                 }
                 log_not_fused(&mut limiter, &out, c.pose.is_some() && frame.pose.is_none());
                 if let Some(r) = &mut recorder {
