@@ -52,7 +52,10 @@ pub(crate) struct WorkingSizeError(String);
 pub(crate) fn working_size(s: &str) -> Result<(usize, usize), WorkingSizeError> {
     let bad = || WorkingSizeError(s.to_owned());
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
-    Ok((w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?))
+    Ok((
+        w.trim().parse().map_err(|_| bad())?,
+        h.trim().parse().map_err(|_| bad())?,
+    ))
 }
 
 /// On or off.
