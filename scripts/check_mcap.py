@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import io
 import json
 import sys
 from pathlib import Path
@@ -28,6 +29,9 @@ OUTPUTS = {
     "/tre/roughness": ("sensor_msgs/msg/Image", "ros2msg", "cdr"),
     "/tre/uncertainty": ("sensor_msgs/msg/Image", "ros2msg", "cdr"),
     "/tre/traversal": ("sensor_msgs/msg/Image", "ros2msg", "cdr"),
+    "/tre/roughness/compressed": ("sensor_msgs/msg/CompressedImage", "ros2msg", "cdr"),
+    "/tre/uncertainty/compressed": ("sensor_msgs/msg/CompressedImage", "ros2msg", "cdr"),
+    "/tre/traversal/compressed": ("sensor_msgs/msg/CompressedImage", "ros2msg", "cdr"),
     "/tre/grid_map": ("grid_map_msgs/msg/GridMap", "ros2msg", "cdr"),
     "/tre/occupancy": ("nav_msgs/msg/OccupancyGrid", "ros2msg", "cdr"),
     "/tre/roughness/foxglove": ("foxglove.RawImage", "jsonschema", "json"),
@@ -191,6 +195,8 @@ def check(
         want = np.load(roughness_npy).astype(np.float32)
         if not same(rough, want):
             fail(f"the recorded roughness differs from {roughness_npy}")
+    if kind == "ros2":
+        check_png(messages["/tre/roughness/compressed"][-1], rough)
     if kind != "client":
         check_grid(messages, foxglove)
     counts = {t: len(m) for t, m in sorted(messages.items())}
@@ -201,6 +207,21 @@ def check(
         )
     )
     return messages
+
+
+def check_png(msg, rough: np.ndarray) -> None:
+    """The roughness's PNG (image_transport's compressed): millimetres to the nearest, 0 for
+    no data, of the same frame's 32FC1 roughness."""
+    from PIL import Image
+
+    if msg.format != "mono16; png compressed mono16":
+        fail(f"roughness PNG format {msg.format!r}")
+    png = np.asarray(Image.open(io.BytesIO(bytes(msg.data))), dtype=np.int64)
+    # As the node rounds: in float64, half away from zero (the roughness is not negative).
+    r = np.nan_to_num(rough.astype(np.float64) * 1000.0, nan=0.0)
+    mm = np.where(np.isfinite(rough), np.clip(np.floor(r + 0.5), 1, 65535), 0)
+    if png.shape != rough.shape or np.any(png != mm.astype(np.int64)):
+        fail("the roughness PNG is not the roughness in millimetres")
 
 
 def check_grid(messages: dict[str, list], foxglove: bool) -> None:
