@@ -11,8 +11,8 @@ use tre_core::roughness::noise::SensorNoise;
 use tre_pipeline::{Mode, StageArgs};
 
 use crate::{
-    ConfigProblem, ImageOutputs, MapSettings, NodeConfig, PoseSource, Processor, Reliability,
-    Ros2Error, RoughnessEncoding,
+    ConfigProblem, ImageOutputs, InputError, MapSettings, NodeConfig, PoseSource, Processor,
+    Reliability, Ros2Error, RoughnessEncoding,
 };
 
 /// Reliability of the input subscriptions.
@@ -146,16 +146,44 @@ pub struct Ros2Args {
     pub stages: StageArgs,
 }
 
-fn parse_vec3(s: &str) -> Result<Vec3, String> {
+/// A `--gravity` or `--camera-in-body` value that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum VectorArgError {
+    /// A part that is not a number.
+    #[error("{part:?}: {source}")]
+    Number {
+        /// The part as given.
+        part: String,
+        /// Why it does not parse.
+        #[source]
+        source: std::num::ParseFloatError,
+    },
+    /// Not `count` finite numbers.
+    #[error("{count} finite numbers separated by commas, got {given:?}")]
+    Count {
+        /// How many were expected.
+        count: usize,
+        /// The value as given.
+        given: String,
+    },
+    /// A direction of zero length.
+    #[error("a direction of zero length")]
+    ZeroDirection,
+    /// A pose the map cannot use (its quaternion).
+    #[error(transparent)]
+    Pose(#[from] InputError),
+}
+
+fn parse_vec3(s: &str) -> Result<Vec3, VectorArgError> {
     let v = numbers(s, 3)?;
     let d = Vec3::new(v[0], v[1], v[2]);
     if !(d.norm().is_finite() && d.norm() > 0.0) {
-        return Err("a direction of zero length".into());
+        return Err(VectorArgError::ZeroDirection);
     }
     Ok(d)
 }
 
-fn parse_pose(s: &str) -> Result<Pose, String> {
+fn parse_pose(s: &str) -> Result<Pose, VectorArgError> {
     let v = numbers(s, 7)?;
     let msg = tre_record::msgs::Pose {
         position: tre_record::msgs::Point {
@@ -170,16 +198,26 @@ fn parse_pose(s: &str) -> Result<Pose, String> {
             w: v[6],
         },
     };
-    crate::convert::map_pose(&msg, &Pose::identity()).map_err(|e| e.to_string())
+    Ok(crate::convert::map_pose(&msg, &Pose::identity())?)
 }
 
-fn numbers(s: &str, n: usize) -> Result<Vec<f64>, String> {
+fn numbers(s: &str, n: usize) -> Result<Vec<f64>, VectorArgError> {
     let v: Vec<f64> = s
         .split(',')
-        .map(|p| p.trim().parse::<f64>().map_err(|e| format!("{p:?}: {e}")))
+        .map(|p| {
+            p.trim()
+                .parse::<f64>()
+                .map_err(|source| VectorArgError::Number {
+                    part: p.to_owned(),
+                    source,
+                })
+        })
         .collect::<Result<_, _>>()?;
     if v.len() != n || !v.iter().all(|x| x.is_finite()) {
-        return Err(format!("{n} finite numbers separated by commas, got {s:?}"));
+        return Err(VectorArgError::Count {
+            count: n,
+            given: s.to_owned(),
+        });
     }
     Ok(v)
 }
@@ -311,6 +349,22 @@ mod tests {
         cli.ros2
             .map_settings()
             .map(|m| m.expect("a map with a pose topic").grid_layers)
+    }
+
+    #[test]
+    fn vectors_and_poses_are_refused_saying_why() {
+        let err = |args: &[&str]| {
+            Cli::try_parse_from(["tre"].iter().chain(args))
+                .err()
+                .expect("refused")
+                .to_string()
+        };
+        assert!(err(&["--gravity=0,0,0"]).contains("a direction of zero length"));
+        assert!(err(&["--gravity=1,2"]).contains("3 finite numbers separated by commas"));
+        assert!(err(&["--gravity=1,x,2"]).contains("\"x\": invalid float literal"));
+        assert!(err(&["--camera-in-body=0,0,0,0,0,0,2"]).contains("quaternion"));
+        let ok = Cli::try_parse_from(["tre", "--camera-in-body=0.2,0,0.3,-0.5,0.5,-0.5,0.5"]);
+        assert!(ok.is_ok());
     }
 
     #[test]
