@@ -6,7 +6,9 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use tre_core::geometry::{GeometryError, Intrinsics, Mounting};
-use tre_core::roughness::noise::{CoefficientsError, SensorNoise, SensorPreset, StereoRig};
+use tre_core::roughness::noise::{
+    CoefficientsError, SensorNoise, SensorPreset, StereoRig, StereoRigError,
+};
 
 use super::IoError;
 
@@ -122,8 +124,10 @@ impl SensorSpec {
             },
             serde_json::Value::Object(o) if o.contains_key("stereo") && o.len() == 1 => {
                 let rig: StereoRig = serde_json::from_value(o["stereo"].clone())
-                    .map_err(|e| SensorSpecError::Stereo(e.to_string()))?;
-                let stereo = rig.checked().map_err(SensorSpecError::Stereo)?;
+                    .map_err(|source| SensorSpecError::StereoFields { source })?;
+                let stereo = rig
+                    .checked()
+                    .map_err(|source| SensorSpecError::StereoRig { source })?;
                 Ok(Self::Model(SensorNoise::Stereo { stereo }))
             }
             serde_json::Value::Object(o) => {
@@ -153,7 +157,7 @@ fn looks_like_a_name(s: &str) -> bool {
 }
 
 /// Why a camera file's `sensor` names no sensor.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub enum SensorSpecError {
     /// Neither text nor `{"sigma_mm": [a, b, c]}` (`keys`: an object's keys, if it was one).
     #[error(
@@ -187,9 +191,20 @@ pub enum SensorSpecError {
         /// The name given.
         name: String,
     },
-    /// A stereo rig that does not read or check (its message names the field).
-    #[error("sensor.stereo: {0}")]
-    Stereo(String),
+    /// A stereo rig whose fields do not read (one missing, unknown or not a number).
+    #[error("sensor.stereo: {source}")]
+    StereoFields {
+        /// Why, as serde says it (its message names the field).
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A stereo rig with a field that is not a positive number.
+    #[error("sensor.stereo: {source}")]
+    StereoRig {
+        /// The check that failed; its message names the field.
+        #[source]
+        source: StereoRigError,
+    },
 }
 
 impl<'de> Deserialize<'de> for SensorSpec {

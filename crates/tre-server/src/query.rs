@@ -204,9 +204,9 @@ impl RoughnessQuery {
                 .as_deref()
                 .map(str::parse)
                 .transpose()
-                .map_err(|why: String| OptionError::Sensor {
+                .map_err(|why| OptionError::Sensor {
                     field: "sensor",
-                    source: why.into(),
+                    source: Box::new(why),
                 })?,
             traversal_bytes: false,
             uncertainty_f32: false,

@@ -108,22 +108,31 @@ impl fmt::Display for SensorPreset {
 }
 
 impl FromStr for SensorPreset {
-    type Err = String;
+    type Err = UnknownSensor;
 
     /// A preset by name (case and `-`/`_` do not matter).
     ///
     /// ```
     /// use tre_core::roughness::noise::SensorPreset;
     /// assert_eq!("Kinect-V1".parse(), Ok(SensorPreset::KinectV1));
-    /// assert!("kinect".parse::<SensorPreset>().unwrap_err().contains("kinect_v1"));
+    /// let e = "kinect".parse::<SensorPreset>().unwrap_err();
+    /// assert!(e.to_string().contains("kinect_v1"), "{e}");
     /// ```
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, UnknownSensor> {
         let key = s.trim().to_ascii_lowercase().replace('-', "_");
         Self::ALL
             .into_iter()
             .find(|p| p.name() == key)
-            .ok_or_else(|| format!("unknown sensor {s:?}: the presets are {}", Self::names()))
+            .ok_or_else(|| UnknownSensor { name: s.to_owned() })
     }
+}
+
+/// A name that is no preset's ([`SensorPreset`]'s `FromStr`); the message lists the presets.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown sensor {name:?}: the presets are {}", SensorPreset::names())]
+pub struct UnknownSensor {
+    /// The name given.
+    pub name: String,
 }
 
 /// A depth-noise model: a preset, or σ_z(z) = a + b·z + c·z² millimetres with z in metres.
@@ -169,18 +178,16 @@ impl StereoRig {
     ///
     /// # Errors
     ///
-    /// A message naming the field.
-    pub fn checked(self) -> Result<Self, String> {
-        for (name, v) in [
+    /// [`StereoRigError`], naming the first field that is not.
+    pub fn checked(self) -> Result<Self, StereoRigError> {
+        for (field, value) in [
             ("baseline_m", self.baseline_m),
             ("focal_px", self.focal_px),
             ("step_px", self.step_px),
             ("block_px", self.block_px),
         ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(format!(
-                    "sensor.stereo.{name} must be a positive number, got {v}"
-                ));
+            if !(value.is_finite() && value > 0.0) {
+                return Err(StereoRigError { field, value });
             }
         }
         Ok(self)
@@ -200,6 +207,17 @@ impl StereoRig {
             1e3 * self.step_px / (self.focal_px * self.baseline_m),
         ]
     }
+}
+
+/// A stereo rig field that is not a positive, finite number ([`StereoRig::checked`]); the
+/// message names it, `sensor.stereo.<field>`.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("sensor.stereo.{field} must be a positive number, got {value}")]
+pub struct StereoRigError {
+    /// The field's name (`baseline_m`, `focal_px`, `step_px` or `block_px`).
+    pub field: &'static str,
+    /// The value given.
+    pub value: f64,
 }
 
 impl SensorNoise {
@@ -313,21 +331,36 @@ pub enum CoefficientsProblem {
     DipsBelowZero,
 }
 
+/// Text that names no noise model ([`SensorNoise`]'s `FromStr`: a preset name or `a,b,c`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SensorParseError {
+    /// A name that is no preset's.
+    #[error(transparent)]
+    Unknown(#[from] UnknownSensor),
+    /// Text with commas that is not three numbers.
+    #[error("sensor {text:?}: coefficients are three numbers a,b,c (mm)")]
+    NotThreeNumbers {
+        /// The text given.
+        text: String,
+    },
+    /// Three numbers that make no noise model.
+    #[error(transparent)]
+    Coefficients(#[from] CoefficientsError),
+}
+
 impl FromStr for SensorNoise {
-    type Err = String;
+    type Err = SensorParseError;
 
     /// A preset name, or `a,b,c` coefficients in millimetres.
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, SensorParseError> {
         if s.contains(',') {
             let v: Result<Vec<f64>, _> = s.split(',').map(|c| c.trim().parse::<f64>()).collect();
             return match v.as_deref() {
-                Ok(&[a, b, c]) => Self::coefficients([a, b, c]).map_err(|e| e.to_string()),
-                _ => Err(format!(
-                    "sensor {s:?}: coefficients are three numbers a,b,c (mm)"
-                )),
+                Ok(&[a, b, c]) => Ok(Self::coefficients([a, b, c])?),
+                _ => Err(SensorParseError::NotThreeNumbers { text: s.to_owned() }),
             };
         }
-        s.parse().map(Self::Preset)
+        Ok(s.parse().map(Self::Preset)?)
     }
 }
 
