@@ -43,7 +43,7 @@ use serde::{Deserialize, Serialize};
 #[cfg(feature = "cli")]
 pub use cli::{ArgsError, LoadtestArgs};
 pub use frames::{Frames, LoadFrame, LoadSource};
-pub use problems::{AnswerProblem, FrameProblem, StreamProblem, UrlProblem};
+pub use problems::{AnswerProblem, FirstAnswer, FrameProblem, StreamProblem, UrlProblem};
 pub use stats::{Percentiles, Report};
 pub use target::Target;
 

@@ -72,8 +72,8 @@ pub enum StreamProblem {
     #[error(transparent)]
     Decode(#[from] AnswerProblem),
     /// The first answer was not Ready.
-    #[error("expected Ready, got {0}")]
-    NotReady(String),
+    #[error("expected Ready, got {0:?}")]
+    NotReady(FirstAnswer),
     /// The service closed the stream before Ready.
     #[error("closed before Ready")]
     Closed,
@@ -82,6 +82,23 @@ pub enum StreamProblem {
     Timeout {
         /// The timeout, milliseconds.
         timeout_ms: u128,
+    },
+}
+
+/// The first answer to the Hello when it was not Ready ([`StreamProblem::NotReady`]); the
+/// message shows it as written here (`Result(3)`, `Error { sequence: None, code: "…" }`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum FirstAnswer {
+    /// A result for frame `sequence`.
+    Result(u64),
+    /// Frame `sequence` was skipped for a newer one.
+    Dropped(u64),
+    /// An error, for one frame or for the stream.
+    Error {
+        /// The frame, if the error concerns one.
+        sequence: Option<u64>,
+        /// Its stable error code.
+        code: String,
     },
 }
 

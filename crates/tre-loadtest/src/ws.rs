@@ -20,7 +20,7 @@ use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
 use super::frames::Frames;
 use super::plan::Plan;
-use super::problems::{AnswerProblem, StreamProblem};
+use super::problems::{AnswerProblem, FirstAnswer, StreamProblem};
 use super::stats::{Outcome, Recorder, Report, RunInfo};
 use super::{Load, LoadConfig, LoadError, Target};
 use tre_proto::v1 as pb;
@@ -156,10 +156,13 @@ async fn connect(
             let Message::Binary(b) = msg.map_err(|e| err(e.into()))? else {
                 continue;
             };
-            match Answer::decode(&b).map_err(|e| err(e.into()))? {
+            let first = match Answer::decode(&b).map_err(|e| err(e.into()))? {
                 Answer::Ready => return Ok(ws),
-                other => return Err(err(StreamProblem::NotReady(format!("{other:?}")))),
-            }
+                Answer::Result(seq) => FirstAnswer::Result(seq),
+                Answer::Dropped(seq) => FirstAnswer::Dropped(seq),
+                Answer::Error { sequence, code } => FirstAnswer::Error { sequence, code },
+            };
+            return Err(err(StreamProblem::NotReady(first)));
         }
         Err(err(StreamProblem::Closed))
     };
