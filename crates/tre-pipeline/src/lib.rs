@@ -22,6 +22,7 @@
 
 mod calibration;
 pub mod centroid;
+mod check;
 #[cfg(feature = "cli")]
 mod cli;
 mod config;
@@ -36,8 +37,10 @@ mod run;
 mod spares;
 mod summary;
 pub mod tensors;
+mod timings;
 
 pub use calibration::{models_key, read_calibration, stale_calibration, CalibrationProblem};
+pub use check::check_input;
 #[cfg(feature = "cli")]
 pub use cli::StageArgs;
 pub use config::{
@@ -46,11 +49,12 @@ pub use config::{
     MAX_DSAC_HYPOTHESES, MAX_WORKING_SIDE,
 };
 pub use depth::{prior_depth, MAX_PRIOR_DEPTH_M};
-pub use frame::{FrameInput, FrameOutput, SensorMaps, StageTimings, DEFAULT_HFOV_DEG};
+pub use frame::{FrameInput, FrameOutput, SensorMaps, DEFAULT_HFOV_DEG};
 pub use gravity::{Assumption, Gravity, GravityFigures, GravityUnknown};
 pub use plausible::{Implausible, MAX_GROUND_BELOW_M, MAX_MEDIAN_DEPTH_M};
-pub use run::{check_input, Pipeline, DEFAULT_WORKING_SIZE};
+pub use run::{Pipeline, DEFAULT_WORKING_SIZE};
 pub use summary::MOSTLY_UNKNOWN_SHARE;
+pub use timings::StageTimings;
 
 use tre_core::geometry::GeometryError;
 use tre_core::roughness::noise::SensorPreset;

@@ -1,37 +1,41 @@
 //! [`Pipeline`]: checks a frame, runs the stages in order at the working size, and brings the
 //! maps back to the frame's size. It owns the models and the tensors and maps it reuses across
-//! frames; like [`Models`], it belongs to one worker thread.
+//! frames; like [`Models`], it belongs to one worker thread. The normal and centroid stages are
+//! in `run/stages.rs`.
 
 use std::time::Duration;
 
 use ndarray::Array4;
 
-use super::centroid::net_centroids;
+use super::check::check_input;
 use super::depth::{prior_depth_into, MAX_PRIOR_DEPTH_M};
-use super::frame::{FrameInput, FrameOutput, StageMaps, StageTimings, DEFAULT_HFOV_DEG};
+use super::frame::{FrameInput, FrameOutput, StageMaps, DEFAULT_HFOV_DEG};
 use super::gravity::{Gravity, GravityUnknown};
-use super::normals::{dsac_normals_from_net, ls_normals, refine, InitialNormals, NetInputs};
+use super::normals::InitialNormals;
 use super::plausible::Implausible;
 use super::resize::{resize_nearest_reusing, resize_rgb};
 use super::spares::Spares;
 use super::tensors::{depth_from_tensor_into, points_tensors, rgb_tensor, scalar_tensor};
+use super::timings::StageTimings;
 use super::{
-    check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod,
-    PipelineConfig, PipelineError, MAX_WORKING_SIDE,
+    check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, PipelineConfig,
+    PipelineError, MAX_WORKING_SIDE,
 };
 use tre_core::geometry::dsac::DsacScratch;
 use tre_core::geometry::floor::{fit_floor, FloorFitConfig};
-use tre_core::geometry::normals::{window_centroids_into, PackedPoints};
+use tre_core::geometry::normals::PackedPoints;
 use tre_core::geometry::sums::SummedMoments;
-use tre_core::geometry::{
-    dsac::DsacConfig, normals::LocalPlanes, Grid, Intrinsics, PointMap, Vec3,
-};
+use tre_core::geometry::{Grid, Intrinsics, PointMap, Vec3};
 use tre_core::roughness::annotate::AnnotateConfig;
 use tre_core::roughness::annotate::{spec_roughness_into, surface_term_into, SpecMaps, SpecPlanes};
 use tre_core::roughness::interval::{Calibration, IntervalTable};
 use tre_core::roughness::noise::SensorNoise;
 use tre_core::roughness::terrain::{clean_points_into, terrain_into, TerrainConfig, TerrainMaps};
 use tre_model::Models;
+
+mod stages;
+
+use stages::{loaded, Stages};
 
 /// A frame's gravity: its stated mounting, else (with sensor depth) a confident fit of the
 /// ground in its points at the working size, else unknown.
@@ -480,178 +484,6 @@ impl Pipeline {
         let k = k0.scaled(size.0 as f64 / w0 as f64, size.1 as f64 / h0 as f64)?;
         Ok(Working { size, k })
     }
-}
-
-/// The normal and centroid stages of one frame: the models, the network inputs and the buffers
-/// they write into, borrowed from the pipeline.
-struct Stages<'a> {
-    models: &'a mut Option<Models>,
-    net: NetInputs<'a>,
-    points: &'a PointMap,
-    normals_t: &'a mut Array4<f32>,
-    packed: &'a mut PackedPoints,
-    dsac: &'a mut DsacScratch,
-    spares: &'a mut Spares,
-}
-
-impl<'a> Stages<'a> {
-    fn new(models: &'a mut Option<Models>, scratch: &'a mut Scratch, points: &'a PointMap) -> Self {
-        let Scratch {
-            rgb,
-            points: points_m,
-            valid,
-            normals,
-            packed,
-            dsac,
-            spares,
-            ..
-        } = scratch;
-        Self {
-            models,
-            net: NetInputs {
-                rgb,
-                points_m,
-                valid,
-            },
-            points,
-            normals_t: normals,
-            packed,
-            dsac,
-            spares,
-        }
-    }
-
-    /// LS normals (with their window centroids) or the neighbour net and DSAC.
-    fn initial_normals(
-        &mut self,
-        method: NormalsMethod,
-        fx_px: f64,
-        cfg: &PipelineConfig,
-    ) -> Result<InitialNormals, PipelineError> {
-        Ok(match method {
-            NormalsMethod::Ls => {
-                let planes = LocalPlanes {
-                    centroid: self.spares.take(),
-                    normal: self.spares.take(),
-                };
-                let hood = &cfg.neighbourhood;
-                ls_normals(self.points, fx_px, hood, self.packed, planes)
-            }
-            NormalsMethod::Dsac => {
-                let (models, out) = (loaded(self.models)?, self.spares.take());
-                let (net, points) = (&self.net, self.points);
-                let dsac = DsacConfig {
-                    hypotheses: cfg.dsac_hypotheses,
-                    seed: cfg.seed,
-                    ..DsacConfig::default()
-                };
-                dsac_normals_from_net(models, net, points, &dsac, self.dsac, out)?
-            }
-        })
-    }
-
-    /// The refiner's normals from `initial`, whose buffer goes back to the spares.
-    fn refined(&mut self, initial: Grid<Vec3>) -> Result<Grid<Vec3>, PipelineError> {
-        let (out, models) = (self.spares.take(), loaded(self.models)?);
-        let refined = refine(
-            models,
-            &self.net,
-            self.points,
-            &initial,
-            self.normals_t,
-            out,
-        )?;
-        self.spares.keep(initial);
-        Ok(refined)
-    }
-
-    /// Window centroids computed alone (normals from DSAC).
-    fn window_centroids(&mut self, fx_px: f64, cfg: &PipelineConfig) -> PointMap {
-        let mut out = self.spares.take();
-        let hood = &cfg.neighbourhood;
-        window_centroids_into(self.points, fx_px, hood, self.packed, &mut out);
-        out
-    }
-
-    /// The centroid net's centroids for `normals`; `unused` (the LS window centroids, if any)
-    /// goes back to the spares.
-    fn net_centroids(
-        &mut self,
-        normals: &Grid<Vec3>,
-        unused: Option<PointMap>,
-    ) -> Result<PointMap, PipelineError> {
-        if let Some(c) = unused {
-            self.spares.keep(c);
-        }
-        let (out, models) = (self.spares.take(), loaded(self.models)?);
-        net_centroids(models, &self.net, self.points, normals, self.normals_t, out)
-    }
-}
-
-/// The models, or the error that says they are needed (checked up front; kept for safety).
-fn loaded(models: &mut Option<Models>) -> Result<&mut Models, PipelineError> {
-    models
-        .as_mut()
-        .ok_or_else(|| PipelineError::ModelsRequired {
-            label: "this configuration".to_owned(),
-            networks: Vec::new(),
-            loaded: false,
-        })
-}
-
-/// Checks a frame against the configuration without running anything (as [`Pipeline::run`]
-/// does first): the inputs the mode needs are there, depth and RGB agree in size, the frame is
-/// neither empty nor too large. Returns its `(width, height)`.
-///
-/// # Errors
-///
-/// [`PipelineError::MissingInput`], [`PipelineError::DepthSizeMismatch`],
-/// [`PipelineError::EmptyImage`] or [`PipelineError::TooLarge`].
-pub fn check_input(
-    input: &FrameInput,
-    cfg: &PipelineConfig,
-) -> Result<(usize, usize), PipelineError> {
-    let (mode, needs_rgb, needs_depth) = match (cfg.method, cfg.mode) {
-        (Method::EndToEnd, _) => ("the end-to-end method", true, false),
-        (Method::Pipeline, Mode::Rgb) => ("rgb mode", true, false),
-        (Method::Pipeline, Mode::Rgbd) => ("rgbd mode", true, true),
-        (Method::Pipeline, Mode::Geometric) => ("geometric mode", false, true),
-    };
-    if needs_rgb && input.rgb.is_none() {
-        return Err(PipelineError::MissingInput { mode, input: "rgb" });
-    }
-    let depth = input.depth_m.as_ref().filter(|_| needs_depth);
-    if needs_depth && depth.is_none() {
-        return Err(PipelineError::MissingInput {
-            mode,
-            input: "depth",
-        });
-    }
-    let rgb_size = input
-        .rgb
-        .as_ref()
-        .map(|i| (i.width() as usize, i.height() as usize));
-    let depth_size = depth.map(Grid::size);
-    if let (Some(rgb), Some(depth)) = (rgb_size, depth_size) {
-        if rgb != depth {
-            return Err(PipelineError::DepthSizeMismatch { rgb, depth });
-        }
-    }
-    let what = if rgb_size.is_some() { "rgb" } else { "depth" };
-    let size = rgb_size.or(depth_size).ok_or(PipelineError::MissingInput {
-        mode,
-        input: "rgb or depth",
-    })?;
-    if size.0 == 0 || size.1 == 0 {
-        return Err(PipelineError::EmptyImage { what, size });
-    }
-    if size.0.saturating_mul(size.1) > cfg.max_input_pixels {
-        return Err(PipelineError::TooLarge {
-            size,
-            max_pixels: cfg.max_input_pixels,
-        });
-    }
-    Ok(size)
 }
 
 #[cfg(test)]
