@@ -16,7 +16,7 @@ use tre_model::Models;
 /// # Errors
 ///
 /// [`PipelineError::Model`] when the net fails.
-pub fn net_centroids(
+pub(crate) fn net_centroids(
     models: &mut Models,
     net: &NetInputs<'_>,
     points: &PointMap,
@@ -40,7 +40,7 @@ pub fn net_centroids(
 /// Slope of every normal in the gravity frame whose up axis is `up_in_cam` (a unit vector in
 /// the camera frame, [`Mounting::up_in_cam`](tre_core::geometry::Mounting::up_in_cam)), radians
 /// (NaN: none).
-pub fn slopes(normals: &Grid<Vec3>, up_in_cam: &Vec3) -> Grid<f64> {
+pub(crate) fn slopes(normals: &Grid<Vec3>, up_in_cam: &Vec3) -> Grid<f64> {
     let (w, h) = normals.size();
     Grid::par_from_fn(w, h, |x, y| slope_from_up(up_in_cam, &normals[(x, y)]))
 }
@@ -48,17 +48,7 @@ pub fn slopes(normals: &Grid<Vec3>, up_in_cam: &Vec3) -> Grid<f64> {
 /// Traversable pixels: roughness and (when normals and gravity's up axis in the camera frame
 /// are given) slope within the thresholds; NaN fails. The slope test is done on cosines,
 /// `|up·n| / |n| ≥ cos(max_slope)`, which is `slope ≤ max_slope` without an `acos` per pixel.
-///
-/// ```
-/// use tre_core::geometry::{Grid, Mounting, Vec3};
-/// use tre_pipeline::{centroid::traversable, Traversability};
-/// let up = Mounting::default().up_in_cam();
-/// let normals = Grid::from_fn(2, 1, |x, _| if x == 0 { -up } else { Vec3::new(1.0, 0.0, 0.0) });
-/// let rough = Grid::new(2, 1, 0.01);
-/// let ok = traversable(&rough, Some((&normals, &up)), &Traversability::default());
-/// assert_eq!(ok.as_slice(), &[true, false]);
-/// ```
-pub fn traversable(
+pub(crate) fn traversable(
     roughness_m: &Grid<f64>,
     normals_up: Option<(&Grid<Vec3>, &Vec3)>,
     limits: &Traversability,
@@ -79,4 +69,26 @@ pub fn traversable(
         });
         roughness_m[(x, y)] <= limits.max_roughness_m && flat_enough
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::traversable;
+    use crate::Traversability;
+    use tre_core::geometry::{Grid, Mounting, Vec3};
+
+    #[test]
+    fn a_wall_is_too_steep_and_the_floor_is_not() {
+        let up = Mounting::default().up_in_cam();
+        let normals = Grid::from_fn(2, 1, |x, _| {
+            if x == 0 {
+                -up
+            } else {
+                Vec3::new(1.0, 0.0, 0.0)
+            }
+        });
+        let rough = Grid::new(2, 1, 0.01);
+        let ok = traversable(&rough, Some((&normals, &up)), &Traversability::default());
+        assert_eq!(ok.as_slice(), &[true, false]);
+    }
 }

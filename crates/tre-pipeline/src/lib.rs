@@ -1,6 +1,6 @@
 //! One frame through all stages of the paper's Fig. 5: resize to the working size, depth
-//! (`depth.rs`), back-projection, normals ([`normals`]: LS or DSAC, optional refiner),
-//! centroids and Eq. 1 ([`centroid`]), then slope, traversability and the maps back at the
+//! (`depth.rs`), back-projection, normals (`normals.rs`: LS or DSAC, optional refiner),
+//! centroids and Eq. 1 (`centroid.rs`), then slope, traversability and the maps back at the
 //! frame's size (`run.rs`). The learned stages run through [`tre_model::Models`]; everything
 //! else is the native geometry of [`tre_core::geometry`].
 //!
@@ -21,7 +21,7 @@
 //! ```
 
 mod calibration;
-pub mod centroid;
+mod centroid;
 mod check;
 #[cfg(feature = "cli")]
 mod cli;
@@ -30,13 +30,13 @@ mod depth;
 mod frame;
 mod gravity;
 mod load;
-pub mod normals;
+mod normals;
 mod plausible;
 pub mod resize;
 mod run;
 mod spares;
 mod summary;
-pub mod tensors;
+mod tensors;
 mod timings;
 
 pub use calibration::{models_key, read_calibration, stale_calibration, CalibrationProblem};

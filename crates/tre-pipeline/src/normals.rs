@@ -15,26 +15,26 @@ use tre_core::geometry::{
 use tre_model::Models;
 
 /// Initial normals and, for LS, the window centroids that came with them for free.
-pub struct InitialNormals {
+pub(crate) struct InitialNormals {
     /// Unit normals facing the camera (NaN: none).
-    pub normals: Grid<Vec3>,
+    pub(crate) normals: Grid<Vec3>,
     /// Window centroids, when the LS fit computed them.
-    pub window_centroids: Option<PointMap>,
+    pub(crate) window_centroids: Option<PointMap>,
 }
 
 /// The network inputs shared by the later stages, at the working size.
-pub struct NetInputs<'a> {
+pub(crate) struct NetInputs<'a> {
     /// RGB, `1 × 3 × H × W` in [0, 1].
-    pub rgb: &'a Array4<f32>,
+    pub(crate) rgb: &'a Array4<f32>,
     /// Points, `1 × 3 × H × W` metres, 0 where invalid.
-    pub points_m: &'a Array4<f32>,
+    pub(crate) points_m: &'a Array4<f32>,
     /// Validity, `1 × 1 × H × W`.
-    pub valid: &'a Array4<f32>,
+    pub(crate) valid: &'a Array4<f32>,
 }
 
 /// LS normals and window centroids over `hood` (focal `fx_px` at the working size), written
 /// into `planes`' grids with `packed` as scratch (all reused across frames).
-pub fn ls_normals(
+pub(crate) fn ls_normals(
     points: &PointMap,
     fx_px: f64,
     hood: &Neighbourhood,
@@ -56,7 +56,7 @@ pub fn ls_normals(
 ///
 /// [`PipelineError::Model`] when the net fails, [`PipelineError::Geometry`] when its logits do
 /// not fit the point map.
-pub fn dsac_normals_from_net(
+pub(crate) fn dsac_normals_from_net(
     models: &mut Models,
     net: &NetInputs<'_>,
     points: &PointMap,
@@ -88,7 +88,7 @@ pub fn dsac_normals_from_net(
 /// # Errors
 ///
 /// [`PipelineError::Model`] when the net fails.
-pub fn refine(
+pub(crate) fn refine(
     models: &mut Models,
     net: &NetInputs<'_>,
     points: &PointMap,

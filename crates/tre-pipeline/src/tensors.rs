@@ -12,7 +12,7 @@ use tre_core::geometry::{is_valid_point, Grid, PointMap, Vec3, INVALID_POINT};
 
 /// Makes `t` a zeroed-or-reused `1 × channels × height × width` tensor: reallocates only when
 /// the shape changes.
-pub fn ensure_shape(t: &mut Array4<f32>, channels: usize, height: usize, width: usize) {
+pub(crate) fn ensure_shape(t: &mut Array4<f32>, channels: usize, height: usize, width: usize) {
     if t.dim() != (1, channels, height, width) {
         *t = Array4::zeros((1, channels, height, width));
     }
@@ -38,7 +38,7 @@ fn fill(t: &mut Array4<f32>, value: impl Fn(usize, usize, usize) -> f32 + Sync) 
 }
 
 /// RGB as `1 × 3 × H × W` in [0, 1] (8-bit / 255).
-pub fn rgb_tensor(rgb: &RgbImage, t: &mut Array4<f32>) {
+pub(crate) fn rgb_tensor(rgb: &RgbImage, t: &mut Array4<f32>) {
     let (w, h) = (rgb.width() as usize, rgb.height() as usize);
     ensure_shape(t, 3, h, w);
     let raw = rgb.as_raw();
@@ -46,14 +46,18 @@ pub fn rgb_tensor(rgb: &RgbImage, t: &mut Array4<f32>) {
 }
 
 /// A scalar map as `1 × 1 × H × W`.
-pub fn scalar_tensor(map: &Grid<f64>, t: &mut Array4<f32>) {
+pub(crate) fn scalar_tensor(map: &Grid<f64>, t: &mut Array4<f32>) {
     let (w, h) = map.size();
     ensure_shape(t, 1, h, w);
     fill(t, |x, y, _| map[(x, y)] as f32);
 }
 
 /// Points as `1 × 3 × H × W` metres (0 where invalid) and validity as `1 × 1 × H × W` (1/0).
-pub fn points_tensors(points: &PointMap, points_t: &mut Array4<f32>, valid_t: &mut Array4<f32>) {
+pub(crate) fn points_tensors(
+    points: &PointMap,
+    points_t: &mut Array4<f32>,
+    valid_t: &mut Array4<f32>,
+) {
     let (w, h) = points.size();
     ensure_shape(points_t, 3, h, w);
     ensure_shape(valid_t, 1, h, w);
@@ -80,7 +84,7 @@ pub fn points_tensors(points: &PointMap, points_t: &mut Array4<f32>, valid_t: &m
 }
 
 /// Vectors (normals) as `1 × 3 × H × W`, 0 where a vector is not finite.
-pub fn vectors_tensor(vectors: &Grid<Vec3>, t: &mut Array4<f32>) {
+pub(crate) fn vectors_tensor(vectors: &Grid<Vec3>, t: &mut Array4<f32>) {
     let (w, h) = vectors.size();
     ensure_shape(t, 3, h, w);
     let [p0, p1, p2] = plane_rows(t);
@@ -113,7 +117,7 @@ fn plane_rows(t: &mut Array4<f32>) -> [rayon::slice::ChunksMut<'_, f32>; 3] {
 
 /// Channel 0 of a `1 × 1 × H × W` depth tensor as metres into `out`, which takes the tensor's
 /// size and keeps its buffer; non-positive or non-finite: 0.
-pub fn depth_from_tensor_into(t: ArrayView4<'_, f32>, out: &mut Grid<f64>) {
+pub(crate) fn depth_from_tensor_into(t: ArrayView4<'_, f32>, out: &mut Grid<f64>) {
     let (_, _, h, w) = t.dim();
     let plane = t.slice(s![0, 0, .., ..]);
     out.reset(w, h, 0.0);
@@ -128,7 +132,7 @@ pub fn depth_from_tensor_into(t: ArrayView4<'_, f32>, out: &mut Grid<f64>) {
 /// Channels 0..3 of a `1 × 3 × H × W` tensor as vectors where `points` is valid, NaN elsewhere,
 /// into `out`, which takes the size of `points` and keeps its buffer; `unit` normalises them (a
 /// zero or non-finite vector becomes NaN).
-pub fn vectors_from_tensor_into(
+pub(crate) fn vectors_from_tensor_into(
     t: ArrayView4<'_, f32>,
     points: &PointMap,
     unit: bool,
