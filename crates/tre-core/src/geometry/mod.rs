@@ -8,7 +8,7 @@ pub mod floor;
 mod gravity;
 mod grid;
 pub mod hash;
-pub mod neighbours;
+pub(crate) mod neighbours;
 pub mod normals;
 mod plane;
 pub mod raycast;

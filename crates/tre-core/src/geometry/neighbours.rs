@@ -115,16 +115,13 @@ fn band_margin(p: &Vec3, radius_m: f64) -> f64 {
 
 /// Valid points within `radius_m` of pixel `(x, y)`'s point in its window of half-width `half`
 /// (the definition; the pixel's own point included).
-///
-/// ```
-/// use tre_core::geometry::neighbours::count_within;
-/// use tre_core::geometry::{Grid, Vec3};
-/// let points = Grid::from_fn(5, 5, |x, y| Vec3::new(0.01 * x as f64, 0.01 * y as f64, 1.0));
-/// // Within 1.5 cm of the centre: itself and its 4-neighbours and diagonal ones.
-/// assert_eq!(count_within(&points, 2, 2, 2, 0.015), 9);
-/// assert_eq!(count_within(&points, 0, 0, 1, 0.015), 4);
-/// ```
-pub fn count_within(points: &PointMap, x: usize, y: usize, half: usize, radius_m: f64) -> usize {
+pub(crate) fn count_within(
+    points: &PointMap,
+    x: usize,
+    y: usize,
+    half: usize,
+    radius_m: f64,
+) -> usize {
     let (w, h) = points.size();
     let p = points[(x, y)];
     let r2 = radius_m * radius_m;
@@ -141,20 +138,7 @@ pub fn count_within(points: &PointMap, x: usize, y: usize, half: usize, radius_m
 /// [`count_within`] at every pixel with the window of [`Neighbourhood::half_width`] (0 where the
 /// pixel is invalid), into `out`, with `packed` as the packed copy of the points; both keep
 /// their buffers from call to call.
-///
-/// ```
-/// use tre_core::geometry::neighbours::{count_within, neighbour_counts_into};
-/// use tre_core::geometry::normals::{Neighbourhood, PackedPoints};
-/// use tre_core::geometry::{Grid, Intrinsics};
-/// let k = Intrinsics::from_hfov(21, 13, 60.0).unwrap();
-/// let points = k.back_project_map(&Grid::from_fn(21, 13, |x, y| 0.5 + 0.01 * (x * y) as f64));
-/// let hood = Neighbourhood::default();
-/// let mut counts = Grid::new(0, 0, 0);
-/// neighbour_counts_into(&points, k.fx_px, &hood, &mut PackedPoints::default(), &mut counts);
-/// let h = hood.half_width(k.fx_px, points[(20, 7)].z);
-/// assert_eq!(counts[(20, 7)] as usize, count_within(&points, 20, 7, h, hood.radius_m));
-/// ```
-pub fn neighbour_counts_into(
+pub(crate) fn neighbour_counts_into(
     points: &PointMap,
     fx_px: f64,
     hood: &Neighbourhood,
@@ -209,6 +193,37 @@ fn counts_row(
 mod tests {
     use super::*;
     use crate::geometry::INVALID_POINT;
+
+    #[test]
+    fn count_within_counts_the_pixel_and_its_neighbours_in_reach() {
+        let points = Grid::from_fn(5, 5, |x, y| {
+            Vec3::new(0.01 * x as f64, 0.01 * y as f64, 1.0)
+        });
+        // Within 1.5 cm of the centre: itself and its 4-neighbours and diagonal ones.
+        assert_eq!(count_within(&points, 2, 2, 2, 0.015), 9);
+        assert_eq!(count_within(&points, 0, 0, 1, 0.015), 4);
+    }
+
+    #[test]
+    fn neighbour_counts_are_count_within_in_the_hoods_window() {
+        use crate::geometry::Intrinsics;
+        let k = Intrinsics::from_hfov(21, 13, 60.0).unwrap();
+        let points = k.back_project_map(&Grid::from_fn(21, 13, |x, y| 0.5 + 0.01 * (x * y) as f64));
+        let hood = Neighbourhood::default();
+        let mut counts = Grid::new(0, 0, 0);
+        neighbour_counts_into(
+            &points,
+            k.fx_px,
+            &hood,
+            &mut PackedPoints::default(),
+            &mut counts,
+        );
+        let h = hood.half_width(k.fx_px, points[(20, 7)].z);
+        assert_eq!(
+            counts[(20, 7)] as usize,
+            count_within(&points, 20, 7, h, hood.radius_m)
+        );
+    }
 
     /// Every pixel's count against the definition, on a bumpy surface with holes whose points
     /// sit at all distances around the radius, with every half-width from 1 to 9 (8 and 9 take

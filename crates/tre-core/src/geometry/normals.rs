@@ -139,7 +139,7 @@ const PAD_RIGHT: usize = 16;
 pub(super) const MAX_PACKED_HALF: usize = 7;
 
 /// Points as f32 structure-of-arrays rows padded with invalid (NaN) columns, so that the window
-/// kernels (these moments, and the neighbour counts of [`super::neighbours`]) read fixed 8-lane
+/// kernels (these moments, and the neighbour counts of `neighbours.rs`) read fixed 8-lane
 /// chunks that LLVM vectorises, with no bounds special cases.
 #[derive(Debug, Clone, Default)]
 pub struct PackedPoints {
