@@ -23,7 +23,10 @@ use utoipa::ToSchema;
 
 pub use body::BodyError;
 pub use camera::CameraError;
-pub use image::{ImageError, ImagePart};
+pub use image::ImageError;
+// Public through `request` with the `bench` feature only (see `lib.rs`).
+#[cfg_attr(not(feature = "bench"), allow(unreachable_pub))]
+pub use image::ImagePart;
 pub use limits::LimitError;
 pub use options::OptionError;
 pub use service::ServiceError;

@@ -19,15 +19,28 @@ mod error;
 #[cfg(any(test, feature = "fuzzing"))]
 pub mod fuzzing;
 mod http;
+// Its `pub` items are in `request`'s signatures: public with the `bench` feature only.
+#[cfg_attr(not(feature = "bench"), allow(unreachable_pub))]
 mod map;
 mod metrics;
 mod openapi;
+// The frame options and a request's stages: public for the pipeline bench's server-worker
+// figures only (`bench` feature, benches/pipeline.rs), never the service's API. Without the
+// feature their `pub` items reach no further than the crate.
+#[cfg(feature = "bench")]
 pub mod options;
+#[cfg(not(feature = "bench"))]
+#[allow(unreachable_pub)]
+mod options;
 mod pace;
 mod proto;
 mod query;
 mod refusals;
+#[cfg(feature = "bench")]
 pub mod request;
+#[cfg(not(feature = "bench"))]
+#[allow(unreachable_pub)]
+mod request;
 mod signal;
 mod stall;
 mod stream;

@@ -75,7 +75,8 @@ impl Extras {
     }
 
     /// Whether any extra map is asked for.
-    pub fn any(self) -> bool {
+    #[cfg(test)]
+    pub(crate) fn any(self) -> bool {
         self.depth
             || self.normals
             || self.slope

@@ -200,11 +200,6 @@ pub fn image_header(
     Ok((format, (w, h)))
 }
 
-/// Keys a camera JSON sent over HTTP or the stream may carry, those a camera file is read for;
-/// any other is refused there (files read by the CLI keep their notes, such as `source` or
-/// `licence`).
-pub use tre_io::CAMERA_KEYS;
-
 /// Physical ranges of a camera sent by a client: focal lengths 1 px to 10⁶ px, pitch −90° to
 /// 90°, height above the ground 1 cm to 100 m, depth scale above 0 and at most 10⁶ units per
 /// metre, a stated size within the side limit. Anything else is 422 `bad_camera`.
@@ -244,6 +239,8 @@ pub fn check_camera_ranges(cam: &CameraFile, limits: DecodeLimits) -> Result<(),
 /// A camera JSON from a client, read as every interface reads a camera file
 /// ([`CameraFile`]: the parameters of [`CAMERA_KEYS`], other keys metadata unless they look
 /// like a misspelt parameter), within [`check_camera_ranges`].
+///
+/// [`CAMERA_KEYS`]: tre_io::CAMERA_KEYS
 pub fn strict_camera(json: &[u8], limits: DecodeLimits) -> Result<CameraFile, RequestError> {
     let value: serde_json::Value = serde_json::from_slice(json).map_err(CameraError::NotJson)?;
     if !value.is_object() {

@@ -28,7 +28,7 @@ fn json_value() -> impl Strategy<Value = serde_json::Value> {
 /// A valid camera object with a few keys changed to any value (or unknown keys added) and a
 /// few removed.
 pub(super) fn camera_objects() -> impl Strategy<Value = Vec<u8>> {
-    let keys = crate::request::CAMERA_KEYS.to_vec();
+    let keys = tre_io::CAMERA_KEYS.to_vec();
     let key = prop_oneof![
         8 => prop::sample::select(keys.clone()).prop_map(String::from),
         1 => "[a-z_]{1,10}",
