@@ -124,10 +124,10 @@ impl SensorSpec {
             },
             serde_json::Value::Object(o) if o.contains_key("stereo") && o.len() == 1 => {
                 let rig: StereoRig = serde_json::from_value(o["stereo"].clone())
-                    .map_err(|source| SensorSpecError::StereoFields { source })?;
+                    .map_err(|reason| SensorSpecError::StereoFields { reason })?;
                 let stereo = rig
                     .checked()
-                    .map_err(|source| SensorSpecError::StereoRig { source })?;
+                    .map_err(|reason| SensorSpecError::StereoRig { reason })?;
                 Ok(Self::Model(SensorNoise::Stereo { stereo }))
             }
             serde_json::Value::Object(o) => {
@@ -192,18 +192,17 @@ pub enum SensorSpecError {
         name: String,
     },
     /// A stereo rig whose fields do not read (one missing, unknown or not a number).
-    #[error("sensor.stereo: {source}")]
+    // The reason is in the message, not a `source` (as for `Coefficients`).
+    #[error("sensor.stereo: {reason}")]
     StereoFields {
         /// Why, as serde says it (its message names the field).
-        #[source]
-        source: serde_json::Error,
+        reason: serde_json::Error,
     },
     /// A stereo rig with a field that is not a positive number.
-    #[error("sensor.stereo: {source}")]
+    #[error("sensor.stereo: {reason}")]
     StereoRig {
         /// The check that failed; its message names the field.
-        #[source]
-        source: StereoRigError,
+        reason: StereoRigError,
     },
 }
 
