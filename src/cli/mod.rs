@@ -69,7 +69,8 @@ pub(crate) enum Command {
     /// input's header, and the fused map as grid_map_msgs/GridMap and nav_msgs/OccupancyGrid
     /// (docs/ros2.md). Needs no ROS installation.
     #[cfg(feature = "ros2")]
-    Ros2(ros2::Ros2),
+    // Boxed: its options are the largest by far, and every other command would carry their size.
+    Ros2(Box<ros2::Ros2>),
 }
 
 impl Command {
