@@ -25,6 +25,9 @@
 # scripts/soak_table.py `table.md` (per minute: answered rate, drops, errors, latency
 # percentiles, median RSS; the verdict) and `soak-stream.svg`.
 #
+# DATA and CAMERA choose other frames and their camera file (e.g. the kitchen at 320×240);
+# DEPTH_ONLY=1 streams the depth alone.
+#
 # Needs a release build (`cargo build --release`, or TRE=path/to/tre), curl and python3 (no
 # packages).
 set -euo pipefail
@@ -42,7 +45,11 @@ while [ $# -gt 0 ]; do
 done
 tre=${TRE:-target/release/tre}
 data=${DATA:-../shared/data/real-rgbd-2/sevenscenes_redkitchen}
-camera=cameras/real-rgbd-2_sevenscenes_redkitchen.json
+camera=${CAMERA:-cameras/real-rgbd-2_sevenscenes_redkitchen.json}
+# DEPTH_ONLY=1: stream the depth alone (`tre client --depth` without `--frames`), as a depth
+# camera would; DATA then needs only depth/.
+frames=(--frames "$data/rgb")
+[ -z "${DEPTH_ONLY:-}" ] || frames=()
 port=${PORT:-18081}
 url=http://127.0.0.1:$port
 if curl -s -o /dev/null "$url/healthz"; then
@@ -84,7 +91,7 @@ sampler=$!
 # A background job of a script starts with SIGINT ignored; `set -m` gives it its own process
 # group with the default disposition, so that the client's Ctrl-C handling sees the SIGINT.
 set -m
-"$tre" client --server "ws://127.0.0.1:$port" --frames "$data/rgb" --depth "$data/depth" \
+"$tre" client --server "ws://127.0.0.1:$port" "${frames[@]}" --depth "$data/depth" \
     --camera "$camera" --mode geometric --rate "$rate" --loop --out "$out/client" \
     > "$out/client.log" 2>&1 &
 client=$!
