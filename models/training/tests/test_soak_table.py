@@ -142,3 +142,24 @@ def test_the_plot_is_one_svg_with_a_panel_more_when_cpu_was_sampled():
     assert svg.count("<polyline") == 5  # sent, answered; p50, p99; RSS
     samples = [st.Sample(T0 + t, 400.0, 0.5 * t, 0.1 * t, t) for t in range(0, 185, 5)]
     assert st.svg(st.bin_minutes(stream(3, 2), samples)).count("<polyline") == 7
+
+
+def test_the_rate_can_be_held_to_minute_2_and_the_rss_to_5_mb():
+    # Minute 1 answers 15/s (warm-up), minutes 2 and 3 10/s; RSS grows 6 MiB a minute.
+    first = stream(1, 15)
+    rest = [
+        st.Frame(f.send_s + 60 * k, f.receive_s + 60 * k, "ok", 5.0)
+        for k in (1, 2)
+        for f in stream(1, 10)
+    ]
+    minutes = st.bin_minutes(first + rest, flat_rss(3, 400.0, 6.0))
+    default = {c.name: c for c in st.verdict(minutes)}
+    assert (
+        default["answered rate"].passed is False
+        and "against minute 1" in default["answered rate"].detail
+    )
+    assert default["RSS"].passed is True
+    issue = {c.name: c for c in st.verdict(minutes, rate_from=2, rss_mb=5.0)}
+    assert issue["answered rate"].passed is True
+    assert "against minute 2" in issue["answered rate"].detail
+    assert issue["RSS"].passed is False and "limit ±5 MB" in issue["RSS"].detail
