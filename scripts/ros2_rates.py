@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import soak_table
 from PIL import Image
 
 TOPICS_OUT = (
@@ -78,10 +79,8 @@ def load_frames(folder: Path, count: int, step: int) -> list[tuple[int, int, byt
 
 
 def percentile(xs: list[float], p: float) -> float | None:
-    if not xs:
-        return None
-    s = sorted(xs)
-    return s[min(len(s) - 1, max(0, math.ceil(p / 100 * len(s)) - 1))]
+    """The nearest-rank percentile (scripts/soak_table.py's), `None` of nothing."""
+    return soak_table.percentile(xs, p) if xs else None
 
 
 class Tally:
@@ -194,5 +193,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     main()

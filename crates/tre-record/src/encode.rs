@@ -1,9 +1,9 @@
-//! tre's data as ROS 2 messages: depth (`32FC1` metres, REP 118), colour (`rgb8`), encoded
+//! tre's data as ROS 2 messages: depth (`32FC1` metres or `16UC1` millimetres, REP 118), colour (`rgb8`), encoded
 //! images as they were sent, intrinsics as `CameraInfo`, poses; roughness and uncertainty as
 //! `32FC1`, the three-state map as `mono8`, the fused map as `grid_map_msgs/GridMap` and
 //! `nav_msgs/OccupancyGrid`.
 
-use image::RgbImage;
+use image::{ImageBuffer, Luma, RgbImage};
 use nalgebra::{Rotation3, UnitQuaternion};
 use tre_core::geometry::{Grid, Intrinsics};
 use tre_core::map::{GridMap as Map, Layers, Pose as MapPose, LAYER_NAMES};
@@ -104,19 +104,36 @@ pub fn float_image(header: &Header, values: &Grid<f64>) -> Image {
     }
 }
 
-/// A `mono16` image (little-endian) of `values` in millimetres, rounded to the nearest: 0
-/// where there is no value, 1 for a value under 0.5 mm (so that 0 stays "no data"), 65535
-/// for one over 65.535 m.
+/// Metres as `mono16` millimetres, rounded to the nearest: 0 where there is no value, 1 for a
+/// value under 0.5 mm (so that 0 stays "no data"), 65535 for one over 65.535 m.
+pub fn millimetres(v: f64) -> u16 {
+    if v.is_finite() {
+        (v * 1000.0).round().clamp(1.0, 65535.0) as u16
+    } else {
+        0
+    }
+}
+
+/// Depth as a camera driver sends it: `16UC1` millimetres, little-endian (REP 118).
+pub fn depth_mm_image(header: &Header, mm: &ImageBuffer<Luma<u16>, Vec<u16>>) -> Image {
+    let (w, h) = mm.dimensions();
+    Image {
+        header: header.clone(),
+        height: h,
+        width: w,
+        encoding: "16UC1".into(),
+        is_bigendian: 0,
+        step: 2 * w,
+        data: mm.as_raw().iter().flat_map(|v| v.to_le_bytes()).collect(),
+    }
+}
+
+/// A `mono16` image (little-endian) of `values` in [`millimetres`].
 pub fn mono16_mm_image(header: &Header, values: &Grid<f64>) -> Image {
     let (w, h) = values.size();
     let mut data = Vec::with_capacity(2 * w * h);
     for &v in values.as_slice() {
-        let mm = if v.is_finite() {
-            (v * 1000.0).round().clamp(1.0, 65535.0) as u16
-        } else {
-            0
-        };
-        data.extend(mm.to_le_bytes());
+        data.extend(millimetres(v).to_le_bytes());
     }
     Image {
         header: header.clone(),
@@ -220,10 +237,11 @@ pub fn grid_map_layers(header: &Header, map: &Map, layers: &Layers, names: &[&st
             .filter(|n| keep(n))
             .map(|s| (*s).to_owned())
             .collect(),
-        basic_layers: vec!["elevation".into()]
-            .into_iter()
-            .filter(|_| names.contains(&"elevation"))
-            .collect(),
+        basic_layers: if names.contains(&"elevation") {
+            vec!["elevation".into()]
+        } else {
+            Vec::new()
+        },
         data,
         outer_start_index: 0,
         inner_start_index: 0,

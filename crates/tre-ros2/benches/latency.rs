@@ -16,6 +16,7 @@ use ros2_client::{
 };
 use tre_core::roughness::noise::{SensorNoise, SensorPreset};
 use tre_pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
+use tre_record::encode::depth_mm_image;
 use tre_record::msgs::{CameraInfo, Header, Image, RosMessage, Time};
 use tre_ros2::{FrameMsgs, ImageOutputs, NodeConfig, Processor};
 
@@ -41,19 +42,7 @@ fn frames() -> Vec<Image> {
     paths
         .iter()
         .take(30)
-        .map(|p| {
-            let img = image::open(p).unwrap().to_luma16();
-            let (w, h) = img.dimensions();
-            Image {
-                header: Header::default(),
-                height: h,
-                width: w,
-                encoding: "16UC1".into(),
-                is_bigendian: 0,
-                step: 2 * w,
-                data: img.as_raw().iter().flat_map(|v| v.to_le_bytes()).collect(),
-            }
-        })
+        .map(|p| depth_mm_image(&Header::default(), &image::open(p).unwrap().to_luma16()))
         .collect()
 }
 

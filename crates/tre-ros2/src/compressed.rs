@@ -3,25 +3,22 @@
 //! subscriber's socket buffer, where a raw 640×480 image is not (docs/ros2.md).
 
 use image::{DynamicImage, ImageBuffer, Luma};
+use tre_record::encode::millimetres;
 use tre_record::msgs::{CompressedImage, Image};
 
 /// The PNG of `img` with image_transport's format string (`mono16; png compressed mono16`):
-/// `32FC1` metres as `mono16` millimetres rounded to the nearest (0: no data, as
-/// [`tre_record::encode::mono16_mm_image`]), `mono16` and `mono8` as they are. `None` for
+/// `32FC1` metres as `mono16` [`millimetres`] (0: no data), `mono16` and `mono8` as they
+/// are. `None` for
 /// another encoding or a malformed image.
 pub(crate) fn png(img: &Image) -> Option<CompressedImage> {
     let (w, h) = (img.width, img.height);
     let pixels = (w as usize).checked_mul(h as usize)?;
     let (decoded, kind) = match img.encoding.as_str() {
         "32FC1" if img.data.len() == 4 * pixels && img.is_bigendian == 0 => {
-            let mm = img.data.chunks_exact(4).map(|b| {
-                let v = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-                if v.is_finite() {
-                    (f64::from(v) * 1000.0).round().clamp(1.0, 65535.0) as u16
-                } else {
-                    0
-                }
-            });
+            let mm = img
+                .data
+                .chunks_exact(4)
+                .map(|b| millimetres(f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]]))));
             (mono16(w, h, mm.collect())?, "mono16")
         }
         "mono16" if img.data.len() == 2 * pixels && img.is_bigendian == 0 => {

@@ -153,8 +153,8 @@ pub enum ConfigProblem {
     MapParams(#[from] tre_io::map_params::MapParamsError),
     /// A layer name the map does not have (`--grid-layers`).
     #[error(
-        "--grid-layers: no layer {0:?}; the map's layers: elevation, variance, count, upper, \
-         clearance, roughness, slope, step, score, traversal, last_update"
+        "--grid-layers: no layer {0:?}; the map's layers: {layers}",
+        layers = tre_core::map::LAYER_NAMES.join(", ")
     )]
     GridLayer(String),
     /// A map setting out of its range (`--cell-cm`, `--size-m`, `--max-range-m`).

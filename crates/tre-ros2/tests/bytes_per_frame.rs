@@ -9,23 +9,20 @@
 use std::path::PathBuf;
 
 use tre_core::geometry::Vec3;
-use tre_core::map::{MapParams, MapPreset, Pose, LAYER_NAMES};
-use tre_core::roughness::noise::{SensorNoise, SensorPreset};
-use tre_pipeline::{Mode, Pipeline, PipelineConfig};
-use tre_record::msgs::{to_cdr, CameraInfo, Header, Image, Time};
-use tre_ros2::{FrameMsgs, ImageOutputs, MapSettings, Outputs, Processor, RoughnessEncoding};
+use tre_core::map::Pose;
+use tre_record::encode::depth_mm_image;
+use tre_record::msgs::{to_cdr, CameraInfo, Header, Time};
+use tre_ros2::{FrameMsgs, ImageOutputs, MapSettings, Outputs, RoughnessEncoding};
+
+mod common;
 
 fn kitchen() -> Option<PathBuf> {
-    let base = match std::env::var_os("TRE_SHARED_DIR") {
-        Some(d) if !d.is_empty() => PathBuf::from(d),
-        _ => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"),
-    };
-    let dir = base.join("data/real-rgbd-2/sevenscenes_redkitchen");
+    let dir = common::kitchen_dir();
     // CI has the shared data (docs/testing.md): there a missing folder fails, not skips.
-    if !dir.is_dir() && std::env::var("TRE_REQUIRE_SHARED").is_ok_and(|v| v == "1") {
-        panic!("TRE_REQUIRE_SHARED=1 but {} is missing", dir.display());
+    if dir.is_none() && std::env::var("TRE_REQUIRE_SHARED").is_ok_and(|v| v == "1") {
+        panic!("TRE_REQUIRE_SHARED=1 but the kitchen sequence is missing");
     }
-    dir.is_dir().then_some(dir)
+    dir
 }
 
 fn frame(dir: &std::path::Path) -> FrameMsgs {
@@ -40,15 +37,7 @@ fn frame(dir: &std::path::Path) -> FrameMsgs {
         },
         "camera_depth_optical_frame",
     );
-    let depth = Image {
-        header,
-        height: h,
-        width: w,
-        encoding: "16UC1".into(),
-        is_bigendian: 0,
-        step: 2 * w,
-        data: img.as_raw().iter().flat_map(|v| v.to_le_bytes()).collect(),
-    };
+    let depth = depth_mm_image(&header, &img);
     let info = CameraInfo {
         width: w,
         height: h,
@@ -72,29 +61,9 @@ fn frame(dir: &std::path::Path) -> FrameMsgs {
     }
 }
 
-fn gravity(dir: &std::path::Path) -> Vec3 {
-    let g: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("gravity.json")).unwrap()).unwrap();
-    let c = |i: usize| g["gravity"][i].as_f64().unwrap();
-    Vec3::new(c(0), c(1), c(2))
-}
-
 /// The CDR bytes of each message published for the frame: (topic, bytes).
 fn published(dir: &std::path::Path, images: ImageOutputs) -> Vec<(&'static str, usize)> {
-    let cfg = PipelineConfig {
-        mode: Mode::Geometric,
-        ..PipelineConfig::default()
-    };
-    let map = MapSettings {
-        params: MapParams::preset(MapPreset::Indoor),
-        down: gravity(dir),
-        frame_id: "world".into(),
-        grid_layers: LAYER_NAMES.to_vec(),
-        grid_period: std::time::Duration::ZERO,
-    };
-    let sensor = SensorNoise::Preset(SensorPreset::KinectV1);
-    let mut p =
-        Processor::new(Pipeline::new(None), cfg, Some(sensor), Some(map)).with_images(images);
+    let mut p = common::kinect_processor(common::indoor_map(dir)).with_images(images);
     let o: Outputs = p.process(&frame(dir)).unwrap();
     assert!(o.map_error.is_none(), "{:?}", o.map_error);
     let mut sizes = vec![("roughness", to_cdr(&o.roughness).unwrap().len())];
@@ -177,19 +146,11 @@ fn the_defaults_send_the_roughness_alone_and_mono16_halves_it() {
 #[test]
 fn the_grid_map_goes_out_once_a_grid_period_and_the_occupancy_grid_every_frame() {
     let Some(dir) = kitchen() else { return };
-    let cfg = PipelineConfig {
-        mode: Mode::Geometric,
-        ..PipelineConfig::default()
-    };
-    let map = MapSettings {
-        params: MapParams::preset(MapPreset::Indoor),
-        down: gravity(&dir),
-        frame_id: "world".into(),
+    let mut p = common::kinect_processor(MapSettings {
         grid_layers: vec!["elevation", "traversal"],
         grid_period: std::time::Duration::from_millis(200),
-    };
-    let sensor = SensorNoise::Preset(SensorPreset::KinectV1);
-    let mut p = Processor::new(Pipeline::new(None), cfg, Some(sensor), Some(map));
+        ..common::indoor_map(&dir)
+    });
     let mut f = frame(&dir);
     // Frames 0, 100, 200 and 250 ms apart from the first: grids at 0 and 200 ms only.
     let mut grids = Vec::new();

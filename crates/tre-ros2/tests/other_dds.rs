@@ -18,11 +18,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::Ordering;
 
-use tre_core::geometry::Vec3;
-use tre_core::map::{MapParams, MapPreset, LAYER_NAMES};
-use tre_core::roughness::noise::{SensorNoise, SensorPreset};
-use tre_pipeline::{Mode, Pipeline, PipelineConfig};
-use tre_ros2::{MapSettings, NodeConfig, PoseSource, Processor, Reliability};
+use tre_ros2::{NodeConfig, PoseSource, Reliability};
+
+mod common;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -52,37 +50,9 @@ fn python(imports: &str) -> Result<PathBuf, String> {
     }
 }
 
-fn kitchen() -> Option<PathBuf> {
-    let base = match std::env::var_os("TRE_SHARED_DIR") {
-        Some(d) if !d.is_empty() => PathBuf::from(d),
-        _ => root().join("../shared"),
-    };
-    let dir = base.join("data/real-rgbd-2/sevenscenes_redkitchen");
-    dir.is_dir().then_some(dir)
-}
-
-fn gravity(dir: &Path) -> Vec3 {
-    let g: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("gravity.json")).unwrap()).unwrap();
-    let c = |i: usize| g["gravity"][i].as_f64().unwrap();
-    Vec3::new(c(0), c(1), c(2))
-}
-
 /// The node under test on `domain`: kinect_v1 noise, the indoor map from `/odom`.
 fn start_node(dir: &Path, domain: u16) -> tre_ros2::RunningNode {
-    let map = MapSettings {
-        params: MapParams::preset(MapPreset::Indoor),
-        down: gravity(dir),
-        frame_id: "world".into(),
-        grid_layers: LAYER_NAMES.to_vec(),
-        grid_period: std::time::Duration::ZERO,
-    };
-    let cfg = PipelineConfig {
-        mode: Mode::Geometric,
-        ..PipelineConfig::default()
-    };
-    let sensor = SensorNoise::Preset(SensorPreset::KinectV1);
-    let processor = Processor::new(Pipeline::new(None), cfg, Some(sensor), Some(map));
+    let processor = common::kinect_processor(common::indoor_map(dir));
     tre_ros2::start(
         NodeConfig {
             domain_id: domain,
@@ -108,7 +78,7 @@ struct Run {
 /// Runs the node and the `dds` peer (importing `imports`) subscribed to `topics`; `None`
 /// (skipped) without the peer or the frames.
 fn run(dds: &str, imports: &str, domain: u16, topics: &str) -> Option<Run> {
-    let (py, dir) = match (python(imports), kitchen()) {
+    let (py, dir) = match (python(imports), common::kitchen_dir()) {
         (Ok(py), Some(dir)) => (py, dir),
         (py, dir) => {
             let why = format!(

@@ -46,17 +46,7 @@ pub(super) fn header(i: usize) -> Header {
 }
 
 pub(super) fn depth_msg(path: &Path, i: usize) -> Image {
-    let img = image::open(path).unwrap().to_luma16();
-    let (w, h) = img.dimensions();
-    Image {
-        header: header(i),
-        height: h,
-        width: w,
-        encoding: "16UC1".into(),
-        is_bigendian: 0,
-        step: 2 * w,
-        data: img.as_raw().iter().flat_map(|v| v.to_le_bytes()).collect(),
-    }
+    tre::record::encode::depth_mm_image(&header(i), &image::open(path).unwrap().to_luma16())
 }
 
 pub(super) fn info_msg(i: usize, (w, h): (u32, u32)) -> CameraInfo {
