@@ -307,7 +307,7 @@ impl Pipeline {
         };
         let (noise, sums) = (input.sensor.as_ref(), &mut self.scratch.sums);
         let cfg = TerrainConfig::default();
-        terrain_into(points, work.k.fx_px, noise, &cfg, sums, &mut maps);
+        terrain_into(points, &work.k, noise, &cfg, sums, &mut maps);
         maps
     }
 

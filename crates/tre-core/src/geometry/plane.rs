@@ -148,80 +148,54 @@ pub(crate) fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
     eigenvectors_for(&a, &[l_min], &[l_mid])[0]
 }
 
-/// The least-squares plane of a covariance (one lane, as [`covariance_lanes`] gives it): the
-/// unit eigenvector of its smallest eigenvalue, and its two smallest eigenvalues (ascending, in
-/// the covariance's units, clamped at 0). `None` for a zero or non-finite matrix, or where
-/// the two smallest eigenvalues are not separated (no unique plane). The eigenvalues come in
-/// closed form (the trigonometric solution of the characteristic cubic, exact to about 1e-15
-/// of the largest): the terrain estimate's solver, faster than the iterative one of
-/// [`smallest_eigenvector`], whose bits the spec keeps.
-pub(crate) fn eigen_plane(cov: &SymLanes<1>) -> Option<(Vec3, f64, f64)> {
-    let scale = cov.iter().fold(0.0f64, |s, e| s.max(e[0].abs()));
-    if !(scale > 0.0) || !scale.is_finite() {
-        return None;
+/// The least-squares planes of `N` covariances at once (as [`covariance_lanes`] gives them):
+/// each one's unit eigenvector of its smallest eigenvalue, and its two smallest eigenvalues
+/// (ascending, in the covariance's units, clamped at 0); `None` for a zero or non-finite
+/// matrix, or where the two smallest eigenvalues are not separated by 1e-6 of the largest
+/// entry (no unique plane). The solver of [`smallest_eigenvectors`] (Halley's method on the
+/// characteristic cubic, in lanes, then the largest cross product of two rows of `A − λI`),
+/// so the terrain estimate and the spec solve alike; a lane that has not converged after six
+/// steps goes on alone. Each lane's result depends on its own matrix only, bit for bit.
+#[inline(always)]
+pub(crate) fn eigen_planes<const N: usize>(covs: &SymLanes<N>) -> [Option<(Vec3, f64, f64)>; N] {
+    let mut scale = [0.0f64; N];
+    for e in covs {
+        for (s, v) in scale.iter_mut().zip(e) {
+            *s = s.max(v.abs());
+        }
     }
-    let a: SymLanes<1> = from_fn(|e| [cov[e][0] / scale]);
-    let [xx, xy, xz, yy, yz, zz] = a.map(|e| e[0]);
-    let q = (xx + yy + zz) / 3.0;
-    let off = xy * xy + xz * xz + yz * yz;
-    let p2 = (xx - q).powi(2) + (yy - q).powi(2) + (zz - q).powi(2) + 2.0 * off;
-    let p = (p2 / 6.0).sqrt();
-    let (l_min, l_mid) = if p <= 0.0 {
-        (q, q)
-    } else {
-        let (bx, by, bz) = ((xx - q) / p, (yy - q) / p, (zz - q) / p);
-        let (bxy, bxz, byz) = (xy / p, xz / p, yz / p);
-        let det = bx * (by * bz - byz * byz) - bxy * (bxy * bz - byz * bxz)
-            + bxz * (bxy * byz - by * bxz);
-        let phi = (0.5 * det).clamp(-1.0, 1.0).acos() / 3.0;
-        let l_max = q + 2.0 * p * phi.cos();
-        let l_min = q + 2.0 * p * (phi + 2.0 * std::f64::consts::FRAC_PI_3).cos();
-        (l_min, 3.0 * q - l_max - l_min)
-    };
-    let v = eigenvectors_for(&a, &[l_min], &[l_mid])[0]?;
-    Some((v, l_min.max(0.0) * scale, l_mid.max(0.0) * scale))
+    let usable: [bool; N] = from_fn(|l| scale[l] > 0.0 && scale[l].is_finite());
+    let inv: [f64; N] = from_fn(|l| if usable[l] { 1.0 / scale[l] } else { 0.0 });
+    let a: SymLanes<N> = from_fn(|e| from_fn(|l| covs[e][l] * inv[l]));
+    let c: [[f64; 3]; N] = from_fn(|l| char_poly(&a, l));
+    let (mut l, mut done) = ([0.0f64; N], [false; N]);
+    for _ in 0..6 {
+        for i in 0..N {
+            let step = halley_step(&c[i], l[i]);
+            let next = if done[i] { l[i] } else { l[i] - step };
+            done[i] = done[i] || step.abs() <= 1e-13 * (1.0 + next.abs());
+            l[i] = next;
+        }
+        if done.iter().all(|&d| d) {
+            break;
+        }
+    }
+    for i in 0..N {
+        if !done[i] {
+            l[i] = smallest_root(&c[i], l[i]);
+        }
+    }
+    let l_mid: [f64; N] = from_fn(|i| next_root(&c[i], l[i]));
+    let vectors = eigenvectors_for(&a, &l, &l_mid);
+    from_fn(|i| {
+        let v = vectors[i].filter(|_| usable[i])?;
+        Some((v, l[i].max(0.0) * scale[i], l_mid[i].max(0.0) * scale[i]))
+    })
 }
 
-/// [`eigen_plane`] for a covariance whose plane is near `guess` (unit): three steps of inverse
-/// iteration from it, the Rayleigh quotient as the smallest eigenvalue and the smaller of the
-/// other two roots of the characteristic cubic; the closed form where the iteration does not
-/// settle (a residual over 1e-5 of the scale: the normal within about 1e-4 rad) or the matrix
-/// is singular to working precision.
-pub(crate) fn eigen_plane_near(cov: &SymLanes<1>, guess: &Vec3) -> Option<(Vec3, f64, f64)> {
-    let scale = cov.iter().fold(0.0f64, |s, e| s.max(e[0].abs()));
-    if !(scale > 0.0) || !scale.is_finite() {
-        return None;
-    }
-    let [xx, xy, xz, yy, yz, zz] = cov.map(|e| e[0] / scale);
-    let m = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
-    // The adjugate: A⁻¹ up to the determinant's factor, which the normalisation removes.
-    let adj = Matrix3::new(
-        yy * zz - yz * yz,
-        xz * yz - xy * zz,
-        xy * yz - xz * yy,
-        xz * yz - xy * zz,
-        xx * zz - xz * xz,
-        xy * xz - xx * yz,
-        xy * yz - xz * yy,
-        xy * xz - xx * yz,
-        xx * yy - xy * xy,
-    );
-    let mut v = *guess;
-    for _ in 0..3 {
-        let w = adj * v;
-        let n = w.norm();
-        if !(n > 1e-300) || !n.is_finite() {
-            return eigen_plane(cov);
-        }
-        v = w / n;
-    }
-    let mv = m * v;
-    let l_min = v.dot(&mv);
-    if (mv - v * l_min).norm() > 1e-5 {
-        return eigen_plane(cov);
-    }
-    let l_mid = next_root(&char_poly(&sym_lanes(&[m]), 0), l_min);
-    (l_mid - l_min > 1e-6).then(|| (v, l_min.max(0.0) * scale, l_mid.max(0.0) * scale))
+/// [`eigen_planes`] of one covariance.
+pub(crate) fn eigen_plane(cov: &SymLanes<1>) -> Option<(Vec3, f64, f64)> {
+    eigen_planes(cov)[0]
 }
 
 /// Symmetric 3×3 matrices in lanes (structure of arrays): the entries xx, xy, xz, yy, yz, zz,
@@ -350,17 +324,22 @@ fn eigenvectors_for<const N: usize>(
 /// The two smallest eigenvalues (ascending) of a symmetric PSD 3×3 matrix.
 fn smallest_two_eigenvalues(a: &SymLanes<1>) -> (f64, f64) {
     let c = char_poly(a, 0);
-    // Halley's method from 0: cubic convergence, and monotone like Newton's on this side of
-    // the smallest root (f > 0, f' < 0, f'' > 0 there).
-    let mut l = 0.0f64;
+    let l = smallest_root(&c, 0.0);
+    (l, next_root(&c, l))
+}
+
+/// The smallest root of the characteristic cubic `c` by Halley's method from `l` (at most the
+/// root): cubic convergence, and monotone like Newton's on this side of the smallest root
+/// (f > 0, f' < 0, f'' > 0 there).
+fn smallest_root(c: &[f64; 3], mut l: f64) -> f64 {
     for _ in 0..100 {
-        let step = halley_step(&c, l);
+        let step = halley_step(c, l);
         l -= step;
         if step.abs() <= 1e-15 * (1.0 + l.abs()) {
             break;
         }
     }
-    (l, next_root(&c, l))
+    l
 }
 
 /// `[c2, c1, c0]` of `det(A − λI) = −λ³ + c2·λ² − c1·λ + c0` for lane `l` of `a` (the

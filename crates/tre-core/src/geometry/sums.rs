@@ -82,7 +82,8 @@ impl SummedMoments {
         let (a, b, c, d) = (at(x1, y1), at(x0, y1), at(x1, y0), at(x0, y0));
         let s: Cell = std::array::from_fn(|i| a[i] - b[i] - c[i] + d[i]);
         Moments {
-            count: s[0].round() as u32,
+            // Counts are whole numbers, summed exactly.
+            count: (s[0] + 0.5) as u32,
             sum: Vec3::new(s[1], s[2], s[3]),
             sum_sq: [s[4], s[5], s[6], s[7], s[8], s[9]],
         }

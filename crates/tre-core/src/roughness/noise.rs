@@ -94,6 +94,8 @@ const STEREO_FOCAL_PX: f64 = 700.0;
 /// Passive stereo preset: baseline, metres.
 const STEREO_BASELINE_M: f64 = 0.12;
 
+/// Kinect v1 depth focal length at 640×480, pixels (the synthetic sensor model's).
+const KINECT_V1_FOCAL_PX: f64 = 580.0;
 /// RealSense D435 sub-pixel disparity accuracy σ_d, pixels (Intel's typical figure).
 const D435_SUBPIXEL_PX: f64 = 0.08;
 /// RealSense D435 depth focal length at 848×480 (87° horizontal field of view), pixels.
@@ -259,10 +261,10 @@ impl SensorNoise {
         }
     }
 
-    /// How the noise is shared between neighbouring pixels: `(side, share)`, the side in
-    /// pixels of the patches within which a `share` of the variance is common (a triangulating
-    /// sensor's correlation window, as the synthetic sensor models render it: docs/synth.md),
-    /// `(1, 0)` for independent pixels.
+    /// How the noise is shared between neighbouring pixels: `(side, share)`, the side in the
+    /// sensor's own (native) pixels of the patches within which a `share` of the variance is
+    /// common (a triangulating sensor's correlation window, as the synthetic sensor models
+    /// render it: docs/synth.md), `(1, 0)` for independent pixels.
     pub fn correlation(&self) -> (f64, f64) {
         match self {
             Self::Preset(SensorPreset::KinectV1) => (9.0, 0.9),
@@ -273,10 +275,37 @@ impl SensorNoise {
         }
     }
 
-    /// The variance of the mean of `n` neighbouring points' noise, in units of one point's:
-    /// `(1 − s)/n + s·min(1, c²/n)` for side `c` and share `s` ([`Self::correlation`]).
-    pub fn mean_variance(&self, n: f64) -> f64 {
-        let (c, s) = self.correlation();
+    /// The focal length of the sensor's own depth image, pixels, which its
+    /// [`correlation`](Self::correlation) window is given in (`None`: independent pixels).
+    pub fn native_focal_px(&self) -> Option<f64> {
+        match self {
+            Self::Preset(SensorPreset::KinectV1) => Some(KINECT_V1_FOCAL_PX),
+            Self::Preset(SensorPreset::RealsenseD435) => Some(D435_FOCAL_PX),
+            Self::Preset(SensorPreset::PassiveStereo) => Some(STEREO_FOCAL_PX),
+            Self::Stereo { stereo } => Some(stereo.focal_px),
+            _ => None,
+        }
+    }
+
+    /// [`correlation`](Self::correlation) in the pixels of a frame of focal lengths
+    /// `(fx, fy)`: the window covers the same angles whatever size the frame was resampled
+    /// to (a 640×480 Kinect frame halved to 320×240 shares its noise over 4.5 px, not 9). A
+    /// frame resampled by different factors along its axes gets the side of a square of the
+    /// window's area.
+    pub fn correlation_in(&self, (fx_px, fy_px): (f64, f64)) -> (f64, f64) {
+        let (side, share) = self.correlation();
+        let scale = (fx_px * fy_px).sqrt();
+        match self.native_focal_px() {
+            Some(f) if scale.is_finite() && scale > 0.0 => ((side * scale / f).max(1.0), share),
+            _ => (side, share),
+        }
+    }
+
+    /// The variance of the mean of `n` neighbouring points' noise, in units of one point's,
+    /// in a frame of focal lengths `(fx, fy)`: `(1 − s)/n + s·min(1, c²/n)` for side `c` and
+    /// share `s` ([`Self::correlation_in`]).
+    pub fn mean_variance(&self, n: f64, focal_px: (f64, f64)) -> f64 {
+        let (c, s) = self.correlation_in(focal_px);
         let n = n.max(1.0);
         (1.0 - s) / n + s * (c * c / n).min(1.0)
     }

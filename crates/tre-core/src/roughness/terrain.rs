@@ -28,14 +28,11 @@ use rayon::prelude::*;
 
 use super::noise::{SensorNoise, HALF_NORMAL_P95};
 use crate::geometry::sums::SummedMoments;
-use crate::geometry::{covariance_lanes, eigen_plane, eigen_plane_near, SymLanes};
+use crate::geometry::{covariance_lanes, eigen_plane, eigen_planes, SymLanes};
 use crate::geometry::{is_valid_point, Grid, Intrinsics, Moments, PointMap, Vec3, INVALID_POINT};
 
 /// The largest half-width of a support window, pixels.
 pub const MAX_HALF_PX: usize = 64;
-
-/// Scatter off a support's plane, beyond the noise, below which it holds no step, metres.
-const PLANAR_M: f64 = 0.002;
 
 /// Half-widths tried above the one the metric radius asks for, pixels.
 const LADDER: [usize; 12] = [1, 2, 3, 4, 6, 8, 11, 16, 23, 32, 45, 64];
@@ -115,95 +112,92 @@ impl Support {
     }
 }
 
-/// The terrain estimate of `points` (camera frame, metres) seen with focal length `fx_px` and
-/// noise model `noise` (`None`: exact depth), into `out` (its grids reused).
+/// The terrain estimate of `points` (camera frame, metres) seen through intrinsics `k` (their
+/// focal lengths: the supports' pixels and the noise's correlation window) with noise model
+/// `noise` (`None`: exact depth), into `out` (its grids reused).
 pub fn terrain_into(
     points: &PointMap,
-    fx_px: f64,
+    k: &Intrinsics,
     noise: Option<&SensorNoise>,
     cfg: &TerrainConfig,
     sums: &mut SummedMoments,
     out: &mut TerrainMaps,
 ) {
     let (w, h) = points.size();
-    let frame = Frame::new(points, sums, fx_px, noise, cfg);
+    let frame = Frame::new(points, sums, k, noise, cfg);
     // Pass 1: supports, surface terms and the steps of the seams right of and below each pixel.
     let per_pixel: Vec<(f64, f64, f64, Vec3)> = (0..h)
         .into_par_iter()
         .flat_map_iter(|y| {
             let frame = &frame;
-            // Each support's plane starts its solve from the left neighbour's (rows are
-            // independent, so the result does not depend on the threads).
-            let mut left = None;
-            (0..w).map(move |x| frame.pixel((x, y), &mut left))
+            frame.row(y)
         })
         .collect();
     // Pass 2: each step spreads over its band; roughness is the larger term.
-    let rows = band_max(&per_pixel, (w, h), cfg.band_px);
+    let across = band_across(&per_pixel, (w, h), cfg.band_px);
     out.roughness_m.reset(w, h, f64::NAN);
     out.uncertainty_m.reset(w, h, f64::NAN);
     out.normals.reset(w, h, Vec3::repeat(f64::NAN));
-    for (y, row) in rows {
-        for (x, r) in row.into_iter().enumerate() {
-            let (_, _, u, n) = per_pixel[y * w + x];
-            out.roughness_m[(x, y)] = r;
-            if r.is_finite() {
-                out.uncertainty_m[(x, y)] = u;
-                out.normals[(x, y)] = n;
+    let band = cfg.band_px;
+    out.roughness_m
+        .as_mut_slice()
+        .par_chunks_mut(w)
+        .zip(out.uncertainty_m.as_mut_slice().par_chunks_mut(w))
+        .zip(out.normals.as_mut_slice().par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, ((roughness, uncertainty), normals))| {
+            let rows = y.saturating_sub(band)..(y + band + 1).min(h);
+            for x in 0..w {
+                let (surface, _, u, n) = per_pixel[y * w + x];
+                if !surface.is_finite() {
+                    continue;
+                }
+                let r = rows
+                    .clone()
+                    .fold(surface, |m, yy| m.max(across[yy * w + x]));
+                roughness[x] = r;
+                if r.is_finite() {
+                    uncertainty[x] = u;
+                    normals[x] = n;
+                }
             }
-        }
-    }
+        });
 }
 
-/// Per row, the larger of each pixel's surface term and the steps within `band` pixels of it
-/// (NaN where the pixel has no estimate). The box's largest step is taken along the rows, then
-/// down the columns: ten values a pixel instead of 25 at a band of 2, the same maximum.
-fn band_max(
+/// Per pixel, the largest step within `band` pixels of it along its row; the band's box
+/// maximum is this taken down the columns: ten values a pixel instead of 25 at a band of 2,
+/// the same maximum.
+fn band_across(
     per_pixel: &[(f64, f64, f64, Vec3)],
     (w, h): (usize, usize),
     band: usize,
-) -> Vec<(usize, Vec<f64>)> {
-    let across: Vec<f64> = (0..h)
-        .into_par_iter()
-        .flat_map_iter(|y| {
+) -> Vec<f64> {
+    let mut across = vec![0.0; w * h];
+    across
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(y, out)| {
             let row = &per_pixel[y * w..(y + 1) * w];
-            (0..w).map(move |x| {
-                row[x.saturating_sub(band)..(x + band + 1).min(w)]
+            for (x, o) in out.iter_mut().enumerate() {
+                *o = row[x.saturating_sub(band)..(x + band + 1).min(w)]
                     .iter()
-                    .fold(f64::NEG_INFINITY, |m, p| m.max(p.1))
-            })
-        })
-        .collect();
-    (0..h)
-        .into_par_iter()
-        .map(|y| {
-            let rows = y.saturating_sub(band)..(y + band + 1).min(h);
-            let row = (0..w)
-                .map(|x| {
-                    let surface = per_pixel[y * w + x].0;
-                    if !surface.is_finite() {
-                        return f64::NAN;
-                    }
-                    rows.clone()
-                        .fold(surface, |m, yy| m.max(across[yy * w + x]))
-                })
-                .collect();
-            (y, row)
-        })
-        .collect()
+                    .fold(f64::NEG_INFINITY, |m, p| m.max(p.1));
+            }
+        });
+    across
 }
 
 /// [`terrain_into`] into fresh maps.
 pub fn terrain(
     points: &PointMap,
-    fx_px: f64,
+    k: &Intrinsics,
     noise: Option<&SensorNoise>,
     cfg: &TerrainConfig,
 ) -> TerrainMaps {
     let mut out = TerrainMaps::default();
     terrain_into(
         points,
-        fx_px,
+        k,
         noise,
         cfg,
         &mut SummedMoments::default(),
@@ -231,10 +225,10 @@ pub fn clean_points_into(
     out: &mut PointMap,
 ) {
     let (w, h) = points.size();
-    let frame = Frame::new(points, sums, k.fx_px, noise, cfg);
+    let frame = Frame::new(points, sums, k, noise, cfg);
     out.reset(w, h, INVALID_POINT);
     out.par_rows_mut().for_each(|(y, row)| {
-        let mut left = None;
+        let firsts = frame.first_windows(y);
         for (x, q) in row.iter_mut().enumerate() {
             let p = points[(x, y)];
             let ray = Vec3::new(
@@ -242,7 +236,7 @@ pub fn clean_points_into(
                 (y as f64 - k.cy_px) / k.fy_px,
                 1.0,
             );
-            *q = frame.on_support((x, y), p, &ray, &mut left).unwrap_or(p);
+            *q = frame.on_support((x, y), p, &ray, firsts[x].as_ref()).unwrap_or(p);
         }
     });
 }
@@ -253,6 +247,7 @@ struct Frame<'a> {
     sums: &'a SummedMoments,
     origin: Vec3,
     fx_px: f64,
+    fy_px: f64,
     noise: Option<&'a SensorNoise>,
     cfg: &'a TerrainConfig,
 }
@@ -262,7 +257,7 @@ impl<'a> Frame<'a> {
     fn new(
         points: &'a PointMap,
         sums: &'a mut SummedMoments,
-        fx_px: f64,
+        k: &Intrinsics,
         noise: Option<&'a SensorNoise>,
         cfg: &'a TerrainConfig,
     ) -> Self {
@@ -272,7 +267,8 @@ impl<'a> Frame<'a> {
             points,
             sums,
             origin: sums.origin(),
-            fx_px,
+            fx_px: k.fx_px,
+            fy_px: k.fy_px,
             noise,
             cfg,
         }
@@ -280,86 +276,78 @@ impl<'a> Frame<'a> {
     /// The variance of the mean of `n` neighbours' noise, in units of one point's
     /// ([`SensorNoise::mean_variance`]; independent points without a noise model).
     fn mean_var(&self, n: f64) -> f64 {
-        self.noise.map_or(1.0 / n.max(1.0), |s| s.mean_variance(n))
+        self.noise
+            .map_or(1.0 / n.max(1.0), |s| s.mean_variance(n, (self.fx_px, self.fy_px)))
     }
 
-    /// `(surface term, step of the seams right of and below, uncertainty, normal)` at a pixel;
-    /// NaN surface term (and normal) where it has no point or no support.
-    fn pixel(&self, xy: (usize, usize), left: &mut Option<Vec3>) -> (f64, f64, f64, Vec3) {
-        let none = (f64::NAN, 0.0, f64::NAN, Vec3::repeat(f64::NAN));
-        let p = self.points[xy];
-        if !is_valid_point(&p) {
-            return none;
-        }
-        let s = match self.support(xy, &p, left) {
-            Found::Plane(s) => s,
-            Found::Rough(r, normal, u) => return (r, 0.0, u, normal),
-            Found::Nothing => return none,
-        };
-        let k = self.cfg.debias;
-        // Surface term: the inner window's mean point against the support's plane.
-        let inner = self.sums.window(xy, (s.half / 3).max(1));
-        let n_in = f64::from(inner.count.max(1));
-        let q = self.origin + inner.sum / n_in;
-        let d = s.normal.dot(&(q - s.centroid)).abs();
-        let e_s = s.sigma_n * (self.mean_var(n_in) + self.mean_var(s.count)).sqrt();
-        let surface = (d * d - (k * e_s).powi(2)).max(0.0).sqrt();
-        let (step, e_j) = self.step_term(xy, &p, &s);
-        let uncertainty = k * e_s.max(e_j);
-        (surface, step, uncertainty, s.normal)
-    }
-
-    /// The step term of the seams right of and below pixel `xy` (point `p`, support `s`), and
-    /// its noise σ: the margin a step must clear.
-    fn step_term(&self, xy: (usize, usize), p: &Vec3, s: &Support) -> (f64, f64) {
-        let (x, y) = (xy.0 as isize, xy.1 as isize);
-        let r = s.half as isize;
-        // Each seam's two sides, and the image rows each side spans (the scan lines its
-        // registration offsets average over).
-        let seams = [
-            (
-                ((x - r, y - r), (x + 1, y + r + 1)),
-                ((x + 1, y - r), (x + r + 2, y + r + 1)),
-                2.0 * r as f64 + 1.0,
-            ),
-            (
-                ((x - r, y - r), (x + r + 1, y + 1)),
-                ((x - r, y + 1), (x + r + 1, y + r + 2)),
-                r as f64 + 1.0,
-            ),
-        ];
-        // The noise as the support predicts it for two halves of itself (measured on the seams
-        // below where they are looked at). Two halves' centroids lie √3·σ apart along the
-        // window's longer in-plane axis (a uniform spread): metres of ground at grazing views.
-        let reach2 = 3.0 * s.l_max;
-        let noise2 = s.sigma_n * s.sigma_n + s.sigma_c * s.sigma_c;
-        let lines = s.half as f64 + 1.0;
-        let mut e_j: f64 = (s.sigma_n.powi(2) * 2.0 * self.mean_var(0.5 * s.count)
-            + 2.0 * s.sigma_c.powi(2) / lines
-            + s.tilt2(self.mean_var(s.count)) * reach2)
-            .sqrt();
-        // A support whose points lie on its plane within twice the noise (and 2 mm) holds no
-        // step the margin would let through: its seams need no look.
-        if s.l_min <= 4.0 * noise2 + PLANAR_M * PLANAR_M {
-            return (0.0, e_j);
-        }
-        let min_side = (self.cfg.min_points / 2).max(3);
-        let extent = s.half as f64 * p.z / self.fx_px;
-        let var = |n: f64| self.mean_var(n);
-        let mut step: f64 = 0.0;
-        for ((a0, a1), (b0, b1), lines) in seams {
-            let (a, b) = (self.sums.rect(a0, a1), self.sums.rect(b0, b1));
-            if a.count < min_side || b.count < min_side {
+    /// `(surface term, step of the seams right of and below, uncertainty, normal)` of each
+    /// pixel of row `y`; NaN surface term (and normal) where it has no point or no support.
+    /// The first windows of the row's supports, and the pooled scatters of its seams, are
+    /// solved [`LANES`] at a time.
+    fn row(&self, y: usize) -> Vec<(f64, f64, f64, Vec3)> {
+        let w = self.points.size().0;
+        let firsts = self.first_windows(y);
+        let none: (f64, f64, f64, Vec3) = (f64::NAN, 0.0, f64::NAN, Vec3::repeat(f64::NAN));
+        let mut out = vec![none; w];
+        // Per pixel with a support plane: the support, the surface term's σ, the steps' σ.
+        let mut supports: Vec<Option<(Support, f64, f64)>> = vec![None; w];
+        let mut seams: Vec<Seam> = Vec::new();
+        for (x, first) in firsts.iter().enumerate() {
+            let p = self.points[(x, y)];
+            if !is_valid_point(&p) {
                 continue;
             }
-            let test = (self.cfg.conditioning, extent, lines);
-            let Some((jump, e)) = pooled_step((&a, &b), &var, s, test) else {
+            let s = match self.support((x, y), &p, first.as_ref()) {
+                Found::Plane(s) => s,
+                Found::Rough(r, normal, u) => {
+                    out[x] = (r, 0.0, u, normal);
+                    continue;
+                }
+                Found::Nothing => continue,
+            };
+            let k = self.cfg.debias;
+            // Surface term: the inner window's mean point against the support's plane.
+            let inner = self.sums.window((x, y), (s.half / 3).max(1));
+            let n_in = f64::from(inner.count.max(1));
+            let q = self.origin + inner.sum / n_in;
+            let d = s.normal.dot(&(q - s.centroid)).abs();
+            let e_s = s.sigma_n * (self.mean_var(n_in) + self.mean_var(s.count)).sqrt();
+            let surface = (d * d - (k * e_s).powi(2)).max(0.0).sqrt();
+            let e_j = self.seams((x, y), &p, &s, &mut seams);
+            out[x] = (surface, 0.0, f64::NAN, s.normal);
+            supports[x] = Some((s, e_s, e_j));
+        }
+        // The seams' pooled planes, solved in lanes where they may pass the spread test.
+        let mut solved: Vec<Option<(Vec3, f64, f64)>> = vec![None; seams.len()];
+        let todo: Vec<usize> = (0..seams.len()).filter(|&i| seams[i].solve).collect();
+        for chunk in todo.chunks(LANES) {
+            let mut lanes = [[1.0; LANES]; 6];
+            for (l, &i) in chunk.iter().enumerate() {
+                for (e, lane) in lanes.iter_mut().enumerate() {
+                    lane[l] = seams[i].pooled[e][0];
+                }
+            }
+            let planes = eigen_planes(&lanes);
+            for (l, &i) in chunk.iter().enumerate() {
+                solved[i] = planes[l];
+            }
+        }
+        let var = |n: f64| self.mean_var(n);
+        for (seam, plane) in seams.iter().zip(solved) {
+            let Some((s, _, e_j)) = supports[seam.x].as_mut() else {
                 continue;
             };
-            e_j = e_j.max(e);
-            step = step.max(jump - self.cfg.debias * e);
+            let (jump, e) = pooled_step(seam, plane, &var, s, self.cfg.conditioning);
+            *e_j = e_j.max(e);
+            out[seam.x].1 = out[seam.x].1.max(jump - self.cfg.debias * e);
         }
-        (step.max(0.0), e_j)
+        for (o, support) in out.iter_mut().zip(supports) {
+            if let Some((_, e_s, e_j)) = support {
+                o.1 = o.1.max(0.0);
+                o.2 = self.cfg.debias * e_s.max(e_j);
+            }
+        }
+        out
     }
 
     /// The point of pixel `xy` (point `p`, NaN where it has none) moved along its ray to its
@@ -370,7 +358,7 @@ impl<'a> Frame<'a> {
         xy: (usize, usize),
         p: Vec3,
         ray: &Vec3,
-        left: &mut Option<Vec3>,
+        first: Option<&Window>,
     ) -> Option<Vec3> {
         let valid = is_valid_point(&p);
         let anchor = if valid {
@@ -384,7 +372,10 @@ impl<'a> Frame<'a> {
             let mean = self.origin + near.sum / f64::from(near.count);
             ray * mean.z
         };
-        let Found::Plane(s) = self.support(xy, &anchor, left) else {
+        // The row's first window was solved for the pixel's own point: a filled pixel's anchor
+        // asks for its own.
+        let first = first.filter(|_| valid);
+        let Found::Plane(s) = self.support(xy, &anchor, first) else {
             return None;
         };
         // The offset from the plane, less what noise gives; then n·(X − c) = offset along
@@ -402,26 +393,77 @@ impl<'a> Frame<'a> {
         (!grazing && t > 0.0).then(|| ray * t)
     }
 
-    /// The smallest support window of pixel `xy` (point `p`) with enough points spread in two
-    /// directions, and its plane; else what the largest window with enough points says.
-    fn support(&self, xy: (usize, usize), p: &Vec3, left: &mut Option<Vec3>) -> Found {
-        let z = p.z;
+    /// The half-width the metric radius asks for at range `z`, and the noise there:
+    /// `(half, radius, σ_z, registration σ)`.
+    fn need(&self, z: f64) -> (usize, f64, f64, f64) {
         let sigma_z = self.noise.map_or(0.0, |n| n.sigma_z_m(z).max(0.0));
         let sigma_c = self.noise.map_or(0.0, |n| n.registration_m(z));
         let radius = self.cfg.radius_m.max(self.cfg.noise_radii * sigma_z);
         let need = ((radius * self.fx_px / z).ceil() as usize).clamp(1, MAX_HALF_PX);
-        let halves = std::iter::once(need).chain(LADDER.into_iter().filter(|&l| l > need));
-        let mut smallest = None;
-        for half in halves {
-            let m = self.sums.window(xy, half);
+        (need, radius, sigma_z, sigma_c)
+    }
+
+    /// The first window of each pixel's ladder along row `y` (the half-width [`Self::need`]
+    /// gives at its point), with its plane, solved [`LANES`] pixels at a time; `None` where
+    /// the pixel has no point or the window too few points.
+    fn first_windows(&self, y: usize) -> Vec<Option<Window>> {
+        let w = self.points.size().0;
+        let mut out: Vec<Option<Window>> = vec![None; w];
+        let mut pending: Vec<(usize, Moments)> = Vec::with_capacity(LANES);
+        let solve = |pending: &mut Vec<(usize, Moments)>, out: &mut [Option<Window>]| {
+            let mut lanes = [Moments::default(); LANES];
+            for (l, (_, m)) in pending.iter().enumerate() {
+                lanes[l] = *m;
+            }
+            let cov = covariance_lanes(&lanes);
+            let planes = eigen_planes(&cov);
+            for (l, &(x, m)) in pending.iter().enumerate() {
+                let cov = std::array::from_fn(|e| [cov[e][l]]);
+                out[x] = Some(Window { m, cov, plane: planes[l] });
+            }
+            pending.clear();
+        };
+        for x in 0..w {
+            let p = self.points[(x, y)];
+            if !is_valid_point(&p) {
+                continue;
+            }
+            let m = self.sums.window((x, y), self.need(p.z).0);
             if m.count < self.cfg.min_points {
                 continue;
             }
-            let cov = covariance_lanes(&[m]);
-            let plane = match left {
-                Some(guess) => eigen_plane_near(&cov, guess),
-                None => eigen_plane(&cov),
+            pending.push((x, m));
+            if pending.len() == LANES {
+                solve(&mut pending, &mut out);
+            }
+        }
+        if !pending.is_empty() {
+            solve(&mut pending, &mut out);
+        }
+        out
+    }
+
+    /// The smallest support window of pixel `xy` (point `p`) with enough points spread in two
+    /// directions, and its plane; else what the largest window with enough points says.
+    /// `first`: the first window of the ladder, already solved for this point.
+    fn support(&self, xy: (usize, usize), p: &Vec3, first: Option<&Window>) -> Found {
+        let z = p.z;
+        let (need, radius, sigma_z, sigma_c) = self.need(z);
+        let halves = std::iter::once(need).chain(LADDER.into_iter().filter(|&l| l > need));
+        let mut smallest = None;
+        for (i, half) in halves.enumerate() {
+            let solved = match first {
+                Some(f) if i == 0 => *f,
+                _ => {
+                    let m = self.sums.window(xy, half);
+                    if m.count < self.cfg.min_points {
+                        continue;
+                    }
+                    let cov = covariance_lanes(&[m]);
+                    Window { m, cov, plane: eigen_plane(&cov) }
+                }
             };
+            let Window { m, cov, plane } = solved;
             let Some((normal, l_min, l_mid)) = plane else {
                 continue;
             };
@@ -431,7 +473,6 @@ impl<'a> Frame<'a> {
             // The points must spread along the plane: over half the metric radius, by more
             // than the noise along the normal (registration included) by `conditioning`,
             // and more than across it (a rough patch still has a plane; a line has none).
-            *left = Some(normal);
             let sigma_n = sigma_z * normal.dot(p).abs() / z;
             let extent = radius.min(half as f64 * z / self.fx_px);
             let noise2 = sigma_n * sigma_n + sigma_c * sigma_c;
@@ -470,6 +511,17 @@ impl<'a> Frame<'a> {
     }
 }
 
+/// Pixels whose first support windows are solved together ([`eigen_planes`]).
+const LANES: usize = 4;
+
+/// A support window's moments, covariance and plane ([`eigen_planes`]).
+#[derive(Debug, Clone, Copy)]
+struct Window {
+    m: Moments,
+    cov: SymLanes<1>,
+    plane: Option<(Vec3, f64, f64)>,
+}
+
 /// What a pixel's windows give.
 enum Found {
     /// A support plane.
@@ -480,62 +532,9 @@ enum Found {
     Nothing,
 }
 
-/// Whether a covariance's middle eigenvalue can reach `l_mid`: it is at most half the trace
-/// (the other two are at least 0 and at least it), with room for the solver's rounding.
-fn may_spread(cov: &SymLanes<1>, l_mid: f64) -> bool {
-    0.5 * (cov[0][0] + cov[3][0] + cov[5][0]) * (1.0 + 1e-9) >= l_mid
-}
+mod steps;
 
-/// The largest angle between the pooled normal of a step's two sides and the support's: a
-/// real step tilts the support's plane by less; two sides that are each a fronto-parallel
-/// terrace of quantised disparity (passive stereo) pool to the viewing axis, far more.
-const MAX_POOLED_TILT_DEG: f64 = 30.0;
-
-/// The offset between two sides' centroids along their pooled normal, and its noise σ. Where
-/// the pooled scatter is not spread in two directions (each side one scan line, say: then any
-/// direction across the lines fits) or tilts from the support's normal by more than
-/// [`MAX_POOLED_TILT_DEG`], the support's normal stands in; `(conditioning, extent, lines)`:
-/// the support's test, `extent` the support's half-width in metres, and the image rows each
-/// side spans (a registration offset is shared by a scan line, so a side's mean averages the
-/// offsets of its lines).
-fn pooled_step(
-    (a, b): (&Moments, &Moments),
-    mean_var: &dyn Fn(f64) -> f64,
-    s: &Support,
-    (conditioning, extent, lines): (f64, f64, f64),
-) -> Option<(f64, f64)> {
-    let (na, nb) = (f64::from(a.count), f64::from(b.count));
-    let covs = covariance_lanes(&[*a, *b]);
-    let pooled: SymLanes<1> =
-        std::array::from_fn(|e| [(na * covs[e][0] + nb * covs[e][1]) / (na + nb)]);
-    // Half the trace bounds the middle eigenvalue: a pooled scatter that cannot pass the
-    // spread test needs no solve.
-    let plane = if may_spread(&pooled, 0.0625 * extent * extent) {
-        eigen_plane_near(&pooled, &s.normal)
-    } else {
-        None
-    };
-    let (normal, spread, count) = match plane {
-        Some((n, l_min, l_mid))
-            if l_mid >= conditioning * l_min
-                && l_mid.sqrt() >= 0.25 * extent
-                && n.dot(&s.normal).abs() >= MAX_POOLED_TILT_DEG.to_radians().cos() =>
-        {
-            (n, l_mid, na + nb)
-        }
-        _ => (s.normal, s.l_mid, s.count),
-    };
-    let delta = b.sum / nb - a.sum / na;
-    let offset = delta.dot(&normal).abs();
-    // The normal's own error tilts the offset by its angle times the sides' distance along the
-    // plane (large at grazing views, where a window spans metres of ground).
-    let tilt2 = s.tilt2(mean_var(count)) * s.l_mid / spread.max(f64::MIN_POSITIVE);
-    let along2 = (delta.norm_squared() - offset * offset).max(0.0);
-    let sides = mean_var(na) + mean_var(nb);
-    let registration2 = 2.0 * s.sigma_c.powi(2) / lines;
-    let e = (s.sigma_n.powi(2) * sides + registration2 + tilt2 * along2).sqrt();
-    Some((offset, e))
-}
+use steps::{pooled_step, Seam};
 
 #[cfg(test)]
 mod tests;
