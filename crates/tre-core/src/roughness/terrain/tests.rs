@@ -267,3 +267,38 @@ fn the_middle_eigenvalue_never_exceeds_what_may_spread_allows() {
         }
     }
 }
+
+#[test]
+fn a_halved_frame_shares_its_noise_over_the_same_angle() {
+    // The same floor, 1 m below a camera pitched 45° down, at Kinect v1's own 640×480 and
+    // halved to 320×240: the correlation window covers 9 px of the first, 4.5 px of the second.
+    let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
+    assert_eq!(kinect.correlation_in((580.0, 580.0)), (9.0, 0.9));
+    assert_eq!(kinect.correlation_in((290.0, 290.0)), (4.5, 0.9));
+    let median_uncertainty = |scale: f64| {
+        let (w, h) = ((640.0 * scale) as usize, (480.0 * scale) as usize);
+        let k = Intrinsics::new(580.0 * scale, 580.0 * scale, w as f64 / 2.0, h as f64 / 2.0)
+            .unwrap();
+        let floor = ground(&k, (w, h), (1.0, 45.0), (0, 0.0), |_, _| true, |_, _, _| 0.0);
+        let t = estimate(&k, &floor, Some(&kinect));
+        let mut u: Vec<f64> = t
+            .uncertainty_m
+            .as_slice()
+            .iter()
+            .copied()
+            .filter(|u| u.is_finite())
+            .collect();
+        assert!(u.len() > w * h / 2, "{} estimates", u.len());
+        u.sort_by(f64::total_cmp);
+        u[u.len() / 2]
+    };
+    let (full, half) = (median_uncertainty(1.0), median_uncertainty(0.5));
+    // A support in metres holds a quarter of the points at half the size, but as many
+    // correlation windows: its mean is as uncertain (with a 9 px window at both sizes, the
+    // halved frame's margin was twice the full one's).
+    let ratio = half / full;
+    assert!(
+        (0.8..1.25).contains(&ratio),
+        "median uncertainty {full} m at 640x480, {half} m at 320x240"
+    );
+}
