@@ -286,18 +286,18 @@ impl<'a> Frame<'a> {
     /// solved [`LANES`] at a time.
     fn row(&self, y: usize) -> Vec<(f64, f64, f64, Vec3)> {
         let w = self.points.size().0;
-        let firsts = self.first_windows(y);
+        let found = self.row_supports(y);
         let none: (f64, f64, f64, Vec3) = (f64::NAN, 0.0, f64::NAN, Vec3::repeat(f64::NAN));
         let mut out = vec![none; w];
         // Per pixel with a support plane: the support, the surface term's σ, the steps' σ.
         let mut supports: Vec<Option<(Support, f64, f64)>> = vec![None; w];
         let mut seams: Vec<Seam> = Vec::new();
-        for (x, first) in firsts.iter().enumerate() {
-            let p = self.points[(x, y)];
-            if !is_valid_point(&p) {
+        for (x, found) in found.into_iter().enumerate() {
+            let Some(found) = found else {
                 continue;
-            }
-            let s = match self.support((x, y), &p, first.as_ref()) {
+            };
+            let p = self.points[(x, y)];
+            let s = match found {
                 Found::Plane(s) => s,
                 Found::Rough(r, normal, u) => {
                     out[x] = (r, 0.0, u, normal);
@@ -409,17 +409,22 @@ impl<'a> Frame<'a> {
     fn first_windows(&self, y: usize) -> Vec<Option<Window>> {
         let w = self.points.size().0;
         let mut out: Vec<Option<Window>> = vec![None; w];
-        let mut pending: Vec<(usize, Moments)> = Vec::with_capacity(LANES);
-        let solve = |pending: &mut Vec<(usize, Moments)>, out: &mut [Option<Window>]| {
+        let mut pending: Vec<(usize, usize, Moments)> = Vec::with_capacity(LANES);
+        let solve = |pending: &mut Vec<(usize, usize, Moments)>, out: &mut [Option<Window>]| {
             let mut lanes = [Moments::default(); LANES];
-            for (l, (_, m)) in pending.iter().enumerate() {
+            for (l, (_, _, m)) in pending.iter().enumerate() {
                 lanes[l] = *m;
             }
             let cov = covariance_lanes(&lanes);
             let planes = eigen_planes(&cov);
-            for (l, &(x, m)) in pending.iter().enumerate() {
+            for (l, &(x, half, m)) in pending.iter().enumerate() {
                 let cov = std::array::from_fn(|e| [cov[e][l]]);
-                out[x] = Some(Window { m, cov, plane: planes[l] });
+                out[x] = Some(Window {
+                    half,
+                    m,
+                    cov,
+                    plane: planes[l],
+                });
             }
             pending.clear();
         };
@@ -428,11 +433,12 @@ impl<'a> Frame<'a> {
             if !is_valid_point(&p) {
                 continue;
             }
-            let m = self.sums.window((x, y), self.need(p.z).0);
+            let half = self.need(p.z).0;
+            let m = self.sums.window((x, y), half);
             if m.count < self.cfg.min_points {
                 continue;
             }
-            pending.push((x, m));
+            pending.push((x, half, m));
             if pending.len() == LANES {
                 solve(&mut pending, &mut out);
             }
@@ -447,58 +453,153 @@ impl<'a> Frame<'a> {
     /// directions, and its plane; else what the largest window with enough points says.
     /// `first`: the first window of the ladder, already solved for this point.
     fn support(&self, xy: (usize, usize), p: &Vec3, first: Option<&Window>) -> Found {
-        let z = p.z;
-        let (need, radius, sigma_z, sigma_c) = self.need(z);
-        let halves = std::iter::once(need).chain(LADDER.into_iter().filter(|&l| l > need));
-        let mut smallest = None;
-        for (i, half) in halves.enumerate() {
-            let solved = match first {
-                Some(f) if i == 0 => *f,
-                _ => {
-                    let m = self.sums.window(xy, half);
-                    if m.count < self.cfg.min_points {
-                        continue;
-                    }
-                    let cov = covariance_lanes(&[m]);
-                    Window { m, cov, plane: eigen_plane(&cov) }
-                }
-            };
-            let Window { m, cov, plane } = solved;
-            let Some((normal, l_min, l_mid)) = plane else {
-                continue;
-            };
-            let count = f64::from(m.count);
-            let normal = if normal.dot(p) > 0.0 { -normal } else { normal };
-            smallest.get_or_insert((normal, l_min, count));
-            // The points must spread along the plane: over half the metric radius, by more
-            // than the noise along the normal (registration included) by `conditioning`,
-            // and more than across it (a rough patch still has a plane; a line has none).
-            let sigma_n = sigma_z * normal.dot(p).abs() / z;
-            let extent = radius.min(half as f64 * z / self.fx_px);
-            let noise2 = sigma_n * sigma_n + sigma_c * sigma_c;
-            let spread = l_mid >= self.cfg.conditioning * noise2
-                && l_mid >= 2.0 * l_min
-                && l_mid.sqrt() >= 0.5 * extent;
-            if !spread {
-                continue;
+        let mut ladder = self.ladder(xy, p);
+        if let Some(f) = first {
+            ladder.step = 1;
+            if let Some(found) = self.judge(&mut ladder, f) {
+                return found;
             }
-            return Found::Plane(Support {
+        }
+        while let Some((half, m)) = self.next_window(&mut ladder) {
+            let cov = covariance_lanes(&[m]);
+            let w = Window {
+                half,
+                m,
+                cov,
+                plane: eigen_plane(&cov),
+            };
+            if let Some(found) = self.judge(&mut ladder, &w) {
+                return found;
+            }
+        }
+        self.no_plane(&ladder)
+    }
+
+    /// The supports of the valid pixels of row `y` ([`Self::support`]), the windows of each
+    /// step of their ladders solved [`LANES`] pixels at a time.
+    fn row_supports(&self, y: usize) -> Vec<Option<Found>> {
+        let w = self.points.size().0;
+        let mut found: Vec<Option<Found>> = vec![None; w];
+        let mut active: Vec<Ladder> = (0..w)
+            .filter_map(|x| {
+                let p = self.points[(x, y)];
+                is_valid_point(&p).then(|| self.ladder((x, y), &p))
+            })
+            .collect();
+        let mut windows: Vec<(usize, Window)> = Vec::with_capacity(active.len());
+        while !active.is_empty() {
+            windows.clear();
+            active.retain_mut(|ladder| match self.next_window(ladder) {
+                Some((half, m)) => {
+                    let cov = covariance_lanes(&[m]);
+                    let plane = None;
+                    windows.push((ladder.xy.0, Window { half, m, cov, plane }));
+                    true
+                }
+                None => {
+                    found[ladder.xy.0] = Some(self.no_plane(ladder));
+                    false
+                }
+            });
+            for chunk in windows.chunks_mut(LANES) {
+                let mut lanes = [[1.0; LANES]; 6];
+                for (l, (_, w)) in chunk.iter().enumerate() {
+                    for (e, lane) in lanes.iter_mut().enumerate() {
+                        lane[l] = w.cov[e][0];
+                    }
+                }
+                let planes = eigen_planes(&lanes);
+                for (l, (_, w)) in chunk.iter_mut().enumerate() {
+                    w.plane = planes[l];
+                }
+            }
+            // `active` and `windows` hold the same pixels, in the same order.
+            let mut solved = windows.iter();
+            active.retain_mut(|ladder| {
+                let (_, w) = solved.next().expect("a window for every active ladder");
+                match self.judge(ladder, w) {
+                    Some(f) => {
+                        found[ladder.xy.0] = Some(f);
+                        false
+                    }
+                    None => true,
+                }
+            });
+        }
+        found
+    }
+
+    /// The ladder of pixel `xy` (point `p`), at its first window.
+    fn ladder(&self, xy: (usize, usize), p: &Vec3) -> Ladder {
+        Ladder {
+            xy,
+            p: *p,
+            need: self.need(p.z),
+            step: 0,
+            smallest: None,
+        }
+    }
+
+    /// The ladder's next window with enough points, `(half-width, moments)`; `None` past its
+    /// last.
+    fn next_window(&self, ladder: &mut Ladder) -> Option<(usize, Moments)> {
+        let need = ladder.need.0;
+        loop {
+            let half = match ladder.step {
+                0 => need,
+                i => LADDER.into_iter().filter(|&l| l > need).nth(i - 1)?,
+            };
+            ladder.step += 1;
+            let m = self.sums.window(ladder.xy, half);
+            if m.count >= self.cfg.min_points {
+                return Some((half, m));
+            }
+        }
+    }
+
+    /// The support the ladder's window `w` gives, when its points spread in two directions;
+    /// `None` to try the next window (the smallest window with a plane is kept for the rough
+    /// ground test).
+    fn judge(&self, ladder: &mut Ladder, w: &Window) -> Option<Found> {
+        let (p, half) = (&ladder.p, w.half);
+        let (_, radius, sigma_z, sigma_c) = ladder.need;
+        let z = p.z;
+        let (normal, l_min, l_mid) = w.plane?;
+        let count = f64::from(w.m.count);
+        let normal = if normal.dot(p) > 0.0 { -normal } else { normal };
+        ladder.smallest.get_or_insert((normal, l_min, count));
+        // The points must spread along the plane: over half the metric radius, by more
+        // than the noise along the normal (registration included) by `conditioning`,
+        // and more than across it (a rough patch still has a plane; a line has none).
+        let sigma_n = sigma_z * normal.dot(p).abs() / z;
+        let extent = radius.min(half as f64 * z / self.fx_px);
+        let noise2 = sigma_n * sigma_n + sigma_c * sigma_c;
+        let spread = l_mid >= self.cfg.conditioning * noise2
+            && l_mid >= 2.0 * l_min
+            && l_mid.sqrt() >= 0.5 * extent;
+        let cov = &w.cov;
+        spread.then(|| {
+            Found::Plane(Support {
                 half,
                 count,
-                centroid: self.origin + m.sum / count,
+                centroid: self.origin + w.m.sum / count,
                 normal,
                 sigma_n,
                 sigma_c,
                 l_mid,
                 l_min,
                 l_max: (cov[0][0] + cov[3][0] + cov[5][0] - l_min - l_mid).max(l_mid),
-            });
-        }
-        // No plane: rough where the scatter off the smallest window's plane exceeds what the
-        // noise (as if the surface faced the camera, its largest) explains by the margin.
-        let Some((normal, l_min, count)) = smallest else {
+            })
+        })
+    }
+
+    /// No plane: rough where the scatter off the smallest window's plane exceeds what the
+    /// noise (as if the surface faced the camera, its largest) explains by the margin.
+    fn no_plane(&self, ladder: &Ladder) -> Found {
+        let Some((normal, l_min, count)) = ladder.smallest else {
             return Found::Nothing;
         };
+        let (_, _, sigma_z, sigma_c) = ladder.need;
         let noise = sigma_z.hypot(sigma_c);
         let k = self.cfg.debias;
         let excess = (l_min - (k * noise).powi(2)).max(0.0).sqrt();
@@ -511,18 +612,32 @@ impl<'a> Frame<'a> {
     }
 }
 
+/// A pixel's way up the ladder of support windows: its point, the half-width and noise at its
+/// range `(half, radius, σ_z, registration σ)`, the next step, and the smallest window's plane
+/// so far `(normal, smallest eigenvalue, points)`.
+#[derive(Debug, Clone, Copy)]
+struct Ladder {
+    xy: (usize, usize),
+    p: Vec3,
+    need: (usize, f64, f64, f64),
+    step: usize,
+    smallest: Option<(Vec3, f64, f64)>,
+}
+
 /// Pixels whose first support windows are solved together ([`eigen_planes`]).
 const LANES: usize = 4;
 
 /// A support window's moments, covariance and plane ([`eigen_planes`]).
 #[derive(Debug, Clone, Copy)]
 struct Window {
+    half: usize,
     m: Moments,
     cov: SymLanes<1>,
     plane: Option<(Vec3, f64, f64)>,
 }
 
 /// What a pixel's windows give.
+#[derive(Debug, Clone, Copy)]
 enum Found {
     /// A support plane.
     Plane(Support),
