@@ -11,7 +11,13 @@ impl Frame<'_> {
     /// The seams right of and below pixel `xy` (point `p`, support `s`) that hold evidence on
     /// both sides, pushed onto `seams`; and the steps' noise σ the support predicts (the
     /// margin a step must clear, before the seams' own).
-    pub(super) fn seams(&self, xy: (usize, usize), p: &Vec3, s: &Support, seams: &mut Vec<Seam>) -> f64 {
+    pub(super) fn seams(
+        &self,
+        xy: (usize, usize),
+        p: &Vec3,
+        s: &Support,
+        seams: &mut Vec<Seam>,
+    ) -> f64 {
         let (x, y) = (xy.0 as isize, xy.1 as isize);
         let r = s.half as isize;
         // Each seam's two sides, and the image rows each side spans (the scan lines its
@@ -132,4 +138,3 @@ pub(super) fn pooled_step(
     let e = (s.sigma_n.powi(2) * sides + registration2 + tilt2 * along2).sqrt();
     (offset, e)
 }
-

@@ -277,9 +277,16 @@ fn a_halved_frame_shares_its_noise_over_the_same_angle() {
     assert_eq!(kinect.correlation_in((290.0, 290.0)), (4.5, 0.9));
     let median_uncertainty = |scale: f64| {
         let (w, h) = ((640.0 * scale) as usize, (480.0 * scale) as usize);
-        let k = Intrinsics::new(580.0 * scale, 580.0 * scale, w as f64 / 2.0, h as f64 / 2.0)
-            .unwrap();
-        let floor = ground(&k, (w, h), (1.0, 45.0), (0, 0.0), |_, _| true, |_, _, _| 0.0);
+        let k =
+            Intrinsics::new(580.0 * scale, 580.0 * scale, w as f64 / 2.0, h as f64 / 2.0).unwrap();
+        let floor = ground(
+            &k,
+            (w, h),
+            (1.0, 45.0),
+            (0, 0.0),
+            |_, _| true,
+            |_, _, _| 0.0,
+        );
         let t = estimate(&k, &floor, Some(&kinect));
         let mut u: Vec<f64> = t
             .uncertainty_m
