@@ -9,13 +9,13 @@
 #
 #   cargo build --release && PY=python-with-numpy-and-pillow scripts/camera_rate.sh
 #
-# Environment: TRE (target/release/tre), PY (python3), OUT (results/camera_rate), PORT (18091),
+# Environment: TRE (target/release/tre), PY (python3), OUT (camera_rate in TMPDIR), PORT (18091),
 # FRAMES (30), REQUESTS (60), RATE (30), DURATION (20 s), SERVE_ARGS (extra `tre serve` options).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 TRE=${TRE:-target/release/tre}
 PY=${PY:-python3}
-OUT=${OUT:-results/camera_rate}
+OUT=${OUT:-${TMPDIR:-/tmp}/camera_rate}
 PORT=${PORT:-18091}
 FRAMES=${FRAMES:-30}
 REQUESTS=${REQUESTS:-60}

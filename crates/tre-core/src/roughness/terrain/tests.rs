@@ -1,5 +1,6 @@
 use super::steps::may_spread;
 use super::*;
+use crate::geometry::eigen_plane;
 use crate::geometry::hash::uniform;
 use crate::geometry::{Grid, Intrinsics};
 use crate::roughness::annotate::{annotate, AnnotateConfig, AnnotateInput};
