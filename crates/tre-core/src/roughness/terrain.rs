@@ -28,7 +28,7 @@ use rayon::prelude::*;
 
 use super::noise::SensorNoise;
 use crate::geometry::sums::SummedMoments;
-use crate::geometry::{covariance_lanes, eigen_planes, SymLanes};
+use crate::geometry::{eigen_planes, SymLanes};
 use crate::geometry::{is_valid_point, Grid, Intrinsics, Moments, PointMap, Vec3, INVALID_POINT};
 
 /// The largest half-width of a support window, pixels.
@@ -225,7 +225,7 @@ pub fn clean_points_into(
     let frame = Frame::new(points, sums, k, noise, cfg);
     out.reset(w, h, INVALID_POINT);
     out.par_rows_mut().for_each(|(y, row)| {
-        let firsts = frame.first_windows(y);
+        let found = frame.row_supports(y);
         for (x, q) in row.iter_mut().enumerate() {
             let p = points[(x, y)];
             let ray = Vec3::new(
@@ -233,9 +233,7 @@ pub fn clean_points_into(
                 (y as f64 - k.cy_px) / k.fy_px,
                 1.0,
             );
-            *q = frame
-                .on_support((x, y), p, &ray, firsts[x].as_ref())
-                .unwrap_or(p);
+            *q = frame.on_support((x, y), p, &ray, found[x]).unwrap_or(p);
         }
     });
 }
@@ -358,11 +356,12 @@ impl<'a> Frame<'a> {
         xy: (usize, usize),
         p: Vec3,
         ray: &Vec3,
-        first: Option<&Window>,
+        found: Option<Found>,
     ) -> Option<Vec3> {
         let valid = is_valid_point(&p);
-        let anchor = if valid {
-            p
+        let support = if valid {
+            // The row's supports were found for the pixels' own points.
+            found?
         } else {
             let near = LADDER
                 .into_iter()
@@ -370,12 +369,9 @@ impl<'a> Frame<'a> {
                 .map(|l| self.sums.window(xy, l))
                 .find(|m| m.count >= self.cfg.min_points)?;
             let mean = self.origin + near.sum / f64::from(near.count);
-            ray * mean.z
+            self.support(xy, &(ray * mean.z))
         };
-        // The row's first window was solved for the pixel's own point: a filled pixel's anchor
-        // asks for its own.
-        let first = first.filter(|_| valid);
-        let Found::Plane(s) = self.support(xy, &anchor, first) else {
+        let Found::Plane(s) = support else {
             return None;
         };
         // The offset from the plane, less what noise gives; then n·(X − c) = offset along
@@ -401,52 +397,6 @@ impl<'a> Frame<'a> {
         let radius = self.cfg.radius_m.max(self.cfg.noise_radii * sigma_z);
         let need = ((radius * self.fx_px / z).ceil() as usize).clamp(1, MAX_HALF_PX);
         (need, radius, sigma_z, sigma_c)
-    }
-
-    /// The first window of each pixel's ladder along row `y` (the half-width [`Self::need`]
-    /// gives at its point), with its plane, solved [`LANES`] pixels at a time; `None` where
-    /// the pixel has no point or the window too few points.
-    fn first_windows(&self, y: usize) -> Vec<Option<Window>> {
-        let w = self.points.size().0;
-        let mut out: Vec<Option<Window>> = vec![None; w];
-        let mut pending: Vec<(usize, usize, Moments)> = Vec::with_capacity(LANES);
-        let solve = |pending: &mut Vec<(usize, usize, Moments)>, out: &mut [Option<Window>]| {
-            let mut lanes = [Moments::default(); LANES];
-            for (l, (_, _, m)) in pending.iter().enumerate() {
-                lanes[l] = *m;
-            }
-            let cov = covariance_lanes(&lanes);
-            let planes = eigen_planes(&cov);
-            for (l, &(x, half, m)) in pending.iter().enumerate() {
-                let cov = std::array::from_fn(|e| [cov[e][l]]);
-                out[x] = Some(Window {
-                    half,
-                    m,
-                    cov,
-                    plane: planes[l],
-                });
-            }
-            pending.clear();
-        };
-        for x in 0..w {
-            let p = self.points[(x, y)];
-            if !is_valid_point(&p) {
-                continue;
-            }
-            let half = self.need(p.z).0;
-            let m = self.sums.window((x, y), half);
-            if m.count < self.cfg.min_points {
-                continue;
-            }
-            pending.push((x, half, m));
-            if pending.len() == LANES {
-                solve(&mut pending, &mut out);
-            }
-        }
-        if !pending.is_empty() {
-            solve(&mut pending, &mut out);
-        }
-        out
     }
 }
 

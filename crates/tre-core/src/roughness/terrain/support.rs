@@ -8,16 +8,10 @@ use crate::roughness::noise::HALF_NORMAL_P95;
 
 impl Frame<'_> {
     /// The smallest support window of pixel `xy` (point `p`) with enough points spread in two
-    /// directions, and its plane; else what the largest window with enough points says.
-    /// `first`: the first window of the ladder, already solved for this point.
-    pub(super) fn support(&self, xy: (usize, usize), p: &Vec3, first: Option<&Window>) -> Found {
+    /// directions, and its plane; else what the largest window with enough points says (one
+    /// pixel's [`Self::row_supports`]).
+    pub(super) fn support(&self, xy: (usize, usize), p: &Vec3) -> Found {
         let mut ladder = self.ladder(xy, p);
-        if let Some(f) = first {
-            ladder.step = 1;
-            if let Some(found) = self.judge(&mut ladder, f) {
-                return found;
-            }
-        }
         while let Some((half, m)) = self.next_window(&mut ladder) {
             let cov = covariance_lanes(&[m]);
             let w = Window {
