@@ -21,7 +21,7 @@ pub use camera::{
 pub use gravity::{slope_from_up, Mounting};
 pub use grid::{Grid, NEIGHBOURS_8};
 pub(crate) use plane::orient_towards_camera;
-pub(crate) use plane::{covariance_lanes, eigen_plane, eigen_planes, SymLanes};
+pub(crate) use plane::{covariance_lanes, eigen_plane, eigen_planes_of, SymLanes};
 pub use plane::{Moments, Plane};
 
 /// A 3-D vector or point in metres (f64: geometry where precision matters).

@@ -158,20 +158,71 @@ pub(crate) fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vec3> {
 /// steps goes on alone. Each lane's result depends on its own matrix only, bit for bit.
 #[inline(always)]
 pub(crate) fn eigen_planes<const N: usize>(covs: &SymLanes<N>) -> [Option<(Vec3, f64, f64)>; N] {
+    let h = halley_lanes(covs);
+    let mut l = h.l_min;
+    for ((l, done), cubic) in l.iter_mut().zip(h.done).zip(&h.cubic) {
+        if !done {
+            *l = smallest_root(cubic, *l);
+        }
+    }
+    let l_mid: [f64; N] = from_fn(|i| next_root(&h.cubic[i], l[i]));
+    let vectors = eigenvectors_for(&h.a, &l, &l_mid);
+    from_fn(|i| {
+        let usable = h.scale[i] > 0.0 && h.scale[i].is_finite();
+        let v = vectors[i].filter(|_| usable)?;
+        Some((
+            v,
+            l[i].max(0.0) * h.scale[i],
+            l_mid[i].max(0.0) * h.scale[i],
+        ))
+    })
+}
+
+/// [`eigen_planes`] of any number of covariances, solved [`PLANE_LANES`] at a time.
+pub(crate) fn eigen_planes_of(covs: &[SymLanes<1>]) -> Vec<Option<(Vec3, f64, f64)>> {
+    let mut out = Vec::with_capacity(covs.len());
+    for chunk in covs.chunks(PLANE_LANES) {
+        // Unused lanes hold the identity: each lane's result is its own matrix's alone.
+        let mut lanes = [[1.0; PLANE_LANES]; 6];
+        for (l, cov) in chunk.iter().enumerate() {
+            for (lane, e) in lanes.iter_mut().zip(cov) {
+                lane[l] = e[0];
+            }
+        }
+        out.extend_from_slice(&eigen_planes(&lanes)[..chunk.len()]);
+    }
+    out
+}
+
+/// Covariances solved together by [`eigen_planes_of`].
+pub(crate) const PLANE_LANES: usize = 4;
+
+/// The lanes' start: each matrix's largest entry, the matrices divided by it, their
+/// characteristic cubics, and their smallest roots after at most six Halley steps from 0 taken
+/// together (a lane stops once converged, so its result does not depend on the other lanes).
+struct HalleyLanes<const N: usize> {
+    scale: [f64; N],
+    a: SymLanes<N>,
+    cubic: [[f64; 3]; N],
+    l_min: [f64; N],
+    done: [bool; N],
+}
+
+#[inline(always)]
+fn halley_lanes<const N: usize>(covs: &SymLanes<N>) -> HalleyLanes<N> {
     let mut scale = [0.0f64; N];
     for e in covs {
         for (s, v) in scale.iter_mut().zip(e) {
             *s = s.max(v.abs());
         }
     }
-    let usable: [bool; N] = from_fn(|l| scale[l] > 0.0 && scale[l].is_finite());
-    let inv: [f64; N] = from_fn(|l| if usable[l] { 1.0 / scale[l] } else { 0.0 });
+    let inv: [f64; N] = from_fn(|l| 1.0 / scale[l]);
     let a: SymLanes<N> = from_fn(|e| from_fn(|l| covs[e][l] * inv[l]));
-    let c: [[f64; 3]; N] = from_fn(|l| char_poly(&a, l));
+    let cubic: [[f64; 3]; N] = from_fn(|l| char_poly(&a, l));
     let (mut l, mut done) = ([0.0f64; N], [false; N]);
     for _ in 0..6 {
         for i in 0..N {
-            let step = halley_step(&c[i], l[i]);
+            let step = halley_step(&cubic[i], l[i]);
             let next = if done[i] { l[i] } else { l[i] - step };
             done[i] = done[i] || step.abs() <= 1e-13 * (1.0 + next.abs());
             l[i] = next;
@@ -180,17 +231,13 @@ pub(crate) fn eigen_planes<const N: usize>(covs: &SymLanes<N>) -> [Option<(Vec3,
             break;
         }
     }
-    for i in 0..N {
-        if !done[i] {
-            l[i] = smallest_root(&c[i], l[i]);
-        }
+    HalleyLanes {
+        scale,
+        a,
+        cubic,
+        l_min: l,
+        done,
     }
-    let l_mid: [f64; N] = from_fn(|i| next_root(&c[i], l[i]));
-    let vectors = eigenvectors_for(&a, &l, &l_mid);
-    from_fn(|i| {
-        let v = vectors[i].filter(|_| usable[i])?;
-        Some((v, l[i].max(0.0) * scale[i], l_mid[i].max(0.0) * scale[i]))
-    })
 }
 
 /// [`eigen_planes`] of one covariance.
@@ -243,29 +290,13 @@ pub(crate) fn fit_normals<const N: usize>(m: &[Moments; N]) -> [Option<Vec3>; N]
 /// depends on its own matrix only, bit for bit, whatever the other lanes hold.
 #[inline(always)]
 pub(crate) fn smallest_eigenvectors<const N: usize>(covs: &SymLanes<N>) -> [Option<Vec3>; N] {
-    let mut scale = [0.0f64; N];
-    for e in covs {
-        for (s, v) in scale.iter_mut().zip(e) {
-            *s = s.max(v.abs());
-        }
-    }
-    let inv: [f64; N] = from_fn(|l| 1.0 / scale[l]);
-    let a: SymLanes<N> = from_fn(|e| from_fn(|l| covs[e][l] * inv[l]));
-    let c: [[f64; 3]; N] = from_fn(|l| char_poly(&a, l));
-    let (mut l, mut done) = ([0.0f64; N], [false; N]);
-    for _ in 0..6 {
-        for i in 0..N {
-            // A lane that has converged stays as it is, so its result does not depend on the
-            // other lanes.
-            let step = halley_step(&c[i], l[i]);
-            let next = if done[i] { l[i] } else { l[i] - step };
-            done[i] = done[i] || step.abs() <= 1e-13 * (1.0 + next.abs());
-            l[i] = next;
-        }
-        if done.iter().all(|&d| d) {
-            break;
-        }
-    }
+    let HalleyLanes {
+        scale,
+        a,
+        cubic: c,
+        l_min: l,
+        done,
+    } = halley_lanes(covs);
     let l_mid: [f64; N] = from_fn(|i| next_root(&c[i], l[i]));
     let vectors = eigenvectors_for(&a, &l, &l_mid);
     from_fn(|i| {

@@ -84,6 +84,13 @@ impl SensorPreset {
     }
 }
 
+/// [`SensorNoise::mean_variance`] for a correlation window `(side, share)` already in the
+/// frame's pixels ([`SensorNoise::correlation_in`]).
+pub fn shared_mean_variance((c, s): (f64, f64), n: f64) -> f64 {
+    let n = n.max(1.0);
+    (1.0 - s) / n + s * (c * c / n).min(1.0)
+}
+
 /// Registration error of accumulated LiDAR sweeps, degrees: at 10 m it offsets a sweep's scan
 /// lines by 5 cm. The one semi-dense set here (real-rgbd-3) shows layers of about this size.
 pub const REGISTRATION_DEG: f64 = 0.3;
@@ -305,9 +312,7 @@ impl SensorNoise {
     /// in a frame of focal lengths `(fx, fy)`: `(1 − s)/n + s·min(1, c²/n)` for side `c` and
     /// share `s` ([`Self::correlation_in`]).
     pub fn mean_variance(&self, n: f64, focal_px: (f64, f64)) -> f64 {
-        let (c, s) = self.correlation_in(focal_px);
-        let n = n.max(1.0);
-        (1.0 - s) / n + s * (c * c / n).min(1.0)
+        shared_mean_variance(self.correlation_in(focal_px), n)
     }
 
     /// The correlated part of the noise at range `z_m`, metres: an offset shared by many

@@ -26,9 +26,9 @@
 
 use rayon::prelude::*;
 
-use super::noise::SensorNoise;
+use super::noise::{shared_mean_variance, SensorNoise};
 use crate::geometry::sums::SummedMoments;
-use crate::geometry::{eigen_planes, SymLanes};
+use crate::geometry::{eigen_planes_of, SymLanes};
 use crate::geometry::{is_valid_point, Grid, Intrinsics, Moments, PointMap, Vec3, INVALID_POINT};
 
 /// The largest half-width of a support window, pixels.
@@ -244,7 +244,8 @@ struct Frame<'a> {
     sums: &'a SummedMoments,
     origin: Vec3,
     fx_px: f64,
-    fy_px: f64,
+    /// The noise's correlation window in this frame's pixels ([`SensorNoise::correlation_in`]).
+    correlation: Option<(f64, f64)>,
     noise: Option<&'a SensorNoise>,
     cfg: &'a TerrainConfig,
 }
@@ -265,7 +266,7 @@ impl<'a> Frame<'a> {
             sums,
             origin: sums.origin(),
             fx_px: k.fx_px,
-            fy_px: k.fy_px,
+            correlation: noise.map(|n| n.correlation_in((k.fx_px, k.fy_px))),
             noise,
             cfg,
         }
@@ -273,15 +274,14 @@ impl<'a> Frame<'a> {
     /// The variance of the mean of `n` neighbours' noise, in units of one point's
     /// ([`SensorNoise::mean_variance`]; independent points without a noise model).
     fn mean_var(&self, n: f64) -> f64 {
-        self.noise.map_or(1.0 / n.max(1.0), |s| {
-            s.mean_variance(n, (self.fx_px, self.fy_px))
-        })
+        self.correlation
+            .map_or(1.0 / n.max(1.0), |c| shared_mean_variance(c, n))
     }
 
     /// `(surface term, step of the seams right of and below, uncertainty, normal)` of each
     /// pixel of row `y`; NaN surface term (and normal) where it has no point or no support.
     /// The first windows of the row's supports, and the pooled scatters of its seams, are
-    /// solved [`LANES`] at a time.
+    /// solved four at a time ([`eigen_planes_of`]).
     fn row(&self, y: usize) -> Vec<(f64, f64, f64, Vec3)> {
         let w = self.points.size().0;
         let found = self.row_supports(y);
@@ -316,19 +316,11 @@ impl<'a> Frame<'a> {
             supports[x] = Some((s, e_s, e_j));
         }
         // The seams' pooled planes, solved in lanes where they may pass the spread test.
-        let mut solved: Vec<Option<(Vec3, f64, f64)>> = vec![None; seams.len()];
         let todo: Vec<usize> = (0..seams.len()).filter(|&i| seams[i].solve).collect();
-        for chunk in todo.chunks(LANES) {
-            let mut lanes = [[1.0; LANES]; 6];
-            for (l, &i) in chunk.iter().enumerate() {
-                for (e, lane) in lanes.iter_mut().enumerate() {
-                    lane[l] = seams[i].pooled[e][0];
-                }
-            }
-            let planes = eigen_planes(&lanes);
-            for (l, &i) in chunk.iter().enumerate() {
-                solved[i] = planes[l];
-            }
+        let covs: Vec<SymLanes<1>> = todo.iter().map(|&i| seams[i].pooled).collect();
+        let mut solved: Vec<Option<(Vec3, f64, f64)>> = vec![None; seams.len()];
+        for (&i, plane) in todo.iter().zip(eigen_planes_of(&covs)) {
+            solved[i] = plane;
         }
         let var = |n: f64| self.mean_var(n);
         for (seam, plane) in seams.iter().zip(solved) {
@@ -399,9 +391,6 @@ impl<'a> Frame<'a> {
         (need, radius, sigma_z, sigma_c)
     }
 }
-
-/// Pixels whose first support windows are solved together ([`eigen_planes`]).
-const LANES: usize = 4;
 
 /// A support window's moments, covariance and plane ([`eigen_planes`]).
 #[derive(Debug, Clone, Copy)]

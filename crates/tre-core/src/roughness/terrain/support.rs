@@ -2,8 +2,10 @@
 //! its range asks for up to [`super::MAX_HALF_PX`], until one holds enough points spread in two
 //! directions (docs/terrain.md).
 
-use super::{Found, Frame, Support, Window, LADDER, LANES};
-use crate::geometry::{covariance_lanes, eigen_plane, eigen_planes, is_valid_point, Moments, Vec3};
+use super::{Found, Frame, Support, Window, LADDER};
+use crate::geometry::{
+    covariance_lanes, eigen_plane, eigen_planes_of, is_valid_point, Moments, SymLanes, Vec3,
+};
 use crate::roughness::noise::HALF_NORMAL_P95;
 
 impl Frame<'_> {
@@ -28,7 +30,7 @@ impl Frame<'_> {
     }
 
     /// The supports of the valid pixels of row `y` ([`Self::support`]), the windows of each
-    /// step of their ladders solved [`LANES`] pixels at a time.
+    /// step of their ladders solved four pixels at a time ([`eigen_planes_of`]).
     pub(super) fn row_supports(&self, y: usize) -> Vec<Option<Found>> {
         let w = self.points.size().0;
         let mut found: Vec<Option<Found>> = vec![None; w];
@@ -61,17 +63,9 @@ impl Frame<'_> {
                     false
                 }
             });
-            for chunk in windows.chunks_mut(LANES) {
-                let mut lanes = [[1.0; LANES]; 6];
-                for (l, (_, w)) in chunk.iter().enumerate() {
-                    for (e, lane) in lanes.iter_mut().enumerate() {
-                        lane[l] = w.cov[e][0];
-                    }
-                }
-                let planes = eigen_planes(&lanes);
-                for (l, (_, w)) in chunk.iter_mut().enumerate() {
-                    w.plane = planes[l];
-                }
+            let covs: Vec<SymLanes<1>> = windows.iter().map(|(_, w)| w.cov).collect();
+            for ((_, w), plane) in windows.iter_mut().zip(eigen_planes_of(&covs)) {
+                w.plane = plane;
             }
             // `active` and `windows` hold the same pixels, in the same order.
             let mut solved = windows.iter();
