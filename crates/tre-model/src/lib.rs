@@ -17,6 +17,7 @@
 //! # }
 //! ```
 
+mod batcher;
 mod locate;
 mod manifest;
 mod models;
@@ -27,6 +28,9 @@ mod session;
 use std::fmt::Display;
 use std::path::PathBuf;
 
+pub use batcher::{
+    BatchObserver, Batching, BatchingError, SharedModels, SharedNet, MAX_BATCH, MAX_BATCH_DELAY,
+};
 pub use locate::{find_models, locate_models, FoundModels, ModelSearch, ModelsRule, MODELS_ENV};
 pub use manifest::{Dim, Manifest, ManifestProblem, ModelEntry, TensorSpec, MANIFEST_FORMAT};
 pub use models::{Models, CENTROID_NET, DEPTH_NET, END_TO_END, NEIGHBOUR_NET, NORMAL_REFINER};
@@ -135,6 +139,40 @@ pub enum ModelError {
         output: String,
         /// The expected N, C, H, W.
         expected: Vec<usize>,
+    },
+    /// Batching bounds out of range.
+    #[error("{0}")]
+    Batching(BatchingError),
+    /// A model's batching thread could not be started.
+    #[error("model {model}: starting its batching thread: {reason}")]
+    BatcherStart {
+        /// The model's name.
+        model: String,
+        /// What the system said.
+        reason: String,
+    },
+    /// A model's batching thread is gone (the service is stopping, or a bug ended it).
+    #[error("model {model}: its batching thread has stopped")]
+    BatcherStopped {
+        /// The model's name.
+        model: String,
+    },
+    /// The inputs of a batch could not be joined (a bug: they were checked one by one).
+    #[error("model {model}: joining a batch: {reason}")]
+    BatchJoin {
+        /// The model's name.
+        model: String,
+        /// What went wrong.
+        reason: String,
+    },
+    /// The batch this request ran in failed; the first request of the batch got the error
+    /// itself.
+    #[error("model {model}: the batch failed: {reason}")]
+    BatchFailed {
+        /// The model's name.
+        model: String,
+        /// The batch's error.
+        reason: String,
     },
 }
 

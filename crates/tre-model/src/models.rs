@@ -1,11 +1,14 @@
 //! [`Models`]: the manifest plus one checked session per learned stage, with typed run methods
-//! (NCHW float32 in, NCHW float32 out). One `Models` is owned by one worker thread.
+//! (NCHW float32 in, NCHW float32 out). One `Models` is owned by one worker thread: either with
+//! sessions of its own ([`Models::load`]) or with handles on models shared by every worker and
+//! run in batches ([`Models::shared`], [`SharedModels`]).
 
 use std::path::Path;
 use std::time::Duration;
 
 use ndarray::{Array4, ArrayView4};
 
+use super::batcher::{SharedModels, SharedNet};
 use super::manifest::Manifest;
 use super::session::{ModelSession, SessionConfig};
 use super::ModelError;
@@ -21,15 +24,46 @@ pub const CENTROID_NET: &str = "centroid_net";
 /// Manifest name of the end-to-end baseline: `rgb`, `prior_depth_m` → `roughness_m`.
 pub const END_TO_END: &str = "end_to_end";
 
+/// One model: a session of the worker's own, or a handle on a shared, batching one.
+#[derive(Debug)]
+enum Net {
+    Own(Box<ModelSession>),
+    Shared(SharedNet),
+}
+
+impl Net {
+    fn run_with<R>(
+        &mut self,
+        inputs: &[ArrayView4<'_, f32>],
+        consume: impl FnOnce(ArrayView4<'_, f32>) -> R,
+    ) -> Result<R, ModelError> {
+        match self {
+            Self::Own(s) => s.run_with(inputs, consume),
+            Self::Shared(s) => s.run_with(inputs, consume),
+        }
+    }
+
+    fn run(&mut self, inputs: &[ArrayView4<'_, f32>]) -> Result<Array4<f32>, ModelError> {
+        self.run_with(inputs, |y| y.as_standard_layout().into_owned())
+    }
+
+    fn onnx_runtime_time(&self) -> Duration {
+        match self {
+            Self::Own(s) => s.onnx_runtime_time(),
+            Self::Shared(s) => s.onnx_runtime_time(),
+        }
+    }
+}
+
 /// The four pipeline stages (required) and the end-to-end baseline (loaded when listed).
 #[derive(Debug)]
 pub struct Models {
     manifest: Manifest,
-    depth: ModelSession,
-    neighbour: ModelSession,
-    refiner: ModelSession,
-    centroid: ModelSession,
-    end_to_end: Option<ModelSession>,
+    depth: Net,
+    neighbour: Net,
+    refiner: Net,
+    centroid: Net,
+    end_to_end: Option<Net>,
 }
 
 impl Models {
@@ -42,8 +76,10 @@ impl Models {
     /// model and the field that disagrees.
     pub fn load(dir: &Path, cfg: &SessionConfig) -> Result<Self, ModelError> {
         let manifest = Manifest::read(dir)?;
-        let load =
-            |name: &str| ModelSession::load(dir, name, manifest.entry(name)?, manifest.stride, cfg);
+        let load = |name: &str| {
+            ModelSession::load(dir, name, manifest.entry(name)?, manifest.stride, cfg)
+                .map(|s| Net::Own(Box::new(s)))
+        };
         let end_to_end = match manifest.models.contains_key(END_TO_END) {
             true => Some(load(END_TO_END)?),
             false => None,
@@ -58,12 +94,38 @@ impl Models {
         })
     }
 
-    /// Wall time spent inside ONNX Runtime so far, over all models and runs.
+    /// A worker's handles on `shared`'s models: each run joins a batch of its model's thread.
+    ///
+    /// # Errors
+    ///
+    /// [`ModelError::NotInManifest`] when a pipeline stage is not listed.
+    pub fn shared(shared: &SharedModels) -> Result<Self, ModelError> {
+        let manifest = shared.manifest().clone();
+        let net = |name: &str| {
+            shared
+                .net(name)
+                .map(Net::Shared)
+                .ok_or_else(|| ModelError::NotInManifest {
+                    model: name.to_owned(),
+                })
+        };
+        Ok(Self {
+            depth: net(DEPTH_NET)?,
+            neighbour: net(NEIGHBOUR_NET)?,
+            refiner: net(NORMAL_REFINER)?,
+            centroid: net(CENTROID_NET)?,
+            end_to_end: shared.net(END_TO_END).map(Net::Shared),
+            manifest,
+        })
+    }
+
+    /// Wall time spent inside ONNX Runtime so far, over all models and runs (for shared
+    /// models, the time of the batches this worker's runs were part of).
     pub fn onnx_runtime_time(&self) -> Duration {
         [&self.depth, &self.neighbour, &self.refiner, &self.centroid]
             .into_iter()
             .chain(&self.end_to_end)
-            .map(ModelSession::onnx_runtime_time)
+            .map(Net::onnx_runtime_time)
             .sum()
     }
 

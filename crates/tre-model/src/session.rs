@@ -242,6 +242,15 @@ impl ModelSession {
         }
     }
 
+    /// Checks inputs as [`ModelSession::run`] does, without running the model.
+    ///
+    /// # Errors
+    ///
+    /// [`ModelError::InputShape`] for inputs of the wrong number or shape.
+    pub fn check(&self, inputs: &[ArrayView4<'_, f32>]) -> Result<(), ModelError> {
+        self.check_inputs(inputs).map(|_| ())
+    }
+
     /// Checks the inputs against the manifest; returns their N, H and W.
     fn check_inputs(
         &self,

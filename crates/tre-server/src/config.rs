@@ -5,7 +5,10 @@
 use std::path::Path;
 
 use crate::{ServeConfig, ServeError};
-use tre_model::{check_threads, ExecutionProvider, ProviderMissing, SessionConfig, ThreadsError};
+use tre_model::{
+    check_threads, Batching, BatchingError, ExecutionProvider, ProviderMissing, SessionConfig,
+    ThreadsError,
+};
 
 /// Shortest API key accepted.
 pub const MIN_API_KEY_CHARS: usize = 16;
@@ -36,6 +39,9 @@ pub enum ConfigError {
     /// An execution provider this build lacks.
     #[error(transparent)]
     Provider(#[from] ProviderMissing),
+    /// Batching bounds out of range.
+    #[error("--batch-max / --batch-delay-ms (ServeConfig::batch_max, batch_delay): {0}")]
+    Batching(#[from] BatchingError),
     /// No worker, or no room in the queue.
     #[error("{flag} (ServeConfig::{field}) must be at least 1 once chosen")]
     Empty {
@@ -97,11 +103,20 @@ impl ServeConfig {
         })
     }
 
+    /// The dynamic batching of these settings.
+    pub fn batching(&self) -> Batching {
+        Batching {
+            max_batch: self.batch_max,
+            max_delay: self.batch_delay,
+        }
+    }
+
     /// Refuses settings the service cannot run with: a limit or timeout of 0, an API key
     /// shorter than [`MIN_API_KEY_CHARS`], more workers or ONNX Runtime threads than `cores`
     /// can use (see [`check_threads`]), an execution provider this build lacks.
     pub fn validate(&self, cores: usize) -> Result<(), ConfigError> {
         self.session()?;
+        self.batching().check()?;
         if let Some(&(flag, field, _)) = self.positive().iter().find(|(_, _, v)| *v == 0) {
             return Err(ConfigError::NotPositive { flag, field });
         }
@@ -228,6 +243,21 @@ mod tests {
         };
         let e = many.validate(2).unwrap_err().to_string();
         assert!(e.contains("--workers 9: at most 8"), "{e}");
+        for (batch_max, ms, says) in [
+            (0, 2, "batch size 0"),
+            (65, 2, "batch size 65"),
+            (8, 1001, "batch delay"),
+        ] {
+            let cfg = ServeConfig {
+                workers: 1,
+                queue: 2,
+                batch_max,
+                batch_delay: Duration::from_millis(ms),
+                ..ServeConfig::default()
+            };
+            let e = cfg.validate(2).unwrap_err().to_string();
+            assert!(e.contains("--batch-max") && e.contains(says), "{e}");
+        }
     }
 
     #[test]

@@ -120,6 +120,17 @@ pub struct ServeConfig {
     /// Frames that may wait for a worker; beyond, requests get 503 at once (0: 2 per worker).
     #[cfg_attr(feature = "cli", arg(long, env = "TRE_QUEUE", default_value_t = 0))]
     pub queue: usize,
+    /// Dynamic batching: frames run through each net as one batch at most, 1 to 64 (1: none).
+    /// Above 1, each model is loaded once, on a thread of its own that every worker shares, and
+    /// a frame's net run waits up to --batch-delay-ms for others of its size. Meant for a GPU;
+    /// on a CPU the workers already keep the cores busy.
+    #[cfg_attr(feature = "cli", arg(long, env = "TRE_BATCH_MAX", default_value_t = 1))]
+    pub batch_max: usize,
+    /// How long the first frame of a batch waits for more, milliseconds (at most 1000).
+    #[cfg_attr(feature = "cli", arg(long = "batch-delay-ms", value_name = "BATCH_DELAY_MS",
+        env = "TRE_BATCH_DELAY_MS", default_value = "2",
+        value_parser = tre_io::units::parse_millis))]
+    pub batch_delay: Duration,
     /// Largest request body, bytes: a number with an optional k, M or G suffix (KiB, MiB,
     /// GiB).
     #[cfg_attr(feature = "cli", arg(long, env = "TRE_MAX_BODY_BYTES", default_value = "32MiB",
@@ -259,6 +270,8 @@ impl Default for ServeConfig {
             provider: Provider::Cpu,
             device_id: 0,
             queue: 0,
+            batch_max: 1,
+            batch_delay: Duration::from_millis(2),
             max_body_bytes: 32 << 20,
             max_pixels: 4 << 20,
             max_side: 8192,
@@ -451,6 +464,7 @@ fn start(cfg: &ServeConfig) -> Result<(Arc<AppState>, watch::Sender<bool>), Serv
         queue: cfg.queue,
         models,
         session: cfg.session()?,
+        batching: cfg.batching(),
         limits: cfg.decode_limits(),
         defaults: cfg.defaults,
         calibration,

@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -19,7 +19,7 @@ use super::request::{
 };
 use tre_core::geometry::Grid;
 use tre_core::roughness::interval::Calibration;
-use tre_model::{Models, SessionConfig};
+use tre_model::{BatchObserver, Batching, Models, SessionConfig, SharedModels};
 use tre_pipeline::{FrameInput, Mode, Pipeline, PipelineConfig};
 
 /// How the pool is built.
@@ -33,6 +33,8 @@ pub(crate) struct PoolConfig {
     pub models: PathBuf,
     /// ONNX Runtime settings of every worker's sessions.
     pub session: SessionConfig,
+    /// Dynamic batching: when on, one session per model shared by every worker.
+    pub batching: Batching,
     /// Decoding limits.
     pub limits: DecodeLimits,
     /// What frames get for the settings they do not choose.
@@ -97,6 +99,10 @@ impl Startup {
     }
 }
 
+/// The models every worker shares when batching is on, loaded by the first worker to need them
+/// (`None` once loading failed: that worker reported why).
+type Shared = Arc<OnceLock<Option<SharedModels>>>;
+
 /// The worker pool.
 #[derive(Debug)]
 pub(crate) struct Workers {
@@ -114,13 +120,19 @@ impl Workers {
     pub(crate) fn start(cfg: &PoolConfig, metrics: Arc<Metrics>) -> std::io::Result<Self> {
         let (tx, rx) = bounded::<Job>(cfg.queue);
         let startup = Arc::new(Startup::default());
+        let shared: Shared = Arc::new(OnceLock::new());
         let mut handles = Vec::with_capacity(cfg.workers);
         for i in 0..cfg.workers.max(1) {
-            let (rx, startup, metrics, cfg) =
-                (rx.clone(), startup.clone(), metrics.clone(), cfg.clone());
+            let (rx, startup, metrics, cfg, shared) = (
+                rx.clone(),
+                startup.clone(),
+                metrics.clone(),
+                cfg.clone(),
+                shared.clone(),
+            );
             let handle = std::thread::Builder::new()
                 .name(format!("tre-worker-{i}"))
-                .spawn(move || worker(i, &cfg, &rx, &startup, &metrics))?;
+                .spawn(move || worker(i, &cfg, &rx, &startup, &metrics, &shared))?;
             handles.push(handle);
         }
         Ok(Self {
@@ -251,20 +263,55 @@ impl Workers {
     }
 }
 
-/// One worker: load, warm up, then serve until the queue closes.
-fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, metrics: &Metrics) {
-    let started = Instant::now();
-    let mut pipeline = match Models::load(&cfg.models, &cfg.session) {
-        Ok(models) => Pipeline::new(Some(models)).with_calibration(cfg.calibration.clone()),
-        Err(reason) => {
-            startup.fail(WorkerError::Load {
-                worker: i,
-                models: cfg.models.clone(),
-                reason,
-            });
-            return;
-        }
+/// The worker's models: sessions of its own, or, with batching on, handles on the shared ones
+/// (loaded by the first worker here; the others wait for it). `None` when loading failed (the
+/// reason is recorded in `startup`).
+fn models_of(
+    i: usize,
+    cfg: &PoolConfig,
+    startup: &Startup,
+    metrics: &Arc<Metrics>,
+    shared: &Shared,
+) -> Option<Models> {
+    let failed = |reason| {
+        startup.fail(WorkerError::Load {
+            worker: i,
+            models: cfg.models.clone(),
+            reason,
+        });
     };
+    if !cfg.batching.is_on() {
+        return Models::load(&cfg.models, &cfg.session).map_err(failed).ok();
+    }
+    let loaded = shared.get_or_init(|| {
+        let metrics = Arc::clone(metrics);
+        let observer: BatchObserver = Arc::new(move |_model: &str, n: usize| metrics.batch(n));
+        // One run of each model at a time, so each may use every worker's threads.
+        let session = SessionConfig {
+            intra_threads: cfg.session.intra_threads * cfg.workers.max(1),
+            ..cfg.session
+        };
+        let loaded = SharedModels::load(&cfg.models, &session, cfg.batching, Some(observer));
+        loaded.map_err(failed).ok()
+    });
+    let models = Models::shared(loaded.as_ref()?);
+    models.map_err(failed).ok()
+}
+
+/// One worker: load, warm up, then serve until the queue closes.
+fn worker(
+    i: usize,
+    cfg: &PoolConfig,
+    rx: &Receiver<Job>,
+    startup: &Startup,
+    metrics: &Arc<Metrics>,
+    shared: &Shared,
+) {
+    let started = Instant::now();
+    let Some(models) = models_of(i, cfg, startup, metrics, shared) else {
+        return;
+    };
+    let mut pipeline = Pipeline::new(Some(models)).with_calibration(cfg.calibration.clone());
     if let Err(reason) = warm_up(&mut pipeline) {
         startup.fail(WorkerError::WarmUp { worker: i, reason });
         return;
@@ -281,7 +328,10 @@ fn worker(i: usize, cfg: &PoolConfig, rx: &Receiver<Job>, startup: &Startup, met
             tracing::debug!(worker = i, "client gone before its frame started; skipped");
             continue;
         }
-        metrics.batch(1);
+        if !cfg.batching.is_on() {
+            // Each frame's nets run alone; with batching, the models' threads report.
+            metrics.batch(1);
+        }
         let mut result = guarded(i, || run_job(&mut pipeline, &job.request, cfg));
         if let Ok(reply) = &mut result {
             metrics.frame(&reply.timings, queued);

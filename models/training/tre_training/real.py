@@ -1,6 +1,6 @@
 """Real RGB-D frames for training and evaluation, split by `models/real_splits.json`.
 
-`../shared/data/real-rgbd` and `../shared/data/real-rgbd-2` hold one folder per sequence with
+`../shared/data/real-rgbd`, `real-rgbd-2` and `real-rgbd-3` hold one folder per sequence with
 `intrinsics.json` (fx, fy, cx, cy, `depth_scale` in PNG units per metre, optional `pitch_deg` and
 `height_m`, the `frames` list of `[rgb, depth]` pairs). Folders without a `frames` list are read
 as `tre eval --real` reads them: `color/NAME` with `depth/NAME`, or `NAME.png` with
@@ -53,7 +53,11 @@ from .data import Split, read_png
 
 REPO = Path(__file__).resolve().parents[3]
 SPLITS = REPO / "models" / "real_splits.json"
-ROOTS = (REPO.parent / "shared/data/real-rgbd", REPO.parent / "shared/data/real-rgbd-2")
+ROOTS = (
+    REPO.parent / "shared/data/real-rgbd",
+    REPO.parent / "shared/data/real-rgbd-2",
+    REPO.parent / "shared/data/real-rgbd-3",
+)
 WORKING = 256
 STRIDE = 16
 DEFAULT_MOUNTING = (float(np.deg2rad(60.0)), 1.0)

@@ -153,7 +153,7 @@ def ls_normals(points: torch.Tensor, valid: torch.Tensor, radius_m: float = 0.05
     cnt = near.sum(1, keepdim=True)
     mean = (c * near.unsqueeze(1)).sum(2) / torch.clamp(cnt, min=1)
     d = (c - mean.unsqueeze(2)) * near.unsqueeze(1)
-    cov = torch.einsum("nakhw,nbkhw->nhwab", d, d) + 1e-9 * torch.eye(3)
+    cov = torch.einsum("nakhw,nbkhw->nhwab", d, d) + 1e-9 * torch.eye(3, device=d.device)
     n = torch.linalg.eigh(cov)[1][..., 0].permute(0, 3, 1, 2)
     facing = (n * points).sum(1, keepdim=True) > 0
     n = torch.where(facing, -n, n)
@@ -168,7 +168,8 @@ def validate(stage: str, model: torch.nn.Module, val: RealData) -> tuple[float, 
         if stage == "depth":
 
             def predict(rgb: np.ndarray, prior: np.ndarray) -> np.ndarray:
-                return model(torch.from_numpy(rgb), torch.from_numpy(prior)).numpy()
+                x, p = torch.from_numpy(rgb).to(DEVICE), torch.from_numpy(prior).to(DEVICE)
+                return model(x, p).cpu().numpy()
 
             res = eval_real.eval_split(predict, "val", VAL_SPLITS, REAL)["summary"]
             # The indoor sets with their fitted mounting and with serving's default; the
@@ -187,7 +188,7 @@ def validate(stage: str, model: torch.nn.Module, val: RealData) -> tuple[float, 
         else:
             vals = []
             for i in val.frames[val.weights > 0]:
-                b = val.whole(np.array([i]))
+                b = to_device(val.whole(np.array([i])))
                 if stage == "refiner":
                     b["normals_gt"] = ls_normals(b["points_m"], b["valid"])
                 _loss, logs = step_loss(stage, model, b, 0)
@@ -201,12 +202,59 @@ def validate(stage: str, model: torch.nn.Module, val: RealData) -> tuple[float, 
 
 VAL_SPLITS = real.SPLITS
 STREET_SHARE = 0.5
+DEVICE = torch.device("cpu")
+
+
+def to_device(b: dict) -> dict:
+    """The batch's tensors on the training device."""
+    return {k: v.to(DEVICE) if isinstance(v, torch.Tensor) else v for k, v in b.items()}
+
+
+def pick_device(name: str) -> torch.device:
+    """`auto`: the first CUDA device where PyTorch sees one, else the CPU."""
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    return torch.device(name)
+
+
+def device_name(dev: torch.device) -> str:
+    if dev.type == "cuda":
+        return f"cuda: {torch.cuda.get_device_name(dev)}"
+    return f"cpu: {torch.get_num_threads()} threads"
+
+
+def save_progress(
+    stage: str,
+    model: torch.nn.Module,
+    best_state: dict,
+    best_step: int,
+    step: int,
+    val_history: list,
+    hist: dict,
+) -> None:
+    """At every validation: the best checkpoint so far (`STAGE.pt`), the latest weights
+    (`STAGE_last.pt`, to go on from with `--init`) and the curve so far (`STAGE_progress.json`), so
+    that a run cut short leaves what it reached."""
+    torch.save({k: v.cpu() for k, v in best_state.items()}, CHECKPOINTS / f"{stage}.pt")
+    torch.save(
+        {k: v.cpu() for k, v in model.state_dict().items()}, CHECKPOINTS / f"{stage}_last.pt"
+    )
+    progress = {
+        "stage": stage,
+        "steps": step,
+        "kept_step": best_step,
+        "device": device_name(DEVICE),
+        "validation": val_history,
+        "train_loss_last_50": {k: float(np.mean(v[-50:])) if v else None for k, v in hist.items()},
+    }
+    (CHECKPOINTS / f"{stage}_progress.json").write_text(json.dumps(progress, indent=1) + "\n")
 
 
 def run(args: argparse.Namespace) -> dict:
-    global VAL_SPLITS, STREET_SHARE
+    global VAL_SPLITS, STREET_SHARE, DEVICE
     VAL_SPLITS = args.splits
     STREET_SHARE = args.street_share
+    DEVICE = pick_device(args.device)
     torch.manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
     stage = args.stage
@@ -218,6 +266,8 @@ def run(args: argparse.Namespace) -> dict:
     model = nets.NETS[STAGE_NET[stage]]()
     init = args.init or CHECKPOINTS / f"{stage}_committed.pt"
     model.load_state_dict(torch.load(init, weights_only=True))
+    model.to(DEVICE)
+    print(f"{stage}: training on {device_name(DEVICE)}", flush=True)
     model.train()
     freeze_batch_norm(model)
     opt = torch.optim.Adam(model.parameters(), lr=args.lr, betas=(0.9, 0.999), eps=1e-8)
@@ -245,14 +295,16 @@ def run(args: argparse.Namespace) -> dict:
                     b["points_m"], b["valid"] = back_project(b["depth_m"], b["intrinsics"])
             if stage == "depth":
                 jitter_prior(b, rng, args.p_default, args.jitter_pitch_deg, args.jitter_height)
+                b = to_device(b)
                 loss = real_depth_loss(model(b["rgb"], b["prior_depth_m"]), b["depth_m"])
                 logs = {"loss": loss.item()}
             else:
+                b = to_device(b)
                 if stage == "refiner":
                     b["normals_gt"] = ls_normals(b["points_m"], b["valid"])
                 loss, logs = step_loss(stage, model, b, step)
         else:
-            b = synth.random_batch(rng, batch, crop)
+            b = to_device(synth.random_batch(rng, batch, crop))
             loss, logs = step_loss(stage, model, b, step)
         opt.zero_grad()
         loss.backward()
@@ -276,6 +328,7 @@ def run(args: argparse.Namespace) -> dict:
             print(f"{stage} val at step {step}: {logs_v}{' (best)' if better else ''}", flush=True)
             if better:
                 best_score, best_state, best_step = score, copy.deepcopy(model.state_dict()), step
+            save_progress(stage, model, best_state, best_step, step, val_history, hist)
     log = {
         "stage": stage,
         "net": STAGE_NET[stage],
@@ -287,7 +340,7 @@ def run(args: argparse.Namespace) -> dict:
         "batch": batch,
         "crop": crop,
         "lr": args.lr,
-        "device": "cpu",
+        "device": device_name(DEVICE),
         "threads": torch.get_num_threads(),
         "batches": "alternating: synthetic (even steps), real (odd steps)",
         "synthetic_train_frames": len(synth.frames),
@@ -322,13 +375,13 @@ def run(args: argparse.Namespace) -> dict:
     }
     if best_step == 0:
         print(f"{stage}: no step beat the committed model on val; it stays", flush=True)
+    best_state = {k: v.cpu() for k, v in best_state.items()}
     torch.save(best_state, CHECKPOINTS / f"{stage}.pt")
     (CHECKPOINTS / f"{stage}.json").write_text(json.dumps(log, indent=2) + "\n")
     return log
 
 
 def main(argv: list[str] | None = None) -> int:
-    torch.set_num_threads(2)
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("stage", choices=["depth", "centroid", "refiner", "cache-n0", "cache-n"])
     ap.add_argument("--data", type=Path, required=True, help="the synthetic set (tre synth)")
@@ -357,7 +410,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--val-every", type=float, default=90.0, help="seconds")
     ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument(
+        "--device", default="auto", help="cpu, cuda, cuda:N or auto (CUDA where PyTorch sees it)"
+    )
+    ap.add_argument("--threads", type=int, default=2, help="PyTorch's CPU threads")
     args = ap.parse_args(argv)
+    torch.set_num_threads(args.threads)
     if args.stage.startswith("cache-"):
         for split in ("train", "val"):
             d = RealData(split, args.splits, "sensor", False)

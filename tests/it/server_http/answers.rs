@@ -372,3 +372,62 @@ async fn documented_requests_are_served(server: &Server, op: &serde_json::Value,
         assert_eq!(resp.status().as_u16(), 200, "Content-Type {t}");
     }
 }
+
+/// With dynamic batching (`--batch-max`), frames that arrive together share each net's runs,
+/// and every answer is still the frame's own: `tre infer`'s map, up to the last digits of the
+/// batched convolutions (at most 1% of pixels off, by at most 1 mm).
+#[test]
+fn batched_answers_equal_tre_infer() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
+    let server = Server::start(&[
+        "--workers",
+        "2",
+        "--batch-max",
+        "2",
+        "--batch-delay-ms",
+        "300",
+    ]);
+    let paths = [real("slambook2_ch7/1.png"), real("slambook2_ch7/2.png")];
+    let served = rt().block_on(async {
+        let url = format!("{}/v1/roughness?mode=rgb", server.url());
+        let posts = paths.iter().map(|p| {
+            let (url, frame) = (url.clone(), std::fs::read(p).unwrap());
+            tokio::spawn(async move { post(&url, "image/png", frame).await })
+        });
+        let mut out = Vec::new();
+        for p in posts.collect::<Vec<_>>() {
+            let resp = p.await.unwrap();
+            assert_eq!(resp.status().as_u16(), 200);
+            out.push(png16_values(&resp.bytes().await.unwrap()));
+        }
+        out
+    });
+    for (path, (w, h, got)) in paths.iter().zip(served) {
+        let (rw, rh, want) = infer_png16(&[path.to_str().unwrap(), "--mode", "rgb"]);
+        assert_eq!((w, h), (rw, rh));
+        let off = got
+            .iter()
+            .zip(&want)
+            .filter(|(g, w)| g.abs_diff(**w) > 0)
+            .count();
+        let far = got.iter().zip(&want).map(|(g, w)| g.abs_diff(*w)).max();
+        assert!(
+            off * 100 <= got.len(),
+            "{off} of {} pixels differ",
+            got.len()
+        );
+        assert!(far <= Some(10), "largest difference {far:?} (0.1 mm units)");
+    }
+    let (_, metrics) = get(server.addr, "/metrics");
+    let metrics = String::from_utf8(metrics).unwrap();
+    let sample = |name: &str| -> f64 {
+        let line = metrics.lines().find(|l| l.starts_with(name)).unwrap();
+        line.rsplit(' ').next().unwrap().parse().unwrap()
+    };
+    // Warm-up runs one batch of 1 per net and mode and worker; the two frames met at least once.
+    let (sum, count) = (sample("tre_batch_size_sum"), sample("tre_batch_size_count"));
+    assert!(
+        sum > count,
+        "no batch of more than one frame: sum {sum}, count {count}"
+    );
+}

@@ -32,6 +32,7 @@ fn state() -> (Arc<AppState>, watch::Sender<bool>) {
         queue: 1,
         models: cfg.models_dir().to_path_buf(),
         session: cfg.session().unwrap(),
+        batching: cfg.batching(),
         limits: cfg.decode_limits(),
         defaults: cfg.defaults,
         calibration: None,
