@@ -72,7 +72,9 @@ def time_torch(model, inputs, device: str, reps: int, warm: int) -> list[float]:
 def time_ort(name: str, inputs, reps: int) -> list[float]:
     import onnxruntime as ort
 
-    sess = ort.InferenceSession(str(REPO / "models" / f"{name}.onnx"), providers=["CPUExecutionProvider"])
+    sess = ort.InferenceSession(
+        str(REPO / "models" / f"{name}.onnx"), providers=["CPUExecutionProvider"]
+    )
     feed = {k: v.numpy() for k, v in zip(nets.NETS[name].input_names, inputs, strict=True)}
     sess.run(None, feed)
     out = []
@@ -114,7 +116,10 @@ def main(argv: list[str] | None = None) -> int:
                     settings += [("torch cuda fp16", "cuda", torch.float16)]
                 # The CPU at batch 32 of 640×480 takes minutes per net: left out.
                 if not (big and n == 32):
-                    settings += [("torch cpu fp32", "cpu", torch.float32), ("ort cpu fp32", None, None)]
+                    settings += [
+                        ("torch cpu fp32", "cpu", torch.float32),
+                        ("ort cpu fp32", None, None),
+                    ]
                 for label, device, dtype in settings:
                     if device is None:
                         ms = time_ort(name, x, 3 if big else 5)
@@ -153,7 +158,11 @@ def main(argv: list[str] | None = None) -> int:
         k = (r["runtime"], r["size"], r["batch"])
         sums[k] = sums.get(k, 0.0) + r["ms_per_frame"]
     counts = {k: sum(1 for r in rows if (r["runtime"], r["size"], r["batch"]) == k) for k in sums}
-    lines += ["", "| runtime | size | batch | four nets, ms / frame |", "| --- | --- | ---: | ---: |"]
+    lines += [
+        "",
+        "| runtime | size | batch | four nets, ms / frame |",
+        "| --- | --- | ---: | ---: |",
+    ]
     lines += [
         f"| {k[0]} | {k[1]} | {k[2]} | {np.round(v, 2)} |"
         for k, v in sorted(sums.items())
