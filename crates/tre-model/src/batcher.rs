@@ -281,7 +281,16 @@ fn serve(
         if let Some(observe) = observer {
             observe(session.name(), n);
         }
-        run_batch(&mut session, batch);
+        // A panic (a bug) fails this batch's callers (their answers are dropped), not the thread.
+        let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            run_batch(&mut session, batch);
+        }));
+        if ran.is_err() {
+            tracing::error!(
+                model = session.name(),
+                "a batch hit a bug; its frames failed"
+            );
+        }
     }
 }
 

@@ -151,8 +151,9 @@ pub enum ModelError {
         /// What the system said.
         reason: String,
     },
-    /// A model's batching thread is gone (the service is stopping, or a bug ended it).
-    #[error("model {model}: its batching thread has stopped")]
+    /// A model's batching thread gave no answer: it has stopped (the service is stopping) or
+    /// the batch hit a bug.
+    #[error("model {model}: no answer from its batching thread (stopped, or the batch hit a bug)")]
     BatcherStopped {
         /// The model's name.
         model: String,

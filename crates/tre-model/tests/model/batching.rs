@@ -2,6 +2,8 @@
 //! what a run of its own inputs alone gives, no batch exceeds its bound, frames of other sizes
 //! never share a batch, and a request that does not fit the model fails alone.
 
+#![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
+
 use std::error::Error;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Barrier, Mutex};
@@ -53,12 +55,20 @@ fn alone(cases: &[(u64, usize, usize)]) -> Result<Vec<Array4<f32>>, Box<dyn Erro
         .collect()
 }
 
+/// A named thread (the workspace's rule).
+fn spawn<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> std::thread::JoinHandle<T> {
+    std::thread::Builder::new()
+        .name("batching-test".into())
+        .spawn(f)
+        .unwrap()
+}
+
+/// Each caller's answer, and the depth net's batch sizes.
+type Outcome = (Vec<Result<Array4<f32>, ModelError>>, Vec<usize>);
+
 /// Runs the cases on threads released together through `shared`; returns each result and the
 /// depth net's batch sizes.
-fn together(
-    batching: Batching,
-    cases: &[(u64, usize, usize)],
-) -> Result<(Vec<Result<Array4<f32>, ModelError>>, Vec<usize>), Box<dyn Error>> {
+fn together(batching: Batching, cases: &[(u64, usize, usize)]) -> Result<Outcome, Box<dyn Error>> {
     let sizes = Arc::new(Mutex::new(Vec::new()));
     let seen = Arc::clone(&sizes);
     let observer: BatchObserver = Arc::new(move |model: &str, n: usize| {
@@ -73,7 +83,7 @@ fn together(
         .map(|&(seed, h, w)| {
             let mut models = Models::shared(&shared).expect("every stage is in the manifest");
             let barrier = Arc::clone(&barrier);
-            std::thread::spawn(move || {
+            spawn(move || {
                 let (rgb, prior) = inputs(seed, h, w);
                 barrier.wait();
                 models.depth(rgb.view(), prior.view())
@@ -160,7 +170,7 @@ fn a_request_that_does_not_fit_fails_alone() -> Result<(), Box<dyn Error>> {
     let run = |bad: bool| {
         let mut models = Models::shared(&shared).expect("every stage is in the manifest");
         let barrier = Arc::clone(&barrier);
-        std::thread::spawn(move || {
+        spawn(move || {
             let (rgb, prior) = inputs(7, 64, 64);
             // Two channels where the net takes three; or a height not a multiple of 16.
             let rgb = if bad {

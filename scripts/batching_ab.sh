@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Dynamic batching against none, in one run: `tre serve` three times (2 workers alone; 2 workers
+# with --batch-max 2; 4 workers with --batch-max 4), each loaded closed loop by `tre loadtest`
+# with 4 connections of `rgb` frames (the synthetic 256×256 frame), then the mean batch size
+# from /metrics. Prints one line per setting and writes OUT/batching-*.{txt,json,metrics}.
+#
+#   scripts/batching_ab.sh            # OUT=/tmp, DURATION=30, TRE=target/release/tre
+set -euo pipefail
+cd "$(dirname "$0")/.."
+TRE=${TRE:-target/release/tre}
+OUT=${OUT:-${TMPDIR:-/tmp}}
+DURATION=${DURATION:-30}
+PORT=${PORT:-18191}
+DELAY=${DELAY:-5}
+run() {
+  local label=$1
+  shift
+  "$TRE" serve --addr "127.0.0.1:$PORT" --models models --ort-threads 1 "$@" >/dev/null \
+    2>"$OUT/batching-$label.log" &
+  local pid=$!
+  for _ in $(seq 1 900); do curl -sf "http://127.0.0.1:$PORT/readyz" >/dev/null && break; sleep 0.2; done
+  "$TRE" loadtest --url "http://127.0.0.1:$PORT" --mode rgb --connections 4 \
+    --duration "$DURATION" --warmup 3 --json "$OUT/batching-$label.json" >"$OUT/batching-$label.txt"
+  curl -sf "http://127.0.0.1:$PORT/metrics" >"$OUT/batching-$label.metrics"
+  kill "$pid"
+  wait "$pid" 2>/dev/null || true
+  local sum count
+  sum=$(awk '$1 == "tre_batch_size_sum" {print $2}' "$OUT/batching-$label.metrics")
+  count=$(awk '$1 == "tre_batch_size_count" {print $2}' "$OUT/batching-$label.metrics")
+  echo "$label: $(grep -E '^ok ' "$OUT/batching-$label.txt" | tail -1) | net runs $count, mean batch $(
+    python3 -c "print(round($sum / max($count, 1), 2))")"
+}
+run none --workers 2
+run batch2 --workers 2 --batch-max 2 --batch-delay-ms "$DELAY"
+run batch4 --workers 4 --batch-max 4 --batch-delay-ms "$DELAY"
