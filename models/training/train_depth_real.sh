@@ -13,8 +13,8 @@
 #   VAL_EVERY  seconds between validations (default 300)
 #   PY         the Python with PyTorch (default python3)
 #   DATA       the synthetic set (default data/sensor256; made by tre synth when missing)
-#   RUN        where the run's checkpoint, curve and log are copied (default
-#              models/training/runs/depth-$(date +%F))
+#   RUN        where the run's checkpoint, curve and log are copied (default: runs/depth-DATE
+#              beside this script)
 #
 # The test split is read only after training, by eval_real.
 # Every validation writes checkpoints/depth.pt (best so far), depth_last.pt and
