@@ -18,7 +18,9 @@
 #
 # The test split is read only after training, by eval_real.
 # Every validation writes checkpoints/depth.pt (best so far), depth_last.pt and
-# depth_progress.json (the curve), so a run cut short leaves what it reached.
+# depth_progress.json (the curve), so a run cut short leaves what it reached;
+# `touch models/training/checkpoints/depth.stop` ends it early (a last validation, the log).
+# Edit this file only while no run of it is going on: bash reads it as it goes.
 set -euo pipefail
 MINUTES=${MINUTES:-100}
 DEVICE=${DEVICE:-auto}

@@ -278,7 +278,10 @@ def run(args: argparse.Namespace) -> dict:
     start, step, hist = time.time(), 0, {"synthetic": [], "real": []}
     budget, last_val = args.minutes * 60.0, time.time()
     batch, crop = args.batch, args.crop
-    while (elapsed := time.time() - start) < budget:
+    stop = CHECKPOINTS / f"{stage}.stop"
+    stop.unlink(missing_ok=True)
+    # The budget, or `touch checkpoints/STAGE.stop` to end early (a last validation, then the log).
+    while (elapsed := time.time() - start) < budget and not stop.exists():
         lr = (
             args.lr
             * (0.5 if elapsed > 0.5 * budget else 1.0)
@@ -318,7 +321,8 @@ def run(args: argparse.Namespace) -> dict:
                 flush=True,
             )
         step += 1
-        if time.time() - last_val > args.val_every or time.time() - start >= budget:
+        ending = time.time() - start >= budget or stop.exists()
+        if time.time() - last_val > args.val_every or ending:
             score, logs_v = validate(stage, model, val_real)
             last_val = time.time()
             val_history.append(
