@@ -375,7 +375,8 @@ async fn documented_requests_are_served(server: &Server, op: &serde_json::Value,
 
 /// With dynamic batching (`--batch-max`), frames that arrive together share each net's runs,
 /// and every answer is still the frame's own: `tre infer`'s map, up to the last digits of the
-/// batched convolutions (at most 1% of pixels off, by at most 1 mm).
+/// batched convolutions (at most 1% of pixels off, by at most 1 mm); and the server still stops
+/// cleanly.
 #[test]
 fn batched_answers_equal_tre_infer() {
     crate::common::skip_unless_shared!("data/real-rgbd");
@@ -430,4 +431,7 @@ fn batched_answers_equal_tre_infer() {
         sum > count,
         "no batch of more than one frame: sum {sum}, count {count}"
     );
+    // The models' threads end with the workers: SIGTERM stops the server cleanly.
+    let status = server.terminate();
+    assert!(status.success(), "exit status {status}");
 }
