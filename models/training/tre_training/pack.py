@@ -6,7 +6,9 @@ OUT` there.
 What the pack holds, per split: each frame's RGB as a JPEG (quality 95) and its depth as a 16-bit
 PNG (units of `DEPTH_UNIT_M`, 0 = none; a real frame's sensor depth too), its intrinsics and
 mounting, and for the real frames the metadata of `real.load_real`. `pack` reads the caches
-training wrote (`data/sensor256/.cache/train.npz`, `data/real256/{train,val,test}.npz`);
+training wrote (`data/sensor256/.cache/train.npz`, `data/real256/{train,val,test}.npz`), making
+them where missing (the synthetic set itself must exist: `tre synth`, as `train_depth_real.sh`
+runs it, and `../shared/data` beside the repository);
 `unpack` writes them back in the same format, so `train_real` and `eval_real` read them as they
 read their own. The synthetic set travels as a random subset of its train frames (`--synthetic`,
 seeded), with `dataset.json` for the manifest. What changes on the way: RGB goes through JPEG
@@ -26,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from .data import Split
+from .data import Split, load_split
 
 REPO = Path(__file__).resolve().parents[3]
 SYNTH = REPO / "data" / "sensor256"
@@ -113,8 +115,8 @@ def pack(out: Path, synthetic: int, seed: int) -> dict:
 
     out.mkdir(parents=True, exist_ok=True)
     sizes = {}
-    with np.load(SYNTH / ".cache" / "train.npz") as z:
-        s = Split(**{k: z[k] for k in z.files})
+    # The training cache when there (written by the first training on the set), else the set.
+    s = load_split(SYNTH, "train", SYNTH / ".cache" / "train.npz")
     rng = np.random.default_rng(seed)
     rows = np.sort(rng.choice(len(s), min(synthetic, len(s)), replace=False))
     sizes["synthetic_train"] = pack_split(s, rows, out / "synthetic_train.npz", None)
