@@ -15,7 +15,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, Sender};
+use crossbeam_channel::{bounded, Receiver, Sender};
 use ndarray::{concatenate, s, Array4, ArrayView4, Axis};
 
 use super::manifest::Manifest;
@@ -236,46 +236,52 @@ fn serve(
     batching: Batching,
     observer: Option<&BatchObserver>,
 ) {
+    // Requests waiting for a batch of their own size; each was checked when it arrived.
     let mut held: VecDeque<Request> = VecDeque::new();
+    // A request that does not fit the model is answered at once and joins nothing.
+    let admit = |session: &ModelSession, r: Request| match session.check(&views(&r.inputs)) {
+        Ok(()) => Some(r),
+        Err(e) => {
+            let _ = r.reply.send(Err(e));
+            None
+        }
+    };
     loop {
         let first = match held.pop_front() {
             Some(r) => r,
             None => match rx.recv() {
-                Ok(r) => r,
+                Ok(r) => match admit(&session, r) {
+                    Some(r) => r,
+                    None => continue,
+                },
                 Err(_) => return,
             },
         };
-        if let Err(e) = session.check(&views(&first.inputs)) {
-            let _ = first.reply.send(Err(e));
-            continue;
-        }
         let size = first.size();
         let deadline = Instant::now() + batching.max_delay;
         let mut n = first.n();
         let mut batch = vec![first];
+        let joins = |r: &Request, n: usize| r.size() == size && n + r.n() <= batching.max_batch;
         // Those held from before, in order, then new arrivals until full or the deadline.
-        let mut kept = VecDeque::new();
-        while let Some(r) = held.pop_front() {
-            if r.size() == size && n + r.n() <= batching.max_batch {
-                n += r.n();
-                batch.push(r);
-            } else {
-                kept.push_back(r);
-            }
-        }
-        held = kept;
-        while n < batching.max_batch {
-            let r = match rx.recv_deadline(deadline) {
-                Ok(r) => r,
-                Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => break,
-            };
-            if let Err(e) = session.check(&views(&r.inputs)) {
-                let _ = r.reply.send(Err(e));
-            } else if r.size() == size && n + r.n() <= batching.max_batch {
+        for r in std::mem::take(&mut held) {
+            if joins(&r, n) {
                 n += r.n();
                 batch.push(r);
             } else {
                 held.push_back(r);
+            }
+        }
+        while n < batching.max_batch {
+            let Ok(r) = rx.recv_deadline(deadline) else {
+                break;
+            };
+            match admit(&session, r) {
+                Some(r) if joins(&r, n) => {
+                    n += r.n();
+                    batch.push(r);
+                }
+                Some(r) => held.push_back(r),
+                None => {}
             }
         }
         if let Some(observe) = observer {

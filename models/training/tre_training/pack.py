@@ -61,7 +61,7 @@ def _unblob(data: np.ndarray, offsets: np.ndarray, i: int) -> bytes:
 
 
 def pack_split(s: Split, rows: np.ndarray, out: Path, meta: list[dict] | None) -> int:
-    sensor_differs = not np.array_equal(s.depth_m, s.depth_sensor_m, equal_nan=True)
+    sensor_differs = not np.array_equal(s.depth_m[rows], s.depth_sensor_m[rows], equal_nan=True)
     arrays: dict[str, np.ndarray] = {}
     arrays["rgb"], arrays["rgb_offsets"] = _blobs([_jpeg(s.rgb[i]) for i in rows])
     arrays["depth"], arrays["depth_offsets"] = _blobs([_png16(s.depth_m[i]) for i in rows])

@@ -5,26 +5,16 @@
 #![allow(clippy::unwrap_used)] // Test helpers fail loudly by design.
 
 use std::error::Error;
-use std::path::{Path, PathBuf};
 use std::sync::{Arc, Barrier, Mutex};
 use std::time::Duration;
 
 use ndarray::Array4;
 use tre_model::{
     BatchObserver, Batching, BatchingError, Manifest, ModelError, ModelSession, Models,
-    SessionConfig, SharedModels, DEPTH_NET, MAX_BATCH,
+    SharedModels, DEPTH_NET, MAX_BATCH,
 };
 
-fn models_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models")
-}
-
-fn cfg() -> SessionConfig {
-    SessionConfig {
-        intra_threads: 1,
-        ..SessionConfig::default()
-    }
-}
+use super::{cfg, models_dir};
 
 /// A deterministic RGB image and prior of `h`×`w`, different for each `seed`.
 fn inputs(seed: u64, h: usize, w: usize) -> (Array4<f32>, Array4<f32>) {
@@ -66,9 +56,8 @@ fn spawn<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> std::thre
 /// Each caller's answer, and the depth net's batch sizes.
 type Outcome = (Vec<Result<Array4<f32>, ModelError>>, Vec<usize>);
 
-/// Runs the cases on threads released together through `shared`; returns each result and the
-/// depth net's batch sizes.
-fn together(batching: Batching, cases: &[(u64, usize, usize)]) -> Result<Outcome, Box<dyn Error>> {
+/// An observer that records the depth net's batch sizes, and the record.
+fn depth_batches() -> (Arc<Mutex<Vec<usize>>>, BatchObserver) {
     let sizes = Arc::new(Mutex::new(Vec::new()));
     let seen = Arc::clone(&sizes);
     let observer: BatchObserver = Arc::new(move |model: &str, n: usize| {
@@ -76,6 +65,13 @@ fn together(batching: Batching, cases: &[(u64, usize, usize)]) -> Result<Outcome
             seen.lock().unwrap().push(n);
         }
     });
+    (sizes, observer)
+}
+
+/// Runs the cases on threads released together through `shared`; returns each result and the
+/// depth net's batch sizes.
+fn together(batching: Batching, cases: &[(u64, usize, usize)]) -> Result<Outcome, Box<dyn Error>> {
+    let (sizes, observer) = depth_batches();
     let shared = SharedModels::load(&models_dir(), &cfg(), batching, Some(observer))?;
     let barrier = Arc::new(Barrier::new(cases.len()));
     let threads: Vec<_> = cases
@@ -107,22 +103,36 @@ fn worst_relative(a: &Array4<f32>, b: &Array4<f32>) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Every answer within 1e-4 (relative to max(1, |y|)) of the run alone.
+fn assert_as_alone(
+    got: Vec<Result<Array4<f32>, ModelError>>,
+    want: &[Array4<f32>],
+) -> Result<(), Box<dyn Error>> {
+    for (g, w) in got.into_iter().zip(want) {
+        let worst = worst_relative(&g?, w);
+        assert!(worst <= 1e-4, "relative error {worst:e}");
+    }
+    Ok(())
+}
+
 /// Long enough that threads released together always meet in one batch.
 const WAIT: Duration = Duration::from_millis(500);
+
+/// Batches of at most `max_batch`, gathered for [`WAIT`].
+fn waiting(max_batch: usize) -> Batching {
+    Batching {
+        max_batch,
+        max_delay: WAIT,
+    }
+}
 
 #[test]
 fn batched_answers_equal_runs_alone() -> Result<(), Box<dyn Error>> {
     let cases: Vec<_> = (0..4).map(|i| (i, 64, 96)).collect();
     let want = alone(&cases)?;
-    let batching = Batching {
-        max_batch: 4,
-        max_delay: WAIT,
-    };
+    let batching = waiting(4);
     let (got, sizes) = together(batching, &cases)?;
-    for (g, w) in got.into_iter().zip(&want) {
-        let worst = worst_relative(&g?, w);
-        assert!(worst <= 1e-4, "relative error {worst:e}");
-    }
+    assert_as_alone(got, &want)?;
     assert_eq!(sizes.iter().sum::<usize>(), 4);
     assert!(sizes.iter().any(|&n| n > 1), "never batched: {sizes:?}");
     Ok(())
@@ -135,15 +145,9 @@ fn no_batch_exceeds_its_bound_and_sizes_never_mix() -> Result<(), Box<dyn Error>
         .map(|i| if i % 3 == 2 { (i, 32, 48) } else { (i, 64, 64) })
         .collect();
     let want = alone(&cases)?;
-    let batching = Batching {
-        max_batch: 3,
-        max_delay: WAIT,
-    };
+    let batching = waiting(3);
     let (got, sizes) = together(batching, &cases)?;
-    for (g, w) in got.into_iter().zip(&want) {
-        let worst = worst_relative(&g?, w);
-        assert!(worst <= 1e-4, "relative error {worst:e}");
-    }
+    assert_as_alone(got, &want)?;
     assert_eq!(sizes.iter().sum::<usize>(), 10, "{sizes:?}");
     assert!(sizes.iter().all(|&n| (1..=3).contains(&n)), "{sizes:?}");
     // Seven of one size need at least three batches, three of the other at least one.
@@ -153,17 +157,8 @@ fn no_batch_exceeds_its_bound_and_sizes_never_mix() -> Result<(), Box<dyn Error>
 
 #[test]
 fn a_request_that_does_not_fit_fails_alone() -> Result<(), Box<dyn Error>> {
-    let sizes = Arc::new(Mutex::new(Vec::new()));
-    let seen = Arc::clone(&sizes);
-    let observer: BatchObserver = Arc::new(move |model: &str, n: usize| {
-        if model == DEPTH_NET {
-            seen.lock().unwrap().push(n);
-        }
-    });
-    let batching = Batching {
-        max_batch: 4,
-        max_delay: WAIT,
-    };
+    let (sizes, observer) = depth_batches();
+    let batching = waiting(4);
     let shared = SharedModels::load(&models_dir(), &cfg(), batching, Some(observer))?;
     let want = alone(&[(7, 64, 64)])?;
     let barrier = Arc::new(Barrier::new(3));

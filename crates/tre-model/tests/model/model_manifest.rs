@@ -2,22 +2,12 @@
 //! `manifest.json`, naming the model and the field; the shipped manifest loads.
 
 use std::error::Error;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use tre_model::{Manifest, ModelError, Models, SessionConfig};
+use super::{cfg, models_dir};
+use tre_model::{Manifest, ModelError, Models};
 
 type TestResult = Result<(), Box<dyn Error>>;
-
-fn models_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models")
-}
-
-fn cfg() -> SessionConfig {
-    SessionConfig {
-        intra_threads: 1,
-        ..SessionConfig::default()
-    }
-}
 
 /// A temporary copy of `models/` whose manifest `edit` has changed.
 fn edited_copy(edit: impl FnOnce(&mut Manifest)) -> Result<tempfile::TempDir, Box<dyn Error>> {
