@@ -89,11 +89,25 @@ class Tally:
     def __init__(self) -> None:
         self.lock = threading.Lock()
         self.seen: dict[str, dict[tuple[int, int], float]] = {t: {} for t in TOPICS_OUT}
+        self.last = time.monotonic()
 
     def arrive(self, topic: str, stamp: tuple[int, int]) -> None:
         now = time.time()
         with self.lock:
             self.seen[topic].setdefault(stamp, now)
+            self.last = time.monotonic()
+
+    def drain(self, quiet_s: float, most_s: float) -> None:
+        """Waits `quiet_s`, then until nothing has arrived for `quiet_s`; at most `most_s`."""
+        end = time.monotonic() + most_s
+        with self.lock:
+            self.last = time.monotonic()
+        while time.monotonic() < end:
+            with self.lock:
+                left = self.last + quiet_s - time.monotonic()
+            if left <= 0:
+                return
+            time.sleep(min(left, 0.1))
 
 
 def summary(sent: list[tuple[int, int]], tally: Tally, hz: float, meta: dict) -> dict:
@@ -139,7 +153,15 @@ def main() -> None:
     ap.add_argument("--cx", type=float, default=320.0)
     ap.add_argument("--cy", type=float, default=240.0)
     ap.add_argument("--discovery-s", type=float, default=30.0)
-    ap.add_argument("--drain-s", type=float, default=3.0, help="wait after the last frame")
+    ap.add_argument(
+        "--drain-s",
+        type=float,
+        default=3.0,
+        help="after the last frame, wait until nothing has arrived for this long",
+    )
+    ap.add_argument(
+        "--drain-most-s", type=float, default=30.0, help="but no longer than this after it"
+    )
     args = ap.parse_args()
 
     frames = load_frames(args.frames, args.count, args.step)
@@ -179,7 +201,7 @@ def main() -> None:
         peer.publish(stamp, w, h, depth, k, pose)
         writes.append(1e3 * (time.time() - now * 1e-9))
         sent.append(stamp)
-    time.sleep(args.drain_s)
+    tally.drain(args.drain_s, args.drain_most_s)
     meta = {
         "dds": args.dds,
         "reliability": args.reliability,

@@ -41,13 +41,14 @@ impl Ros2 {
         let count = |c: &AtomicU64| c.load(Ordering::Relaxed);
         let line = format!(
             "frames received {}, published {}, dropped (stale) {}, skipped (bad input) {}, fused \
-             into the map {}, grid maps published {}",
+             into the map {}, grid maps made {}, messages refused by the middleware {}",
             count(&s.received),
             count(&s.published),
             count(&s.dropped),
             count(&s.skipped),
             count(&s.fused),
             count(&s.grids),
+            count(&s.unsent),
         );
         if let Some(path) = node.stop()? {
             println!("recorded {}", path.display());

@@ -1,7 +1,9 @@
 //! The node's settings (topics, frames, QoS, limits) and its counters.
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicU64;
+use std::sync::Mutex;
 use std::time::Duration;
 
 use tre_core::map::Pose as MapPose;
@@ -91,10 +93,24 @@ pub struct NodeStats {
     pub dropped: AtomicU64,
     /// Frames skipped for bad input.
     pub skipped: AtomicU64,
-    /// Frames processed and published.
+    /// Frames processed and their outputs handed to the middleware.
     pub published: AtomicU64,
     /// Frames fused into the map.
     pub fused: AtomicU64,
-    /// grid_map messages published (at most one a grid period).
+    /// grid_map messages made (at most one a grid period).
     pub grids: AtomicU64,
+    /// Messages the middleware took, by output topic under the prefix (`roughness`,
+    /// `roughness/compressed`, `grid_map`, `occupancy`, ...).
+    pub written: Mutex<BTreeMap<&'static str, u64>>,
+    /// Messages the middleware refused (a reliable writer's send window still full of
+    /// unacknowledged samples after its 20 ms wait), each logged; the next frame's replace them.
+    pub unsent: AtomicU64,
+}
+
+impl NodeStats {
+    /// Messages the middleware took on `topic` (under the prefix: `grid_map`, ...).
+    pub fn written(&self, topic: &str) -> u64 {
+        let w = self.written.lock().unwrap_or_else(|e| e.into_inner());
+        w.get(topic).copied().unwrap_or(0)
+    }
 }

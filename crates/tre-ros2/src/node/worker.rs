@@ -10,7 +10,7 @@ use tre_core::map::Pose as MapPose;
 use tre_record::msgs::{CompressedImage, GridMap, Image, OccupancyGrid, RosMessage, Time};
 use tre_record::{now_ns, Recorder};
 
-use super::{dds, name, output_qos, NodeConfig, Recorded, Shared, WorkerResult};
+use super::{dds, name, output_qos, NodeConfig, NodeStats, Recorded, Shared, WorkerResult};
 use crate::error::Ros2Error;
 use crate::limiter::Limiter;
 use crate::process::{Outputs, Processor};
@@ -65,29 +65,52 @@ impl Publishers {
         })
     }
 
-    fn publish(&self, o: &Outputs) {
-        send(&self.roughness, "roughness", Some(&o.roughness));
-        send(&self.uncertainty, "uncertainty", o.uncertainty.as_ref());
-        send(&self.traversal, "traversal", o.traversal.as_ref());
+    fn publish(&self, o: &Outputs, stats: &NodeStats) {
+        send(stats, &self.roughness, "roughness", Some(&o.roughness));
+        send(
+            stats,
+            &self.uncertainty,
+            "uncertainty",
+            o.uncertainty.as_ref(),
+        );
+        send(stats, &self.traversal, "traversal", o.traversal.as_ref());
         for (name, img) in &o.compressed {
-            if let Some((_, p)) = self.compressed.iter().find(|(n, _)| n == name) {
-                send(p, "compressed image", Some(img));
+            if let Some((topic, p)) = self.compressed.iter().find(|(n, _)| n == name) {
+                send(stats, p, compressed_topic(topic), Some(img));
             }
         }
-        send(&self.grid, "grid_map", o.grid.as_ref());
-        send(&self.occupancy, "occupancy", o.occupancy.as_ref());
+        send(stats, &self.grid, "grid_map", o.grid.as_ref());
+        send(stats, &self.occupancy, "occupancy", o.occupancy.as_ref());
     }
 }
 
-/// Publishes `msg` when there is one; a failure is logged (the next frame publishes again).
+/// The topic under the prefix of `image`'s PNG.
+fn compressed_topic(image: &str) -> &'static str {
+    match image {
+        "roughness" => "roughness/compressed",
+        "uncertainty" => "uncertainty/compressed",
+        _ => "traversal/compressed",
+    }
+}
+
+/// Publishes `msg` when there is one and counts it as written or unsent; a refusal is logged
+/// (the next frame publishes again).
 fn send<M: RosMessage + Clone + std::fmt::Debug>(
+    stats: &NodeStats,
     publisher: &Publisher<M>,
-    what: &str,
+    topic: &'static str,
     msg: Option<&M>,
 ) {
     if let Some(m) = msg {
-        if let Err(e) = publisher.publish(m.clone()) {
-            tracing::warn!("publishing {what}: {e:?}");
+        match publisher.publish(m.clone()) {
+            Ok(()) => {
+                let mut w = stats.written.lock().unwrap_or_else(|e| e.into_inner());
+                *w.entry(topic).or_default() += 1;
+            }
+            Err(e) => {
+                stats.unsent.fetch_add(1, Ordering::Relaxed);
+                tracing::warn!("publishing {topic}: {e:?}");
+            }
         }
     }
 }
@@ -147,7 +170,7 @@ pub(super) fn work(
             Ok(out) => {
                 last_stamp = Some(stamp);
                 limiter.good();
-                pubs.publish(&out);
+                pubs.publish(&out, &sh.stats);
                 sh.stats.published.fetch_add(1, Ordering::Relaxed);
                 if out.layers.is_some() {
                     sh.stats.fused.fetch_add(1, Ordering::Relaxed);
