@@ -79,11 +79,11 @@ struct Run {
     written: std::collections::BTreeMap<&'static str, u64>,
 }
 
-/// Runs the node and the `dds` peer (importing `imports`) subscribed to `topics`; `None`
-/// (skipped) without the peer or the frames.
-fn run(dds: &str, imports: &str, domain: u16, topics: &str) -> Option<Run> {
-    let (py, dir) = match (python(imports), common::kitchen_dir()) {
-        (Ok(py), Some(dir)) => (py, dir),
+/// The peer's Python (importing `imports`) and the kitchen frames; `None` (skipped) without
+/// either, unless required.
+fn peer_and_frames(imports: &str) -> Option<(PathBuf, PathBuf)> {
+    match (python(imports), common::kitchen_dir()) {
+        (Ok(py), Some(dir)) => Some((py, dir)),
         (py, dir) => {
             let why = format!(
                 "{} {}",
@@ -92,9 +92,15 @@ fn run(dds: &str, imports: &str, domain: u16, topics: &str) -> Option<Run> {
             );
             assert!(!required(), "TRE_REQUIRE_DDS=1 but {why}");
             eprintln!("skipped: {why}");
-            return None;
+            None
         }
-    };
+    }
+}
+
+/// Runs the node and the `dds` peer (importing `imports`) subscribed to `topics`; `None`
+/// (skipped) without the peer or the frames.
+fn run(dds: &str, imports: &str, domain: u16, topics: &str) -> Option<Run> {
+    let (py, dir) = peer_and_frames(imports)?;
     let node = start_node(&dir, domain);
     let out = Command::new(&py)
         .arg(root().join("scripts/ros2_rates.py"))
