@@ -1,7 +1,7 @@
 //! The geometric mode against truth that is not the same raw depth: the known-flat and
 //! known-hazard regions of every shared set's test frames (tests/fixtures/real_regions.json),
 //! per sensor class. The spec on the raw depth fails on LiDAR and stereo; the terrain
-//! estimate must not.
+//! estimate must not; the spec on cleaned depth must keep Kinect's flat floor flat.
 
 use std::error::Error;
 use std::path::{Path, PathBuf};
@@ -27,17 +27,21 @@ fn report() -> Result<RegionReport, Box<dyn Error>> {
     let splits = root.join("models/real_splits.json");
     let frames = frames_of(&dirs, Some(&splits), "test", None)?;
     let file = RegionFile::read(&root.join("tests/fixtures/real_regions.json"))?;
-    let rows: Vec<(String, PipelineConfig)> = [GeometricMethod::Terrain, GeometricMethod::Spec]
-        .into_iter()
-        .map(|geometric| {
-            let cfg = PipelineConfig {
-                mode: Mode::Geometric,
-                geometric,
-                ..PipelineConfig::default()
-            };
-            (cfg.label(), cfg)
-        })
-        .collect();
+    let rows: Vec<(String, PipelineConfig)> = [
+        GeometricMethod::Terrain,
+        GeometricMethod::Spec,
+        GeometricMethod::SpecCleaned,
+    ]
+    .into_iter()
+    .map(|geometric| {
+        let cfg = PipelineConfig {
+            mode: Mode::Geometric,
+            geometric,
+            ..PipelineConfig::default()
+        };
+        (cfg.label(), cfg)
+    })
+    .collect();
     let mut pipeline = Pipeline::new(None);
     let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
     Ok(score_regions(
@@ -55,7 +59,7 @@ fn flat_ground_reads_flat_and_hazards_are_seen_on_every_sensor_class() -> TestRe
         crate::common::skip_unless_shared!(corpus, Ok(()));
     }
     let report = report()?;
-    let (terrain, spec) = (&report.rows[0], &report.rows[1]);
+    let (terrain, spec, cleaned) = (&report.rows[0], &report.rows[1], &report.rows[2]);
     for class in [
         "kinect",
         "lidar (one sweep)",
@@ -106,5 +110,80 @@ fn flat_ground_reads_flat_and_hazards_are_seen_on_every_sensor_class() -> TestRe
         let ok = share(t.flat_states[0], t.flat_px_gravity);
         assert!(ok >= least, "{class}: flat ground traversable on {ok}");
     }
+    // The spec on cleaned depth (for dense depth): on Kinect frames it drops most of what the
+    // sensor's noise made of the flat floor and sees most hazards (24 of 32 boxes here, with
+    // no intervals table; 28 through its table, docs/terrain.md).
+    let c = cleaned
+        .iter()
+        .find(|(c, _)| c.starts_with("kinect"))
+        .ok_or("no kinect regions")?
+        .1;
+    let s = spec
+        .iter()
+        .find(|(c, _)| c.starts_with("kinect"))
+        .ok_or("no kinect regions")?
+        .1;
+    let (c_rough, s_rough) = (
+        share(c.flat_rough, c.flat_read),
+        share(s.flat_rough, s.flat_read),
+    );
+    assert!(
+        c_rough <= 0.02 && c_rough < s_rough / 2.0,
+        "kinect: flat read >= 5 cm on {c_rough} cleaned, {s_rough} raw"
+    );
+    let (boxes, seen) = c.hazard_boxes;
+    assert!(
+        share(seen, boxes) >= 0.7,
+        "kinect, cleaned: hazards seen {seen} of {boxes}"
+    );
+    Ok(())
+}
+
+/// Against the kitchen's surface fused from its neighbouring posed views (truth without the
+/// single view's noise), the spec on cleaned depth keeps the creases the terrain estimate
+/// spreads out, with few false hazards (docs/terrain.md).
+#[test]
+fn the_spec_on_cleaned_depth_keeps_the_kitchens_creases() -> TestResult {
+    crate::common::skip_unless_shared!("data/real-rgbd-2", Ok(()));
+    let kitchen = crate::common::shared_root().join("data/real-rgbd-2/sevenscenes_redkitchen");
+    let dir = tempfile::tempdir()?;
+    let json = dir.path().join("fused.json");
+    let o = crate::common::tre(&[
+        "eval",
+        "--real",
+        crate::common::s(&kitchen),
+        "--real-splits",
+        "models/real_splits.json",
+        "--split",
+        "test",
+        "--reference",
+        "fused",
+        "--mode",
+        "geometric",
+        "--limit",
+        "16",
+        "--json",
+        crate::common::s(&json),
+    ]);
+    assert!(o.status.success(), "{}", crate::common::stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json)?)?;
+    let row = |key: &str| -> Result<(f64, f64), String> {
+        let all = report["pooled"]
+            .as_array()
+            .and_then(|rows| rows.iter().find(|r| r["key"] == key))
+            .map(|r| &r["all"])
+            .ok_or(format!("no row {key}"))?;
+        Ok((
+            all["edge_recall"].as_f64().ok_or("edge_recall")?,
+            all["false_hazards"].as_f64().ok_or("false_hazards")?,
+        ))
+    };
+    let (recall, false_hazards) = row("geometric:cleaned+LS+window+edge")?;
+    let (terrain_recall, _) = row("geometric:terrain")?;
+    assert!(
+        recall >= 0.8 && recall > 2.0 * terrain_recall,
+        "edge recall {recall} (terrain estimate {terrain_recall})"
+    );
+    assert!(false_hazards <= 0.06, "false hazards {false_hazards}");
     Ok(())
 }

@@ -119,6 +119,19 @@ pub enum GeometricMethod {
         )
     )]
     Spec,
+    /// Annotation spec v1 on the depth cleaned through the terrain estimate's supports under
+    /// the sensor's noise model (each point moved towards its support's plane by what the
+    /// noise explains, scan-line gaps filled; what the `rgbd` mode reads): the spec's edges
+    /// and creases without most of the sensor's noise. For dense structured-light and
+    /// time-of-flight depth (docs/terrain.md); on LiDAR and passive stereo the terrain
+    /// estimate is the one to use.
+    #[cfg_attr(
+        feature = "cli",
+        value(
+            help = "The spec on depth cleaned through the terrain estimate's supports: its edges and creases without most sensor noise (dense structured-light or time-of-flight depth)"
+        )
+    )]
+    SpecCleaned,
     /// The paper's classical baseline: Eq. 1 with LS normals and window centroids, no edge
     /// term (every drop is missed). What the paper's tables use.
     #[cfg_attr(
@@ -473,7 +486,7 @@ mod tests {
     #[test]
     fn each_choice_has_one_spelling_everywhere() {
         one_spelling::<Mode>(&["rgb", "rgbd", "geometric"]);
-        one_spelling::<GeometricMethod>(&["terrain", "spec", "surface-only"]);
+        one_spelling::<GeometricMethod>(&["terrain", "spec", "spec-cleaned", "surface-only"]);
         one_spelling::<Method>(&["pipeline", "end-to-end"]);
         one_spelling::<NormalsMethod>(&["ls", "dsac"]);
         one_spelling::<CentroidMethod>(&["net", "window"]);

@@ -15,7 +15,9 @@ use tre_core::roughness::interval::{
     feature_map, FirstAxis, IntervalTable, Sample, SecondAxis, COVERAGE,
 };
 use tre_core::roughness::noise::SensorNoise;
-use tre_pipeline::{FrameOutput, Mode, Pipeline, PipelineConfig};
+use tre_pipeline::{
+    FrameOutput, GeometricMethod, Mode, Pipeline, PipelineConfig, SPEC_CLEANED_TABLE,
+};
 
 use crate::error::{BenchError, RunError};
 use crate::real::{self, LoadedFrame, OtherView, Pose, PrevView, RealFrame};
@@ -29,6 +31,8 @@ pub struct Samples {
     rgb: Vec<Tagged>,
     rgbd: Vec<Tagged>,
     geometric: Vec<Tagged>,
+    /// The spec on cleaned depth (`geometric --geometric spec-cleaned`).
+    spec_cleaned: Vec<Tagged>,
 }
 
 /// Frames per block of a long sequence.
@@ -120,7 +124,7 @@ impl Samples {
                 let s = mode_samples(pipeline, cfg, views, &frame_sensor, stride).map_err(
                     |source| BenchError::Run {
                         frame: frame.name(),
-                        row: cfg.mode.to_string(),
+                        row: cfg.label(),
                         source: Box::new(source),
                     },
                 )?;
@@ -128,6 +132,9 @@ impl Samples {
                 match cfg.mode {
                     Mode::Rgb => samples.rgb.extend(s),
                     Mode::Rgbd => samples.rgbd.extend(s),
+                    Mode::Geometric if cfg.geometric == GeometricMethod::SpecCleaned => {
+                        samples.spec_cleaned.extend(s);
+                    }
                     Mode::Geometric => samples.geometric.extend(s),
                 }
             }
@@ -211,27 +218,38 @@ fn samples_of(
 pub fn fit_tables(samples: &Samples) -> (BTreeMap<String, IntervalTable>, Vec<String>) {
     let mut tables = BTreeMap::new();
     let mut lines = Vec::new();
-    for (mode, axis, s) in [
-        (Mode::Rgb, SecondAxis::Depth, &samples.rgb),
-        (Mode::Rgbd, SecondAxis::Uncertainty, &samples.rgbd),
-        (Mode::Geometric, SecondAxis::Uncertainty, &samples.geometric),
+    for (key, mode, axis, s) in [
+        ("rgb", Mode::Rgb, SecondAxis::Depth, &samples.rgb),
+        ("rgbd", Mode::Rgbd, SecondAxis::Uncertainty, &samples.rgbd),
+        (
+            "geometric",
+            Mode::Geometric,
+            SecondAxis::Uncertainty,
+            &samples.geometric,
+        ),
+        (
+            SPEC_CLEANED_TABLE,
+            Mode::Geometric,
+            SecondAxis::Uncertainty,
+            &samples.spec_cleaned,
+        ),
     ] {
         let axes = (first_axis(mode), axis);
         let (level, held) = held_out_level(axes, s).unwrap_or((COVERAGE, f64::NAN));
         let all: Vec<Sample> = s.iter().map(|x| x.1).collect();
         let Some(t) = IntervalTable::fit_level(axes, &all, level) else {
-            lines.push(format!("{mode}: {} samples, too few for a table", s.len()));
+            lines.push(format!("{key}: {} samples, too few for a table", s.len()));
             continue;
         };
         let own = t.own.iter().filter(|&&o| o).count();
         lines.push(format!(
-            "{mode}: {} samples, {own} bins of their own; percentiles of {:.0}%, held-out \
+            "{key}: {} samples, {own} bins of their own; percentiles of {:.0}%, held-out \
              coverage {:.1}%",
             s.len(),
             100.0 * level,
             100.0 * held
         ));
-        tables.insert(mode.to_string(), t);
+        tables.insert(key.to_owned(), t);
     }
     (tables, lines)
 }

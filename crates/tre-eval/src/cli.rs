@@ -148,7 +148,11 @@ impl EvalArgs {
     pub fn region_rows(&self) -> Vec<(String, PipelineConfig)> {
         let base = self.stages.config(Mode::Rgb);
         let mut rows = Vec::new();
-        for geometric in [GeometricMethod::Terrain, GeometricMethod::Spec] {
+        for geometric in [
+            GeometricMethod::Terrain,
+            GeometricMethod::Spec,
+            GeometricMethod::SpecCleaned,
+        ] {
             let cfg = PipelineConfig {
                 mode: Mode::Geometric,
                 geometric,
@@ -224,8 +228,9 @@ pub struct Fitted {
 
 impl CalibrateArgs {
     /// Fits every mode's intervals on the frames of the split: `rgb` and `rgbd` against the
-    /// spec on the same sensor depth, `geometric` (as the spec) against the spec of the same
-    /// surface in the previous frame of a sequence with poses.
+    /// spec on the same sensor depth, `geometric` (as the spec, on the depth as given and on
+    /// cleaned depth) against the spec of the same surface in the previous frame of a
+    /// sequence with poses.
     ///
     /// # Errors
     ///
@@ -237,14 +242,19 @@ impl CalibrateArgs {
         }
         let frames = real::frames_of(&self.real, Some(&self.real_splits), &self.split, None)?;
         let base = self.stages.config(Mode::Rgb);
-        let cfgs: Vec<PipelineConfig> = [Mode::Rgb, Mode::Rgbd, Mode::Geometric]
-            .into_iter()
-            .map(|mode| PipelineConfig {
-                mode,
-                geometric: GeometricMethod::Spec,
-                ..base
-            })
-            .collect();
+        let cfgs: Vec<PipelineConfig> = [
+            (Mode::Rgb, GeometricMethod::Spec),
+            (Mode::Rgbd, GeometricMethod::Spec),
+            (Mode::Geometric, GeometricMethod::Spec),
+            (Mode::Geometric, GeometricMethod::SpecCleaned),
+        ]
+        .into_iter()
+        .map(|(mode, geometric)| PipelineConfig {
+            mode,
+            geometric,
+            ..base
+        })
+        .collect();
         let mut pipeline = self.stages.pipeline(&cfgs)?;
         let models = pipeline
             .models()
@@ -256,8 +266,9 @@ impl CalibrateArgs {
             format: 1,
             note: format!(
                 "tre calibrate, split {:?} of {}, every {}th pixel: rgb and rgbd against the spec \
-                 on the same sensor depth; geometric against the spec of the same surface in the \
-                 previous frame of a sequence with poses",
+                 on the same sensor depth; geometric (the spec on the depth as given, and on \
+                 cleaned depth) against the spec of the same surface in the previous frame of a \
+                 sequence with poses",
                 self.split,
                 self.real_splits.display(),
                 self.stride

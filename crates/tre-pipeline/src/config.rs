@@ -18,6 +18,10 @@ pub const DEFAULT_MAX_INPUT_PIXELS: usize = 40_000_000;
 /// Largest working size accepted, pixels per side.
 pub const MAX_WORKING_SIDE: usize = 4096;
 
+/// The key in `models/uncertainty.json` of the intervals of the spec on cleaned depth
+/// (`geometric --geometric spec-cleaned`).
+pub const SPEC_CLEANED_TABLE: &str = "geometric-spec-cleaned";
+
 pub use tre_core::kinds::{DEFAULT_DSAC_HYPOTHESES, MAX_DSAC_HYPOTHESES};
 
 /// `k` when it is a number of DSAC hypotheses the pipeline accepts (1 to
@@ -143,6 +147,34 @@ impl PipelineConfig {
         self.mode == Mode::Geometric && self.geometric == GeometricMethod::Terrain
     }
 
+    /// The key of the calibrated intervals (`models/uncertainty.json`) that apply to what this
+    /// configuration runs: its mode's, `geometric-spec-cleaned` for the spec on cleaned depth,
+    /// none for the terrain estimate (it reads its own noise margins) and the end-to-end
+    /// baseline (the tables were fitted on the staged pipeline's readings).
+    pub fn interval_key(&self) -> Option<&'static str> {
+        match self.method {
+            Method::EndToEnd => None,
+            Method::Pipeline if self.is_terrain() => None,
+            Method::Pipeline
+                if self.mode == Mode::Geometric
+                    && self.geometric == GeometricMethod::SpecCleaned =>
+            {
+                Some(SPEC_CLEANED_TABLE)
+            }
+            Method::Pipeline => Some(self.mode.into()),
+        }
+    }
+
+    /// True where the geometric mode runs annotation spec v1 (on the depth as given, or
+    /// cleaned).
+    pub fn is_spec(&self) -> bool {
+        self.mode == Mode::Geometric
+            && matches!(
+                self.geometric,
+                GeometricMethod::Spec | GeometricMethod::SpecCleaned
+            )
+    }
+
     /// The stages that actually run: geometric mode forces LS normals, no refiner and window
     /// centroids.
     pub fn effective(&self) -> (NormalsMethod, bool, CentroidMethod) {
@@ -205,7 +237,8 @@ impl PipelineConfig {
     }
 
     /// A short name of the stages, in the paper's notation: `DE+DSAC+NR+ESR`, `LS+window+edge`
-    /// (the geometric mode's spec), `LS+window` (its surface-only baseline), `E2E`;
+    /// (the geometric mode's spec), `cleaned+LS+window+edge` (the spec on cleaned depth),
+    /// `LS+window` (its surface-only baseline), `E2E`;
     /// DSAC with other than [`DEFAULT_DSAC_HYPOTHESES`] hypotheses reads `DSAC(K=4)`.
     pub fn label(&self) -> String {
         if self.method == Method::EndToEnd {
@@ -219,6 +252,9 @@ impl PipelineConfig {
         if self.mode == Mode::Rgb {
             parts.push("DE");
         }
+        if self.mode == Mode::Geometric && self.geometric == GeometricMethod::SpecCleaned {
+            parts.push("cleaned");
+        }
         let dsac = self.dsac_label();
         parts.push(match normals {
             NormalsMethod::Ls => "LS",
@@ -231,7 +267,7 @@ impl PipelineConfig {
             CentroidMethod::Net => "ESR",
             CentroidMethod::Window => "window",
         });
-        if self.mode == Mode::Geometric && self.geometric == GeometricMethod::Spec {
+        if self.is_spec() {
             parts.push("edge");
         }
         parts.join("+")
@@ -268,6 +304,39 @@ mod tests {
             ..fewer
         };
         assert_eq!(ls_fewer.label(), "DE+LS+NR+ESR");
+    }
+
+    #[test]
+    fn each_geometric_method_has_its_label_and_its_intervals() {
+        let geometric = |geometric| PipelineConfig {
+            mode: Mode::Geometric,
+            geometric,
+            ..PipelineConfig::default()
+        };
+        for (method, label, key) in [
+            (GeometricMethod::Terrain, "terrain", None),
+            (GeometricMethod::Spec, "LS+window+edge", Some("geometric")),
+            (
+                GeometricMethod::SpecCleaned,
+                "cleaned+LS+window+edge",
+                Some(SPEC_CLEANED_TABLE),
+            ),
+            (GeometricMethod::SurfaceOnly, "LS+window", Some("geometric")),
+        ] {
+            let cfg = geometric(method);
+            assert_eq!(cfg.label(), label, "{method:?}");
+            assert_eq!(cfg.interval_key(), key, "{method:?}");
+            assert_eq!(
+                cfg.is_spec(),
+                matches!(method, GeometricMethod::Spec | GeometricMethod::SpecCleaned)
+            );
+        }
+        assert_eq!(PipelineConfig::default().interval_key(), Some("rgb"));
+        let e2e = PipelineConfig {
+            method: Method::EndToEnd,
+            ..PipelineConfig::default()
+        };
+        assert_eq!(e2e.interval_key(), None);
     }
 
     #[test]

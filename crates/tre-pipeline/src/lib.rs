@@ -46,7 +46,7 @@ pub use cli::StageArgs;
 pub use config::{
     check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, NormalsMethod,
     PipelineConfig, Traversability, DEFAULT_DSAC_HYPOTHESES, DEFAULT_MAX_INPUT_PIXELS,
-    MAX_DSAC_HYPOTHESES, MAX_WORKING_SIDE,
+    MAX_DSAC_HYPOTHESES, MAX_WORKING_SIDE, SPEC_CLEANED_TABLE,
 };
 pub use depth::{prior_depth, MAX_PRIOR_DEPTH_M};
 pub use frame::{FrameInput, FrameOutput, SensorMaps, DEFAULT_HFOV_DEG};

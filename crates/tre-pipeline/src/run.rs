@@ -137,17 +137,11 @@ impl Pipeline {
         self.calibration.as_ref()?.table(mode.as_ref())
     }
 
-    /// The calibrated intervals that apply to what `cfg` runs: its mode's table, none for the
-    /// end-to-end baseline (the tables were fitted on the staged pipeline's readings). The one
-    /// rule of `tre infer` and the service.
+    /// The calibrated intervals that apply to what `cfg` runs
+    /// ([`PipelineConfig::interval_key`]). The one rule of `tre infer`, the service and the
+    /// benchmark.
     pub fn interval_table_for(&self, cfg: &PipelineConfig) -> Option<&IntervalTable> {
-        match cfg.method {
-            // The terrain estimate reads its own noise margins (the table was fitted on the
-            // spec's readings).
-            Method::Pipeline if cfg.is_terrain() => None,
-            Method::Pipeline => self.interval_table(cfg.mode),
-            Method::EndToEnd => None,
-        }
+        self.calibration.as_ref()?.table(cfg.interval_key()?)
     }
 
     /// The loaded models, if any.
@@ -227,7 +221,12 @@ impl Pipeline {
             points
         });
         let points = match (cfg.mode, input.sensor.as_ref()) {
-            (Mode::Rgbd, Some(noise)) => timings.time("clean", || self.clean(points, &work, noise)),
+            (Mode::Rgbd, Some(noise)) => {
+                timings.time("clean", || self.clean(points, &work, Some(noise)))
+            }
+            (Mode::Geometric, noise) if cfg.geometric == GeometricMethod::SpecCleaned => {
+                timings.time("clean", || self.clean(points, &work, noise))
+            }
             _ => points,
         };
         let points = timings.time("tensors", || {
@@ -288,11 +287,12 @@ impl Pipeline {
     }
 
     /// The points read through the terrain supports under the sensor's noise model
-    /// ([`clean_points_into`]): what the learned `rgbd` mode reads of a sensor's depth.
-    fn clean(&mut self, points: PointMap, work: &Working, noise: &SensorNoise) -> PointMap {
+    /// ([`clean_points_into`]; `None`: exact depth): what the learned `rgbd` mode and the
+    /// spec on cleaned depth read of a sensor's depth.
+    fn clean(&mut self, points: PointMap, work: &Working, noise: Option<&SensorNoise>) -> PointMap {
         let mut cleaned = self.scratch.spares.take();
         let (cfg, sums) = (TerrainConfig::default(), &mut self.scratch.sums);
-        clean_points_into(&points, &work.k, Some(noise), &cfg, sums, &mut cleaned);
+        clean_points_into(&points, &work.k, noise, &cfg, sums, &mut cleaned);
         self.scratch.spares.keep(points);
         cleaned
     }
@@ -322,7 +322,7 @@ impl Pipeline {
         roughness_m: &mut Grid<f64>,
     ) {
         roughness_m.reset(w, h, f64::NAN);
-        if cfg.mode == Mode::Geometric && cfg.geometric == GeometricMethod::Spec {
+        if cfg.is_spec() {
             let spec = AnnotateConfig {
                 hood: cfg.neighbourhood,
                 ..AnnotateConfig::default()

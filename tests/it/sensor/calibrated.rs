@@ -98,6 +98,55 @@ fn the_spec_through_its_intervals_keeps_hazards_off_and_the_near_floor_on() {
     assert!(share > 0.9, "near floor traversable: {floor_go} of {floor}");
 }
 
+/// The spec on cleaned depth reads its own table (`geometric-spec-cleaned`): its own hazards
+/// stay off the traversable map, and most of the near floor of the Kinect frames is on it.
+#[test]
+fn the_spec_on_cleaned_depth_through_its_intervals_keeps_its_hazards_off_and_the_floor_on() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
+    let mut p = pipeline();
+    let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
+    let cfg = PipelineConfig {
+        geometric: tre::pipeline::GeometricMethod::SpecCleaned,
+        ..config(Mode::Geometric)
+    };
+    let table = p.interval_table_for(&cfg).cloned().unwrap();
+    assert_ne!(Some(&table), p.interval_table(Mode::Geometric));
+    let (mut missed, mut hazards, mut floor, mut floor_go) = (0, 0, 0, 0);
+    for f in real_frames() {
+        let (depth, k) = f.depth();
+        let input = FrameInput {
+            depth_m: Some(depth.clone()),
+            intrinsics: Some(k),
+            sensor: Some(kinect),
+            ..FrameInput::default()
+        };
+        let out = p.run(&input, &cfg).unwrap();
+        let maps = out
+            .sensor_maps(&input, Mode::Geometric, Some(&kinect), None, Some(&table))
+            .unwrap();
+        for (i, &r) in out.roughness_m.as_slice().iter().enumerate() {
+            if r >= 0.05 {
+                hazards += 1;
+                missed += usize::from(maps.traversal.as_slice()[i] == Traversal::Traversable);
+            }
+        }
+        if let Some([x0, y0, x1, y1]) = f.floor {
+            for (x, y) in (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))) {
+                if depth[(x, y)] > 0.0 && depth[(x, y)] < 2.0 {
+                    floor += 1;
+                    floor_go += usize::from(maps.traversal[(x, y)] == Traversal::Traversable);
+                }
+            }
+        }
+        p.recycle(out);
+    }
+    assert!(hazards > 10_000, "{hazards}");
+    assert_eq!(missed, 0, "its own hazards read traversable");
+    let share = floor_go as f64 / floor.max(1) as f64;
+    // 88.7% measured (the spec on the raw depth: 94%).
+    assert!(share > 0.85, "near floor traversable: {floor_go} of {floor}");
+}
+
 #[test]
 fn the_learned_modes_state_intervals_that_hold_the_spec_on_a_real_frame() {
     crate::common::skip_unless_shared!("data/real-rgbd");

@@ -115,6 +115,7 @@ pub fn real_rows(modes: &[Mode], base: &PipelineConfig) -> Vec<(String, Pipeline
             for geometric in [
                 GeometricMethod::Terrain,
                 GeometricMethod::Spec,
+                GeometricMethod::SpecCleaned,
                 GeometricMethod::SurfaceOnly,
             ] {
                 cfgs.push(PipelineConfig {
@@ -468,8 +469,8 @@ fn three_state(
     acc: &mut RowAcc,
 ) -> Result<Option<Grid<Traversal>>, RunError> {
     let loaded = scoring.loaded;
-    let spec_row = cfg.mode != Mode::Geometric || cfg.geometric == GeometricMethod::Spec;
-    let table = pipeline.interval_table(cfg.mode).filter(|_| spec_row);
+    let spec_row = cfg.mode != Mode::Geometric || cfg.is_spec();
+    let table = pipeline.interval_table_for(cfg).filter(|_| spec_row);
     if cfg.mode == Mode::Rgb && table.is_none() {
         return Ok(None);
     }
