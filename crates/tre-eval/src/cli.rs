@@ -25,7 +25,8 @@ pub struct EvalArgs {
     /// Real-frame benchmark: a folder of RGB-D frames with their intrinsics (one sequence
     /// folder with intrinsics.json, or a folder of them, as ../shared/data/real-rgbd). Every
     /// mode in --modes runs on each frame and is scored against annotation spec v1 on the same
-    /// sensor depth; the geometric mode runs as the spec and as the surface-only baseline.
+    /// sensor depth; the geometric mode runs as the terrain estimate, the spec, the surface-only
+    /// baseline and the spec on cleaned depth.
     /// Give it more than once to pool several folders (../shared/data/real-rgbd and
     /// ../shared/data/real-rgbd-2).
     #[arg(long, conflicts_with_all = ["data", "tables"])]
@@ -44,8 +45,8 @@ pub struct EvalArgs {
     pub floors: Option<PathBuf>,
     /// Known-flat and known-hazard regions of the real frames (JSON, as
     /// tests/fixtures/real_regions.json, with each set's sensor class): instead of the
-    /// benchmark against the spec, scores the geometric mode (terrain estimate and spec) and
-    /// the other modes of --mode against these regions, per sensor class.
+    /// benchmark against the spec, scores the geometric mode (terrain estimate, spec, spec on
+    /// cleaned depth) and the other modes of --mode against these regions, per sensor class.
     #[arg(long, requires = "real")]
     pub regions: Option<PathBuf>,
     /// Real-frame benchmark: what the modes are scored against: `raw`, the spec on each

@@ -97,8 +97,9 @@ pub struct RealReport {
 }
 
 /// The configurations scored: the learned modes asked for with `base`'s switches, and the
-/// geometric mode both as the spec (default) and as the paper's surface-only baseline; slope
-/// is left out of traversability (the frames' mountings are unknown).
+/// geometric mode as the terrain estimate (its default), the spec, the paper's surface-only
+/// baseline and the spec on cleaned depth, in that order; slope is left out of traversability
+/// (the frames' mountings are unknown).
 pub fn real_rows(modes: &[Mode], base: &PipelineConfig) -> Vec<(String, PipelineConfig)> {
     // The frames' mountings are unknown, so slope (which needs the pitch) does not count:
     // the three-state map judges roughness and noise alone.
@@ -115,8 +116,8 @@ pub fn real_rows(modes: &[Mode], base: &PipelineConfig) -> Vec<(String, Pipeline
             for geometric in [
                 GeometricMethod::Terrain,
                 GeometricMethod::Spec,
-                GeometricMethod::SpecCleaned,
                 GeometricMethod::SurfaceOnly,
+                GeometricMethod::SpecCleaned,
             ] {
                 cfgs.push(PipelineConfig {
                     mode,
