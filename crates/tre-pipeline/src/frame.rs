@@ -132,11 +132,13 @@ impl FrameOutput {
     }
 
     /// Marks no roughness wherever the frame's own depth (`depth_m`, at the frame's size) has
-    /// none: a hole's nearest pixel at the working size may have had depth. (Pixels whose
-    /// nearest working pixel was a hole have no roughness already.) A no-op when the depth is
-    /// of another size or the frame was run at its own size.
-    pub(crate) fn keep_holes(&mut self, depth_m: &Grid<f64>) {
-        if self.working.roughness_m.is_none() || depth_m.size() != self.roughness_m.size() {
+    /// none: a hole's nearest pixel at the working size may have had depth, and depth cleaned
+    /// with its holes `filled` has points there. (Otherwise pixels whose nearest working pixel
+    /// was a hole have no roughness already.) A no-op when the depth is of another size, or
+    /// the frame was run at its own size and nothing was filled.
+    pub(crate) fn keep_holes(&mut self, depth_m: &Grid<f64>, filled: bool) {
+        let own_size = self.working.roughness_m.is_none();
+        if (own_size && !filled) || depth_m.size() != self.roughness_m.size() {
             return;
         }
         let r = self.roughness_m.as_mut_slice();

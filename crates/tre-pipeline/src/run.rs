@@ -220,15 +220,7 @@ impl Pipeline {
             work.k.back_project_map_into(&depth_m, &mut points);
             points
         });
-        let points = match (cfg.mode, input.sensor.as_ref()) {
-            (Mode::Rgbd, Some(noise)) => {
-                timings.time("clean", || self.clean(points, &work, Some(noise)))
-            }
-            (Mode::Geometric, noise) if cfg.geometric == GeometricMethod::SpecCleaned => {
-                timings.time("clean", || self.clean(points, &work, noise))
-            }
-            _ => points,
-        };
+        let points = self.cleaned_if_read(input, cfg, (&work, points), &mut timings);
         let points = timings.time("tensors", || {
             if has_rgb {
                 points_tensors(&points, &mut self.scratch.points, &mut self.scratch.valid);
@@ -247,7 +239,13 @@ impl Pipeline {
             let (limits, spares) = (cfg.traversability, &mut self.scratch.spares);
             let mut out = FrameOutput::new(size, roughness_m, Some(maps), gravity, limits, spares);
             if let (Mode::Rgbd | Mode::Geometric, Some(given)) = (cfg.mode, &input.depth_m) {
-                out.keep_holes(given);
+                // The spec on cleaned depth reads no pixel the sensor left empty: a hole
+                // beside an edge (a Kinect's shadow) filled from a support's plane reads flat
+                // where the ground drops (docs/terrain.md). `rgbd` keeps its filled pixels
+                // (between LiDAR scan lines, the point of the cleaning).
+                let filled =
+                    cfg.mode == Mode::Geometric && cfg.geometric == GeometricMethod::SpecCleaned;
+                out.keep_holes(given, filled);
                 out.implausible = Implausible::of(given, &gravity);
             }
             if let Some(u) = terrain_u {
@@ -284,6 +282,26 @@ impl Pipeline {
         });
         self.scratch.spares.keep(centroids);
         Ok((normals, roughness_m, None))
+    }
+
+    /// The points as `cfg` reads them: cleaned for `rgbd` with a sensor model and for the spec
+    /// on cleaned depth, else as given.
+    fn cleaned_if_read(
+        &mut self,
+        input: &FrameInput,
+        cfg: &PipelineConfig,
+        (work, points): (&Working, PointMap),
+        timings: &mut StageTimings,
+    ) -> PointMap {
+        match (cfg.mode, input.sensor.as_ref()) {
+            (Mode::Rgbd, Some(noise)) => {
+                timings.time("clean", || self.clean(points, work, Some(noise)))
+            }
+            (Mode::Geometric, noise) if cfg.geometric == GeometricMethod::SpecCleaned => {
+                timings.time("clean", || self.clean(points, work, noise))
+            }
+            _ => points,
+        }
     }
 
     /// The points read through the terrain supports under the sensor's noise model

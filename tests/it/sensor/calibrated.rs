@@ -144,7 +144,10 @@ fn the_spec_on_cleaned_depth_through_its_intervals_keeps_its_hazards_off_and_the
     assert_eq!(missed, 0, "its own hazards read traversable");
     let share = floor_go as f64 / floor.max(1) as f64;
     // 88.7% measured (the spec on the raw depth: 94%).
-    assert!(share > 0.85, "near floor traversable: {floor_go} of {floor}");
+    assert!(
+        share > 0.85,
+        "near floor traversable: {floor_go} of {floor}"
+    );
 }
 
 #[test]

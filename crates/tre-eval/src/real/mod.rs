@@ -318,7 +318,7 @@ mod views;
 
 pub use bench::*;
 pub use fused::{fuse_depth, FuseConfig, Reference};
-pub use regions::{regions_markdown, score_regions, RegionFile, RegionReport};
+pub use regions::{regions_markdown, score_regions, RegionFigures, RegionFile, RegionReport};
 pub use report::markdown;
 pub use safety::{Safety, SafetyAcc, SafetyFigures};
 pub use sheet::{sheet_panels, write_sheet, SHEET_MAX_M};
