@@ -143,6 +143,70 @@ fn geometric_mode_is_the_annotator_on_every_shared_real_frame() -> TestResult {
 }
 
 #[test]
+fn the_spec_on_cleaned_depth_reads_no_pixel_the_sensor_left_empty() -> TestResult {
+    crate::common::skip_unless_shared!("data/real-rgbd", Ok(()));
+    // The cleaning fills a hole from a nearby support's plane (for `rgbd`); the spec on
+    // cleaned depth keeps it empty, since beside an edge that plane reads a drop as flat.
+    let frames = tre::eval::real::find_frames(&real(""), None)?;
+    let mut pipeline = Pipeline::new(None);
+    let cfg = PipelineConfig {
+        geometric: GeometricMethod::SpecCleaned,
+        ..PipelineConfig::for_mode(Mode::Geometric)
+    };
+    let spec = PipelineConfig {
+        geometric: GeometricMethod::Spec,
+        ..cfg
+    };
+    let (mut hazards, mut spec_hazards) = (0, 0);
+    for frame in &frames {
+        let loaded = tre::eval::real::load_frame(frame)?;
+        let input = FrameInput {
+            rgb: None,
+            sensor: Some(tre::roughness::noise::SensorNoise::Preset(
+                tre::roughness::noise::SensorPreset::KinectV1,
+            )),
+            ..loaded.input.clone()
+        };
+        let depth = input.depth_m.as_ref().ok_or("depth")?;
+        let out = pipeline.run(&input, &cfg)?;
+        assert!(out.timings.get("clean").is_some());
+        let (mut holes, mut read) = (0, 0);
+        for (&r, &d) in out.roughness_m.as_slice().iter().zip(depth.as_slice()) {
+            if d > 0.0 {
+                read += usize::from(r.is_finite());
+            } else {
+                holes += 1;
+                assert!(r.is_nan(), "{}: a hole reads {r}", frame.name());
+            }
+        }
+        assert!(
+            holes > 0 && read > 100_000,
+            "{}: {holes} holes, {read} read",
+            frame.name()
+        );
+        hazards += out
+            .roughness_m
+            .as_slice()
+            .iter()
+            .filter(|&&r| r >= 0.05)
+            .count();
+        let raw = pipeline.run(&input, &spec)?;
+        spec_hazards += raw
+            .roughness_m
+            .as_slice()
+            .iter()
+            .filter(|&&r| r >= 0.05)
+            .count();
+    }
+    // Most of what the spec calls a hazard is a real edge on these frames, and stays.
+    assert!(
+        2 * hazards > spec_hazards,
+        "{hazards} hazard px cleaned, {spec_hazards} raw"
+    );
+    Ok(())
+}
+
+#[test]
 fn every_mode_runs_on_a_real_frame() -> TestResult {
     crate::common::skip_unless_shared!("data/real-rgbd", Ok(()));
     let frame = real_frame()?;
