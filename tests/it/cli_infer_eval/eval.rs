@@ -133,7 +133,8 @@ fn eval_real_scores_every_mode_on_one_frame_and_writes_json_and_a_sheet() {
             "rgbd:DSAC+NR+ESR",
             "geometric:terrain",
             "geometric:LS+window+edge",
-            "geometric:LS+window"
+            "geometric:LS+window",
+            "geometric:cleaned+LS+window+edge"
         ]
     );
     for r in rows {
