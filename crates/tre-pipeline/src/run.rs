@@ -239,12 +239,14 @@ impl Pipeline {
             let (limits, spares) = (cfg.traversability, &mut self.scratch.spares);
             let mut out = FrameOutput::new(size, roughness_m, Some(maps), gravity, limits, spares);
             if let (Mode::Rgbd | Mode::Geometric, Some(given)) = (cfg.mode, &input.depth_m) {
-                // The spec on cleaned depth reads no pixel the sensor left empty: a hole
-                // beside an edge (a Kinect's shadow) filled from a support's plane reads flat
-                // where the ground drops (docs/terrain.md). `rgbd` keeps its filled pixels
-                // (between LiDAR scan lines, the point of the cleaning).
-                let filled =
-                    cfg.mode == Mode::Geometric && cfg.geometric == GeometricMethod::SpecCleaned;
+                // Cleaned depth reads no pixel a camera left empty: a hole beside an edge (a
+                // Kinect's shadow) filled from a support's plane reads flat where the ground
+                // drops (docs/terrain.md). `rgbd` on LiDAR keeps the pixels filled between
+                // its scan lines, the point of the cleaning there.
+                let lidar = input.sensor.is_some_and(|s| s.fills_scan_gaps());
+                let filled = (cfg.mode == Mode::Geometric
+                    && cfg.geometric == GeometricMethod::SpecCleaned)
+                    || (cfg.mode == Mode::Rgbd && input.sensor.is_some() && !lidar);
                 out.keep_holes(given, filled);
                 out.implausible = Implausible::of(given, &gravity);
             }

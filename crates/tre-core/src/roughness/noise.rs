@@ -327,6 +327,17 @@ impl SensorNoise {
         }
     }
 
+    /// True for a scanning LiDAR (one sweep or accumulated): its pixels without depth are
+    /// mostly the gaps between scan lines on surfaces it does see, which cleaned depth may
+    /// fill from a support's plane. A camera's (and an unnamed sensor's) are shadows and
+    /// dropouts beside edges, where such a plane reads a drop as flat: they stay empty.
+    pub fn fills_scan_gaps(&self) -> bool {
+        matches!(
+            self,
+            Self::Preset(SensorPreset::Lidar | SensorPreset::LidarAccumulated)
+        )
+    }
+
     /// The preset's name, or `sigma_mm [a, b, c]`.
     pub fn label(&self) -> String {
         match self {
