@@ -96,7 +96,7 @@ impl Infer {
         let assumed = Assumption::of_frame(
             frame.intrinsics.is_some(),
             self.depth_png() && !scale_stated,
-            frame.mounting.is_some(),
+            (frame.mounting.is_some(), frame.sensor.is_some()),
             (mode, self.mode.is_some()),
         );
         for a in &assumed {

@@ -141,6 +141,9 @@ pub enum Assumption {
     DepthScale,
     /// No mounting: the `rgb` depth prior from a camera 60° down and 1 m up.
     Mounting,
+    /// No depth-sensor model in the `geometric` mode: the depth read as exact (no noise
+    /// margin; the spec on cleaned depth cleans nothing).
+    Sensor,
     /// No mode asked for: chosen from the inputs.
     Mode(Mode),
 }
@@ -152,16 +155,18 @@ impl Assumption {
             Self::Intrinsics => "intrinsics",
             Self::DepthScale => "depth_scale",
             Self::Mounting => "mounting",
+            Self::Sensor => "sensor",
             Self::Mode(_) => "mode",
         }
     }
 
     /// The assumptions of a frame: `intrinsics` and `depth_png` as given (`depth_scale`: the
-    /// camera's, if stated), `mounting_stated`, the mode that ran and whether it was asked for.
+    /// camera's, if stated), `mounting_stated`, `sensor_named` (a noise model, from the request
+    /// or the camera), the mode that ran and whether it was asked for.
     pub fn of_frame(
         has_intrinsics: bool,
         depth_png_without_scale: bool,
-        mounting_stated: bool,
+        (mounting_stated, sensor_named): (bool, bool),
         (mode, asked): (Mode, bool),
     ) -> Vec<Self> {
         let mut out = Vec::new();
@@ -173,6 +178,9 @@ impl Assumption {
         }
         if !mounting_stated && mode == Mode::Rgb {
             out.push(Self::Mounting);
+        }
+        if !sensor_named && mode == Mode::Geometric {
+            out.push(Self::Sensor);
         }
         if !asked {
             out.push(Self::Mode(mode));
@@ -199,6 +207,11 @@ impl fmt::Display for Assumption {
                 "no mounting: the rgb depth prior assumed a camera 60° down and 1 m up \
                  (give pitch_deg, height_m); slope and traversability are unknown"
             ),
+            Self::Sensor => write!(
+                f,
+                "no depth-sensor model: the depth was read as exact, with no noise margin \
+                 (name the sensor: \"sensor\" in the camera JSON, or --sensor)"
+            ),
             Self::Mode(m) => write!(
                 f,
                 "no mode asked for: ran {m}, chosen from the inputs (ask for rgb, rgbd or geometric)"
@@ -213,12 +226,18 @@ mod tests {
 
     #[test]
     fn assumptions_name_what_stood_in() {
-        let a = Assumption::of_frame(false, true, false, (Mode::Rgbd, false));
+        let a = Assumption::of_frame(false, true, (false, false), (Mode::Rgbd, false));
         let keys: Vec<_> = a.iter().map(Assumption::key).collect();
         assert_eq!(keys, ["intrinsics", "depth_scale", "mode"]);
-        let a = Assumption::of_frame(true, false, false, (Mode::Rgb, true));
+        let a = Assumption::of_frame(true, false, (false, false), (Mode::Rgb, true));
         assert_eq!(a, [Assumption::Mounting]);
-        assert!(Assumption::of_frame(true, false, true, (Mode::Geometric, true)).is_empty());
+        assert!(
+            Assumption::of_frame(true, false, (true, true), (Mode::Geometric, true)).is_empty()
+        );
+        // The geometric mode without a noise model reads the depth as exact, and says so.
+        let a = Assumption::of_frame(true, false, (true, false), (Mode::Geometric, true));
+        assert_eq!(a, [Assumption::Sensor]);
+        assert!(a[0].to_string().contains("exact"));
     }
 
     #[test]

@@ -56,8 +56,8 @@ use body::read_body;
                     figures: `stated; pitch_deg=…; roll_deg=…; height_m=…`, `estimated; …; \
                     support=…` or `unknown; reason=\"…\"`."),
                 ("X-Tre-Assumed" = String, description = "What stood in for what the request \
-                    did not give, comma-separated keys among intrinsics, depth_scale, mounting \
-                    and mode; absent when nothing was assumed."),
+                    did not give, comma-separated keys among intrinsics, depth_scale, mounting, \
+                    sensor and mode; absent when nothing was assumed."),
                 ("Warning" = String, description = "Repeated: one `199 tre \"…\"` (RFC 7234) \
                     per assumption and per input that looks wrong or leaves the answer mostly \
                     unknown, in words."),

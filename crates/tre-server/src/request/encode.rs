@@ -82,7 +82,7 @@ pub fn assumptions(req: &FrameRequest, frame: &FrameInput, mode: Mode) -> Vec<As
     Assumption::of_frame(
         frame.intrinsics.is_some(),
         depth_png && !scale_stated,
-        frame.mounting.is_some(),
+        (frame.mounting.is_some(), frame.sensor.is_some()),
         (mode, req.options.mode.is_some()),
     )
 }
