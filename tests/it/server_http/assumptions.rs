@@ -80,30 +80,7 @@ fn answers_name_their_mode_gravity_and_assumptions() {
         let implausible = warnings[3].contains("below the camera") && warnings[3].contains("5000");
         assert!(implausible && warnings[1].contains("read as millimetres"), "{warnings:?}");
 
-        // The shared camera file, geometric, three-state. Its "sensor" is a description
-        // that names no noise model, so the depth is read as exact, and the answer says so;
-        // no mounting stated, so gravity comes from the depth's ground plane.
-        let shared = form(&rgb, Some(&depth), Some(&shared_camera));
-        let resp = post_form(&format!("{url}?mode=geometric&outputs=traversable"), shared).await;
-        assert_eq!(resp.status().as_u16(), 200);
-        let h = resp.headers();
-        assert_eq!(header(h, "x-tre-mode"), "geometric");
-        assert_eq!(header(h, "x-tre-assumed"), "sensor");
-        let warnings: Vec<&str> = h.get_all("warning").iter().map(|v| v.to_str().unwrap()).collect();
-        assert!(
-            warnings.iter().any(|w| w.contains("read as exact")),
-            "{warnings:?}"
-        );
-        assert!(
-            header(h, "x-tre-gravity").starts_with("estimated; pitch_deg="),
-            "{}",
-            header(h, "x-tre-gravity")
-        );
-        // Named by the request, nothing is assumed.
-        let named = form(&rgb, Some(&depth), Some(&shared_camera));
-        let resp = post_form(&format!("{url}?mode=geometric&sensor=kinect_v1"), named).await;
-        assert_eq!(resp.status().as_u16(), 200);
-        assert_eq!(header(resp.headers(), "x-tre-assumed"), "");
+        geometric_names_its_sensor_or_assumes_one(&url, (&rgb, &depth), &shared_camera).await;
 
         // rgb without a mounting: the prior's mounting is assumed and gravity is unknown, so the
         // three-state map has no traversable pixel.
@@ -179,4 +156,40 @@ fn depth_with_rgb_is_refused_and_a_mostly_unknown_map_says_so() {
         // The rgb mode's calibrated intervals leave this frame unknown; the sensor's depth does not.
         assert_eq!(seen, [true, false]);
     });
+}
+
+/// The shared camera file in the geometric mode: its "sensor" is a description that names no
+/// noise model, so the depth is read as exact, and the answer says so; named by the request,
+/// nothing is assumed.
+async fn geometric_names_its_sensor_or_assumes_one(
+    url: &str,
+    (rgb, depth): (&[u8], &[u8]),
+    shared_camera: &str,
+) {
+    // Three-state; no mounting stated, so gravity comes from the depth's ground plane.
+    let shared = form(rgb, Some(depth), Some(shared_camera));
+    let resp = post_form(&format!("{url}?mode=geometric&outputs=traversable"), shared).await;
+    assert_eq!(resp.status().as_u16(), 200);
+    let h = resp.headers();
+    assert_eq!(header(h, "x-tre-mode"), "geometric");
+    assert_eq!(header(h, "x-tre-assumed"), "sensor");
+    let warnings: Vec<&str> = h
+        .get_all("warning")
+        .iter()
+        .map(|v| v.to_str().unwrap())
+        .collect();
+    assert!(
+        warnings.iter().any(|w| w.contains("read as exact")),
+        "{warnings:?}"
+    );
+    assert!(
+        header(h, "x-tre-gravity").starts_with("estimated; pitch_deg="),
+        "{}",
+        header(h, "x-tre-gravity")
+    );
+    // Named by the request, nothing is assumed.
+    let named = form(rgb, Some(depth), Some(shared_camera));
+    let resp = post_form(&format!("{url}?mode=geometric&sensor=kinect_v1"), named).await;
+    assert_eq!(resp.status().as_u16(), 200);
+    assert_eq!(header(resp.headers(), "x-tre-assumed"), "");
 }
