@@ -114,6 +114,27 @@ fn finite(g: &Grid<f64>) -> usize {
     g.as_slice().iter().filter(|v| v.is_finite()).count()
 }
 
+/// Pixels of `roughness` at 5 cm or more (the spec's hazard threshold).
+fn hazards(roughness: &Grid<f64>) -> usize {
+    roughness.as_slice().iter().filter(|&&r| r >= 0.05).count()
+}
+
+/// Of the pixels without depth in `depth`, how many there are and how many `roughness`
+/// reads; and how many pixels with depth it reads.
+fn holes_read(roughness: &Grid<f64>, depth: &Grid<f64>) -> (usize, usize, usize) {
+    roughness.as_slice().iter().zip(depth.as_slice()).fold(
+        (0, 0, 0),
+        |(holes, holes_read, read), (&r, &d)| {
+            let reads = usize::from(r.is_finite());
+            if d > 0.0 {
+                (holes, holes_read, read + reads)
+            } else {
+                (holes + 1, holes_read + reads, read)
+            }
+        },
+    )
+}
+
 /// The digest (`tre::geometry::hash::digest`) of a map's values as `bits` gives them, in hex.
 fn digest<T>(grid: &Grid<T>, bits: impl Fn(&T) -> u64) -> String {
     let h = tre::geometry::hash::digest(grid.as_slice().iter().map(bits));

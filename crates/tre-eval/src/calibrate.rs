@@ -15,9 +15,7 @@ use tre_core::roughness::interval::{
     feature_map, FirstAxis, IntervalTable, Sample, SecondAxis, COVERAGE,
 };
 use tre_core::roughness::noise::SensorNoise;
-use tre_pipeline::{
-    FrameOutput, GeometricMethod, Mode, Pipeline, PipelineConfig, SPEC_CLEANED_TABLE,
-};
+use tre_pipeline::{FrameOutput, Mode, Pipeline, PipelineConfig};
 
 use crate::error::{BenchError, RunError};
 use crate::real::{self, LoadedFrame, OtherView, Pose, PrevView, RealFrame};
@@ -25,14 +23,11 @@ use crate::real::{self, LoadedFrame, OtherView, Pose, PrevView, RealFrame};
 /// A sample with its block (see [`block_of`]).
 type Tagged = (usize, Sample);
 
-/// Samples of the three modes, each tagged with its block of frames.
+/// Samples of each configuration calibrated, under the key of its table
+/// ([`PipelineConfig::interval_key`]) and with its mode, each tagged with its block of frames.
 #[derive(Debug, Default)]
 pub struct Samples {
-    rgb: Vec<Tagged>,
-    rgbd: Vec<Tagged>,
-    geometric: Vec<Tagged>,
-    /// The spec on cleaned depth (`geometric --geometric spec-cleaned`).
-    spec_cleaned: Vec<Tagged>,
+    sets: Vec<(&'static str, Mode, Vec<Tagged>)>,
 }
 
 /// Frames per block of a long sequence.
@@ -106,7 +101,12 @@ impl Samples {
         sensor: &SensorNoise,
         stride: usize,
     ) -> Result<Samples, BenchError> {
-        let mut samples = Samples::default();
+        let mut samples = Samples {
+            sets: cfgs
+                .iter()
+                .filter_map(|c| Some((c.interval_key()?, c.mode, Vec::new())))
+                .collect(),
+        };
         let mut previous: Option<PrevView> = None;
         let mut blocks = Vec::new();
         for (i, frame) in frames.iter().enumerate() {
@@ -129,13 +129,12 @@ impl Samples {
                     },
                 )?;
                 let s = s.into_iter().map(|x| (block, x));
-                match cfg.mode {
-                    Mode::Rgb => samples.rgb.extend(s),
-                    Mode::Rgbd => samples.rgbd.extend(s),
-                    Mode::Geometric if cfg.geometric == GeometricMethod::SpecCleaned => {
-                        samples.spec_cleaned.extend(s);
-                    }
-                    Mode::Geometric => samples.geometric.extend(s),
+                if let Some(set) = samples
+                    .sets
+                    .iter_mut()
+                    .find(|x| Some(x.0) == cfg.interval_key())
+                {
+                    set.2.extend(s);
                 }
             }
             tracing::info!("{}/{} frames: {}", i + 1, frames.len(), frame.name());
@@ -218,23 +217,12 @@ fn samples_of(
 pub fn fit_tables(samples: &Samples) -> (BTreeMap<String, IntervalTable>, Vec<String>) {
     let mut tables = BTreeMap::new();
     let mut lines = Vec::new();
-    for (key, mode, axis, s) in [
-        ("rgb", Mode::Rgb, SecondAxis::Depth, &samples.rgb),
-        ("rgbd", Mode::Rgbd, SecondAxis::Uncertainty, &samples.rgbd),
-        (
-            "geometric",
-            Mode::Geometric,
-            SecondAxis::Uncertainty,
-            &samples.geometric,
-        ),
-        (
-            SPEC_CLEANED_TABLE,
-            Mode::Geometric,
-            SecondAxis::Uncertainty,
-            &samples.spec_cleaned,
-        ),
-    ] {
-        let axes = (first_axis(mode), axis);
+    for (key, mode, s) in &samples.sets {
+        let axis = match mode {
+            Mode::Rgb => SecondAxis::Depth,
+            Mode::Rgbd | Mode::Geometric => SecondAxis::Uncertainty,
+        };
+        let axes = (first_axis(*mode), axis);
         let (level, held) = held_out_level(axes, s).unwrap_or((COVERAGE, f64::NAN));
         let all: Vec<Sample> = s.iter().map(|x| x.1).collect();
         let Some(t) = IntervalTable::fit_level(axes, &all, level) else {
@@ -249,7 +237,7 @@ pub fn fit_tables(samples: &Samples) -> (BTreeMap<String, IntervalTable>, Vec<St
             100.0 * level,
             100.0 * held
         ));
-        tables.insert(key.to_owned(), t);
+        tables.insert((*key).to_owned(), t);
     }
     (tables, lines)
 }

@@ -155,14 +155,14 @@ impl PipelineConfig {
         match self.method {
             Method::EndToEnd => None,
             Method::Pipeline if self.is_terrain() => None,
-            Method::Pipeline
-                if self.mode == Mode::Geometric
-                    && self.geometric == GeometricMethod::SpecCleaned =>
-            {
-                Some(SPEC_CLEANED_TABLE)
-            }
+            Method::Pipeline if self.is_spec_cleaned() => Some(SPEC_CLEANED_TABLE),
             Method::Pipeline => Some(self.mode.into()),
         }
+    }
+
+    /// True where the geometric mode runs annotation spec v1 on cleaned depth.
+    pub fn is_spec_cleaned(&self) -> bool {
+        self.mode == Mode::Geometric && self.geometric == GeometricMethod::SpecCleaned
     }
 
     /// True where the geometric mode runs annotation spec v1 (on the depth as given, or
@@ -252,7 +252,7 @@ impl PipelineConfig {
         if self.mode == Mode::Rgb {
             parts.push("DE");
         }
-        if self.mode == Mode::Geometric && self.geometric == GeometricMethod::SpecCleaned {
+        if self.is_spec_cleaned() {
             parts.push("cleaned");
         }
         let dsac = self.dsac_label();

@@ -18,8 +18,8 @@ use super::spares::Spares;
 use super::tensors::{depth_from_tensor_into, points_tensors, rgb_tensor, scalar_tensor};
 use super::timings::StageTimings;
 use super::{
-    check_dsac_hypotheses, CentroidMethod, GeometricMethod, Method, Mode, PipelineConfig,
-    PipelineError, MAX_WORKING_SIDE,
+    check_dsac_hypotheses, CentroidMethod, Method, Mode, PipelineConfig, PipelineError,
+    MAX_WORKING_SIDE,
 };
 use tre_core::geometry::dsac::DsacScratch;
 use tre_core::geometry::floor::{fit_floor, FloorFitConfig};
@@ -113,6 +113,36 @@ pub struct Pipeline {
     models: Option<Models>,
     calibration: Option<Calibration>,
     scratch: Scratch,
+}
+
+/// Whether a configuration reads a frame's depth cleaned through the terrain supports
+/// ([`clean_points_into`]), under which noise model, and whether the pixels the cleaning fills
+/// reach the output.
+#[derive(Debug, Clone, Copy)]
+struct Cleaning {
+    /// The frame's noise model (`None`: exact depth, nothing cleaned).
+    noise: Option<SensorNoise>,
+    /// The filled pixels are read: only a LiDAR's scan gaps, in `rgbd`. A camera's holes stay
+    /// empty: beside an edge (a Kinect's shadow) a hole filled from a support's plane reads
+    /// flat where the ground drops (docs/terrain.md).
+    reads_filled: bool,
+}
+
+impl Cleaning {
+    /// `rgbd` with a noise model, and the spec on cleaned depth; `None` for the rest.
+    fn of(cfg: &PipelineConfig, input: &FrameInput) -> Option<Self> {
+        match (cfg.mode, input.sensor) {
+            (Mode::Rgbd, Some(noise)) => Some(Self {
+                noise: Some(noise),
+                reads_filled: noise.fills_scan_gaps(),
+            }),
+            _ if cfg.is_spec_cleaned() => Some(Self {
+                noise: input.sensor,
+                reads_filled: false,
+            }),
+            _ => None,
+        }
+    }
 }
 
 impl Pipeline {
@@ -220,7 +250,11 @@ impl Pipeline {
             work.k.back_project_map_into(&depth_m, &mut points);
             points
         });
-        let points = self.cleaned_if_read(input, cfg, (&work, points), &mut timings);
+        let cleaning = Cleaning::of(cfg, input);
+        let points = match cleaning {
+            Some(c) => timings.time("clean", || self.clean(points, &work, c.noise.as_ref())),
+            None => points,
+        };
         let points = timings.time("tensors", || {
             if has_rgb {
                 points_tensors(&points, &mut self.scratch.points, &mut self.scratch.valid);
@@ -239,14 +273,7 @@ impl Pipeline {
             let (limits, spares) = (cfg.traversability, &mut self.scratch.spares);
             let mut out = FrameOutput::new(size, roughness_m, Some(maps), gravity, limits, spares);
             if let (Mode::Rgbd | Mode::Geometric, Some(given)) = (cfg.mode, &input.depth_m) {
-                // Cleaned depth reads no pixel a camera left empty: a hole beside an edge (a
-                // Kinect's shadow) filled from a support's plane reads flat where the ground
-                // drops (docs/terrain.md). `rgbd` on LiDAR keeps the pixels filled between
-                // its scan lines, the point of the cleaning there.
-                let lidar = input.sensor.is_some_and(|s| s.fills_scan_gaps());
-                let filled = (cfg.mode == Mode::Geometric
-                    && cfg.geometric == GeometricMethod::SpecCleaned)
-                    || (cfg.mode == Mode::Rgbd && input.sensor.is_some() && !lidar);
+                let filled = cleaning.is_some_and(|c| !c.reads_filled);
                 out.keep_holes(given, filled);
                 out.implausible = Implausible::of(given, &gravity);
             }
@@ -284,26 +311,6 @@ impl Pipeline {
         });
         self.scratch.spares.keep(centroids);
         Ok((normals, roughness_m, None))
-    }
-
-    /// The points as `cfg` reads them: cleaned for `rgbd` with a sensor model and for the spec
-    /// on cleaned depth, else as given.
-    fn cleaned_if_read(
-        &mut self,
-        input: &FrameInput,
-        cfg: &PipelineConfig,
-        (work, points): (&Working, PointMap),
-        timings: &mut StageTimings,
-    ) -> PointMap {
-        match (cfg.mode, input.sensor.as_ref()) {
-            (Mode::Rgbd, Some(noise)) => {
-                timings.time("clean", || self.clean(points, work, Some(noise)))
-            }
-            (Mode::Geometric, noise) if cfg.geometric == GeometricMethod::SpecCleaned => {
-                timings.time("clean", || self.clean(points, work, noise))
-            }
-            _ => points,
-        }
     }
 
     /// The points read through the terrain supports under the sensor's noise model

@@ -115,10 +115,10 @@ fn geometric_mode_is_the_annotator_on_every_shared_real_frame() -> TestResult {
             "{}: pixels that differ from the spec",
             frame.name()
         );
-        let hazards = got.as_slice().iter().filter(|&&r| r >= 0.05).count();
+        let spec_hazards = hazards(got);
         assert!(
-            hazards > 1000,
-            "{}: drops are hazards ({hazards} px)",
+            spec_hazards > 1000,
+            "{}: drops are hazards ({spec_hazards} px)",
             frame.name()
         );
         // The surface-only baseline misses them: its hazards are a fraction of the spec's.
@@ -127,15 +127,10 @@ fn geometric_mode_is_the_annotator_on_every_shared_real_frame() -> TestResult {
             ..cfg
         };
         let base = pipeline.run(&input, &surface)?;
-        let base_hazards = base
-            .roughness_m
-            .as_slice()
-            .iter()
-            .filter(|&&r| r >= 0.05)
-            .count();
+        let base_hazards = hazards(&base.roughness_m);
         assert!(
-            base_hazards * 4 < hazards,
-            "{}: {base_hazards} vs {hazards}",
+            base_hazards * 4 < spec_hazards,
+            "{}: {base_hazards} vs {spec_hazards}",
             frame.name()
         );
     }
@@ -157,7 +152,7 @@ fn the_spec_on_cleaned_depth_reads_no_pixel_the_sensor_left_empty() -> TestResul
         geometric: GeometricMethod::Spec,
         ..cfg
     };
-    let (mut hazards, mut spec_hazards) = (0, 0);
+    let (mut cleaned_hazards, mut spec_hazards) = (0, 0);
     for frame in &frames {
         let loaded = tre::eval::real::load_frame(frame)?;
         let input = FrameInput {
@@ -170,38 +165,21 @@ fn the_spec_on_cleaned_depth_reads_no_pixel_the_sensor_left_empty() -> TestResul
         let depth = input.depth_m.as_ref().ok_or("depth")?;
         let out = pipeline.run(&input, &cfg)?;
         assert!(out.timings.get("clean").is_some());
-        let (mut holes, mut read) = (0, 0);
-        for (&r, &d) in out.roughness_m.as_slice().iter().zip(depth.as_slice()) {
-            if d > 0.0 {
-                read += usize::from(r.is_finite());
-            } else {
-                holes += 1;
-                assert!(r.is_nan(), "{}: a hole reads {r}", frame.name());
-            }
-        }
+        let (holes, holes_read, read) = holes_read(&out.roughness_m, depth);
+        assert_eq!(holes_read, 0, "{}: holes read", frame.name());
         assert!(
             holes > 0 && read > 100_000,
             "{}: {holes} holes, {read} read",
             frame.name()
         );
-        hazards += out
-            .roughness_m
-            .as_slice()
-            .iter()
-            .filter(|&&r| r >= 0.05)
-            .count();
+        cleaned_hazards += hazards(&out.roughness_m);
         let raw = pipeline.run(&input, &spec)?;
-        spec_hazards += raw
-            .roughness_m
-            .as_slice()
-            .iter()
-            .filter(|&&r| r >= 0.05)
-            .count();
+        spec_hazards += hazards(&raw.roughness_m);
     }
     // Most of what the spec calls a hazard is a real edge on these frames, and stays.
     assert!(
-        2 * hazards > spec_hazards,
-        "{hazards} hazard px cleaned, {spec_hazards} raw"
+        2 * cleaned_hazards > spec_hazards,
+        "{cleaned_hazards} hazard px cleaned, {spec_hazards} raw"
     );
     Ok(())
 }
@@ -233,13 +211,7 @@ fn rgbd_reads_no_hole_a_camera_left() -> TestResult {
     let out = pipeline.run(&input, &cfg)?;
     assert_eq!(out.working_size, depth.size());
     assert!(out.timings.get("clean").is_some());
-    let (mut holes, mut holes_read) = (0, 0);
-    for (&r, &d) in out.roughness_m.as_slice().iter().zip(depth.as_slice()) {
-        if !(d > 0.0) {
-            holes += 1;
-            holes_read += usize::from(r.is_finite());
-        }
-    }
+    let (holes, holes_read, _) = holes_read(&out.roughness_m, depth);
     assert!(holes > 1000, "{holes} holes");
     assert_eq!(holes_read, 0, "holes read");
     Ok(())

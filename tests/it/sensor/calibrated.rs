@@ -49,6 +49,26 @@ fn config(mode: Mode) -> PipelineConfig {
     }
 }
 
+/// The pixels of a frame's floor box with depth under 2 m, and those of them traversable.
+fn near_floor(
+    floor: Option<[usize; 4]>,
+    depth: &Grid<f64>,
+    traversal: &Grid<Traversal>,
+) -> (usize, usize) {
+    let Some([x0, y0, x1, y1]) = floor else {
+        return (0, 0);
+    };
+    (y0..y1)
+        .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+        .filter(|&p| depth[p] > 0.0 && depth[p] < 2.0)
+        .fold((0, 0), |(n, go), p| {
+            (
+                n + 1,
+                go + usize::from(traversal[p] == Traversal::Traversable),
+            )
+        })
+}
+
 #[test]
 fn the_spec_through_its_intervals_keeps_hazards_off_and_the_near_floor_on() {
     crate::common::skip_unless_shared!("data/real-rgbd");
@@ -80,14 +100,8 @@ fn the_spec_through_its_intervals_keeps_hazards_off_and_the_near_floor_on() {
                 missed += usize::from(t == Traversal::Traversable);
             }
         }
-        if let Some([x0, y0, x1, y1]) = f.floor {
-            for (x, y) in (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))) {
-                if depth[(x, y)] > 0.0 && depth[(x, y)] < 2.0 {
-                    floor += 1;
-                    floor_go += usize::from(maps.traversal[(x, y)] == Traversal::Traversable);
-                }
-            }
-        }
+        let (n, go) = near_floor(f.floor, &depth, &maps.traversal);
+        (floor, floor_go) = (floor + n, floor_go + go);
         p.recycle(out);
     }
     assert!(hazards > 100_000, "{hazards}");
@@ -130,14 +144,8 @@ fn the_spec_on_cleaned_depth_through_its_intervals_keeps_its_hazards_off_and_the
                 missed += usize::from(maps.traversal.as_slice()[i] == Traversal::Traversable);
             }
         }
-        if let Some([x0, y0, x1, y1]) = f.floor {
-            for (x, y) in (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))) {
-                if depth[(x, y)] > 0.0 && depth[(x, y)] < 2.0 {
-                    floor += 1;
-                    floor_go += usize::from(maps.traversal[(x, y)] == Traversal::Traversable);
-                }
-            }
-        }
+        let (n, go) = near_floor(f.floor, &depth, &maps.traversal);
+        (floor, floor_go) = (floor + n, floor_go + go);
         p.recycle(out);
     }
     assert!(hazards > 10_000, "{hazards}");

@@ -20,7 +20,8 @@ pub(super) struct Publishers {
     roughness: Publisher<Image>,
     uncertainty: Publisher<Image>,
     traversal: Publisher<Image>,
-    /// `{topic}/compressed` of the roughness, the uncertainty and the three-state image.
+    /// `{image}/compressed` of the roughness, the uncertainty and the three-state image, with
+    /// that topic under the prefix.
     compressed: [(&'static str, Publisher<CompressedImage>); 3],
     grid: Publisher<GridMap>,
     occupancy: Publisher<OccupancyGrid>,
@@ -41,24 +42,19 @@ impl Publishers {
             node.create_publisher::<M>(&t, Some(q))
                 .map_err(dds("publisher"))
         }
+        let mut png = |topic: &'static str| {
+            make(node, &format!("{prefix}/{topic}"), false).map(|p| (topic, p))
+        };
+        let compressed = [
+            png("roughness/compressed")?,
+            png("uncertainty/compressed")?,
+            png("traversal/compressed")?,
+        ];
         Ok(Self {
             roughness: make(node, &format!("{prefix}/roughness"), false)?,
             uncertainty: make(node, &format!("{prefix}/uncertainty"), false)?,
             traversal: make(node, &format!("{prefix}/traversal"), false)?,
-            compressed: [
-                (
-                    "roughness",
-                    make(node, &format!("{prefix}/roughness/compressed"), false)?,
-                ),
-                (
-                    "uncertainty",
-                    make(node, &format!("{prefix}/uncertainty/compressed"), false)?,
-                ),
-                (
-                    "traversal",
-                    make(node, &format!("{prefix}/traversal/compressed"), false)?,
-                ),
-            ],
+            compressed,
             grid: make(node, &format!("{prefix}/grid_map"), false)?,
             occupancy: make(node, &format!("{prefix}/occupancy"), true)?,
             prefix,
@@ -75,21 +71,14 @@ impl Publishers {
         );
         send(stats, &self.traversal, "traversal", o.traversal.as_ref());
         for (name, img) in &o.compressed {
-            if let Some((topic, p)) = self.compressed.iter().find(|(n, _)| n == name) {
-                send(stats, p, compressed_topic(topic), Some(img));
+            let of_image =
+                |(topic, _): &&(&str, _)| topic.strip_suffix("/compressed") == Some(name);
+            if let Some((topic, p)) = self.compressed.iter().find(of_image) {
+                send(stats, p, topic, Some(img));
             }
         }
         send(stats, &self.grid, "grid_map", o.grid.as_ref());
         send(stats, &self.occupancy, "occupancy", o.occupancy.as_ref());
-    }
-}
-
-/// The topic under the prefix of `image`'s PNG.
-fn compressed_topic(image: &str) -> &'static str {
-    match image {
-        "roughness" => "roughness/compressed",
-        "uncertainty" => "uncertainty/compressed",
-        _ => "traversal/compressed",
     }
 }
 
