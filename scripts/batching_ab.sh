@@ -12,18 +12,16 @@ OUT=${OUT:-${TMPDIR:-/tmp}}
 DURATION=${DURATION:-30}
 PORT=${PORT:-18191}
 DELAY=${DELAY:-5}
+# shellcheck source=scripts/serve_lib.sh
+. scripts/serve_lib.sh
 run() {
   local label=$1
   shift
-  "$TRE" serve --addr "127.0.0.1:$PORT" --models models --ort-threads 1 "$@" >/dev/null \
-    2>"$OUT/batching-$label.log" &
-  local pid=$!
-  for _ in $(seq 1 900); do curl -sf "http://127.0.0.1:$PORT/readyz" >/dev/null && break; sleep 0.2; done
+  serve_up "$TRE" "$OUT/batching-$label.log" --ort-threads 1 "$@"
   "$TRE" loadtest --url "http://127.0.0.1:$PORT" --mode rgb --connections 4 \
     --duration "$DURATION" --warmup 3 --json "$OUT/batching-$label.json" >"$OUT/batching-$label.txt"
   curl -sf "http://127.0.0.1:$PORT/metrics" >"$OUT/batching-$label.metrics"
-  kill "$pid"
-  wait "$pid" 2>/dev/null || true
+  serve_down
   local sum count
   sum=$(awk '$1 == "tre_batch_size_sum" {print $2}' "$OUT/batching-$label.metrics")
   count=$(awk '$1 == "tre_batch_size_count" {print $2}' "$OUT/batching-$label.metrics")

@@ -13,11 +13,10 @@ shift 3
 CLIENT=${CLIENT:-target/release/tre}
 OUT=${OUT:-/tmp}
 PORT=${PORT:-18190}
-"$BIN" serve --addr "127.0.0.1:$PORT" --models models "$@" >/dev/null \
-  2>"${TMPDIR:-/tmp}/tre-serve-ab.log" &
-PID=$!
-trap 'kill $PID 2>/dev/null; wait $PID 2>/dev/null || true' EXIT
-for _ in $(seq 1 600); do curl -sf "http://127.0.0.1:$PORT/readyz" >/dev/null && break; sleep 0.2; done
+# shellcheck source=scripts/serve_lib.sh
+. scripts/serve_lib.sh
+serve_up "$BIN" "${TMPDIR:-/tmp}/tre-serve-ab.log" "$@"
+trap serve_down EXIT
 "$CLIENT" loadtest --url "http://127.0.0.1:$PORT" --rate "$RATE" --duration "${DURATION:-20}" \
   --warmup "${WARMUP:-2}" --json "$OUT/ab-$LABEL.json" >"$OUT/ab-$LABEL.txt"
 echo "$LABEL: $(grep -E '^ok ' "$OUT/ab-$LABEL.txt" | tail -1)"

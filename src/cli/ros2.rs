@@ -36,6 +36,10 @@ impl Ros2 {
             a.input_topic(),
             a.output_prefix
         );
+        // ROS messages have no field for an assumption: said here, once.
+        for assumed in a.assumptions() {
+            eprintln!("warning: assumed on every frame: {assumed}");
+        }
         self.wait()?;
         let s = node.stats();
         let count = |c: &AtomicU64| c.load(Ordering::Relaxed);

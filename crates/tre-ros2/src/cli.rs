@@ -8,7 +8,7 @@ use clap::{Args, ValueEnum};
 use tre_core::geometry::Vec3;
 use tre_core::map::{Pose, LAYER_NAMES};
 use tre_core::roughness::noise::SensorNoise;
-use tre_pipeline::{Mode, StageArgs};
+use tre_pipeline::{Assumption, Mode, StageArgs};
 
 use crate::{
     ConfigProblem, ImageOutputs, InputError, MapSettings, NodeConfig, PoseSource, Processor,
@@ -239,6 +239,19 @@ impl Ros2Args {
         Ok(Processor::new(pipeline, cfg, self.sensor, map).with_images(self.images()))
     }
 
+    /// What the node will assume on every frame, for want of an option: the depth read as exact
+    /// in `geometric` without `--sensor`, the rgb depth prior's default mounting in `rgb`. ROS
+    /// messages carry no field for it, so `tre ros2` says it once, when it starts. camera_info
+    /// gives the intrinsics and REP 118 the depth's units, so neither is assumed.
+    pub fn assumptions(&self) -> Vec<Assumption> {
+        Assumption::of_frame(
+            true,
+            false,
+            (false, self.sensor.is_some()),
+            (self.mode, true),
+        )
+    }
+
     /// The images published beside the roughness.
     pub fn images(&self) -> ImageOutputs {
         ImageOutputs {
@@ -365,6 +378,20 @@ mod tests {
         assert!(err(&["--camera-in-body=0,0,0,0,0,0,2"]).contains("quaternion"));
         let ok = Cli::try_parse_from(["tre", "--camera-in-body=0.2,0,0.3,-0.5,0.5,-0.5,0.5"]);
         assert!(ok.is_ok());
+    }
+
+    #[test]
+    fn the_node_says_what_it_assumes() {
+        let assumed = |args: &[&str]| {
+            Cli::try_parse_from(["tre"].iter().chain(args))
+                .expect("the options parse")
+                .ros2
+                .assumptions()
+        };
+        assert_eq!(assumed(&[]), [Assumption::Sensor]);
+        assert_eq!(assumed(&["--sensor", "lidar"]), []);
+        assert_eq!(assumed(&["--mode", "rgbd"]), []);
+        assert_eq!(assumed(&["--mode", "rgb"]), [Assumption::Mounting]);
     }
 
     #[test]
