@@ -107,7 +107,9 @@ pub fn rgb(img: &Image) -> Result<RgbImage, InputError> {
     Ok(RgbImage::from_raw(img.width, img.height, raw).expect("sizes checked above"))
 }
 
-/// The pinhole of a `CameraInfo` (its `k`), checked against the image it comes with.
+/// The pinhole of a `CameraInfo`, checked against the image it comes with: its projection `p`,
+/// the rectified image's intrinsics (as depth_image_proc reads a depth image; `k` is the raw,
+/// distorted image's), or `k` when `p` is not filled in (all zero).
 pub fn intrinsics(info: &CameraInfo, image: &Image) -> Result<Intrinsics, InputError> {
     if (info.width, info.height) != (image.width, image.height) {
         return Err(InputError::SizeMismatch {
@@ -115,11 +117,23 @@ pub fn intrinsics(info: &CameraInfo, image: &Image) -> Result<Intrinsics, InputE
             image: (image.width, image.height),
         });
     }
-    let k = &info.k;
-    let intr = Intrinsics::new(k[0], k[4], k[2], k[5]).map_err(InputError::Intrinsics)?;
+    let (p, k) = (&info.p, &info.k);
+    let (fx, fy, cx, cy) = if p.iter().any(|&v| v != 0.0) {
+        (p[0], p[5], p[2], p[6])
+    } else {
+        (k[0], k[4], k[2], k[5])
+    };
+    let intr = Intrinsics::new(fx, fy, cx, cy).map_err(InputError::Intrinsics)?;
     intr.check_for(image.width as usize, image.height as usize)
         .map_err(InputError::Intrinsics)?;
     Ok(intr)
+}
+
+/// True when a `CameraInfo` lists lens distortion (a coefficient of `d` not zero): its image is
+/// read as rectified all the same ([`intrinsics`]), which holds for an `image_rect` topic and
+/// not for a raw one.
+pub fn lists_distortion(info: &CameraInfo) -> bool {
+    info.d.iter().any(|&c| c != 0.0)
 }
 
 /// A `geometry_msgs/Pose` as the map's camera-to-world pose, after `camera_in_body` (the
@@ -197,6 +211,37 @@ mod tests {
         let img = depth_image("16UC1", 320, 240, 2, vec![0; 320 * 240 * 2]);
         let e = intrinsics(&info, &img).unwrap_err();
         assert!(e.to_string().contains("640×480"), "{e}");
+    }
+
+    #[test]
+    fn the_intrinsics_are_the_rectified_images() {
+        let img = depth_image("16UC1", 640, 480, 2, vec![0; 640 * 480 * 2]);
+        // An Azure Kinect-like camera_info: a distorted raw image's k, the rectified p.
+        let mut info = CameraInfo {
+            width: 640,
+            height: 480,
+            distortion_model: "rational_polynomial".into(),
+            d: vec![0.5, -2.6, 0.0, 0.0, 1.4, 0.4, -2.4, 1.3],
+            k: [504.0, 0.0, 322.0, 0.0, 504.0, 334.0, 0.0, 0.0, 1.0],
+            p: [
+                480.0, 0.0, 318.0, 0.0, 0.0, 481.0, 330.0, 0.0, 0.0, 0.0, 1.0, 0.0,
+            ],
+            ..CameraInfo::default()
+        };
+        let k = intrinsics(&info, &img).unwrap();
+        assert_eq!(
+            (k.fx_px, k.fy_px, k.cx_px, k.cy_px),
+            (480.0, 481.0, 318.0, 330.0)
+        );
+        assert!(lists_distortion(&info));
+        // A camera_info without p (all zero): k.
+        info.p = [0.0; 12];
+        info.d = vec![0.0; 5];
+        let k = intrinsics(&info, &img).unwrap();
+        assert_eq!((k.fx_px, k.cx_px, k.cy_px), (504.0, 322.0, 334.0));
+        assert!(!lists_distortion(&info));
+        info.d.clear();
+        assert!(!lists_distortion(&info));
     }
 
     #[test]

@@ -246,6 +246,8 @@ pub struct Processor {
     sensor: Option<SensorNoise>,
     map: Option<MapState>,
     images: ImageOutputs,
+    /// A camera_info listing lens distortion was warned of (once a node).
+    distortion_said: bool,
 }
 
 impl Processor {
@@ -268,6 +270,7 @@ impl Processor {
                 last_grid_ns: None,
             }),
             images: ImageOutputs::default(),
+            distortion_said: false,
         }
     }
 
@@ -292,6 +295,17 @@ impl Processor {
     pub fn process(&mut self, f: &FrameMsgs) -> Result<Outputs, InputError> {
         let header = f.header();
         let (mut input, k) = frame_input(f)?;
+        if let Some(info) = f.info.as_ref().filter(|i| convert::lists_distortion(i)) {
+            if !self.distortion_said {
+                self.distortion_said = true;
+                tracing::warn!(
+                    model = info.distortion_model,
+                    "camera_info lists lens distortion: the depth is read as a rectified image, \
+                     through camera_info's p (as depth_image_proc reads depth); subscribe to the \
+                     rectified depth (image_rect), not the raw one"
+                );
+            }
+        }
         input.sensor = self.sensor;
         tre_pipeline::check_input(&input, &self.cfg).map_err(InputError::Pipeline)?;
         let out = self
