@@ -291,21 +291,28 @@ impl Processor {
         &self.cfg
     }
 
+    /// Warns, once a node, of a camera_info that lists lens distortion: the image is read as
+    /// rectified all the same ([`convert::intrinsics`]).
+    fn say_distortion(&mut self, info: Option<&CameraInfo>) {
+        let Some(info) = info.filter(|i| convert::lists_distortion(i)) else {
+            return;
+        };
+        if !self.distortion_said {
+            self.distortion_said = true;
+            tracing::warn!(
+                model = info.distortion_model,
+                "camera_info lists lens distortion: the depth is read as a rectified image, \
+                 through camera_info's p (as depth_image_proc reads depth); subscribe to the \
+                 rectified depth (image_rect), not the raw one"
+            );
+        }
+    }
+
     /// The frame's outputs, or why it was skipped.
     pub fn process(&mut self, f: &FrameMsgs) -> Result<Outputs, InputError> {
         let header = f.header();
         let (mut input, k) = frame_input(f)?;
-        if let Some(info) = f.info.as_ref().filter(|i| convert::lists_distortion(i)) {
-            if !self.distortion_said {
-                self.distortion_said = true;
-                tracing::warn!(
-                    model = info.distortion_model,
-                    "camera_info lists lens distortion: the depth is read as a rectified image, \
-                     through camera_info's p (as depth_image_proc reads depth); subscribe to the \
-                     rectified depth (image_rect), not the raw one"
-                );
-            }
-        }
+        self.say_distortion(f.info.as_ref());
         input.sensor = self.sensor;
         tre_pipeline::check_input(&input, &self.cfg).map_err(InputError::Pipeline)?;
         let out = self
