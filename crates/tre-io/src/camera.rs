@@ -22,8 +22,10 @@ use super::IoError;
 /// by every interface (`tre infer`, `tre eval`, `tre client`, HTTP), except ones that look like
 /// a misspelt parameter (another case or separator, such as `Depth_Scale`; within one edit of
 /// a two-letter key, such as `fz`, or two of a longer one, such as `depth_sacle`) or like the
-/// pitch or the camera height under another name (`pitch`, `tilt_rad`, `camera_height`):
-/// ignoring those would leave a default in place of the value meant, so they are errors.
+/// pitch or the camera height under another name (`pitch`, `tilt_rad`, `camera_height`), or
+/// lens-distortion coefficients not all zero (`distortion`, `D`, `k1`, …; the depth is read
+/// through a pinhole): ignoring those would leave a default in place of the value meant, so
+/// they are errors.
 ///
 /// ```
 /// use tre_io::CameraFile;
@@ -44,6 +46,13 @@ use super::IoError;
 ///     r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "licence": "CC BY 4.0", "notes": "x"}"#,
 /// ).unwrap();
 /// assert_eq!(notes.fx, 525.0);
+/// // A lens that distorts is refused; a rectified image's zeros are metadata.
+/// let e = serde_json::from_str::<CameraFile>(
+///     r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "dist_coeffs": [0.04, -0.1, 0, 0]}"#,
+/// ).unwrap_err();
+/// assert!(e.to_string().contains("undistort"), "{e}");
+/// let zeros = r#"{"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "D": [0, 0, 0, 0, 0]}"#;
+/// assert!(serde_json::from_str::<CameraFile>(zeros).is_ok());
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "CameraFileKeys")]
@@ -233,7 +242,7 @@ struct CameraFileKeys {
     #[serde(default)]
     sensor: Option<SensorSpec>,
     #[serde(flatten)]
-    other: std::collections::BTreeMap<String, serde::de::IgnoredAny>,
+    other: std::collections::BTreeMap<String, serde_json::Value>,
 }
 
 /// The keys a camera file is read for. Every other key is metadata, read past, unless it looks
@@ -278,6 +287,43 @@ pub enum CameraKeyError {
         /// The key as written.
         key: String,
     },
+    /// Lens distortion coefficients, not all zero: the depth is read through a pinhole.
+    #[error(
+        "camera key {key:?}: lens distortion is not modelled (the depth is read through the \
+         pinhole fx, fy, cx, cy): undistort the depth first and give the undistorted image's \
+         intrinsics; if the image is already rectified, leave the coefficients out"
+    )]
+    Distortion {
+        /// The key as written.
+        key: String,
+    },
+}
+
+/// A lens-distortion key (`distortion`, `dist_coeffs`, `D`, `k1`, `p2`, `coeffs`, …) whose value
+/// holds a number other than zero: read past, it would leave the lens's distortion in the
+/// points. Zeros (a rectified image's) and the model's name are metadata.
+fn distortion_key(key: &str, value: &serde_json::Value) -> Option<CameraKeyError> {
+    fn nonzero(v: &serde_json::Value) -> bool {
+        match v {
+            serde_json::Value::Number(n) => n.as_f64().is_some_and(|x| x != 0.0),
+            serde_json::Value::Array(a) => a.iter().any(nonzero),
+            serde_json::Value::Object(o) => o.values().any(nonzero),
+            _ => false,
+        }
+    }
+    let k: String = key
+        .chars()
+        .filter(char::is_ascii_alphanumeric)
+        .map(|c| c.to_ascii_lowercase())
+        .collect();
+    let named = k.starts_with("dist")
+        || [
+            "d", "coeffs", "k1", "k2", "k3", "k4", "k5", "k6", "p1", "p2",
+        ]
+        .contains(&k.as_str());
+    (named && nonzero(value)).then(|| CameraKeyError::Distortion {
+        key: key.to_owned(),
+    })
 }
 
 /// Levenshtein distance of two ASCII strings.
@@ -335,7 +381,11 @@ impl TryFrom<CameraFileKeys> for CameraFile {
     type Error = CameraKeyError;
 
     fn try_from(c: CameraFileKeys) -> Result<Self, CameraKeyError> {
-        if let Some(e) = c.other.keys().find_map(|k| misspelt_camera_key(k)) {
+        let refused = c
+            .other
+            .iter()
+            .find_map(|(k, v)| misspelt_camera_key(k).or_else(|| distortion_key(k, v)));
+        if let Some(e) = refused {
             return Err(e);
         }
         Ok(Self {

@@ -333,6 +333,14 @@ fn long_thin_images_and_implausible_cameras_are_refused_at_once() {
             (r#", "height_m": 1e300}"#, "height_m"),
             (r#", "pitch_deg": 135}"#, "pitch_deg"),
             (r#", "sensor": "a free-text description"}"#, ""),
+            (
+                r#", "distortion": [0.1, -0.2, 0, 0, 0]}"#,
+                "lens distortion",
+            ),
+            (
+                r#", "D": [0, 0, 0, 0, 0], "distortion_model": "plumb_bob"}"#,
+                "",
+            ),
         ] {
             let form = Form::new()
                 .part("rgb", Part::bytes(frame.clone()).file_name("1.png"))
