@@ -109,7 +109,7 @@ pub fn rgb(img: &Image) -> Result<RgbImage, InputError> {
 
 /// The pinhole of a `CameraInfo`, checked against the image it comes with: its projection `p`,
 /// the rectified image's intrinsics (as depth_image_proc reads a depth image; `k` is the raw,
-/// distorted image's), or `k` when `p` is not filled in (all zero).
+/// distorted image's), or `k` when `p` is not filled in (its focal lengths zero).
 pub fn intrinsics(info: &CameraInfo, image: &Image) -> Result<Intrinsics, InputError> {
     if (info.width, info.height) != (image.width, image.height) {
         return Err(InputError::SizeMismatch {
@@ -118,7 +118,7 @@ pub fn intrinsics(info: &CameraInfo, image: &Image) -> Result<Intrinsics, InputE
         });
     }
     let (p, k) = (&info.p, &info.k);
-    let (fx, fy, cx, cy) = if p.iter().any(|&v| v != 0.0) {
+    let (fx, fy, cx, cy) = if p[0] != 0.0 && p[5] != 0.0 {
         (p[0], p[5], p[2], p[6])
     } else {
         (k[0], k[4], k[2], k[5])
@@ -234,8 +234,9 @@ mod tests {
             (480.0, 481.0, 318.0, 330.0)
         );
         assert!(lists_distortion(&info));
-        // A camera_info without p (all zero): k.
+        // A camera_info without p (all zero, or only its homogeneous 1): k.
         info.p = [0.0; 12];
+        info.p[10] = 1.0;
         info.d = vec![0.0; 5];
         let k = intrinsics(&info, &img).unwrap();
         assert_eq!((k.fx_px, k.cx_px, k.cy_px), (504.0, 322.0, 334.0));
