@@ -106,6 +106,12 @@ pub struct Ros2Args {
     /// map's height variance. Without it, neither is published and no map is made.
     #[arg(long, env = "TRE_SENSOR")]
     pub sensor: Option<SensorNoise>,
+    /// The images are raw and distorted (an Azure Kinect's depth/image_raw): remap each into
+    /// its camera_info's pinhole p before the pipeline, through its distortion d (plumb_bob or
+    /// rational_polynomial), nearest-neighbour. The outputs are then in p's pixels. Without
+    /// it the images are read as rectified.
+    #[arg(long)]
+    pub undistort: bool,
     /// Also publish the uncertainty image (32FC1, metres; needs --sensor). Off by default:
     /// another 1.2 MB a 640×480 frame.
     #[arg(long)]
@@ -236,7 +242,9 @@ impl Ros2Args {
         let cfg = self.stages.config(self.mode);
         let map = self.map_settings().map_err(Ros2Error::Config)?;
         let pipeline = self.stages.pipeline(&[cfg])?;
-        Ok(Processor::new(pipeline, cfg, self.sensor, map).with_images(self.images()))
+        Ok(Processor::new(pipeline, cfg, self.sensor, map)
+            .with_images(self.images())
+            .with_undistort(self.undistort))
     }
 
     /// What the node will assume on every frame, for want of an option: the depth read as exact

@@ -3,7 +3,7 @@
 
 use image::RgbImage;
 use nalgebra::{Matrix3, Quaternion as NaQuaternion, UnitQuaternion};
-use tre_core::geometry::{Grid, Intrinsics, Vec3};
+use tre_core::geometry::{GeometryError, Grid, Intrinsics, Vec3};
 use tre_core::map::Pose as MapPose;
 
 use crate::error::InputError;
@@ -107,9 +107,7 @@ pub fn rgb(img: &Image) -> Result<RgbImage, InputError> {
     Ok(RgbImage::from_raw(img.width, img.height, raw).expect("sizes checked above"))
 }
 
-/// The pinhole of a `CameraInfo`, checked against the image it comes with: its projection `p`,
-/// the rectified image's intrinsics (as depth_image_proc reads a depth image; `k` is the raw,
-/// distorted image's), or `k` when `p` is not filled in (its focal lengths zero).
+/// The pinhole of a `CameraInfo`, checked against the image it comes with ([`pinhole`]).
 pub fn intrinsics(info: &CameraInfo, image: &Image) -> Result<Intrinsics, InputError> {
     if (info.width, info.height) != (image.width, image.height) {
         return Err(InputError::SizeMismatch {
@@ -117,21 +115,28 @@ pub fn intrinsics(info: &CameraInfo, image: &Image) -> Result<Intrinsics, InputE
             image: (image.width, image.height),
         });
     }
+    let intr = pinhole(info).map_err(InputError::Intrinsics)?;
+    intr.check_for(image.width as usize, image.height as usize)
+        .map_err(InputError::Intrinsics)?;
+    Ok(intr)
+}
+
+/// A `CameraInfo`'s pinhole: its projection `p`, the rectified image's intrinsics (as
+/// depth_image_proc reads a depth image; `k` is the raw, distorted image's), or `k` when `p` is
+/// not filled in (its focal lengths zero).
+pub fn pinhole(info: &CameraInfo) -> Result<Intrinsics, GeometryError> {
     let (p, k) = (&info.p, &info.k);
     let (fx, fy, cx, cy) = if p[0] != 0.0 && p[5] != 0.0 {
         (p[0], p[5], p[2], p[6])
     } else {
         (k[0], k[4], k[2], k[5])
     };
-    let intr = Intrinsics::new(fx, fy, cx, cy).map_err(InputError::Intrinsics)?;
-    intr.check_for(image.width as usize, image.height as usize)
-        .map_err(InputError::Intrinsics)?;
-    Ok(intr)
+    Intrinsics::new(fx, fy, cx, cy)
 }
 
 /// True when a `CameraInfo` lists lens distortion (a coefficient of `d` not zero): its image is
-/// read as rectified all the same ([`intrinsics`]), which holds for an `image_rect` topic and
-/// not for a raw one.
+/// read as rectified ([`intrinsics`]), which holds for an `image_rect` topic and not for a raw
+/// one, unless the node remaps it (`--undistort`, [`crate::rectify`]).
 pub fn lists_distortion(info: &CameraInfo) -> bool {
     info.d.iter().any(|&c| c != 0.0)
 }

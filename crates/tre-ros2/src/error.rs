@@ -55,8 +55,20 @@ pub enum InputError {
     #[error("no camera_info received yet: the frame's intrinsics are unknown")]
     NoCameraInfo,
     /// Intrinsics that are not a pinhole for this image.
-    #[error("camera_info k: {0}")]
+    #[error("camera_info intrinsics (p, or k): {0}")]
     Intrinsics(GeometryError),
+    /// A distortion `--undistort` does not model.
+    #[error(
+        "camera_info distortion model {model:?} with {coefficients} coefficients is not \
+         modelled by --undistort (plumb_bob and rational_polynomial, at most 8): rectify the \
+         image first (image_proc) and subscribe to the rectified topic"
+    )]
+    Distortion {
+        /// The model named.
+        model: String,
+        /// How many coefficients `d` has.
+        coefficients: usize,
+    },
     /// A pose whose orientation is not a unit quaternion, or not finite.
     #[error(
         "pose: the orientation is not a unit quaternion (norm {norm}) or a value is not finite"
@@ -79,7 +91,8 @@ impl InputError {
             Self::Depth(_) => "depth",
             Self::SizeMismatch { .. } => "camera_info size",
             Self::NoCameraInfo => "camera_info missing",
-            Self::Intrinsics(_) => "camera_info k",
+            Self::Intrinsics(_) => "camera_info intrinsics",
+            Self::Distortion { .. } => "camera_info distortion",
             Self::Pose { .. } => "pose",
             Self::Pipeline(_) => "pipeline",
         }

@@ -11,6 +11,7 @@
 //! layer).
 //!
 //! - [`convert`]: messages to the pipeline's inputs (the way back is `tre_record::encode`);
+//! - [`rectify`]: a raw, distorted image remapped into its camera_info's pinhole (`--undistort`);
 //! - [`Processor`]: one frame through the pipeline and the map, without DDS;
 //! - [`start`]: the node, which records with `tre_record::Recorder`.
 
@@ -29,6 +30,7 @@ mod error;
 mod limiter;
 mod node;
 mod process;
+pub mod rectify;
 
 #[cfg(feature = "cli")]
 pub use cli::{InputReliability, Ros2Args, RoughnessImage};

@@ -248,6 +248,10 @@ pub struct Processor {
     images: ImageOutputs,
     /// A camera_info listing lens distortion was warned of (once a node).
     distortion_said: bool,
+    /// Remap each raw image into its camera_info's pinhole (`--undistort`); the remapping of
+    /// the last camera_info.
+    undistort: bool,
+    rectifier: Option<crate::rectify::Rectifier>,
 }
 
 impl Processor {
@@ -271,7 +275,16 @@ impl Processor {
             }),
             images: ImageOutputs::default(),
             distortion_said: false,
+            undistort: false,
+            rectifier: None,
         }
+    }
+
+    /// The same processor remapping each image, a raw and distorted one, into its
+    /// camera_info's pinhole before the pipeline (`--undistort`, [`crate::rectify`]).
+    pub fn with_undistort(mut self, undistort: bool) -> Self {
+        self.undistort = undistort;
+        self
     }
 
     /// The images published beside the roughness, and its encoding (default: the roughness
@@ -303,16 +316,52 @@ impl Processor {
                 model = info.distortion_model,
                 "camera_info lists lens distortion: the depth is read as a rectified image, \
                  through camera_info's p (as depth_image_proc reads depth); subscribe to the \
-                 rectified depth (image_rect), not the raw one"
+                 rectified depth (image_rect), or pass --undistort for a raw one"
             );
         }
+    }
+
+    /// The frame's intrinsics: with `--undistort` its images remapped into `info`'s pinhole;
+    /// else `k` as read, with the warning of a listed distortion.
+    fn camera(
+        &mut self,
+        info: Option<&CameraInfo>,
+        input: &mut FrameInput,
+        k: Intrinsics,
+    ) -> Result<Intrinsics, InputError> {
+        match info {
+            Some(info) if self.undistort => self.rectify(info, input),
+            _ => {
+                self.say_distortion(info);
+                Ok(k)
+            }
+        }
+    }
+
+    /// Remaps the frame's images into `info`'s pinhole (the remapping made again when the
+    /// calibration changes); the rectified intrinsics.
+    fn rectify(
+        &mut self,
+        info: &CameraInfo,
+        input: &mut FrameInput,
+    ) -> Result<Intrinsics, InputError> {
+        let r = match self.rectifier.take() {
+            Some(r) if r.fits(info) => r,
+            _ => crate::rectify::Rectifier::new(info)?,
+        };
+        input.depth_m = input.depth_m.as_ref().map(|d| r.depth(d));
+        input.rgb = input.rgb.as_ref().map(|c| r.rgb(c));
+        let k = r.intrinsics();
+        input.intrinsics = Some(k);
+        self.rectifier = Some(r);
+        Ok(k)
     }
 
     /// The frame's outputs, or why it was skipped.
     pub fn process(&mut self, f: &FrameMsgs) -> Result<Outputs, InputError> {
         let header = f.header();
         let (mut input, k) = frame_input(f)?;
-        self.say_distortion(f.info.as_ref());
+        let k = self.camera(f.info.as_ref(), &mut input, k)?;
         input.sensor = self.sensor;
         tre_pipeline::check_input(&input, &self.cfg).map_err(InputError::Pipeline)?;
         let out = self
