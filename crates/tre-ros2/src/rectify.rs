@@ -148,12 +148,12 @@ impl Rectifier {
 }
 
 #[cfg(test)]
-mod tests {
+mod tests_support {
     use super::*;
 
     const D: [f64; 5] = [-0.3, 0.1, 0.001, -0.001, 0.0];
 
-    fn info() -> CameraInfo {
+    pub(super) fn info() -> CameraInfo {
         CameraInfo {
             width: 160,
             height: 120,
@@ -186,6 +186,20 @@ mod tests {
         2.0 / (1.0 - 0.5 * x)
     }
 
+    /// The raw image a lens with distortion `D` gives of the plane (`info()`'s `k`).
+    pub(super) fn distorted_plane() -> Grid<f64> {
+        Grid::from_fn(160, 120, |u, v| {
+            let (x, _) = undistorted((u as f64 - 80.0) / 120.0, (v as f64 - 60.0) / 120.0);
+            plane_z(x)
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tests_support::{distorted_plane, info};
+    use super::*;
+
     /// The largest distance from the plane of a depth read through a pinhole, and how many
     /// pixels had depth.
     fn off_plane(depth: &Grid<f64>, k: &Intrinsics) -> (f64, usize) {
@@ -208,11 +222,7 @@ mod tests {
     #[test]
     fn a_distorted_plane_is_flat_again() {
         let info = info();
-        // The raw image a lens with distortion D gives of the plane.
-        let raw = Grid::from_fn(160, 120, |u, v| {
-            let (x, _) = undistorted((u as f64 - 80.0) / 120.0, (v as f64 - 60.0) / 120.0);
-            plane_z(x)
-        });
+        let raw = distorted_plane();
         let naive = Intrinsics::new(120.0, 120.0, 80.0, 60.0).unwrap();
         let (read_raw, _) = off_plane(&raw, &naive);
         let r = Rectifier::new(&info).unwrap();
@@ -251,5 +261,51 @@ mod tests {
         };
         let e = Rectifier::new(&fisheye).unwrap_err();
         assert!(e.to_string().contains("\"equidistant\""), "{e}");
+    }
+}
+
+#[cfg(test)]
+mod processor_tests {
+    use super::*;
+    use tre_pipeline::{Mode, Pipeline, PipelineConfig};
+    use tre_record::msgs::Header;
+
+    use super::tests_support::{distorted_plane, info};
+    use crate::{FrameMsgs, InputError, Processor};
+
+    fn frame(info: CameraInfo) -> FrameMsgs {
+        FrameMsgs {
+            depth: Some(tre_record::encode::float_image(
+                &Header::default(),
+                &distorted_plane(),
+            )),
+            colour: None,
+            info: Some(info),
+            pose: None,
+        }
+    }
+
+    #[test]
+    fn the_node_remaps_with_undistort_and_refuses_what_it_cannot_model() {
+        let cfg = PipelineConfig {
+            mode: Mode::Geometric,
+            ..PipelineConfig::default()
+        };
+        let mut node = Processor::new(Pipeline::new(None), cfg, None, None).with_undistort(true);
+        let out = node.process(&frame(info())).unwrap();
+        assert_eq!((out.roughness.width, out.roughness.height), (160, 120));
+        let fisheye = CameraInfo {
+            distortion_model: "equidistant".into(),
+            ..info()
+        };
+        let e = node.process(&frame(fisheye)).unwrap_err();
+        assert!(matches!(e, InputError::Distortion { .. }), "{e}");
+        // Without --undistort the same frame is read as rectified (and warned of).
+        let mut plain = Processor::new(Pipeline::new(None), cfg, None, None);
+        let fisheye = CameraInfo {
+            distortion_model: "equidistant".into(),
+            ..info()
+        };
+        assert!(plain.process(&frame(fisheye)).is_ok());
     }
 }
