@@ -37,7 +37,7 @@ impl Ros2 {
             a.output_prefix
         );
         // ROS messages have no field for an assumption: said here, once.
-        for assumed in a.assumptions() {
+        for assumed in a.assumption_lines() {
             eprintln!("warning: assumed on every frame: {assumed}");
         }
         self.wait()?;

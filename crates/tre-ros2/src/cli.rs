@@ -260,6 +260,24 @@ impl Ros2Args {
         )
     }
 
+    /// [`Self::assumptions`] in the node's words: what each means for every frame, and the
+    /// option that removes it (the node takes no mounting: `rgb` has no slope there).
+    pub fn assumption_lines(&self) -> Vec<String> {
+        self.assumptions()
+            .into_iter()
+            .map(|a| match a {
+                Assumption::Sensor => "no depth-sensor model: the depth is read as exact, with \
+                                       no noise margin and no uncertainty (name it: --sensor)"
+                    .to_owned(),
+                Assumption::Mounting => "no mounting: the rgb depth prior assumes a camera 60° \
+                                         down and 1 m up (the node takes no mounting), and \
+                                         slope and traversability are unknown"
+                    .to_owned(),
+                other => other.to_string(),
+            })
+            .collect()
+    }
+
     /// The images published beside the roughness.
     pub fn images(&self) -> ImageOutputs {
         ImageOutputs {
@@ -400,6 +418,18 @@ mod tests {
         assert_eq!(assumed(&["--sensor", "lidar"]), []);
         assert_eq!(assumed(&["--mode", "rgbd"]), []);
         assert_eq!(assumed(&["--mode", "rgb"]), [Assumption::Mounting]);
+        // Said with the node's option, not the camera file's keys.
+        let lines = Cli::try_parse_from(["tre"])
+            .expect("parses")
+            .ros2
+            .assumption_lines();
+        assert!(
+            lines.len() == 1 && lines[0].contains("--sensor"),
+            "{lines:?}"
+        );
+        let rgb = Cli::try_parse_from(["tre", "--mode", "rgb"]).expect("parses");
+        let lines = rgb.ros2.assumption_lines();
+        assert!(!lines[0].contains("pitch_deg"), "{lines:?}");
     }
 
     #[test]
