@@ -311,11 +311,7 @@ fn distortion_key(key: &str, value: &serde_json::Value) -> Option<CameraKeyError
             _ => false,
         }
     }
-    let k: String = key
-        .chars()
-        .filter(char::is_ascii_alphanumeric)
-        .map(|c| c.to_ascii_lowercase())
-        .collect();
+    let k = bare_key(key);
     let named = k.starts_with("dist")
         || [
             "d", "coeffs", "k1", "k2", "k3", "k4", "k5", "k6", "p1", "p2",
@@ -342,20 +338,22 @@ fn edit_distance(a: &str, b: &str) -> usize {
     row[b.len()]
 }
 
+/// A key's letters and digits, lower case: `Depth_Scale` and `depth-scale` read `depthscale`.
+fn bare_key(key: &str) -> String {
+    key.chars()
+        .filter(char::is_ascii_alphanumeric)
+        .map(|c| c.to_ascii_lowercase())
+        .collect()
+}
+
 /// Why an unknown camera key must not be ignored, if it must not.
 fn misspelt_camera_key(key: &str) -> Option<CameraKeyError> {
-    let bare = |k: &str| -> String {
-        k.chars()
-            .filter(char::is_ascii_alphanumeric)
-            .map(|c| c.to_ascii_lowercase())
-            .collect()
-    };
-    let k = bare(key);
+    let k = bare_key(key);
     let key = key.to_owned();
     // The same letters in another case or with other separators, or within one edit of a
     // two-letter key (`fz`) and two of a longer one (`depth_sacle`): a typo, not a note.
     let near = |c: &str| {
-        let c = bare(c);
+        let c = bare_key(c);
         c == k || edit_distance(&c, &k) <= if c.len() <= 2 { 1 } else { 2 }
     };
     if let Some(known) = CAMERA_KEYS.iter().find(|c| near(c)) {

@@ -6,7 +6,11 @@
 use super::*;
 use crate::common::real_frames;
 use tre::model::{Models, SessionConfig};
-use tre::pipeline::{read_calibration, FrameInput, Mode, Pipeline, PipelineConfig, Traversability};
+use tre::pipeline::{
+    read_calibration, FrameInput, FrameOutput, Mode, Pipeline, PipelineConfig, SensorMaps,
+    Traversability,
+};
+use tre::roughness::interval::IntervalTable;
 
 fn pipeline() -> Pipeline {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
@@ -69,41 +73,62 @@ fn near_floor(
         })
 }
 
-#[test]
-fn the_spec_through_its_intervals_keeps_hazards_off_and_the_near_floor_on() {
-    crate::common::skip_unless_shared!("data/real-rgbd");
-    let mut p = pipeline();
+/// Over the shared Kinect frames, `cfg` read through `table` with the kinect_v1 model
+/// (`sensor`: also the input's model): the pixels of roughness >= 5 cm, those of them read
+/// traversable, the near-floor pixels ([`near_floor`]) and those of them traversable. `each`
+/// sees every frame's output and maps.
+fn through_intervals(
+    p: &mut Pipeline,
+    cfg: &PipelineConfig,
+    table: &IntervalTable,
+    sensor: Option<SensorNoise>,
+    mut each: impl FnMut(&FrameOutput, &SensorMaps),
+) -> [usize; 4] {
     let kinect = SensorNoise::Preset(SensorPreset::KinectV1);
-    let table = p.interval_table(Mode::Geometric).cloned().unwrap();
-    let (mut missed, mut hazards, mut floor, mut floor_go) = (0, 0, 0, 0);
+    let [mut hazards, mut missed, mut floor, mut floor_go] = [0; 4];
     for f in real_frames() {
         let (depth, k) = f.depth();
         let input = FrameInput {
             depth_m: Some(depth.clone()),
             intrinsics: Some(k),
+            sensor,
             ..FrameInput::default()
         };
-        let out = p.run(&input, &config(Mode::Geometric)).unwrap();
+        let out = p.run(&input, cfg).unwrap();
         let maps = out
-            .sensor_maps(&input, Mode::Geometric, Some(&kinect), None, Some(&table))
+            .sensor_maps(&input, Mode::Geometric, Some(&kinect), None, Some(table))
             .unwrap();
-        let (lo, hi) = maps.interval_m.as_ref().unwrap();
+        each(&out, &maps);
         for (i, &r) in out.roughness_m.as_slice().iter().enumerate() {
-            let t = maps.traversal.as_slice()[i];
-            if !r.is_finite() {
-                assert_eq!(t, Traversal::Unknown);
-                continue;
-            }
-            assert!(lo.as_slice()[i] <= hi.as_slice()[i]);
             if r >= 0.05 {
                 hazards += 1;
-                missed += usize::from(t == Traversal::Traversable);
+                missed += usize::from(maps.traversal.as_slice()[i] == Traversal::Traversable);
             }
         }
         let (n, go) = near_floor(f.floor, &depth, &maps.traversal);
         (floor, floor_go) = (floor + n, floor_go + go);
         p.recycle(out);
     }
+    [hazards, missed, floor, floor_go]
+}
+
+#[test]
+fn the_spec_through_its_intervals_keeps_hazards_off_and_the_near_floor_on() {
+    crate::common::skip_unless_shared!("data/real-rgbd");
+    let mut p = pipeline();
+    let table = p.interval_table(Mode::Geometric).cloned().unwrap();
+    let cfg = config(Mode::Geometric);
+    let [hazards, missed, floor, floor_go] =
+        through_intervals(&mut p, &cfg, &table, None, |out, maps| {
+            let (lo, hi) = maps.interval_m.as_ref().unwrap();
+            for (i, &r) in out.roughness_m.as_slice().iter().enumerate() {
+                if !r.is_finite() {
+                    assert_eq!(maps.traversal.as_slice()[i], Traversal::Unknown);
+                    continue;
+                }
+                assert!(lo.as_slice()[i] <= hi.as_slice()[i]);
+            }
+        });
     assert!(hazards > 100_000, "{hazards}");
     assert_eq!(missed, 0, "spec hazards read traversable");
     assert!(floor > 10_000, "{floor}");
@@ -125,29 +150,8 @@ fn the_spec_on_cleaned_depth_through_its_intervals_keeps_its_hazards_off_and_the
     };
     let table = p.interval_table_for(&cfg).cloned().unwrap();
     assert_ne!(Some(&table), p.interval_table(Mode::Geometric));
-    let (mut missed, mut hazards, mut floor, mut floor_go) = (0, 0, 0, 0);
-    for f in real_frames() {
-        let (depth, k) = f.depth();
-        let input = FrameInput {
-            depth_m: Some(depth.clone()),
-            intrinsics: Some(k),
-            sensor: Some(kinect),
-            ..FrameInput::default()
-        };
-        let out = p.run(&input, &cfg).unwrap();
-        let maps = out
-            .sensor_maps(&input, Mode::Geometric, Some(&kinect), None, Some(&table))
-            .unwrap();
-        for (i, &r) in out.roughness_m.as_slice().iter().enumerate() {
-            if r >= 0.05 {
-                hazards += 1;
-                missed += usize::from(maps.traversal.as_slice()[i] == Traversal::Traversable);
-            }
-        }
-        let (n, go) = near_floor(f.floor, &depth, &maps.traversal);
-        (floor, floor_go) = (floor + n, floor_go + go);
-        p.recycle(out);
-    }
+    let [hazards, missed, floor, floor_go] =
+        through_intervals(&mut p, &cfg, &table, Some(kinect), |_, _| {});
     assert!(hazards > 10_000, "{hazards}");
     assert_eq!(missed, 0, "its own hazards read traversable");
     let share = floor_go as f64 / floor.max(1) as f64;
